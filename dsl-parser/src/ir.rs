@@ -1,0 +1,513 @@
+//! `ModelIr`: the plain-data contract between the front end and every back end.
+//!
+//! Invariants (checked by [`ModelIr::check_invariants`] in debug builds and tests):
+//! - `exprs` is topologically ordered: a node only refers to nodes with smaller ids, and the
+//!   DAG is hash-consed, so structurally equal sub-expressions share one id.
+//! - `bodies[i]` is degree of freedom `i`; its position and velocity signals are
+//!   `signals[2 i]` and `signals[2 i + 1]`; input `j` is `signals[2 n_bodies + j]`.
+//! - `equations[i]` is the equation of motion of body `i`, written as `Σ coef · basis = 0`
+//!   (input forces appear as terms with a known coefficient −1).
+//! - Every parameter is used by at least one term (validation rejects unused parameters).
+//!
+//! No pest, syn or I/O types appear here; spans are byte ranges into the source the model
+//! was compiled from, kept in side tables so that late errors can point at the `.dyn` line.
+
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+
+/// A byte range `[start, end)` in the model source.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct Span {
+    pub start: usize,
+    pub end: usize,
+}
+
+impl Span {
+    pub fn new(start: usize, end: usize) -> Self {
+        Span { start, end }
+    }
+}
+
+macro_rules! typed_id {
+    ($($name:ident),*) => {$(
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+        #[serde(transparent)]
+        pub struct $name(pub u32);
+        impl $name {
+            pub fn index(self) -> usize { self.0 as usize }
+        }
+    )*};
+}
+typed_id!(BodyId, InputId, ParamId, ElementId, SignalId, ExprId);
+
+/// What a signal is. Signal names: body `m1` gives `m1.x` and `m1.v`; input `u` is `u`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SignalKind {
+    Position(BodyId),
+    Velocity(BodyId),
+    Input(InputId),
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SignalIr {
+    pub name: String,
+    pub kind: SignalKind,
+    /// Present as a column in measured data.
+    pub measured: bool,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BodyIr {
+    pub name: String,
+    /// The mass: a known constant or a parameter.
+    pub mass: Coef,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct InputIr {
+    pub name: String,
+    /// The body the input force acts on (positive along the body's coordinate).
+    pub body: BodyId,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum ParamKind {
+    /// A value the user knows; its terms move to the right-hand side.
+    Known(f64),
+    /// To be identified. The nominal value is the simulation model's value.
+    Unknown { nominal: Option<f64> },
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ParamIr {
+    pub name: String,
+    pub kind: ParamKind,
+}
+
+impl ParamIr {
+    pub fn is_unknown(&self) -> bool {
+        matches!(self.kind, ParamKind::Unknown { .. })
+    }
+    /// The value used for simulation: the known value or the nominal one.
+    pub fn nominal(&self) -> Option<f64> {
+        match self.kind {
+            ParamKind::Known(v) => Some(v),
+            ParamKind::Unknown { nominal } => nominal,
+        }
+    }
+}
+
+/// A coefficient `scale · param` (or just `scale` when `param` is `None`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Coef {
+    pub scale: f64,
+    pub param: Option<ParamId>,
+}
+
+impl Coef {
+    pub fn constant(scale: f64) -> Self {
+        Coef { scale, param: None }
+    }
+    pub fn param(p: ParamId) -> Self {
+        Coef {
+            scale: 1.0,
+            param: Some(p),
+        }
+    }
+    pub fn scaled(self, by: f64) -> Self {
+        Coef {
+            scale: self.scale * by,
+            param: self.param,
+        }
+    }
+}
+
+/// One end of an element.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Node {
+    Ground,
+    Body(BodyId),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ElementKind {
+    Spring,
+    Damper,
+    Force,
+}
+
+/// A force element between two nodes. With `s = x(b) − x(a)` and `v = v(b) − v(a)` the
+/// element force `f = Σ coef · basis(s, v, inputs)` pushes `a` by `+f` and `b` by `−f`
+/// (a positive `f` resists extension, as a spring does).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ElementIr {
+    pub name: String,
+    pub kind: ElementKind,
+    pub nodes: (Node, Node),
+    /// The relative displacement `s` and velocity `v` as expressions over signals.
+    pub s: ExprId,
+    pub v: ExprId,
+    /// The force terms, with `s` and `v` already substituted.
+    pub terms: Vec<ForceTerm>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ForceTerm {
+    pub coef: Coef,
+    pub basis: ExprId,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum UnaryOp {
+    Neg,
+    Abs,
+    Sign,
+    Tanh,
+    Sqrt,
+    Exp,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum BinaryOp {
+    Add,
+    Sub,
+    Mul,
+    Div,
+}
+
+/// A node of the expression DAG. Constants are stored as bit patterns so nodes can be
+/// hash-consed; use [`ExprNode::constant`] and [`f64::from_bits`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum ExprNode {
+    Const(u64),
+    Signal(SignalId),
+    Unary(UnaryOp, ExprId),
+    Binary(BinaryOp, ExprId, ExprId),
+    /// Integer power.
+    Powi(ExprId, i32),
+    /// `deadzone(a, gap)`: 0 for |a| ≤ gap, else `a − gap·sign(a)`. The gap is a constant.
+    Deadzone(ExprId, u64),
+    /// `saturate(a, limit)`: `a` clamped to [−limit, limit]. The limit is a constant.
+    Saturate(ExprId, u64),
+}
+
+impl ExprNode {
+    pub fn constant(v: f64) -> Self {
+        // Normalise −0.0 so that equal constants hash equally.
+        ExprNode::Const(if v == 0.0 { 0.0f64.to_bits() } else { v.to_bits() })
+    }
+    /// The children of this node, in order.
+    pub fn children(&self) -> impl Iterator<Item = ExprId> {
+        let (a, b) = match *self {
+            ExprNode::Const(_) | ExprNode::Signal(_) => (None, None),
+            ExprNode::Unary(_, a)
+            | ExprNode::Powi(a, _)
+            | ExprNode::Deadzone(a, _)
+            | ExprNode::Saturate(a, _) => (Some(a), None),
+            ExprNode::Binary(_, a, b) => (Some(a), Some(b)),
+        };
+        a.into_iter().chain(b)
+    }
+}
+
+/// The thing a coefficient multiplies in an equation of motion.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Basis {
+    /// A static function of signals (which may include velocities).
+    Expr(ExprId),
+    /// The `order`-th time derivative (1 or 2) of a body's position. Terms linear in a
+    /// velocity are lowered to `Deriv { order: 1 }` so that a back end can move the
+    /// derivative onto its filter when the velocity is not measured.
+    Deriv { body: BodyId, order: u8 },
+}
+
+/// Where a term of an equation comes from (for printing and diagnostics).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum TermOrigin {
+    Inertia(BodyId),
+    Element(ElementId),
+    Input(InputId),
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TermIr {
+    pub coef: Coef,
+    pub basis: Basis,
+    pub origin: TermOrigin,
+}
+
+/// The equation of motion of one body: `Σ terms = 0`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EquationIr {
+    pub body: BodyId,
+    pub terms: Vec<TermIr>,
+}
+
+/// A form filter (paper eq. 2) that turns white noise of intensity `level` into an input.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum FormFilter {
+    /// `u' = −corner·u + level·w`.
+    Lowpass { corner: f64 },
+    /// `u'' + 2 damping freq u' + freq² u = level·w`.
+    SecondOrder { freq: f64, damping: f64 },
+    /// `u = level·w` band-limited to the sample rate (white, held per sample).
+    White,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ExcitationIr {
+    pub input: InputId,
+    pub filter: FormFilter,
+    /// Intensities of the white noise, one per excitation level.
+    pub levels: Vec<f64>,
+}
+
+/// A user-specified identification filter bank.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FilterSpecIr {
+    /// Corner frequencies in rad/s.
+    pub corners: Vec<f64>,
+    /// Order of each low-pass chain (≥ 2 so displacement-only data works).
+    pub order: u32,
+    /// Signals driving the bank; empty means the default (measured positions and inputs).
+    pub driven_by: Vec<SignalId>,
+}
+
+/// Spans of declarations, for errors raised after lowering.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SpanTable {
+    pub bodies: Vec<Span>,
+    pub inputs: Vec<Span>,
+    pub params: Vec<Span>,
+    pub elements: Vec<Span>,
+    /// Span of the whole `model` item.
+    pub model: Span,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ModelIr {
+    pub name: String,
+    pub bodies: Vec<BodyIr>,
+    pub inputs: Vec<InputIr>,
+    pub params: Vec<ParamIr>,
+    pub signals: Vec<SignalIr>,
+    pub elements: Vec<ElementIr>,
+    pub exprs: Vec<ExprNode>,
+    pub equations: Vec<EquationIr>,
+    pub excitation: Vec<ExcitationIr>,
+    pub filter: Option<FilterSpecIr>,
+    pub spans: SpanTable,
+}
+
+impl ModelIr {
+    pub fn position(&self, b: BodyId) -> SignalId {
+        SignalId(2 * b.0)
+    }
+    pub fn velocity(&self, b: BodyId) -> SignalId {
+        SignalId(2 * b.0 + 1)
+    }
+    pub fn input_signal(&self, i: InputId) -> SignalId {
+        SignalId(2 * self.bodies.len() as u32 + i.0)
+    }
+    pub fn signal(&self, s: SignalId) -> &SignalIr {
+        &self.signals[s.index()]
+    }
+    pub fn expr(&self, e: ExprId) -> ExprNode {
+        self.exprs[e.index()]
+    }
+    pub fn param_id(&self, name: &str) -> Option<ParamId> {
+        self.params
+            .iter()
+            .position(|p| p.name == name)
+            .map(|i| ParamId(i as u32))
+    }
+    pub fn signal_id(&self, name: &str) -> Option<SignalId> {
+        self.signals
+            .iter()
+            .position(|s| s.name == name)
+            .map(|i| SignalId(i as u32))
+    }
+    /// Unknown parameters in declaration order: the columns of the least-squares problem.
+    pub fn unknowns(&self) -> Vec<ParamId> {
+        (0..self.params.len() as u32)
+            .map(ParamId)
+            .filter(|p| self.params[p.index()].is_unknown())
+            .collect()
+    }
+    pub fn measured_signals(&self) -> Vec<SignalId> {
+        (0..self.signals.len() as u32)
+            .map(SignalId)
+            .filter(|s| self.signals[s.index()].measured)
+            .collect()
+    }
+    /// The static basis expressions of all equations, deduplicated, in first-use order.
+    /// This is the list of columns a compiled evaluator computes per sample; the macro's
+    /// generated code and the interpreter both compute exactly this list, in this order.
+    pub fn eval_roots(&self) -> Vec<ExprId> {
+        let mut seen = std::collections::HashSet::new();
+        let mut out = Vec::new();
+        for eq in &self.equations {
+            for t in &eq.terms {
+                if let Basis::Expr(e) = t.basis {
+                    if seen.insert(e) {
+                        out.push(e);
+                    }
+                }
+            }
+        }
+        out
+    }
+    /// The signals an expression depends on.
+    pub fn expr_signals(&self, e: ExprId) -> Vec<SignalId> {
+        let mut mark = vec![false; e.index() + 1];
+        mark[e.index()] = true;
+        let mut out = Vec::new();
+        for i in (0..=e.index()).rev() {
+            if !mark[i] {
+                continue;
+            }
+            let node = self.exprs[i];
+            if let ExprNode::Signal(s) = node {
+                out.push(s);
+            }
+            for c in node.children() {
+                mark[c.index()] = true;
+            }
+        }
+        out.sort();
+        out.dedup();
+        out
+    }
+    /// Evaluate an expression at one point, given every signal's value (index = SignalId).
+    /// For printing, tests and the statistical-linearisation templates; hot loops use a
+    /// compiled evaluator instead.
+    pub fn eval_scalar(&self, e: ExprId, signals: &[f64]) -> f64 {
+        let mut vals = vec![0.0; e.index() + 1];
+        for i in 0..=e.index() {
+            vals[i] = eval_node(self.exprs[i], &vals, signals);
+        }
+        vals[e.index()]
+    }
+
+    /// Check the structural invariants listed in the module documentation.
+    pub fn check_invariants(&self) -> Result<(), String> {
+        for (i, n) in self.exprs.iter().enumerate() {
+            for c in n.children() {
+                if c.index() >= i {
+                    return Err(format!("expr {i} refers forward to {}", c.index()));
+                }
+            }
+        }
+        let nb = self.bodies.len();
+        if self.signals.len() != 2 * nb + self.inputs.len() {
+            return Err("signal table does not match bodies and inputs".into());
+        }
+        for (i, b) in self.bodies.iter().enumerate() {
+            let id = BodyId(i as u32);
+            if self.signals[2 * i].kind != SignalKind::Position(id)
+                || self.signals[2 * i + 1].kind != SignalKind::Velocity(id)
+            {
+                return Err(format!("signals of body {} are out of place", b.name));
+            }
+        }
+        if self.equations.len() != nb {
+            return Err("one equation per body expected".into());
+        }
+        Ok(())
+    }
+}
+
+/// Evaluate one node given the values of earlier nodes and of all signals.
+#[inline]
+pub fn eval_node(node: ExprNode, vals: &[f64], signals: &[f64]) -> f64 {
+    match node {
+        ExprNode::Const(b) => f64::from_bits(b),
+        ExprNode::Signal(s) => signals[s.index()],
+        ExprNode::Unary(op, a) => {
+            let a = vals[a.index()];
+            match op {
+                UnaryOp::Neg => -a,
+                UnaryOp::Abs => a.abs(),
+                UnaryOp::Sign => sign(a),
+                UnaryOp::Tanh => a.tanh(),
+                UnaryOp::Sqrt => a.sqrt(),
+                UnaryOp::Exp => a.exp(),
+            }
+        }
+        ExprNode::Binary(op, a, b) => {
+            let (a, b) = (vals[a.index()], vals[b.index()]);
+            match op {
+                BinaryOp::Add => a + b,
+                BinaryOp::Sub => a - b,
+                BinaryOp::Mul => a * b,
+                BinaryOp::Div => a / b,
+            }
+        }
+        ExprNode::Powi(a, n) => vals[a.index()].powi(n),
+        ExprNode::Deadzone(a, g) => deadzone(vals[a.index()], f64::from_bits(g)),
+        ExprNode::Saturate(a, l) => saturate(vals[a.index()], f64::from_bits(l)),
+    }
+}
+
+/// `sign(0) = 0`, as in the physics of Coulomb friction at rest.
+#[inline]
+pub fn sign(a: f64) -> f64 {
+    if a > 0.0 {
+        1.0
+    } else if a < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+#[inline]
+pub fn deadzone(a: f64, gap: f64) -> f64 {
+    if a > gap {
+        a - gap
+    } else if a < -gap {
+        a + gap
+    } else {
+        0.0
+    }
+}
+
+#[inline]
+pub fn saturate(a: f64, limit: f64) -> f64 {
+    a.clamp(-limit, limit)
+}
+
+/// Hash-consing builder for the expression DAG. Lowering uses it so that common
+/// subexpressions (e.g. `m2.x - m1.x` used by several terms) are shared.
+#[derive(Default, Debug, Clone)]
+pub struct ExprArena {
+    pub nodes: Vec<ExprNode>,
+    index: HashMap<ExprNode, ExprId>,
+}
+
+impl ExprArena {
+    pub fn intern(&mut self, node: ExprNode) -> ExprId {
+        if let Some(&id) = self.index.get(&node) {
+            return id;
+        }
+        let id = ExprId(self.nodes.len() as u32);
+        self.nodes.push(node);
+        self.index.insert(node, id);
+        id
+    }
+    pub fn constant(&mut self, v: f64) -> ExprId {
+        self.intern(ExprNode::constant(v))
+    }
+    pub fn signal(&mut self, s: SignalId) -> ExprId {
+        self.intern(ExprNode::Signal(s))
+    }
+    pub fn binary(&mut self, op: BinaryOp, a: ExprId, b: ExprId) -> ExprId {
+        self.intern(ExprNode::Binary(op, a, b))
+    }
+    pub fn unary(&mut self, op: UnaryOp, a: ExprId) -> ExprId {
+        self.intern(ExprNode::Unary(op, a))
+    }
+    pub fn into_nodes(self) -> Vec<ExprNode> {
+        self.nodes
+    }
+}

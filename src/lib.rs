@@ -1,0 +1,5 @@
+//! dynid: detect, identify and diagnose nonlinear force elements of mechanical models
+//! from random-excitation data by the covariance method.
+
+pub use dsl_parser;
+pub use dynid_runtime as runtime;
