@@ -4,4 +4,5 @@
 //! takes the IR (or a [`BasisEval`] compiled from it) and plain data, and returns typed
 //! results or typed errors.
 
+pub mod record;
 pub mod tape;

@@ -1,0 +1,12 @@
+//! `dynid compile`.
+
+/// Arguments of `dynid compile`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The model file.
+    pub model: std::path::PathBuf,
+}
+
+pub fn run(_args: Args) -> miette::Result<()> {
+    Err(miette::miette!("`dynid compile` is not available yet"))
+}

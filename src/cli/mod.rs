@@ -1,0 +1,34 @@
+//! Subcommands. Each lives in its own module with an `Args` struct and a `run` function.
+
+use clap::{Parser, Subcommand};
+
+pub mod compile;
+pub mod identify;
+pub mod simulate;
+
+/// Detect, identify and diagnose nonlinear force elements in mechanical models from
+/// random-excitation data (covariance method).
+#[derive(Parser, Debug)]
+#[command(name = "dynid", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Compile a .dyn model: equations of motion, parameters, least-squares columns.
+    Compile(compile::Args),
+    /// Simulate a model at its excitation levels (or driven by a measured input).
+    Simulate(simulate::Args),
+    /// Identify the unknown parameters from measured data, one CSV per excitation level.
+    Identify(identify::Args),
+}
+
+pub fn run(cli: Cli) -> miette::Result<()> {
+    match cli.command {
+        Command::Compile(a) => compile::run(a),
+        Command::Simulate(a) => simulate::run(a),
+        Command::Identify(a) => identify::run(a),
+    }
+}
