@@ -126,7 +126,10 @@ impl Tape {
         out: &mut [f64],
         scratch: &mut TapeScratch,
     ) {
-        assert!(out.len() >= self.roots.len() * len, "output block too small");
+        assert!(
+            out.len() >= self.roots.len() * len,
+            "output block too small"
+        );
         if scratch.len != len || scratch.regs.len() < self.ops.len() * len {
             scratch.regs.resize(self.ops.len() * len, 0.0);
             scratch.len = len;
