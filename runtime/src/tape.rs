@@ -102,7 +102,7 @@ impl Tape {
         let mut out: Vec<SignalId> = self
             .ops
             .iter()
-            .flat_map(|op| op_operands(op))
+            .flat_map(op_operands)
             .chain(self.roots.iter().copied())
             .filter_map(|o| match o {
                 Operand::Sig(s) => Some(SignalId(s)),
