@@ -4,5 +4,6 @@
 //! takes the IR (or a [`BasisEval`] compiled from it) and plain data, and returns typed
 //! results or typed errors.
 
+pub mod detect;
 pub mod record;
 pub mod tape;
