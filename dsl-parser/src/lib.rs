@@ -4,6 +4,78 @@
 //! the only thing that leaves this crate for the back ends is [`ir::ModelIr`], which is
 //! plain data (no pest or syn types, no I/O).
 //!
-//! API boundary: [`ir`] (the IR) and the functions re-exported below.
+//! API boundary: [`ir`] (the IR), [`compile_str`] and [`compile_file`] (source → IR or all
+//! diagnostics of the file), [`error`] (the diagnostics) and [`print`] (readable views of
+//! an IR and the inverse of compilation, [`print::to_source`]).
+//!
+//! ```
+//! let ir = dsl_parser::compile_str("sdof.dyn", "
+//!     model sdof {
+//!         body m = 1.0
+//!         input u on m
+//!         spring k (ground, m) ~ 4.0
+//!         damper d (ground, m) ~ 0.4
+//!     }").unwrap();
+//! assert_eq!(ir.unknowns().len(), 2);
+//! assert_eq!(
+//!     dsl_parser::print::render_equations(&ir),
+//!     "m: 1 m.x'' + k m.x + d m.x' = u\n"
+//! );
+//! ```
 
+mod ast;
+pub mod error;
 pub mod ir;
+mod lower;
+pub mod print;
+
+pub use error::{CompileError, CompileErrors, ErrorKind};
+
+use std::path::Path;
+
+/// Compile `.dyn` source text. `name` is the file name shown in diagnostics.
+///
+/// Returns every error of the file, not only the first (a syntax error stops the parse, so
+/// it is reported alone).
+pub fn compile_str(name: &str, source: &str) -> Result<ir::ModelIr, CompileErrors> {
+    let mut sink = error::ErrorSink::new(name, source);
+    let ir = ast::parse(source, &mut sink).map(|ast| lower::lower(&ast, &mut sink));
+    match ir {
+        Some(ir) if sink.errors.is_empty() => {
+            debug_assert_eq!(ir.check_invariants(), Ok(()));
+            Ok(ir)
+        }
+        _ => {
+            // Report in source order, however the passes found them.
+            let mut errors = sink.errors;
+            errors.sort_by_key(|e| e.span().map_or(usize::MAX, |s| s.start));
+            Err(CompileErrors {
+                name: name.to_string(),
+                src: sink.src,
+                errors,
+            })
+        }
+    }
+}
+
+/// Read and compile a `.dyn` file. A read failure is reported as a `dyn::io` diagnostic.
+pub fn compile_file(path: &Path) -> Result<ir::ModelIr, CompileErrors> {
+    let name = path.display().to_string();
+    match std::fs::read_to_string(path) {
+        Ok(src) => compile_str(&name, &src),
+        Err(e) => {
+            let sink = error::ErrorSink::new(&name, "");
+            let d = error::Draft {
+                message: format!("cannot read `{name}`: {e}"),
+                help: "check the path and the file permissions".into(),
+                ..Default::default()
+            };
+            let err = CompileError::build(ErrorKind::Io, d, sink.src.clone());
+            Err(CompileErrors {
+                name,
+                src: sink.src,
+                errors: vec![err],
+            })
+        }
+    }
+}

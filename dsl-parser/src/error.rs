@@ -1,0 +1,351 @@
+//! Diagnostics of the front end.
+//!
+//! Every error carries the model source, a labelled span and a `help` that says what to do,
+//! so that a rendered report shows `file.dyn:line:column` and the offending text. All errors
+//! of a file are collected into one [`CompileErrors`].
+
+use crate::ast::Rule;
+use crate::ir::Span;
+use miette::{Diagnostic, NamedSource, SourceSpan};
+use std::sync::Arc;
+use thiserror::Error;
+
+/// The model source as carried by every diagnostic.
+pub type Source = NamedSource<Arc<str>>;
+
+macro_rules! error_kinds {
+    ($( $(#[$doc:meta])* $variant:ident => $code:literal, )*) => {
+        /// One diagnostic. All kinds share the same fields: a message, a primary label, an
+        /// optional secondary label (e.g. "first declared here"), a help and the source.
+        #[derive(Debug, Error, Diagnostic)]
+        pub enum CompileError {
+            $(
+                $(#[$doc])*
+                #[error("{message}")]
+                #[diagnostic(code($code))]
+                $variant {
+                    message: String,
+                    #[label("{label}")]
+                    span: Option<SourceSpan>,
+                    label: String,
+                    #[label("{other_label}")]
+                    other: Option<SourceSpan>,
+                    other_label: String,
+                    #[help]
+                    help: String,
+                    #[source_code]
+                    src: Source,
+                },
+            )*
+        }
+
+        /// The kind of a [`CompileError`], one per diagnostic code.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum ErrorKind { $( $(#[$doc])* $variant, )* }
+
+        impl ErrorKind {
+            /// The diagnostic code, e.g. `dyn::undefined_name`.
+            pub fn code(self) -> &'static str {
+                match self { $( ErrorKind::$variant => $code, )* }
+            }
+            /// Every kind, in declaration order.
+            pub const ALL: &'static [ErrorKind] = &[ $( ErrorKind::$variant, )* ];
+        }
+
+        impl CompileError {
+            pub fn kind(&self) -> ErrorKind {
+                match self { $( CompileError::$variant { .. } => ErrorKind::$variant, )* }
+            }
+            /// The primary span (byte range in the source), if the error has one.
+            pub fn span(&self) -> Option<Span> {
+                match self {
+                    $( CompileError::$variant { span, .. } =>
+                        span.map(|s| Span::new(s.offset(), s.offset() + s.len())), )*
+                }
+            }
+            pub fn message(&self) -> &str {
+                match self { $( CompileError::$variant { message, .. } => message, )* }
+            }
+            pub fn help_text(&self) -> &str {
+                match self { $( CompileError::$variant { help, .. } => help, )* }
+            }
+
+            pub(crate) fn build(kind: ErrorKind, d: Draft, src: Source) -> CompileError {
+                let Draft { message, span, label, other, other_label, help } = d;
+                let span = span.map(to_source_span);
+                let other = other.map(to_source_span);
+                match kind {
+                    $( ErrorKind::$variant => CompileError::$variant {
+                        message, span, label, other, other_label, help, src,
+                    }, )*
+                }
+            }
+        }
+    };
+}
+
+error_kinds! {
+    /// The text does not match the grammar.
+    Syntax => "dyn::syntax",
+    /// The model file could not be read.
+    Io => "dyn::io",
+    /// A name is declared twice.
+    DuplicateName => "dyn::duplicate_name",
+    /// A name is used but never declared.
+    UndefinedName => "dyn::undefined_name",
+    /// A reserved word (`ground`, `s`, `v`, `t`, a function or keyword) is used as a name.
+    ReservedName => "dyn::reserved_name",
+    /// A signal suffix other than `.x` or `.v`, or a signal where a body is expected.
+    InvalidSignal => "dyn::invalid_signal",
+    /// An unknown function or a wrong number of arguments.
+    InvalidCall => "dyn::invalid_call",
+    /// A parameter that does not enter its term as a plain factor.
+    NonlinearParameter => "dyn::nonlinear_parameter",
+    /// A gap, limit or exponent that is not a numeric constant.
+    NonConstantArgument => "dyn::non_constant_argument",
+    /// A term whose basis depends on no signal (a constant force).
+    ConstantTerm => "dyn::constant_term",
+    /// A force that depends on time `t`.
+    TimeDependent => "dyn::time_dependent",
+    /// A parameter declared with `param` and used by no element.
+    UnusedParameter => "dyn::unused_parameter",
+    /// A body declared without a mass.
+    MissingMass => "dyn::missing_mass",
+    /// An element connected to itself or to ground at both ends, or an input on ground.
+    InvalidConnection => "dyn::invalid_connection",
+    /// A term that needs a signal the data does not contain.
+    UnmeasuredSignal => "dyn::unmeasured_signal",
+    /// No unknown parameter: nothing to identify.
+    NothingToIdentify => "dyn::nothing_to_identify",
+    /// Every coefficient is unknown, so the overall scale cannot be identified.
+    NoKnownScale => "dyn::no_known_scale",
+    /// `excite` names something that is not an input.
+    UnknownInput => "dyn::unknown_input",
+    /// Two `excite` lines for the same input.
+    DuplicateExcitation => "dyn::duplicate_excitation",
+    /// `excite` lines with different numbers of levels.
+    LevelCountMismatch => "dyn::level_count_mismatch",
+    /// A value out of its range (mass ≤ 0, corner ≤ 0, unknown form-filter argument …).
+    InvalidValue => "dyn::invalid_value",
+}
+
+fn to_source_span(s: Span) -> SourceSpan {
+    SourceSpan::new(s.start.into(), s.end.saturating_sub(s.start))
+}
+
+/// The fields of an error before the source is attached.
+#[derive(Default)]
+pub(crate) struct Draft {
+    pub message: String,
+    pub span: Option<Span>,
+    pub label: String,
+    pub other: Option<Span>,
+    pub other_label: String,
+    pub help: String,
+}
+
+/// Collects the errors of one file.
+pub(crate) struct ErrorSink {
+    pub src: Source,
+    pub errors: Vec<CompileError>,
+}
+
+impl ErrorSink {
+    pub fn new(name: &str, source: &str) -> Self {
+        ErrorSink {
+            src: NamedSource::new(name, Arc::from(source)).with_language("dyn"),
+            errors: Vec::new(),
+        }
+    }
+    pub fn push(&mut self, e: CompileError) {
+        self.errors.push(e);
+    }
+    /// Record an error with a primary label.
+    pub fn error(
+        &mut self,
+        kind: ErrorKind,
+        message: impl Into<String>,
+        span: Span,
+        label: impl Into<String>,
+        help: impl Into<String>,
+    ) {
+        let d = Draft {
+            message: message.into(),
+            span: Some(span),
+            label: label.into(),
+            help: help.into(),
+            ..Draft::default()
+        };
+        self.errors
+            .push(CompileError::build(kind, d, self.src.clone()));
+    }
+    pub fn draft(&mut self, kind: ErrorKind, d: Draft) {
+        self.errors
+            .push(CompileError::build(kind, d, self.src.clone()));
+    }
+}
+
+impl CompileError {
+    pub(crate) fn syntax(sink: &ErrorSink, message: String, span: Span, help: String) -> Self {
+        let d = Draft {
+            message,
+            span: Some(span),
+            label: "here".into(),
+            help,
+            ..Draft::default()
+        };
+        CompileError::build(ErrorKind::Syntax, d, sink.src.clone())
+    }
+    pub(crate) fn invalid_value(
+        sink: &ErrorSink,
+        message: String,
+        span: Span,
+        help: String,
+    ) -> Self {
+        let d = Draft {
+            message,
+            span: Some(span),
+            label: "this value".into(),
+            help,
+            ..Draft::default()
+        };
+        CompileError::build(ErrorKind::InvalidValue, d, sink.src.clone())
+    }
+}
+
+/// All errors of one model file.
+#[derive(Debug, Error, Diagnostic)]
+#[error("could not compile `{name}`: {}", count(.errors.len()))]
+#[diagnostic(code("dyn::compile"))]
+pub struct CompileErrors {
+    pub name: String,
+    #[source_code]
+    pub src: Source,
+    #[related]
+    pub errors: Vec<CompileError>,
+}
+
+fn count(n: usize) -> String {
+    if n == 1 {
+        "1 error".into()
+    } else {
+        format!("{n} errors")
+    }
+}
+
+impl CompileErrors {
+    pub fn kinds(&self) -> Vec<ErrorKind> {
+        self.errors.iter().map(|e| e.kind()).collect()
+    }
+    /// Render all diagnostics as plain text (no colours, fixed width): for logs and tests.
+    pub fn render_plain(&self, width: usize) -> String {
+        let handler =
+            miette::GraphicalReportHandler::new_themed(miette::GraphicalTheme::unicode_nocolor())
+                .with_width(width);
+        let mut out = String::new();
+        // Render each error on its own so the output does not depend on how the
+        // handler nests related diagnostics.
+        for e in &self.errors {
+            let _ = handler.render_report(&mut out, e);
+        }
+        out
+    }
+}
+
+/// Friendly names for grammar rules in "expected …" messages.
+fn rule_name(r: &Rule) -> String {
+    match r {
+        Rule::EOI => "end of file",
+        Rule::model | Rule::kw_model => "`model NAME { … }`",
+        Rule::kw_body => "`body`",
+        Rule::kw_input => "`input`",
+        Rule::kw_on => "`on`",
+        Rule::kw_measure => "`measure`",
+        Rule::kw_param => "`param`",
+        Rule::kw_spring => "`spring`",
+        Rule::kw_damper => "`damper`",
+        Rule::kw_force => "`force`",
+        Rule::kw_excite => "`excite`",
+        Rule::kw_levels => "`levels [..]`",
+        Rule::kw_filter => "`filter`",
+        Rule::kw_corners => "`corners [..]`",
+        Rule::kw_order => "`order`",
+        Rule::kw_driven => "`driven by`",
+        Rule::kw_by => "`by`",
+        Rule::ident => "a name",
+        Rule::number | Rule::signed_number | Rule::integer => "a number",
+        Rule::nominal => "`~ nominal`",
+        Rule::known => "`= value`",
+        Rule::nodes => "`(node_a, node_b)`",
+        Rule::form => "a form filter (`lowpass(corner = ..)`, `second_order(freq = .., damping = ..)`, `white`)",
+        Rule::named_arg => "`name = value`",
+        Rule::num_list => "a list `[a, b, ..]`",
+        Rule::expr | Rule::term | Rule::unary | Rule::power | Rule::exponent => "an expression",
+        Rule::param_decl => "a parameter",
+        Rule::call => "a function call",
+        Rule::add_op => "`+` or `-`",
+        Rule::mul_op => "`*` or `/`",
+        Rule::neg => "`-`",
+        Rule::sigref => "a signal (`m1.x`, `m1.v`, an input)",
+        _ => return format!("{r:?}"),
+    }
+    .to_string()
+}
+
+/// Convert a pest error into a diagnostic with a readable "expected …" message.
+pub(crate) fn from_pest(sink: &ErrorSink, e: pest::error::Error<Rule>) -> CompileError {
+    use pest::error::{ErrorVariant, InputLocation};
+    let src: &str = sink.src.inner();
+    let (start, end) = match e.location {
+        InputLocation::Pos(p) => (p, p),
+        InputLocation::Span((a, b)) => (a, b),
+    };
+    // Label the offending token (or one character) so the report has something to point at.
+    let end = if end > start {
+        end
+    } else {
+        src[start..]
+            .char_indices()
+            .find(|&(i, c)| i > 0 && !(c.is_alphanumeric() || c == '_' || c == '.'))
+            .map(|(i, _)| start + i)
+            .unwrap_or(src.len())
+            .max((start + src[start..].chars().next().map_or(0, char::len_utf8)).min(src.len()))
+    };
+    let found = if start >= src.len() {
+        "end of file".to_string()
+    } else {
+        format!("`{}`", &src[start..end])
+    };
+    let (message, help) = match &e.variant {
+        ErrorVariant::ParsingError { positives, .. } => {
+            let mut names: Vec<String> = positives.iter().map(rule_name).collect();
+            names.dedup();
+            let is_statement = positives.contains(&Rule::kw_body);
+            if is_statement {
+                (
+                    format!("expected a statement or `}}`, found {found}"),
+                    "statements are `body`, `input`, `measure`, `param`, `spring`, `damper`, `force`, `excite` and `filter`; see docs/language.md".to_string(),
+                )
+            } else if names.is_empty() {
+                (
+                    format!("unexpected {found}"),
+                    "see docs/language.md for the syntax".to_string(),
+                )
+            } else {
+                let list = match names.len() {
+                    1 => names[0].clone(),
+                    _ => {
+                        let last = names.pop().unwrap_or_default();
+                        format!("{} or {last}", names.join(", "))
+                    }
+                };
+                (
+                    format!("expected {list}, found {found}"),
+                    "see docs/language.md for the syntax of each statement".to_string(),
+                )
+            }
+        }
+        ErrorVariant::CustomError { message } => (message.clone(), String::new()),
+    };
+    CompileError::syntax(sink, message, Span::new(start, end), help)
+}
