@@ -5,4 +5,5 @@
 //! results or typed errors.
 
 pub mod record;
+pub mod sim;
 pub mod tape;
