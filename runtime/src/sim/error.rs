@@ -84,6 +84,19 @@ pub enum SimError {
         what: String,
     },
 
+    #[error("at {context} the motion of `{body}` is too fast for the sample interval {ts} s (ω·Ts ≈ {omega_ts:.2}, {samples_per_period:.1} samples per period)")]
+    #[diagnostic(
+        code(dynid::sim::under_resolved),
+        help("the record would alias and the integration is not trustworthy: use a smaller `--sample`, or check the model for runaway parameters (negative damping, very stiff or strongly hardening springs at this level)")
+    )]
+    UnderResolved {
+        context: String,
+        body: String,
+        omega_ts: f64,
+        samples_per_period: f64,
+        ts: f64,
+    },
+
     #[error("the input data has no column `{input}`")]
     #[diagnostic(
         code(dynid::sim::missing_input),

@@ -37,7 +37,9 @@
 //! # Divergence
 //!
 //! A state entry that is not finite or exceeds `1e6 · (1 + largest input std)` stops the
-//! run with [`SimError::Diverged`], naming the level and time.
+//! run with [`SimError::Diverged`], naming the level and time. A bounded but runaway motion
+//! (dominant frequency above ≈ 1.5/Ts, fewer than about four samples per period) is
+//! [`SimError::UnderResolved`]: such a record aliases and cannot be trusted.
 
 mod error;
 pub(crate) mod excite;
@@ -185,6 +187,7 @@ pub fn simulate_driven(ir: &ModelIr, input: &Record, substeps: usize) -> Result<
     let n = input.len();
     let limit = divergence_limit(cols.iter().map(|c| std_dev(c)));
     let mut rk = Rk4::new(&mech);
+    let mut res = Resolution::new(mech.n_bodies);
     let measured = ir.measured_signals();
     let mut out: Vec<Vec<f64>> = measured.iter().map(|_| Vec::with_capacity(n)).collect();
     let mut u0 = vec![0.0; cols.len()];
@@ -203,6 +206,7 @@ pub fn simulate_driven(ir: &ModelIr, input: &Record, substeps: usize) -> Result<
             u1[j] = c[k + 1];
         }
         rk.advance(&mech, &u0, &u1, input.ts, substeps);
+        res.add(&rk.x);
         check_divergence(
             &rk,
             limit,
@@ -320,6 +324,7 @@ fn simulate_level(
     let measured = ir.measured_signals();
     let mut columns: Vec<Vec<f64>> = measured.iter().map(|_| Vec::with_capacity(n)).collect();
     let mut rk = Rk4::new(mech);
+    let mut res = Resolution::new(mech.n_bodies);
     let read = |s: &[Option<FormFilterSampler>], u: &mut [f64]| {
         for (u, s) in u.iter_mut().zip(s) {
             *u = s.as_ref().map_or(0.0, |s| s.output());
@@ -344,14 +349,19 @@ fn simulate_level(
         // Time relative to the start of the recording (negative during the burn-in).
         let t = (k as f64 + 1.0 - n_burn as f64) * cfg.sample;
         check_divergence(&rk, limit, context, t)?;
+        if k >= n_burn {
+            res.add(&rk.x);
+        }
         std::mem::swap(&mut u0, &mut u1);
         pending += 1;
         if pending == PROGRESS_CHUNK {
             progress(pending as u64);
+            res.check(ir, cfg.sample, context)?;
             pending = 0;
         }
     }
     progress(pending as u64);
+    res.check(ir, cfg.sample, context)?;
     if cfg.noise > 0.0 {
         let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Noise));
         for (col, &s) in columns.iter_mut().zip(&measured) {
@@ -381,6 +391,68 @@ fn signal_value(ir: &ModelIr, s: dsl_parser::ir::SignalId, rk: &Rk4, u: &[f64]) 
         SignalKind::Position(b) => rk.x[b.index()],
         SignalKind::Velocity(b) => rk.v[b.index()],
         SignalKind::Input(InputId(i)) => u[i as usize],
+    }
+}
+
+/// Largest `ω·Ts` (ω = dominant angular frequency of a body's motion) accepted: about four
+/// samples per period. Beyond it the record aliases and the integration is untrustworthy.
+const MAX_OMEGA_TS: f64 = 1.5;
+
+/// Running moments of each body's position and its sample-to-sample change, to estimate
+/// `ω·Ts ≈ std(Δx) / std(x)` without storing the trajectory.
+struct Resolution {
+    prev: Vec<f64>,
+    sum: Vec<f64>,
+    sum2: Vec<f64>,
+    dsum2: Vec<f64>,
+    n: usize,
+}
+
+impl Resolution {
+    fn new(nb: usize) -> Self {
+        Resolution {
+            prev: vec![0.0; nb],
+            sum: vec![0.0; nb],
+            sum2: vec![0.0; nb],
+            dsum2: vec![0.0; nb],
+            n: 0,
+        }
+    }
+
+    #[inline]
+    fn add(&mut self, x: &[f64]) {
+        for (i, &x) in x.iter().enumerate() {
+            if self.n > 0 {
+                let d = x - self.prev[i];
+                self.dsum2[i] += d * d;
+            }
+            self.prev[i] = x;
+            self.sum[i] += x;
+            self.sum2[i] += x * x;
+        }
+        self.n += 1;
+    }
+
+    fn check(&self, ir: &ModelIr, ts: f64, context: impl Fn() -> String) -> Result<(), SimError> {
+        if self.n < 2 {
+            return Ok(());
+        }
+        let n = self.n as f64;
+        for (i, body) in ir.bodies.iter().enumerate() {
+            let mean = self.sum[i] / n;
+            let var = (self.sum2[i] / n - mean * mean).max(0.0);
+            let dvar = self.dsum2[i] / (n - 1.0);
+            if dvar > MAX_OMEGA_TS * MAX_OMEGA_TS * var && dvar > 0.0 {
+                return Err(SimError::UnderResolved {
+                    context: context(),
+                    body: body.name.clone(),
+                    omega_ts: (dvar / var).sqrt(),
+                    samples_per_period: 2.0 * std::f64::consts::PI * (var / dvar).sqrt(),
+                    ts,
+                });
+            }
+        }
+        Ok(())
     }
 }
 

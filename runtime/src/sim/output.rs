@@ -164,8 +164,14 @@ fn write_csv_to(path: &Path, record: &Record) -> std::io::Result<()> {
         write!(w, ",{n}")?;
     }
     writeln!(w)?;
+    let decimals = time_decimals(record.ts).zip(time_decimals(record.t0));
     for i in 0..record.len() {
-        write_number(&mut w, record.t0 + i as f64 * record.ts)?;
+        let t = record.t0 + i as f64 * record.ts;
+        match decimals {
+            // `35 · 0.01` is 0.35000000000000003 in binary; print the decimal grid instead.
+            Some((a, b)) => write!(w, "{t:.*}", a.max(b))?,
+            None => write_number(&mut w, t)?,
+        }
         for c in &record.columns {
             w.write_all(b",")?;
             write_number(&mut w, c[i])?;
@@ -173,6 +179,14 @@ fn write_csv_to(path: &Path, record: &Record) -> std::io::Result<()> {
         w.write_all(b"\n")?;
     }
     w.into_inner().map_err(|e| e.into_error())?.sync_all()
+}
+
+/// Number of decimals of `x` if it is a short decimal (≤ 9 decimals), e.g. 2 for 0.01.
+fn time_decimals(x: f64) -> Option<usize> {
+    (0..=9).find(|&d| {
+        let scaled = x * 10f64.powi(d as i32);
+        scaled.abs() < 1e15 && (scaled - scaled.round()).abs() <= 1e-6
+    })
 }
 
 /// Shortest round-trip representation; exponent form outside [1e-4, 1e15) so tiny and
@@ -239,9 +253,11 @@ mod tests {
         let text = std::fs::read_to_string(&path).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines[0], "t,m1.x,u");
-        assert_eq!(lines[1], "0,0.1,-2");
+        assert_eq!(lines[1], "0.00,0.1,-2");
         let row: Vec<f64> = lines[2].split(',').map(|s| s.parse().unwrap()).collect();
         assert_eq!(row, [0.01, 1.0 / 3.0, 1e-9]);
+        assert_eq!(time_decimals(0.01), Some(2));
+        assert_eq!(time_decimals(1.0 / 3.0), None);
         // No temporary left behind.
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         std::fs::remove_dir_all(dir).unwrap();

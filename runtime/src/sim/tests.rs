@@ -341,6 +341,16 @@ fn errors_name_the_culprit() {
     assert!(matches!(e, SimError::Diverged { .. }), "{msg}");
     assert!(msg.contains("level"), "{msg}");
 
+    // Negative damping bounded by a hardening spring: a limit cycle far above the Nyquist
+    // frequency, which must not pass as data.
+    let p = SdofParams {
+        d: -1.5,
+        ..SdofParams::benchmark()
+    };
+    let e = simulate(&sdof(&p, lowpass(), vec![6.0]), &cfg(500.0)).unwrap_err();
+    assert!(matches!(e, SimError::UnderResolved { .. }), "{e}");
+    assert!(e.to_string().contains("`m1`"), "{e}");
+
     let ir = sdof(&SdofParams::benchmark(), lowpass(), vec![6.0]);
     let input = Record {
         names: vec!["f".into()],
