@@ -6,4 +6,5 @@
 
 pub mod detect;
 pub mod record;
+pub mod sim;
 pub mod tape;

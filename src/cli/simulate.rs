@@ -1,12 +1,474 @@
-//! `dynid simulate`.
+//! `dynid simulate`: synthetic test data from a model, or the model's response to
+//! measured inputs.
+
+use dsl_parser::ir::ModelIr;
+use dynid_runtime::record::Record;
+use dynid_runtime::sim::{self, SimConfig, DEFAULT_SUBSTEPS};
+use miette::{miette, Context, IntoDiagnostic};
+use std::path::{Path, PathBuf};
+
+/// Shown by `--help` after the options. (The subcommand's one-line description in
+/// `cli/mod.rs` replaces any `long_about` set here, so the teaching text goes after.)
+const LONG_HELP: &str = "\
+Every input with an `excite` line is driven by its form filter (white noise of the level's
+intensity, shaped by a low-pass or second-order filter); inputs without one stay zero.
+Unknown parameters take their nominal values. Each level is an independent experiment:
+the model starts at rest, runs for --burn-in seconds that are discarded, then --duration
+seconds are recorded every --sample seconds. The columns are `t` and every measured signal
+(`m1.x`, `m1.v`, …, inputs). --noise adds white measurement noise with a standard deviation
+of that fraction of each signal's standard deviation. The same --seed gives the same data.
+
+DIR/truth.json records the parameter values, levels and settings used, so identification
+results can be scored against it.
+
+With --input data.csv the model is instead driven by the measured input columns (named
+like the model's inputs, plus a uniform time column `t`), starting from rest, and its
+response is written to DIR/driven.csv on the same time base — to compare the model with
+reality.
+
+Example:
+  dynid simulate models/sdof.dyn --levels 6,15,40 --duration 2000 --sample 0.01 \\
+      --noise 0.05 --seed 1 --out data/
+  writes data/level_1.csv, data/level_2.csv, data/level_3.csv and data/truth.json";
 
 /// Arguments of `dynid simulate`.
 #[derive(clap::Args, Debug)]
+#[command(after_long_help = LONG_HELP)]
 pub struct Args {
-    /// The model file.
-    pub model: std::path::PathBuf,
+    /// The model file (.dyn), or a model compiled to its JSON IR (.json).
+    pub model: PathBuf,
+    /// Excitation intensities, one experiment each (default: the model's `excite` levels).
+    #[arg(long, value_delimiter = ',', value_name = "L1,L2,...")]
+    pub levels: Option<Vec<f64>>,
+    /// Recorded seconds per level.
+    #[arg(long, default_value_t = 2000.0, value_name = "SECONDS")]
+    pub duration: f64,
+    /// Sample interval in seconds.
+    #[arg(long, default_value_t = 0.01, value_name = "SECONDS")]
+    pub sample: f64,
+    /// Base seed of the random excitation and noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Measurement noise as a fraction of each signal's std (0.05 = 5 %).
+    #[arg(long, default_value_t = 0.0, value_name = "FRACTION")]
+    pub noise: f64,
+    /// Keep the input columns free of measurement noise.
+    #[arg(long)]
+    pub clean_inputs: bool,
+    /// RK4 steps per sample interval.
+    #[arg(long, default_value_t = DEFAULT_SUBSTEPS, value_name = "N")]
+    pub substeps: usize,
+    /// Seconds simulated and discarded before recording, so the record is stationary.
+    #[arg(long, default_value_t = 100.0, value_name = "SECONDS")]
+    pub burn_in: f64,
+    /// Output directory (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Drive the model with the inputs in this CSV instead of the form filters.
+    #[arg(long, value_name = "CSV")]
+    pub input: Option<PathBuf>,
+    /// Summary format on stdout.
+    #[arg(long, value_enum, default_value_t = Format::Text)]
+    pub format: Format,
 }
 
-pub fn run(_args: Args) -> miette::Result<()> {
-    Err(miette::miette!("`dynid simulate` is not available yet"))
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Text,
+    Json,
+}
+
+pub fn run(args: Args) -> miette::Result<()> {
+    let ir = load_model(&args.model)?;
+    match &args.input {
+        Some(input) => run_driven(&ir, &args, input),
+        None => run_excited(&ir, &args),
+    }
+}
+
+fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
+    let cfg = SimConfig {
+        levels: args.levels.clone(),
+        duration: args.duration,
+        sample: args.sample,
+        seed: args.seed,
+        noise: args.noise,
+        noise_on_inputs: !args.clean_inputs,
+        substeps: args.substeps,
+        burn_in: args.burn_in,
+    };
+    let n_levels = args
+        .levels
+        .as_ref()
+        .map(Vec::len)
+        .or_else(|| ir.excitation.first().map(|e| e.levels.len()))
+        .unwrap_or(0);
+    let bar = progress_bar(sim::total_samples(&cfg, n_levels));
+    let out = sim::simulate_with_progress(ir, &cfg, &|n| bar.inc(n));
+    bar.finish_and_clear();
+    let out = out.map_err(miette::Report::new)?;
+    create_dir(&args.out)?;
+    let paths = sim::write_outputs(&args.out, &out).map_err(miette::Report::new)?;
+    let stats: Vec<serde_json::Value> = out
+        .records
+        .iter()
+        .zip(&paths)
+        .zip(&out.truth.levels)
+        .map(|((r, p), l)| level_summary(r, p, Some(*l)))
+        .collect();
+    match args.format {
+        Format::Json => {
+            let v = serde_json::json!({ "truth": out.truth, "levels": stats });
+            println!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+        }
+        Format::Text => {
+            println!(
+                "simulated `{}`: {} level(s), {} s at Ts = {} s, noise {} %, seed {}",
+                out.truth.model,
+                out.records.len(),
+                cfg.duration,
+                cfg.sample,
+                100.0 * cfg.noise,
+                cfg.seed
+            );
+            for s in &stats {
+                print_summary(s);
+            }
+            println!("  {}", paths.last().expect("truth.json").display());
+        }
+    }
+    Ok(())
+}
+
+fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
+    let record = read_input_csv(input)?;
+    let response = sim::simulate_driven(ir, &record, args.substeps)
+        .map_err(miette::Report::new)
+        .wrap_err_with(|| format!("driving `{}` with `{}`", ir.name, input.display()))?;
+    let params = sim::parameter_values(ir).map_err(miette::Report::new)?;
+    create_dir(&args.out)?;
+    let csv = args.out.join("driven.csv");
+    sim::write_level_csv(&csv, &response).map_err(miette::Report::new)?;
+    let truth = serde_json::json!({
+        "model": ir.name,
+        "mode": "driven",
+        "input": input.display().to_string(),
+        "parameters": ir.params.iter().zip(&params)
+            .map(|(p, v)| (p.name.clone(), *v))
+            .collect::<std::collections::BTreeMap<_, _>>(),
+        "substeps": args.substeps,
+        "initial_state": "rest",
+        "files": ["driven.csv"],
+    });
+    let json_path = args.out.join("truth.json");
+    write_atomically(
+        &json_path,
+        &(serde_json::to_string_pretty(&truth).into_diagnostic()? + "\n"),
+    )?;
+    let summary = level_summary(&response, &csv, None);
+    match args.format {
+        Format::Json => println!(
+            "{}",
+            serde_json::to_string_pretty(
+                &serde_json::json!({ "truth": truth, "levels": [summary] })
+            )
+            .into_diagnostic()?
+        ),
+        Format::Text => {
+            println!(
+                "simulated `{}` driven by `{}` ({} samples, Ts = {} s, from rest)",
+                ir.name,
+                input.display(),
+                response.len(),
+                response.ts
+            );
+            print_summary(&summary);
+            println!("  {}", json_path.display());
+        }
+    }
+    Ok(())
+}
+
+/// Load a model. `.json` files hold a compiled `ModelIr`; anything else is `.dyn` source.
+fn load_model(path: &Path) -> miette::Result<ModelIr> {
+    if path.extension().is_some_and(|e| e == "json") {
+        let text = std::fs::read_to_string(path)
+            .into_diagnostic()
+            .wrap_err_with(|| format!("cannot read the model `{}`", path.display()))?;
+        let ir: ModelIr = serde_json::from_str(&text)
+            .into_diagnostic()
+            .wrap_err_with(|| format!("`{}` is not a compiled model (JSON IR)", path.display()))?;
+        ir.check_invariants()
+            .map_err(|e| miette!("`{}` is not a consistent model: {e}", path.display()))?;
+        return Ok(ir);
+    }
+    // The `.dyn` front end is wired in at integration:
+    //     dsl_parser::compile_file(path).map_err(miette::Report::new)
+    Err(miette!(
+        help = "pass a model compiled to JSON IR (.json) instead",
+        "cannot load `{}`: loading .dyn models is not wired into `dynid simulate` yet",
+        path.display()
+    ))
+}
+
+/// Read a CSV with a header line, a uniform time column `t` and numeric columns.
+fn read_input_csv(path: &Path) -> miette::Result<Record> {
+    let text = std::fs::read_to_string(path)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("cannot read the input data `{}`", path.display()))?;
+    let file = path.display();
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
+    let (_, header) = lines.next().ok_or_else(|| {
+        miette!(
+            help = "the first line must name the columns, e.g. `t,u`",
+            "`{file}` is empty"
+        )
+    })?;
+    let names: Vec<String> = header.split(',').map(|s| s.trim().to_string()).collect();
+    let t_col = names.iter().position(|n| n == "t").ok_or_else(|| {
+        miette!(
+            help = "add a time column named `t` (seconds, uniformly sampled)",
+            "`{file}` line 1: no time column `t` in the header `{header}`"
+        )
+    })?;
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+    for (i, line) in lines {
+        let lineno = i + 1;
+        let fields: Vec<&str> = line.split(',').collect();
+        if fields.len() != names.len() {
+            return Err(miette!(
+                help = "every row needs one value per header column",
+                "`{file}` line {lineno}: {} values, but the header has {} columns",
+                fields.len(),
+                names.len()
+            ));
+        }
+        for ((f, col), name) in fields.iter().zip(&mut columns).zip(&names) {
+            let x: f64 = f.trim().parse().map_err(|_| {
+                miette!(
+                    help = "values must be plain numbers such as 0.25 or -1.5e-3",
+                    "`{file}` line {lineno}, column `{name}`: `{}` is not a number",
+                    f.trim()
+                )
+            })?;
+            if !x.is_finite() {
+                return Err(miette!(
+                    help = "remove or fill gaps before simulating; NaN and infinite values cannot drive a model",
+                    "`{file}` line {lineno}, column `{name}`: the value `{}` is not finite",
+                    f.trim()
+                ));
+            }
+            col.push(x);
+        }
+    }
+    let t = columns.remove(t_col);
+    let mut names = names;
+    names.remove(t_col);
+    if t.len() < 2 {
+        return Err(miette!(
+            help = "give at least two samples",
+            "`{file}` has {} data rows",
+            t.len()
+        ));
+    }
+    let ts = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    if !ts.is_finite() || ts <= 0.0 {
+        return Err(miette!(
+            help = "the time column must increase",
+            "`{file}`: time does not increase"
+        ));
+    }
+    if let Some(i) = (0..t.len())
+        .find(|&i| (t[i] - (t[0] + i as f64 * ts)).abs() > 1e-6 * ts.max(t[i].abs() * 1e-3))
+    {
+        return Err(miette!(
+            help = "the data must be uniformly sampled; resample it first",
+            "`{file}` line {}: t = {} is off the uniform grid t0 + i·{ts} (expected {})",
+            i + 2,
+            t[i],
+            t[0] + i as f64 * ts
+        ));
+    }
+    Ok(Record {
+        names,
+        columns,
+        ts,
+        t0: t[0],
+    })
+}
+
+fn progress_bar(total: u64) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::with_draw_target(
+        Some(total),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "simulating {bar:40} {percent:>3}%  {elapsed} (eta {eta})",
+    ) {
+        bar.set_style(style);
+    }
+    bar
+}
+
+fn create_dir(dir: &Path) -> miette::Result<()> {
+    std::fs::create_dir_all(dir)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("cannot create the output directory `{}`", dir.display()))
+}
+
+fn write_atomically(path: &Path, text: &str) -> miette::Result<()> {
+    let tmp = path.with_extension("json.tmp");
+    std::fs::write(&tmp, text)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .inspect_err(|_| {
+            let _ = std::fs::remove_file(&tmp);
+        })
+        .into_diagnostic()
+        .wrap_err_with(|| format!("cannot write `{}`", path.display()))
+}
+
+fn level_summary(r: &Record, path: &Path, level: Option<f64>) -> serde_json::Value {
+    serde_json::json!({
+        "file": path.display().to_string(),
+        "level": level,
+        "samples": r.len(),
+        "signals": r.names,
+        "std": r.columns.iter().map(|c| std_dev(c)).collect::<Vec<_>>(),
+    })
+}
+
+fn print_summary(s: &serde_json::Value) {
+    let stds = s["signals"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .zip(s["std"].as_array().into_iter().flatten())
+        .map(|(n, v)| {
+            format!(
+                "{} {:.4}",
+                n.as_str().unwrap_or(""),
+                v.as_f64().unwrap_or(f64::NAN)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
+    let level = s["level"]
+        .as_f64()
+        .map(|l| format!("level {l}: "))
+        .unwrap_or_default();
+    println!("  {} — {level}std {stds}", s["file"].as_str().unwrap_or(""));
+}
+
+fn std_dev(x: &[f64]) -> f64 {
+    let n = x.len().max(1) as f64;
+    let m = x.iter().sum::<f64>() / n;
+    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn input_csv_errors_name_line_and_column() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = |text: &str| {
+            format!(
+                "{:?}",
+                read_input_csv(&write(dir.path(), "a.csv", text)).unwrap_err()
+            )
+        };
+        assert!(err("u\n1\n2\n").contains("no time column"));
+        assert!(err("t,u\n0,1\n0.1\n").contains("line 3"));
+        let e = err("t,u\n0,1\n0.1,NaN\n");
+        assert!(
+            e.contains("line 3") && e.contains("`u`") && e.contains("not finite"),
+            "{e}"
+        );
+        assert!(err("t,u\n0,1\n0.1,x\n").contains("not a number"));
+        assert!(err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n").contains("uniform"));
+        let r = read_input_csv(&write(dir.path(), "b.csv", "t,u\n1,1\n1.5,2\n2,3\n\n")).unwrap();
+        assert_eq!(
+            (r.t0, r.ts, r.names.clone()),
+            (1.0, 0.5, vec!["u".to_string()])
+        );
+        assert_eq!(r.columns, vec![vec![1.0, 2.0, 3.0]]);
+    }
+
+    fn args(model: PathBuf, out: PathBuf) -> Args {
+        Args {
+            model,
+            levels: Some(vec![6.0, 15.0]),
+            duration: 20.0,
+            sample: 0.01,
+            seed: 3,
+            noise: 0.0,
+            clean_inputs: false,
+            substeps: DEFAULT_SUBSTEPS,
+            burn_in: 5.0,
+            out,
+            input: None,
+            format: Format::Json,
+        }
+    }
+
+    #[test]
+    fn writes_levels_and_truth_then_drives_with_a_level() {
+        use dynid_runtime::sim::test_models::{sdof, SdofParams};
+        let dir = tempfile::tempdir().unwrap();
+        let ir = sdof(
+            &SdofParams::benchmark(),
+            dsl_parser::ir::FormFilter::Lowpass { corner: 10.0 },
+            vec![1.0],
+        );
+        let model = write(
+            dir.path(),
+            "sdof.json",
+            &serde_json::to_string(&ir).unwrap(),
+        );
+        let out = dir.path().join("out");
+        run(args(model.clone(), out.clone())).unwrap();
+        let mut files: Vec<String> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        files.sort();
+        assert_eq!(files, ["level_1.csv", "level_2.csv", "truth.json"]);
+        let truth: sim::Truth =
+            serde_json::from_str(&std::fs::read_to_string(out.join("truth.json")).unwrap())
+                .unwrap();
+        assert_eq!(truth.levels, [6.0, 15.0]);
+        assert_eq!(truth.files, ["level_1.csv", "level_2.csv"]);
+        let level = read_input_csv(&out.join("level_2.csv")).unwrap();
+        assert_eq!(level.names, ["m1.x", "m1.v", "u"]);
+        assert_eq!(level.len(), 2000);
+
+        let driven_out = dir.path().join("driven");
+        let mut a = args(model, driven_out.clone());
+        a.input = Some(out.join("level_2.csv"));
+        run(a).unwrap();
+        let driven = read_input_csv(&driven_out.join("driven.csv")).unwrap();
+        assert_eq!(driven.len(), level.len());
+        assert_eq!(driven.column("u"), level.column("u"));
+    }
+
+    #[test]
+    fn failures_leave_no_output() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        let e = run(args(dir.path().join("missing.json"), out.clone())).unwrap_err();
+        assert!(format!("{e:?}").contains("missing.json"));
+        let e = run(args(write(dir.path(), "m.dyn", "model m {}"), out.clone())).unwrap_err();
+        assert!(format!("{e:?}").contains("not wired"));
+        assert!(!out.exists());
+    }
 }
