@@ -2,6 +2,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod common;
 pub mod compile;
 pub mod identify;
 pub mod simulate;

@@ -1,6 +1,7 @@
 //! `dynid simulate`: synthetic test data from a model, or the model's response to
 //! measured inputs.
 
+use super::common::load_model;
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::record::Record;
 use dynid_runtime::sim::{self, SimConfig, DEFAULT_SUBSTEPS};
@@ -187,28 +188,6 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
         }
     }
     Ok(())
-}
-
-/// Load a model. `.json` files hold a compiled `ModelIr`; anything else is `.dyn` source.
-fn load_model(path: &Path) -> miette::Result<ModelIr> {
-    if path.extension().is_some_and(|e| e == "json") {
-        let text = std::fs::read_to_string(path)
-            .into_diagnostic()
-            .wrap_err_with(|| format!("cannot read the model `{}`", path.display()))?;
-        let ir: ModelIr = serde_json::from_str(&text)
-            .into_diagnostic()
-            .wrap_err_with(|| format!("`{}` is not a compiled model (JSON IR)", path.display()))?;
-        ir.check_invariants()
-            .map_err(|e| miette!("`{}` is not a consistent model: {e}", path.display()))?;
-        return Ok(ir);
-    }
-    // The `.dyn` front end is wired in at integration:
-    //     dsl_parser::compile_file(path).map_err(miette::Report::new)
-    Err(miette!(
-        help = "pass a model compiled to JSON IR (.json) instead",
-        "cannot load `{}`: loading .dyn models is not wired into `dynid simulate` yet",
-        path.display()
-    ))
 }
 
 /// Read a CSV with a header line, a uniform time column `t` and numeric columns.
@@ -468,7 +447,7 @@ mod tests {
         let e = run(args(dir.path().join("missing.json"), out.clone())).unwrap_err();
         assert!(format!("{e:?}").contains("missing.json"));
         let e = run(args(write(dir.path(), "m.dyn", "model m {}"), out.clone())).unwrap_err();
-        assert!(format!("{e:?}").contains("not wired"));
+        assert!(format!("{e:?}").contains("m.dyn"));
         assert!(!out.exists());
     }
 }
