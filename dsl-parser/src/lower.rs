@@ -187,6 +187,8 @@ struct Pending {
     span: Span,
     /// Declared by a `param` statement (so it may be unused).
     statement: bool,
+    /// Named in some force term, even one rejected with an error (no "unused" cascade).
+    mentioned: bool,
     id: Option<ParamId>,
 }
 
@@ -247,7 +249,7 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
         })
         .collect();
     for p in &l.pending {
-        if p.statement && p.id.is_none() {
+        if p.statement && p.id.is_none() && !p.mentioned {
             let name = &p.name;
             l.sink.error(
                 ErrorKind::UnusedParameter,
@@ -465,6 +467,7 @@ impl Lowerer<'_> {
             value,
             span,
             statement,
+            mentioned: false,
             id: None,
         });
         self.pending.len() - 1
@@ -813,6 +816,7 @@ impl Lowerer<'_> {
                 let Some(p) = self.param_of(&pname) else {
                     continue;
                 };
+                self.pending[p].mentioned = true;
                 match place {
                     Place::Nested(where_) => {
                         ok = false;
