@@ -241,10 +241,10 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
                 kind,
                 name,
                 nodes,
-                value,
                 expr,
                 span,
-            } => Some(l.lower_element(*kind, name, nodes, *value, expr.as_ref(), *span)),
+                ..
+            } => Some(l.lower_element(*kind, name, nodes, expr.as_ref(), *span)),
             _ => None,
         })
         .collect();
@@ -692,7 +692,6 @@ impl Lowerer<'_> {
         kind: AstElementKind,
         name: &AstIdent,
         nodes: &(AstIdent, AstIdent),
-        _value: Option<AstValue>,
         expr: Option<&AstExpr>,
         span: Span,
     ) -> LoweredElement {
