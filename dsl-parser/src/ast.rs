@@ -177,6 +177,8 @@ pub(crate) fn parse(source: &str, sink: &mut ErrorSink) -> Option<AstModel> {
         ));
         return None;
     }
+    // Detailed attempts let a syntax error name the exact token expected (`,`, `)`, …).
+    pest::set_error_detail(true);
     let mut pairs = match DynParser::parse(Rule::file, source) {
         Ok(p) => p,
         Err(e) => {

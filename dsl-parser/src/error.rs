@@ -25,7 +25,7 @@ macro_rules! error_kinds {
                 #[diagnostic(code($code))]
                 $variant {
                     message: String,
-                    #[label("{label}")]
+                    #[label(primary, "{label}")]
                     span: Option<SourceSpan>,
                     label: String,
                     #[label("{other_label}")]
@@ -296,10 +296,42 @@ fn rule_name(r: &Rule) -> String {
 pub(crate) fn from_pest(sink: &ErrorSink, e: pest::error::Error<Rule>) -> CompileError {
     use pest::error::{ErrorVariant, InputLocation};
     let src: &str = sink.src.inner();
-    let (start, end) = match e.location {
+    let (mut start, mut end) = match e.location {
         InputLocation::Pos(p) => (p, p),
         InputLocation::Span((a, b)) => (a, b),
     };
+    let mut names: Vec<String> = Vec::new();
+    if let ErrorVariant::ParsingError { positives, .. } = &e.variant {
+        names = positives.iter().map(rule_name).collect();
+    }
+    let mut statement = matches!(&e.variant, ErrorVariant::ParsingError { positives, .. } if positives.contains(&Rule::kw_body));
+    if let Some(att) = e.parse_attempts() {
+        if att.max_position > start && att.max_position <= src.len() {
+            start = att.max_position;
+            end = start;
+            names.clear();
+        }
+        if att.max_position == start {
+            for t in att.expected_tokens() {
+                // Only literal tokens read well in a message; ranges, built-in rules,
+                // blanks, comments and the exponent marker are left out.
+                let token = t.to_string();
+                let skip = token == "BUILTIN_RULE"
+                    || token == "E"
+                    || token == "//"
+                    || token == "_"
+                    || token == "."
+                    || token.trim().is_empty()
+                    || (token.chars().count() == 4 && token.contains(".."));
+                if !skip {
+                    statement |= token == "body";
+                    names.push(format!("`{token}`"));
+                }
+            }
+        }
+    }
+    names.sort();
+    names.dedup();
     // Label the offending token (or one character) so the report has something to point at.
     let end = if end > start {
         end
@@ -317,11 +349,8 @@ pub(crate) fn from_pest(sink: &ErrorSink, e: pest::error::Error<Rule>) -> Compil
         format!("`{}`", &src[start..end])
     };
     let (message, help) = match &e.variant {
-        ErrorVariant::ParsingError { positives, .. } => {
-            let mut names: Vec<String> = positives.iter().map(rule_name).collect();
-            names.dedup();
-            let is_statement = positives.contains(&Rule::kw_body);
-            if is_statement {
+        ErrorVariant::ParsingError { .. } => {
+            if statement {
                 (
                     format!("expected a statement or `}}`, found {found}"),
                     "statements are `body`, `input`, `measure`, `param`, `spring`, `damper`, `force`, `excite` and `filter`; see docs/language.md".to_string(),

@@ -187,6 +187,8 @@ struct Pending {
     span: Span,
     /// Declared by a `param` statement (so it may be unused).
     statement: bool,
+    /// Named in some force term, even one rejected with an error (no "unused" cascade).
+    mentioned: bool,
     id: Option<ParamId>,
 }
 
@@ -239,15 +241,15 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
                 kind,
                 name,
                 nodes,
-                value,
                 expr,
                 span,
-            } => Some(l.lower_element(*kind, name, nodes, *value, expr.as_ref(), *span)),
+                ..
+            } => Some(l.lower_element(*kind, name, nodes, expr.as_ref(), *span)),
             _ => None,
         })
         .collect();
     for p in &l.pending {
-        if p.statement && p.id.is_none() {
+        if p.statement && p.id.is_none() && !p.mentioned {
             let name = &p.name;
             l.sink.error(
                 ErrorKind::UnusedParameter,
@@ -465,6 +467,7 @@ impl Lowerer<'_> {
             value,
             span,
             statement,
+            mentioned: false,
             id: None,
         });
         self.pending.len() - 1
@@ -689,7 +692,6 @@ impl Lowerer<'_> {
         kind: AstElementKind,
         name: &AstIdent,
         nodes: &(AstIdent, AstIdent),
-        _value: Option<AstValue>,
         expr: Option<&AstExpr>,
         span: Span,
     ) -> LoweredElement {
@@ -813,6 +815,7 @@ impl Lowerer<'_> {
                 let Some(p) = self.param_of(&pname) else {
                     continue;
                 };
+                self.pending[p].mentioned = true;
                 match place {
                     Place::Nested(where_) => {
                         ok = false;
