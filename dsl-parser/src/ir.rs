@@ -194,7 +194,11 @@ pub enum ExprNode {
 impl ExprNode {
     pub fn constant(v: f64) -> Self {
         // Normalise −0.0 so that equal constants hash equally.
-        ExprNode::Const(if v == 0.0 { 0.0f64.to_bits() } else { v.to_bits() })
+        ExprNode::Const(if v == 0.0 {
+            0.0f64.to_bits()
+        } else {
+            v.to_bits()
+        })
     }
     /// The children of this node, in order.
     pub fn children(&self) -> impl Iterator<Item = ExprId> {

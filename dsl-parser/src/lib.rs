@@ -6,4 +6,5 @@
 //!
 //! API boundary: [`ir`] (the IR) and the functions re-exported below.
 
+pub mod codegen;
 pub mod ir;
