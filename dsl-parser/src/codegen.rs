@@ -186,14 +186,24 @@ fn field_ident(name: &str) -> Ident {
     }
 }
 
-/// An `f64` expression that is bit-for-bit `v`.
+/// An `f64` expression that is bit-for-bit `v`, for a place where the type is known.
 fn f64_tokens(v: f64) -> TokenStream {
+    f64_literal(v, false)
+}
+
+/// An `f64` expression that is bit-for-bit `v`; `suffixed` where the type is not known from
+/// context (the receiver of a method call).
+fn f64_literal(v: f64, suffixed: bool) -> TokenStream {
     if !v.is_finite() {
         let bits = Literal::u64_suffixed(v.to_bits());
         return quote!(f64::from_bits(#bits));
     }
     // `Display` of f64 is the shortest representation that parses back to the same bits.
-    let lit = Literal::f64_suffixed(v.abs());
+    let lit = if suffixed {
+        Literal::f64_suffixed(v.abs())
+    } else {
+        Literal::f64_unsuffixed(v.abs())
+    };
     if v.is_sign_negative() {
         quote!((-#lit))
     } else {
@@ -229,6 +239,7 @@ fn params_struct(ir: &ModelIr, n: &Names) -> TokenStream {
         defaults.push(quote!(#f: #v));
     }
     let idx = (0..count).map(Literal::usize_unsuffixed);
+    let count_lit = Literal::usize_unsuffixed(count);
     let struct_doc = doc(&format!(
         " The unknown parameters of model `{}`, in the order of the least-squares columns.",
         ir.name
@@ -250,6 +261,7 @@ fn params_struct(ir: &ModelIr, n: &Names) -> TokenStream {
 
         impl #ty {
             /// The values in column order (`PARAM_NAMES` order).
+            #[allow(clippy::wrong_self_convention)]
             pub fn to_vec(&self) -> ::std::vec::Vec<f64> {
                 ::std::vec![#(self.#fields_ref),*]
             }
@@ -259,7 +271,7 @@ fn params_struct(ir: &ModelIr, n: &Names) -> TokenStream {
             /// # Panics
             /// If `values` does not hold exactly one value per unknown parameter.
             pub fn from_slice(values: &[f64]) -> Self {
-                ::core::assert_eq!(values.len(), #count, #len_msg);
+                ::core::assert_eq!(values.len(), #count_lit, #len_msg);
                 #ty { #(#fields_ref: values[#idx],)* }
             }
         }
@@ -275,8 +287,8 @@ fn model_struct(ir: &ModelIr, source: &str, n: &Names, opts: &CodegenOptions) ->
         .into_iter()
         .map(|p| &ir.params[p.index()].name);
     let signal_names = ir.signals.iter().map(|s| &s.name);
-    let n_signals = ir.signals.len();
-    let n_roots = ir.eval_roots().len();
+    let n_signals = Literal::usize_unsuffixed(ir.signals.len());
+    let n_roots = Literal::usize_unsuffixed(ir.eval_roots().len());
     let source_name = opts
         .source_name
         .clone()
@@ -293,6 +305,7 @@ fn model_struct(ir: &ModelIr, source: &str, n: &Names, opts: &CodegenOptions) ->
                 SignalKind::Input(_) => "input",
             };
             let d = doc(&format!(" Index of signal `{}` ({what}).", s.name));
+            let i = Literal::usize_unsuffixed(i);
             quote!(#d pub const #c: usize = #i;)
         });
     let struct_doc = doc(&format!(
@@ -375,6 +388,11 @@ fn basis_eval_impl(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStrea
     let roots = ir.eval_roots();
     let needed = needed_nodes(ir, &roots);
 
+    // A constant is written as an unsuffixed literal, except where it receives a method call.
+    let receiver = |e: ExprId, value: &[TokenStream]| match ir.exprs[e.index()] {
+        ExprNode::Const(b) => f64_literal(f64::from_bits(b), true),
+        _ => value[e.index()].clone(),
+    };
     // How each node is referred to: constants inline, signals and computed nodes by name.
     let mut value: Vec<TokenStream> = Vec::with_capacity(needed.len());
     let mut body = Vec::new();
@@ -398,7 +416,7 @@ fn basis_eval_impl(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStrea
                 continue;
             }
             ExprNode::Unary(op, a) => {
-                let a = &value[a.index()];
+                let a = &receiver(a, &value);
                 match op {
                     UnaryOp::Neg => quote!(-#a),
                     UnaryOp::Abs => quote!(#a.abs()),
@@ -430,8 +448,9 @@ fn basis_eval_impl(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStrea
                 quote!(#a * #a * #a)
             }
             ExprNode::Powi(a, k) => {
-                let a = &value[a.index()];
-                let k = Literal::i32_suffixed(k);
+                let a = &receiver(a, &value);
+                let abs = Literal::u32_unsuffixed(k.unsigned_abs());
+                let k = if k < 0 { quote!(-#abs) } else { quote!(#abs) };
                 quote!(#a.powi(#k))
             }
             ExprNode::Deadzone(a, g) => {
@@ -454,8 +473,8 @@ fn basis_eval_impl(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStrea
     helpers.sort_unstable();
     helpers.dedup();
 
-    let n_roots = roots.len();
-    let outs: Vec<Ident> = (0..n_roots).map(|r| format_ident!("o{}", r)).collect();
+    let n_roots = Literal::usize_unsuffixed(roots.len());
+    let outs: Vec<Ident> = (0..roots.len()).map(|r| format_ident!("o{}", r)).collect();
     let stores = roots.iter().zip(&outs).map(|(root, o)| {
         let v = &value[root.index()];
         quote!(#o[i] = #v;)
@@ -472,11 +491,12 @@ fn basis_eval_impl(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStrea
     } else {
         quote!(use #krate::dsl_parser::ir::{#(#helper_idents),*};)
     };
-    let eval_body = if n_roots == 0 {
-        quote!(let _ = (signals, len, out);)
+    let eval_body = if roots.is_empty() {
+        quote!(let _ = (signals, len, out, scratch);)
     } else {
         quote! {
             #uses
+            let _ = scratch;
             ::core::assert!(out.len() >= #n_roots * len, "output block too small");
             // Slicing every column to `len` once lets the compiler drop the bounds checks
             // in the loop.
@@ -505,7 +525,6 @@ fn basis_eval_impl(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStrea
                 out: &mut [f64],
                 scratch: &mut ::std::vec::Vec<f64>,
             ) {
-                let _ = scratch;
                 #eval_body
             }
         }
@@ -566,10 +585,12 @@ mod tests {
             f64::NAN,
             std::f64::consts::PI,
         ] {
-            let expr: syn::Expr = syn::parse2(f64_tokens(v)).unwrap();
-            let text = quote!(#expr).to_string();
-            let back = parse_f64_expr(&text);
-            assert_eq!(back.to_bits(), v.to_bits(), "{v} printed as {text}");
+            for suffixed in [false, true] {
+                let expr: syn::Expr = syn::parse2(f64_literal(v, suffixed)).unwrap();
+                let text = quote!(#expr).to_string();
+                let back = parse_f64_expr(&text);
+                assert_eq!(back.to_bits(), v.to_bits(), "{v} printed as {text}");
+            }
         }
     }
 
