@@ -25,6 +25,7 @@
 
 mod ast;
 pub mod error;
+pub mod codegen;
 pub mod ir;
 mod lower;
 pub mod print;
