@@ -102,7 +102,7 @@ impl Tape {
         let mut out: Vec<SignalId> = self
             .ops
             .iter()
-            .flat_map(|op| op_operands(op))
+            .flat_map(op_operands)
             .chain(self.roots.iter().copied())
             .filter_map(|o| match o {
                 Operand::Sig(s) => Some(SignalId(s)),
@@ -126,7 +126,10 @@ impl Tape {
         out: &mut [f64],
         scratch: &mut TapeScratch,
     ) {
-        assert!(out.len() >= self.roots.len() * len, "output block too small");
+        assert!(
+            out.len() >= self.roots.len() * len,
+            "output block too small"
+        );
         if scratch.len != len || scratch.regs.len() < self.ops.len() * len {
             scratch.regs.resize(self.ops.len() * len, 0.0);
             scratch.len = len;
@@ -252,5 +255,21 @@ fn map2(dst: &mut [f64], a: Src, b: Src, f: impl Fn(f64, f64) -> f64) {
         (Src::Col(a), Src::Const(c)) => dst.iter_mut().zip(a).for_each(|(d, &a)| *d = f(a, c)),
         (Src::Const(c), Src::Col(b)) => dst.iter_mut().zip(b).for_each(|(d, &b)| *d = f(c, b)),
         (Src::Const(a), Src::Const(b)) => dst.fill(f(a, b)),
+    }
+}
+
+impl crate::basis::BasisEval for Tape {
+    fn n_roots(&self) -> usize {
+        self.roots.len()
+    }
+    fn eval_block(&self, signals: &[&[f64]], len: usize, out: &mut [f64], scratch: &mut Vec<f64>) {
+        // Lend the caller's buffer to the tape's scratch type so no allocation happens once
+        // the buffer has grown to size.
+        let mut s = TapeScratch {
+            regs: std::mem::take(scratch),
+            len: 0,
+        };
+        Tape::eval_block(self, signals, len, out, &mut s);
+        *scratch = s.regs;
     }
 }
