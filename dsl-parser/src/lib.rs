@@ -24,8 +24,8 @@
 //! ```
 
 mod ast;
-pub mod error;
 pub mod codegen;
+pub mod error;
 pub mod ir;
 mod lower;
 pub mod print;

@@ -257,3 +257,19 @@ fn map2(dst: &mut [f64], a: Src, b: Src, f: impl Fn(f64, f64) -> f64) {
         (Src::Const(a), Src::Const(b)) => dst.fill(f(a, b)),
     }
 }
+
+impl crate::basis::BasisEval for Tape {
+    fn n_roots(&self) -> usize {
+        self.roots.len()
+    }
+    fn eval_block(&self, signals: &[&[f64]], len: usize, out: &mut [f64], scratch: &mut Vec<f64>) {
+        // Lend the caller's buffer to the tape's scratch type so no allocation happens once
+        // the buffer has grown to size.
+        let mut s = TapeScratch {
+            regs: std::mem::take(scratch),
+            len: 0,
+        };
+        Tape::eval_block(self, signals, len, out, &mut s);
+        *scratch = s.regs;
+    }
+}

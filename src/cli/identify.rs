@@ -1,12 +1,243 @@
-//! `dynid identify`.
+//! `dynid identify MODEL.dyn DATA.csv...`: identify the unknown parameters from one CSV file
+//! per excitation level, print the identified equations and optionally write JSON.
+
+use dsl_parser::ir::ModelIr;
+use dynid_runtime::data::{CsvOptions, CsvSource, LevelSource};
+use dynid_runtime::ident::{print, Identification};
+use dynid_runtime::{identify, IdentifyOptions};
+use miette::{miette, Context, IntoDiagnostic};
+use std::path::{Path, PathBuf};
 
 /// Arguments of `dynid identify`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The model file.
-    pub model: std::path::PathBuf,
+    pub model: PathBuf,
+    /// One CSV file per excitation level (header with `t` and the measured signals).
+    #[arg(required = true)]
+    pub data: Vec<PathBuf>,
+    /// Write the result as JSON to this file.
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+    /// Read column COLUMN as signal SIGNAL (repeatable), e.g. `--map disp=m1.x`.
+    #[arg(long = "map", value_name = "COLUMN=SIGNAL")]
+    pub map: Vec<String>,
+    /// Sample interval in seconds (needed when the files have no `t` column).
+    #[arg(long = "sample", value_name = "TS")]
+    pub sample: Option<f64>,
+    /// Identification filter corners in rad/s (default: designed from the data).
+    #[arg(long = "filter-corners", value_delimiter = ',', value_name = "A,B,C")]
+    pub filter_corners: Option<Vec<f64>>,
+    /// Leave out the virial / power-balance rows (the default).
+    #[arg(long = "no-balance", conflicts_with = "balance")]
+    pub no_balance: bool,
+    /// Add virial / power-balance rows where velocities are measured.
+    #[arg(long)]
+    pub balance: bool,
 }
 
-pub fn run(_args: Args) -> miette::Result<()> {
-    Err(miette::miette!("`dynid identify` is not available yet"))
+pub fn run(args: Args) -> miette::Result<()> {
+    let ir = super::common::load_model(&args.model)?;
+    let id = identify_files(&ir, &args)?;
+    print!("{}", render(&ir, &id));
+    if let Some(out) = &args.json {
+        let text = serde_json::to_string_pretty(&to_json(&id)).into_diagnostic()?;
+        write_atomically(out, text.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// Identify from the CSV files named in `args`.
+pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identification> {
+    let mut csv = CsvOptions {
+        map: Vec::new(),
+        ts: args.sample,
+    };
+    for spec in &args.map {
+        csv.map.push(CsvOptions::parse_map(spec, ir)?);
+    }
+    let sources = args
+        .data
+        .iter()
+        .map(|p| CsvSource::open(p, ir, &csv))
+        .collect::<Result<Vec<_>, _>>()?;
+    let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
+    let opts = IdentifyOptions {
+        corners: args.filter_corners.clone(),
+        balance: Some(args.balance && !args.no_balance),
+        ..Default::default()
+    };
+    Ok(identify(ir, &levels, &opts)?)
+}
+
+/// Human-readable report: equations, parameter table, diagnostics.
+pub fn render(ir: &ModelIr, id: &Identification) -> String {
+    let mut s = print::format_equations(ir, id);
+    s.push('\n');
+    s.push_str(&format!(
+        "{:<12} {:>14} {:>12} {:>9}\n",
+        "parameter", "value", "std. error", "rel."
+    ));
+    for p in &id.params {
+        s.push_str(&format!(
+            "{:<12} {:>14} {:>12} {:>8.2}%\n",
+            p.name,
+            print::fmt_num(p.value),
+            print::fmt_num(p.stderr),
+            100.0 * p.stderr / p.value.abs()
+        ));
+    }
+    for u in &id.unidentifiable {
+        s.push_str(&format!("{:<12} not identifiable: {}\n", u.name, u.reason));
+    }
+    s.push_str(&format!(
+        "\ncondition {:.3e}, {} rows, filter corners {:?} rad/s\n",
+        id.condition,
+        id.rows,
+        id.filter
+            .corners
+            .iter()
+            .map(|c| print::fmt_num(*c))
+            .collect::<Vec<_>>()
+    ));
+    for r in &id.residual {
+        let lv: Vec<String> = r.per_level.iter().map(|v| format!("{v:.2e}")).collect();
+        s.push_str(&format!("residual {}: {}\n", r.equation, lv.join(" / ")));
+    }
+    s
+}
+
+/// `{"parameters": {name: {value, stderr}}, "condition", "residual", "levels", "unidentifiable"}`.
+pub fn to_json(id: &Identification) -> serde_json::Value {
+    let params: serde_json::Map<String, serde_json::Value> = id
+        .params
+        .iter()
+        .map(|p| {
+            (
+                p.name.clone(),
+                serde_json::json!({"value": p.value, "stderr": p.stderr}),
+            )
+        })
+        .collect();
+    let residual: serde_json::Map<String, serde_json::Value> = id
+        .residual
+        .iter()
+        .map(|r| (r.equation.clone(), serde_json::json!(r.per_level)))
+        .collect();
+    serde_json::json!({
+        "parameters": params,
+        "condition": id.condition,
+        "residual": residual,
+        "levels": id.levels,
+        "unidentifiable": id.unidentifiable,
+        "filter": id.filter,
+    })
+}
+
+/// Write via a temporary file in the same directory and a rename, so that an error never
+/// leaves a partial output file behind.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> miette::Result<()> {
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .ok_or_else(|| miette!("{}: not a file name", path.display()))?;
+    let tmp = dir.join(format!(
+        ".{}.{}.tmp",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let res = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
+    if res.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    res.into_diagnostic()
+        .wrap_err_with(|| format!("cannot write {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dynid_runtime::test_support::{sdof_ir, simulate_sdof, Sdof, SimSpec};
+    use std::io::Write;
+
+    fn write_csv(path: &Path, rec: &dynid_runtime::record::Record) {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+        writeln!(f, "t,disp,{}", rec.names[1..].join(",")).unwrap();
+        for k in 0..rec.len() {
+            write!(f, "{:.2}", k as f64 * rec.ts).unwrap();
+            for c in &rec.columns {
+                write!(f, ",{:e}", c[k]).unwrap();
+            }
+            writeln!(f).unwrap();
+        }
+    }
+
+    #[test]
+    fn identifies_from_csv_files_and_writes_json() {
+        let dir = tempfile::tempdir().unwrap();
+        let ir = sdof_ir(Sdof::default(), true, true);
+        let mut data = Vec::new();
+        for (i, level) in [6.0, 15.0, 40.0].into_iter().enumerate() {
+            let rec = simulate_sdof(Sdof::default(), SimSpec::new(level, 400.0, 10 + i as u64));
+            let p = dir.path().join(format!("level{i}.csv"));
+            write_csv(&p, &rec);
+            data.push(p);
+        }
+        let out = dir.path().join("result.json");
+        let args = Args {
+            model: "sdof.dyn".into(),
+            data,
+            json: Some(out.clone()),
+            map: vec!["disp=m1.x".into()],
+            sample: None,
+            filter_corners: None,
+            no_balance: false,
+            balance: false,
+        };
+        let id = identify_files(&ir, &args).unwrap();
+        for (n, t) in [("d", 0.4), ("k", 4.0), ("k3", 2.0), ("r", 0.3)] {
+            let p = id.param(n).unwrap();
+            assert!((p.value / t - 1.0).abs() < 0.03, "{n}: {p:?}");
+        }
+        let text = render(&ir, &id);
+        assert!(text.starts_with("m1: 1.000 m1.x'' + "), "{text}");
+        write_atomically(
+            &out,
+            serde_json::to_string(&to_json(&id)).unwrap().as_bytes(),
+        )
+        .unwrap();
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        assert!(v["parameters"]["k3"]["value"].as_f64().unwrap() > 1.9);
+        assert!(v["parameters"]["k3"]["stderr"].as_f64().unwrap() > 0.0);
+        assert!(v["condition"].as_f64().unwrap() >= 1.0);
+        assert_eq!(v["levels"].as_array().unwrap().len(), 3);
+        assert!(v["unidentifiable"].as_array().unwrap().is_empty());
+        // No temporary files are left next to the output.
+        let n_files = std::fs::read_dir(dir.path()).unwrap().count();
+        assert_eq!(n_files, 4);
+    }
+
+    #[test]
+    fn bad_data_is_an_error_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.csv");
+        std::fs::write(&p, "t,m1.x,u\n0,1,2\n").unwrap();
+        let ir = sdof_ir(Sdof::default(), true, true);
+        let args = Args {
+            model: "sdof.dyn".into(),
+            data: vec![p.clone()],
+            json: None,
+            map: vec![],
+            sample: None,
+            filter_corners: None,
+            no_balance: false,
+            balance: false,
+        };
+        let e = format!("{:?}", identify_files(&ir, &args).unwrap_err());
+        assert!(e.contains("bad.csv") && e.contains("`m1.v`"), "{e}");
+    }
 }

@@ -1,0 +1,723 @@
+//! Measured data for identification: one source per excitation level, streamed in chunks so
+//! that memory use does not grow with the record length.
+//!
+//! A CSV file must have a header naming its columns. Columns are matched to the model's
+//! signals by name (`m1.x`, `m1.v`, `u`; an optional `t` gives the sample times, which must
+//! be uniform) or through `col=signal` renamings. Every signal the model declares measured
+//! must be present; unmeasured signals are never required and extra columns are ignored.
+
+use crate::record::Record;
+use dsl_parser::ir::ModelIr;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// Fewest samples any record may have (the filters need far more; identification checks
+/// the actual need against the filter time constants).
+pub const MIN_SAMPLES: usize = 100;
+
+/// One excitation level's record, streamed in order.
+pub trait LevelSource: Sync {
+    /// Where the data comes from, for messages (a file path or a label).
+    fn origin(&self) -> String;
+    /// Sample interval in seconds.
+    fn ts(&self) -> f64;
+    /// Call `sink(cols, len)` for consecutive chunks of at most `max_len` samples, where
+    /// `cols[s]` is the column of signal `s` (by `SignalId`; empty for unmeasured signals).
+    /// Every call streams the whole record from the start.
+    fn stream(
+        &self,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+    ) -> Result<(), DataError>;
+}
+
+/// Problems with measured data. Every variant names the file (or record) and, where it
+/// applies, the line.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+pub enum DataError {
+    #[error("{path}: cannot read: {message}")]
+    #[diagnostic(
+        code(dynid::data::io),
+        help("check that the file exists and is readable")
+    )]
+    Io { path: String, message: String },
+    #[error("{path}: the file is empty")]
+    #[diagnostic(
+        code(dynid::data::empty),
+        help("a data file needs a header line naming the columns (e.g. `t,m1.x,m1.v,u`) and one line per sample")
+    )]
+    Empty { path: String },
+    #[error("{path}: the file has a header but no samples")]
+    #[diagnostic(
+        code(dynid::data::header_only),
+        help("add one line per sample below the header")
+    )]
+    HeaderOnly { path: String },
+    #[error("{path}: line {line}: malformed CSV: {message}")]
+    #[diagnostic(
+        code(dynid::data::csv),
+        help("the file must be comma-separated text with a header line")
+    )]
+    Csv {
+        path: String,
+        line: u64,
+        message: String,
+    },
+    #[error(
+        "{path}: the header has no column for the measured signal `{signal}` (columns: {present})"
+    )]
+    #[diagnostic(
+        code(dynid::data::missing_column),
+        help("name a column `{signal}`, map one with `--map COLUMN={signal}`, or declare `{signal}` unmeasured in the model")
+    )]
+    MissingColumn {
+        path: String,
+        signal: String,
+        present: String,
+    },
+    #[error("{path}: column `{column}` appears twice in the header")]
+    #[diagnostic(
+        code(dynid::data::duplicate_column),
+        help("rename or drop one of them")
+    )]
+    DuplicateColumn { path: String, column: String },
+    #[error("{path}: line {line}: expected {expected} fields as in the header, found {found}")]
+    #[diagnostic(
+        code(dynid::data::ragged),
+        help("every line needs one value per header column")
+    )]
+    Ragged {
+        path: String,
+        line: u64,
+        expected: usize,
+        found: usize,
+    },
+    #[error("{path}: line {line}, column `{column}`: `{value}` is not a number")]
+    #[diagnostic(
+        code(dynid::data::not_a_number),
+        help("use plain decimal numbers such as `-1.25e-3`")
+    )]
+    NotANumber {
+        path: String,
+        line: u64,
+        column: String,
+        value: String,
+    },
+    #[error("{path}: line {line}, column `{column}`: {value} is not a finite number")]
+    #[diagnostic(
+        code(dynid::data::non_finite),
+        help("remove or repair samples with NaN or infinite values (cut the record into clean pieces)")
+    )]
+    NonFinite {
+        path: String,
+        line: u64,
+        column: String,
+        value: f64,
+    },
+    #[error("{path}: only {n} samples; at least {need} are needed")]
+    #[diagnostic(
+        code(dynid::data::too_few_samples),
+        help("record a longer run (the slowest identification filter needs many time constants)")
+    )]
+    TooFewSamples { path: String, n: usize, need: usize },
+    #[error("{path}: line {line}: the time step is {step} s, but the sample interval is {ts} s")]
+    #[diagnostic(
+        code(dynid::data::non_uniform_time),
+        help("identification needs uniformly sampled data; resample the record, or drop the `t` column and give `--sample TS`")
+    )]
+    NonUniformTime {
+        path: String,
+        line: u64,
+        step: f64,
+        ts: f64,
+    },
+    #[error("{path}: no sample interval: the file has no `t` column")]
+    #[diagnostic(
+        code(dynid::data::no_sample_interval),
+        help("add a `t` column or give the interval with `--sample TS`")
+    )]
+    NoSampleInterval { path: String },
+    #[error("invalid sample interval {ts}")]
+    #[diagnostic(
+        code(dynid::data::bad_sample_interval),
+        help("the sample interval is a positive number of seconds")
+    )]
+    BadSampleInterval { ts: f64 },
+    #[error("`--map {spec}`: {message}")]
+    #[diagnostic(
+        code(dynid::data::bad_map),
+        help("write `--map COLUMN=SIGNAL`, e.g. `--map disp=m1.x`; signals: {signals}")
+    )]
+    BadMap {
+        spec: String,
+        message: String,
+        signals: String,
+    },
+    #[error("{path}: column `{column}` has {found} samples, expected {expected}")]
+    #[diagnostic(
+        code(dynid::data::ragged_record),
+        help("all columns of a record must have the same length")
+    )]
+    RaggedRecord {
+        path: String,
+        column: String,
+        expected: usize,
+        found: usize,
+    },
+}
+
+/// How to read CSV files.
+#[derive(Clone, Debug, Default)]
+pub struct CsvOptions {
+    /// `(column, signal)` renamings.
+    pub map: Vec<(String, String)>,
+    /// Sample interval; required when there is no `t` column. With a `t` column it is
+    /// checked against the time steps.
+    pub ts: Option<f64>,
+}
+
+impl CsvOptions {
+    /// Parse a `COLUMN=SIGNAL` renaming, checking the signal exists in `ir`.
+    pub fn parse_map(spec: &str, ir: &ModelIr) -> Result<(String, String), DataError> {
+        let signals = ir
+            .signals
+            .iter()
+            .map(|s| s.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ");
+        let Some((c, s)) = spec.split_once('=') else {
+            return Err(DataError::BadMap {
+                spec: spec.into(),
+                message: "expected COLUMN=SIGNAL".into(),
+                signals,
+            });
+        };
+        let (c, s) = (c.trim(), s.trim());
+        if c.is_empty() || (ir.signal_id(s).is_none() && s != "t") {
+            return Err(DataError::BadMap {
+                spec: spec.into(),
+                message: format!("`{s}` is not a signal of the model"),
+                signals,
+            });
+        }
+        Ok((c.to_string(), s.to_string()))
+    }
+}
+
+/// A CSV file bound to a model: validated header, known sample interval; the body is
+/// validated while streaming.
+#[derive(Clone, Debug)]
+pub struct CsvSource {
+    path: PathBuf,
+    ts: f64,
+    n_fields: usize,
+    header: Vec<String>,
+    /// For each `SignalId`, the column it is read from.
+    col_of: Vec<Option<usize>>,
+    t_col: Option<usize>,
+}
+
+fn io_err(path: &Path, e: impl std::fmt::Display) -> DataError {
+    DataError::Io {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
+}
+
+fn csv_err(path: &Path, e: csv::Error) -> DataError {
+    let line = e.position().map_or(0, |p| p.line());
+    match e.kind() {
+        csv::ErrorKind::Io(_) => io_err(path, e),
+        _ => DataError::Csv {
+            path: path.display().to_string(),
+            line,
+            message: e.to_string(),
+        },
+    }
+}
+
+fn parse_cell(path: &Path, line: u64, column: &str, raw: &[u8]) -> Result<f64, DataError> {
+    let s = std::str::from_utf8(raw).unwrap_or("").trim();
+    let v: f64 = s.parse().map_err(|_| DataError::NotANumber {
+        path: path.display().to_string(),
+        line,
+        column: column.to_string(),
+        value: String::from_utf8_lossy(raw).into_owned(),
+    })?;
+    if !v.is_finite() {
+        return Err(DataError::NonFinite {
+            path: path.display().to_string(),
+            line,
+            column: column.to_string(),
+            value: v,
+        });
+    }
+    Ok(v)
+}
+
+/// Relative tolerance on the time step (times printed with few digits jitter slightly).
+const TIME_TOL: f64 = 1e-3;
+
+impl CsvSource {
+    /// Open `path`, match its header to the measured signals of `ir` and fix the sample
+    /// interval (from `t`, else from `opts.ts`).
+    pub fn open(path: &Path, ir: &ModelIr, opts: &CsvOptions) -> Result<CsvSource, DataError> {
+        let p = path.display().to_string();
+        if let Some(ts) = opts.ts {
+            if !(ts.is_finite() && ts > 0.0) {
+                return Err(DataError::BadSampleInterval { ts });
+            }
+        }
+        let mut rdr = Self::reader(path)?;
+        let header: Vec<String> = match rdr.headers() {
+            Ok(h) => h.iter().map(|s| s.trim().to_string()).collect(),
+            Err(e) => return Err(csv_err(path, e)),
+        };
+        if header.is_empty() || header.iter().all(|h| h.is_empty()) {
+            return Err(DataError::Empty { path: p });
+        }
+        let mut names = header.clone();
+        for (c, s) in &opts.map {
+            if let Some(k) = header.iter().position(|h| h == c) {
+                names[k] = s.clone();
+            } else {
+                return Err(DataError::MissingColumn {
+                    path: p,
+                    signal: c.clone(),
+                    present: header.join(", "),
+                });
+            }
+        }
+        for (k, n) in names.iter().enumerate() {
+            if names[..k].contains(n) {
+                return Err(DataError::DuplicateColumn {
+                    path: p,
+                    column: n.clone(),
+                });
+            }
+        }
+        let mut col_of = vec![None; ir.signals.len()];
+        for s in ir.measured_signals() {
+            let name = &ir.signal(s).name;
+            match names.iter().position(|n| n == name) {
+                Some(k) => col_of[s.index()] = Some(k),
+                None => {
+                    return Err(DataError::MissingColumn {
+                        path: p,
+                        signal: name.clone(),
+                        present: header.join(", "),
+                    })
+                }
+            }
+        }
+        let t_col = names.iter().position(|n| n == "t");
+        // Read the first two samples for the sample interval (and to tell an empty body).
+        let mut rec = csv::ByteRecord::new();
+        let mut first_t = Vec::new();
+        for _ in 0..2 {
+            match rdr.read_byte_record(&mut rec) {
+                Ok(true) => {
+                    let line = rec.position().map_or(0, |p| p.line());
+                    if rec.len() != header.len() {
+                        return Err(DataError::Ragged {
+                            path: p,
+                            line,
+                            expected: header.len(),
+                            found: rec.len(),
+                        });
+                    }
+                    if let Some(tc) = t_col {
+                        first_t.push(parse_cell(path, line, "t", &rec[tc])?);
+                    }
+                }
+                Ok(false) => break,
+                Err(e) => return Err(csv_err(path, e)),
+            }
+        }
+        if rec.is_empty() && first_t.is_empty() && rdr.position().record() <= 1 {
+            return Err(DataError::HeaderOnly { path: p });
+        }
+        let ts = match (opts.ts, first_t.as_slice()) {
+            (Some(ts), _) => ts,
+            (None, [a, b]) => {
+                let ts = b - a;
+                if ts.is_nan() || ts <= 0.0 {
+                    return Err(DataError::NonUniformTime {
+                        path: p,
+                        line: 3,
+                        step: ts,
+                        ts: f64::NAN,
+                    });
+                }
+                ts
+            }
+            (None, _) if t_col.is_some() => {
+                return Err(DataError::TooFewSamples {
+                    path: p,
+                    n: first_t.len(),
+                    need: MIN_SAMPLES,
+                })
+            }
+            (None, _) => return Err(DataError::NoSampleInterval { path: p }),
+        };
+        Ok(CsvSource {
+            path: path.to_path_buf(),
+            ts,
+            n_fields: header.len(),
+            header,
+            col_of,
+            t_col,
+        })
+    }
+
+    fn reader(path: &Path) -> Result<csv::Reader<Box<dyn Read + Send>>, DataError> {
+        let f = std::fs::File::open(path).map_err(|e| io_err(path, e))?;
+        let buf: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 20, f));
+        Ok(csv::ReaderBuilder::new()
+            .has_headers(true)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .from_reader(buf))
+    }
+}
+
+impl LevelSource for CsvSource {
+    fn origin(&self) -> String {
+        self.path.display().to_string()
+    }
+    fn ts(&self) -> f64 {
+        self.ts
+    }
+    fn stream(
+        &self,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+    ) -> Result<(), DataError> {
+        let path = self.path.as_path();
+        let p = || path.display().to_string();
+        let mut rdr = Self::reader(path)?;
+        let wanted: Vec<(usize, usize)> = self
+            .col_of
+            .iter()
+            .enumerate()
+            .filter_map(|(s, c)| c.map(|c| (s, c)))
+            .collect();
+        let mut bufs: Vec<Vec<f64>> = vec![Vec::with_capacity(max_len); self.col_of.len()];
+        let mut rec = csv::ByteRecord::new();
+        let mut n = 0usize;
+        let mut t_prev = f64::NAN;
+        let flush = |bufs: &mut Vec<Vec<f64>>, sink: &mut dyn FnMut(&[&[f64]], usize)| {
+            let len = bufs.iter().map(Vec::len).max().unwrap_or(0);
+            if len > 0 {
+                let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
+                sink(&cols, len);
+                bufs.iter_mut().for_each(Vec::clear);
+            }
+        };
+        // Streaming means an error can surface after earlier chunks were handed on; callers
+        // discard their partial results on error.
+        loop {
+            match rdr.read_byte_record(&mut rec) {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => return Err(csv_err(path, e)),
+            }
+            let line = rec.position().map_or(0, |p| p.line());
+            if rec.len() != self.n_fields {
+                // A trailing blank line is not data.
+                if rec.len() == 1 && rec[0].is_empty() {
+                    continue;
+                }
+                return Err(DataError::Ragged {
+                    path: p(),
+                    line,
+                    expected: self.n_fields,
+                    found: rec.len(),
+                });
+            }
+            for &(s, c) in &wanted {
+                let v = parse_cell(path, line, &self.header[c], &rec[c])?;
+                bufs[s].push(v);
+            }
+            if let Some(tc) = self.t_col {
+                let t = parse_cell(path, line, &self.header[tc], &rec[tc])?;
+                if n > 0 {
+                    let step = t - t_prev;
+                    if (step - self.ts).abs() > TIME_TOL * self.ts + 1e-12 * t.abs() {
+                        return Err(DataError::NonUniformTime {
+                            path: p(),
+                            line,
+                            step,
+                            ts: self.ts,
+                        });
+                    }
+                }
+                t_prev = t;
+            }
+            n += 1;
+            if bufs[wanted[0].0].len() == max_len {
+                flush(&mut bufs, sink);
+            }
+        }
+        if n == 0 {
+            return Err(DataError::HeaderOnly { path: p() });
+        }
+        if n < MIN_SAMPLES {
+            return Err(DataError::TooFewSamples {
+                path: p(),
+                n,
+                need: MIN_SAMPLES,
+            });
+        }
+        flush(&mut bufs, sink);
+        Ok(())
+    }
+}
+
+/// An in-memory record bound to a model (checked once on construction).
+#[derive(Clone, Debug)]
+pub struct RecordSource<'r> {
+    origin: String,
+    record: &'r Record,
+    col_of: Vec<Option<usize>>,
+}
+
+impl<'r> RecordSource<'r> {
+    pub fn new(
+        record: &'r Record,
+        ir: &ModelIr,
+        origin: impl Into<String>,
+    ) -> Result<Self, DataError> {
+        let origin = origin.into();
+        if !(record.ts.is_finite() && record.ts > 0.0) {
+            return Err(DataError::BadSampleInterval { ts: record.ts });
+        }
+        let mut col_of = vec![None; ir.signals.len()];
+        for s in ir.measured_signals() {
+            let name = &ir.signal(s).name;
+            match record.names.iter().position(|n| n == name) {
+                Some(k) => col_of[s.index()] = Some(k),
+                None => {
+                    return Err(DataError::MissingColumn {
+                        path: origin,
+                        signal: name.clone(),
+                        present: record.names.join(", "),
+                    })
+                }
+            }
+        }
+        let n = record.len();
+        for (name, col) in record.names.iter().zip(&record.columns) {
+            if col.len() != n {
+                return Err(DataError::RaggedRecord {
+                    path: origin,
+                    column: name.clone(),
+                    expected: n,
+                    found: col.len(),
+                });
+            }
+        }
+        for k in col_of.iter().flatten() {
+            if let Some(i) = record.columns[*k].iter().position(|v| !v.is_finite()) {
+                return Err(DataError::NonFinite {
+                    path: origin,
+                    line: i as u64 + 1,
+                    column: record.names[*k].clone(),
+                    value: record.columns[*k][i],
+                });
+            }
+        }
+        if n < MIN_SAMPLES {
+            return Err(DataError::TooFewSamples {
+                path: origin,
+                n,
+                need: MIN_SAMPLES,
+            });
+        }
+        Ok(RecordSource {
+            origin,
+            record,
+            col_of,
+        })
+    }
+}
+
+impl LevelSource for RecordSource<'_> {
+    fn origin(&self) -> String {
+        self.origin.clone()
+    }
+    fn ts(&self) -> f64 {
+        self.record.ts
+    }
+    fn stream(
+        &self,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+    ) -> Result<(), DataError> {
+        let n = self.record.len();
+        let mut start = 0;
+        let mut cols: Vec<&[f64]> = vec![&[]; self.col_of.len()];
+        while start < n {
+            let len = max_len.min(n - start);
+            for (s, c) in self.col_of.iter().enumerate() {
+                cols[s] = match c {
+                    Some(k) => &self.record.columns[*k][start..start + len],
+                    None => &[],
+                };
+            }
+            sink(&cols, len);
+            start += len;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_support::{sdof_ir, Sdof};
+    use std::io::Write;
+
+    fn file(body: &str) -> tempfile::NamedTempFile {
+        let mut f = tempfile::NamedTempFile::new().unwrap();
+        f.write_all(body.as_bytes()).unwrap();
+        f
+    }
+
+    fn rows(n: usize, ts: f64) -> String {
+        let mut s = String::from("t,m1.x,m1.v,u\n");
+        for k in 0..n {
+            let t = k as f64 * ts;
+            s.push_str(&format!("{t},{},{},{}\n", t.sin(), t.cos(), 0.5));
+        }
+        s
+    }
+
+    /// Open and stream; the error message of the first failure.
+    fn read(body: &str, opts: &CsvOptions) -> Result<usize, String> {
+        let ir = sdof_ir(Sdof::default(), true, true);
+        let f = file(body);
+        let src = CsvSource::open(f.path(), &ir, opts).map_err(|e| e.to_string())?;
+        let mut n = 0;
+        src.stream(64, &mut |_, l| n += l)
+            .map_err(|e| e.to_string())?;
+        Ok(n)
+    }
+
+    #[test]
+    fn reads_a_valid_file_in_chunks() {
+        assert_eq!(read(&rows(300, 0.01), &CsvOptions::default()), Ok(300));
+    }
+
+    #[test]
+    fn missing_column_lists_what_is_there() {
+        let body = rows(300, 0.01).replace("m1.v", "vel");
+        let e = read(&body, &CsvOptions::default()).unwrap_err();
+        assert!(
+            e.contains("no column for the measured signal `m1.v` (columns: t, m1.x, vel, u)"),
+            "{e}"
+        );
+        // ... and a renaming fixes it.
+        let opts = CsvOptions {
+            map: vec![("vel".into(), "m1.v".into())],
+            ts: None,
+        };
+        assert_eq!(read(&body, &opts), Ok(300));
+    }
+
+    #[test]
+    fn unmeasured_signals_are_not_required() {
+        let ir = sdof_ir(Sdof::default(), true, false);
+        let body = rows(300, 0.01).replace(",m1.v,", ",other,");
+        let f = file(&body);
+        assert!(CsvSource::open(f.path(), &ir, &CsvOptions::default()).is_ok());
+    }
+
+    #[test]
+    fn nan_and_text_cells_name_line_and_column() {
+        // Sample 5 (file line 7, after the header) gets a NaN position.
+        let bad_line = 7;
+        let body: String = rows(300, 0.01)
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                if i + 1 == bad_line {
+                    "0.05,NaN,1,0.5".to_string()
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        let e = read(&body, &CsvOptions::default()).unwrap_err();
+        assert!(
+            e.contains(&format!(
+                "line {bad_line}, column `m1.x`: NaN is not a finite number"
+            )),
+            "{e}"
+        );
+        let body2 = body.replace("0.05,NaN,", "0.05,abc,");
+        let e = read(&body2, &CsvOptions::default()).unwrap_err();
+        assert!(
+            e.contains(&format!(
+                "line {bad_line}, column `m1.x`: `abc` is not a number"
+            )),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn ragged_row_is_reported() {
+        let mut body = rows(300, 0.01);
+        body.push_str("3.0,1,2\n");
+        let e = read(&body, &CsvOptions::default()).unwrap_err();
+        assert!(
+            e.contains("line 302: expected 4 fields as in the header, found 3"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn empty_and_header_only_files() {
+        let e = read("", &CsvOptions::default()).unwrap_err();
+        assert!(e.contains("the file is empty"), "{e}");
+        let e = read("t,m1.x,m1.v,u\n", &CsvOptions::default()).unwrap_err();
+        assert!(e.contains("has a header but no samples"), "{e}");
+    }
+
+    #[test]
+    fn too_few_samples_says_how_many() {
+        let e = read(&rows(50, 0.01), &CsvOptions::default()).unwrap_err();
+        assert!(
+            e.contains("only 50 samples; at least 100 are needed"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn non_uniform_time_names_the_first_bad_line() {
+        let body: String = rows(300, 0.01)
+            .lines()
+            .enumerate()
+            .filter(|(i, _)| *i != 120) // drop one sample: a gap of 2 Tₛ
+            .map(|(_, l)| format!("{l}\n"))
+            .collect();
+        let e = read(&body, &CsvOptions::default()).unwrap_err();
+        assert!(e.contains("line 121: the time step is"), "{e}");
+    }
+
+    #[test]
+    fn sample_interval_is_required_without_t() {
+        let body: String = rows(300, 0.01)
+            .lines()
+            .map(|l| l.split_once(',').unwrap().1.to_string() + "\n")
+            .collect();
+        let e = read(&body, &CsvOptions::default()).unwrap_err();
+        assert!(e.contains("no sample interval"), "{e}");
+        let opts = CsvOptions {
+            map: vec![],
+            ts: Some(0.01),
+        };
+        assert_eq!(read(&body, &opts), Ok(300));
+    }
+}

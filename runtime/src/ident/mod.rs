@@ -1,0 +1,823 @@
+//! Parameter identification by the covariance (filter) method.
+//!
+//! Each equation of motion of body `l` is linear in the unknown parameters,
+//! `Σᵢ coefᵢ · basisᵢ = 0`, with `basis ∈ {static g(signals), ẋₖ, ẍₖ}`. Multiplying by an
+//! instrument `ι(t)` and averaging over a record of length `T` gives one linear equation per
+//! (instrument, equation, level). Derivatives are moved onto the instrument by the exact
+//! finite-record identities
+//!
+//! ```text
+//! ⟨ι ẋ⟩ = −⟨ι' x⟩ + [ι x]₀ᵀ/T,    ⟨ι ẍ⟩ = ⟨ι'' x⟩ − [ι' x]₀ᵀ/T + [ι ẋ]₀ᵀ/T,
+//! ```
+//!
+//! so no measured signal is ever differentiated. Instruments are the states of a bank of
+//! low-pass chains driven by measured positions and inputs (see [`filter`]); a state of
+//! relative degree `r` has `ι'` (r ≥ 2) and `ι''` (r ≥ 3) free of the driving signal, which
+//! keeps white measurement noise out of every product. Where velocities are measured the
+//! balance instruments `xₖ` (virial, `⟨x ẍ⟩ = −⟨v²⟩ + [x v]/T`) and `v_l` (power balance,
+//! `⟨v_l ẍ_l⟩ = [v_l²/2]/T`) can be added. Rows of all levels are stacked into one
+//! least-squares problem `C p = c`, solved by SVD after row normalisation and column
+//! scaling; standard errors come from a delete-one-block jackknife over time blocks.
+
+pub mod filter;
+mod moments;
+mod plan;
+pub mod print;
+mod solve;
+
+pub use filter::Hold;
+pub use moments::PhaseTimes;
+
+use crate::basis::BasisEval;
+use crate::data::{DataError, LevelSource};
+use crate::tape::Tape;
+use dsl_parser::ir::{ModelIr, SignalId, SignalKind};
+use moments::{LevelAccumulator, LevelMoments, MomentView};
+use plan::{BankChoice, BasisMoment, Instrument, Plan, TermCoef};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+/// Choices of the identification; `Default` gives the method's recommended settings.
+#[derive(Clone, Debug)]
+pub struct IdentifyOptions {
+    /// Filter corners in rad/s. `None`: the model's filter block, else designed from the data.
+    pub corners: Option<Vec<f64>>,
+    /// Number of corners when they are designed from the data.
+    pub n_corners: usize,
+    /// Sections per low-pass chain. `None`: 3, or 4 when accelerations must come from
+    /// positions alone (so the instruments keep relative degree ≥ 3).
+    pub order: Option<usize>,
+    /// Signals driving the filter bank. `None`: the model's filter block, else the measured
+    /// positions and inputs.
+    pub drivers: Option<Vec<SignalId>>,
+    /// Add virial and power-balance rows where velocities are measured. `None`: off — they
+    /// were measured not to improve the pooled estimate (see the crate tests).
+    pub balance: Option<bool>,
+    /// Time blocks per level for the jackknife standard errors.
+    pub n_blocks: usize,
+    /// Samples per chunk of streamed work (memory use is proportional to this, not to the
+    /// record length).
+    pub chunk_len: usize,
+    /// Singular values below `rcond · σ_max` count as rank loss.
+    pub rcond: f64,
+    /// Inter-sample model of the filter input (first-order hold; zero-order for comparison).
+    pub hold: Hold,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        IdentifyOptions {
+            corners: None,
+            n_corners: 6,
+            order: None,
+            drivers: None,
+            balance: None,
+            n_blocks: 20,
+            chunk_len: 8192,
+            rcond: 1e-10,
+            hold: Hold::FirstOrder,
+        }
+    }
+}
+
+/// Errors of identification. Data errors pass through with their file and line.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+pub enum IdentifyError {
+    #[error(
+        "the term `{term}` of the equation of `{equation}` needs `{signal}`, which is not measured"
+    )]
+    #[diagnostic(
+        code(dynid::identify::unmeasured),
+        help("measure `{signal}`, or write the term so that it depends only on measured signals (terms linear in a velocity can be moved onto the filters)")
+    )]
+    UnmeasuredInTerm {
+        equation: String,
+        term: String,
+        signal: String,
+    },
+    #[error("the filter bank is driven by `{signal}`, which is not measured")]
+    #[diagnostic(
+        code(dynid::identify::driver),
+        help("drive the filters by measured positions and inputs")
+    )]
+    UnmeasuredDriver { signal: String },
+    #[error("the model has no unknown parameters")]
+    #[diagnostic(
+        code(dynid::identify::no_unknowns),
+        help("declare the parameters to identify without a value (e.g. `param k`)")
+    )]
+    NoUnknowns,
+    #[error("no data: identification needs at least one record")]
+    #[diagnostic(
+        code(dynid::identify::no_data),
+        help("pass one data file per excitation level")
+    )]
+    NoLevels,
+    #[error("{origin}: {n} samples span {duration:.3} s, too short for the slowest filter (time constant {tau:.3} s)")]
+    #[diagnostic(
+        code(dynid::identify::too_short),
+        help("record at least {need} samples, or choose higher filter corners")
+    )]
+    TooShort {
+        origin: String,
+        n: usize,
+        duration: f64,
+        tau: f64,
+        need: usize,
+    },
+    #[error("{rows} equations for {cols} unknown parameters")]
+    #[diagnostic(
+        code(dynid::identify::too_few_rows),
+        help("add filter corners or excitation levels")
+    )]
+    TooFewRows { rows: usize, cols: usize },
+    #[error("invalid option: {message}")]
+    #[diagnostic(code(dynid::identify::option), help("{help}"))]
+    BadOption { message: String, help: String },
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Data(#[from] DataError),
+}
+
+/// An identified parameter.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ParamEstimate {
+    pub name: String,
+    pub value: f64,
+    /// Jackknife standard error over time blocks.
+    pub stderr: f64,
+}
+
+/// A parameter the data cannot determine; no value is reported for it.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Unidentifiable {
+    pub name: String,
+    pub reason: String,
+}
+
+/// Relative residual `‖W (C p − c)‖ / ‖W c‖` over the rows of one equation, per level.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct EquationResidual {
+    pub equation: String,
+    pub per_level: Vec<f64>,
+}
+
+/// What was seen of one level.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct LevelInfo {
+    pub origin: String,
+    pub samples: usize,
+    pub ts: f64,
+    /// Standard deviation per measured signal.
+    pub std: BTreeMap<String, f64>,
+}
+
+/// The filter bank that was used.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct FilterSummary {
+    pub corners: Vec<f64>,
+    pub order: usize,
+    pub drivers: Vec<String>,
+    /// Relative degrees of the states used as instruments.
+    pub instrument_degrees: Vec<usize>,
+    pub balance_rows: bool,
+}
+
+/// Result of an identification.
+#[derive(Clone, Debug, Serialize)]
+pub struct Identification {
+    pub params: Vec<ParamEstimate>,
+    pub unidentifiable: Vec<Unidentifiable>,
+    /// Condition number of the row-normalised, column-scaled matrix.
+    pub condition: f64,
+    pub residual: Vec<EquationResidual>,
+    pub levels: Vec<LevelInfo>,
+    pub filter: FilterSummary,
+    /// Rows of the stacked system.
+    pub rows: usize,
+    #[serde(skip)]
+    pub times: PhaseTimes,
+}
+
+impl Identification {
+    pub fn param(&self, name: &str) -> Option<&ParamEstimate> {
+        self.params.iter().find(|p| p.name == name)
+    }
+}
+
+/// The assembled system `C p = c` (before weighting), for parity checks between evaluators.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinearSystem {
+    /// Row-major `rows × cols`; columns are `ir.unknowns()` in order.
+    pub c_matrix: Vec<f64>,
+    pub rhs: Vec<f64>,
+    pub rows: usize,
+    pub cols: usize,
+    /// `level i: instrument → equation` per row.
+    pub row_labels: Vec<String>,
+}
+
+/// Moments of all levels of one model, ready to be solved pooled or per level.
+pub struct Moments<'m> {
+    ir: &'m ModelIr,
+    plan: Plan,
+    levels: Vec<LevelMoments>,
+    infos: Vec<LevelInfo>,
+    rcond: f64,
+    times: PhaseTimes,
+}
+
+/// Identify the unknown parameters of `ir` from records at one or more excitation levels,
+/// pooling all levels into one least-squares problem (paper eq. 9).
+pub fn identify(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Result<Identification, IdentifyError> {
+    let tape = Tape::compile(ir, &ir.eval_roots());
+    Ok(measure(ir, &tape, levels, opts)?.identify_pooled())
+}
+
+/// As [`identify`], with a caller-supplied basis evaluator (e.g. macro-generated code).
+pub fn identify_with(
+    ir: &ModelIr,
+    eval: &dyn BasisEval,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Result<Identification, IdentifyError> {
+    Ok(measure(ir, eval, levels, opts)?.identify_pooled())
+}
+
+/// Identify separately at each level (for detection: an equivalent-linear parameter that
+/// drifts with the level reveals a hidden nonlinearity).
+pub fn identify_per_level(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Result<Vec<Identification>, IdentifyError> {
+    let tape = Tape::compile(ir, &ir.eval_roots());
+    let m = measure(ir, &tape, levels, opts)?;
+    Ok((0..levels.len()).map(|i| m.identify_level(i)).collect())
+}
+
+/// The stacked system `C p = c` of all levels.
+pub fn assemble(
+    ir: &ModelIr,
+    eval: &dyn BasisEval,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Result<LinearSystem, IdentifyError> {
+    Ok(measure(ir, eval, levels, opts)?.system())
+}
+
+/// Stream every level once through the filters and accumulate the moments.
+pub fn measure<'m>(
+    ir: &'m ModelIr,
+    eval: &dyn BasisEval,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Result<Moments<'m>, IdentifyError> {
+    if levels.is_empty() {
+        return Err(IdentifyError::NoLevels);
+    }
+    if ir.unknowns().is_empty() {
+        return Err(IdentifyError::NoUnknowns);
+    }
+    if opts.chunk_len < 2 || opts.n_blocks < 2 {
+        return Err(IdentifyError::BadOption {
+            message: "chunk length and number of blocks must be at least 2".into(),
+            help: "use the defaults".into(),
+        });
+    }
+    let bank = choose_bank(ir, opts)?;
+    let mut plan = plan::build_structure(ir, opts.balance.unwrap_or(false), &bank)?;
+    let t0 = Instant::now();
+    let stats: Vec<LevelStats> = levels
+        .par_iter()
+        .map(|src| level_stats(&plan, *src, opts.chunk_len))
+        .collect::<Result<_, _>>()?;
+    let stats_time = t0.elapsed();
+
+    let corners = match (&opts.corners, ir.filter.as_ref().map(|f| &f.corners)) {
+        (Some(c), _) => c.clone(),
+        (None, Some(c)) if !c.is_empty() => c.clone(),
+        _ => {
+            let omegas: Vec<f64> = stats.iter().flat_map(|s| s.omegas.clone()).collect();
+            let ts = stats.iter().map(|s| s.ts).fold(f64::INFINITY, f64::min);
+            filter::design_corners(&omegas, ts, opts.n_corners)
+        }
+    };
+    if corners.is_empty() || corners.iter().any(|c| !(c.is_finite() && *c > 0.0)) {
+        return Err(IdentifyError::BadOption {
+            message: format!("filter corners {corners:?}"),
+            help: "corners are positive angular frequencies in rad/s".into(),
+        });
+    }
+    plan.corners = vec![0.0; corners.len()];
+    plan.set_corners(ir, &corners);
+    let lam_min = corners.iter().copied().fold(f64::INFINITY, f64::min);
+    // The slowest section must forget its start within a small part of the record.
+    let tau = bank.order as f64 / lam_min;
+    for (s, src) in stats.iter().zip(levels) {
+        let duration = (s.n.saturating_sub(1)) as f64 * s.ts;
+        if duration < 10.0 * tau || s.n < 4 * opts.n_blocks {
+            return Err(IdentifyError::TooShort {
+                origin: src.origin(),
+                n: s.n,
+                duration,
+                tau,
+                need: ((10.0 * tau / s.ts).ceil() as usize + 1).max(4 * opts.n_blocks),
+            });
+        }
+    }
+    let cols = plan.unknowns.len();
+    let rows = plan.rows.len() * levels.len();
+    if rows < cols {
+        return Err(IdentifyError::TooFewRows { rows, cols });
+    }
+
+    let results: Vec<(LevelMoments, PhaseTimes)> = levels
+        .par_iter()
+        .zip(&stats)
+        .map(|(src, st)| {
+            let mut acc = LevelAccumulator::new(&plan, eval, st.ts, st.n, opts.n_blocks, opts.hold);
+            let mut read = Duration::ZERO;
+            let mut t_read = Instant::now();
+            src.stream(opts.chunk_len, &mut |cols, len| {
+                read += t_read.elapsed();
+                acc.push(cols, len);
+                t_read = Instant::now();
+            })?;
+            let (m, mut t) = acc.finish();
+            t.read = read;
+            Ok::<_, IdentifyError>((m, t))
+        })
+        .collect::<Result<_, _>>()?;
+    let mut times = PhaseTimes {
+        read: stats_time,
+        ..Default::default()
+    };
+    let mut lm = Vec::new();
+    for (m, t) in results {
+        times += t;
+        lm.push(m);
+    }
+    let infos = stats
+        .iter()
+        .zip(levels)
+        .map(|(s, src)| LevelInfo {
+            origin: src.origin(),
+            samples: s.n,
+            ts: s.ts,
+            std: plan
+                .y
+                .iter()
+                .zip(&s.std)
+                .map(|(sig, sd)| (ir.signal(*sig).name.clone(), *sd))
+                .collect(),
+        })
+        .collect();
+    Ok(Moments {
+        ir,
+        plan,
+        levels: lm,
+        infos,
+        rcond: opts.rcond,
+        times,
+    })
+}
+
+fn choose_bank(ir: &ModelIr, opts: &IdentifyOptions) -> Result<BankChoice, IdentifyError> {
+    let spec = ir.filter.as_ref();
+    let drivers = match (&opts.drivers, spec.map(|f| &f.driven_by)) {
+        (Some(d), _) => d.clone(),
+        (None, Some(d)) if !d.is_empty() => d.clone(),
+        _ => ir
+            .measured_signals()
+            .into_iter()
+            .filter(|s| !matches!(ir.signal(*s).kind, SignalKind::Velocity(_)))
+            .collect(),
+    };
+    // Accelerations from positions alone need ι'' free of the driving signal: degree ≥ 3.
+    let needs_second = ir.equations.iter().any(|eq| {
+        eq.terms.iter().any(|t| match t.basis {
+            dsl_parser::ir::Basis::Deriv { body, order: 2 } => {
+                !ir.signal(ir.velocity(body)).measured
+            }
+            _ => false,
+        })
+    });
+    let min_degree = if needs_second { 3 } else { 2 };
+    let order = opts
+        .order
+        .or(spec.map(|f| f.order as usize))
+        .unwrap_or(min_degree + 1);
+    if order < min_degree || order > 8 {
+        return Err(IdentifyError::BadOption {
+            message: format!("filter order {order}"),
+            help: format!("use an order between {min_degree} and 8 for this model"),
+        });
+    }
+    let n_corners = match (&opts.corners, spec.map(|f| &f.corners)) {
+        (Some(c), _) => c.len(),
+        (None, Some(c)) if !c.is_empty() => c.len(),
+        _ => opts.n_corners,
+    };
+    Ok(BankChoice {
+        drivers,
+        order,
+        min_degree,
+        n_corners,
+    })
+}
+
+/// First-pass statistics of a level: length, spread, dominant frequencies.
+struct LevelStats {
+    n: usize,
+    ts: f64,
+    std: Vec<f64>,
+    omegas: Vec<f64>,
+}
+
+fn level_stats(
+    plan: &Plan,
+    src: &dyn LevelSource,
+    chunk: usize,
+) -> Result<LevelStats, IdentifyError> {
+    let ny = plan.y.len();
+    let mut n = 0usize;
+    let mut shift = vec![0.0; ny];
+    let mut s1 = vec![0.0; ny];
+    let mut s2 = vec![0.0; ny];
+    // Hysteresis zero-crossing counts about a reference from the first chunk.
+    let mut reference: Vec<(f64, f64)> = Vec::new();
+    let mut side = vec![0i8; ny];
+    let mut crossings = vec![0usize; ny];
+    src.stream(chunk, &mut |cols, len| {
+        if n == 0 {
+            for (k, s) in plan.y.iter().enumerate() {
+                let c = &cols[s.index()][..len];
+                shift[k] = c[0];
+                let mean = c.iter().sum::<f64>() / len as f64;
+                let var = c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / len as f64;
+                reference.push((mean, 0.25 * var.sqrt()));
+            }
+        }
+        for (k, s) in plan.y.iter().enumerate() {
+            let c = &cols[s.index()][..len];
+            let (mut a, mut b) = (0.0, 0.0);
+            for &v in c {
+                let d = v - shift[k];
+                a += d;
+                b += d * d;
+            }
+            s1[k] += a;
+            s2[k] += b;
+            let (mid, h) = reference[k];
+            for &v in c {
+                let now = if v > mid + h {
+                    1
+                } else if v < mid - h {
+                    -1
+                } else {
+                    0
+                };
+                if now != 0 && now != side[k] {
+                    if side[k] != 0 {
+                        crossings[k] += 1;
+                    }
+                    side[k] = now;
+                }
+            }
+        }
+        n += len;
+    })?;
+    let ts = src.ts();
+    let std = (0..ny)
+        .map(|k| {
+            let m = s1[k] / n.max(1) as f64;
+            (s2[k] / n.max(1) as f64 - m * m).max(0.0).sqrt()
+        })
+        .collect();
+    let duration = (n.max(2) - 1) as f64 * ts;
+    let omegas = plan
+        .y
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| plan.drivers.contains(s))
+        .filter(|(k, _)| crossings[*k] > 0)
+        .map(|(k, _)| std::f64::consts::PI * crossings[k] as f64 / duration)
+        .collect();
+    Ok(LevelStats { n, ts, std, omegas })
+}
+
+impl<'m> Moments<'m> {
+    /// Information on the levels that were read.
+    pub fn levels(&self) -> &[LevelInfo] {
+        &self.infos
+    }
+
+    /// Time spent so far, by phase.
+    pub fn times(&self) -> PhaseTimes {
+        self.times
+    }
+
+    fn filter_summary(&self) -> FilterSummary {
+        FilterSummary {
+            corners: self.plan.corners.clone(),
+            order: self.plan.order,
+            drivers: self
+                .plan
+                .drivers
+                .iter()
+                .map(|s| self.ir.signal(*s).name.clone())
+                .collect(),
+            instrument_degrees: (self.plan.min_degree..=self.plan.order).collect(),
+            balance_rows: self.plan.balance,
+        }
+    }
+
+    /// Rows `(C, c)` of one level from a moment view.
+    fn level_rows(&self, view: &MomentView) -> (Vec<f64>, Vec<f64>) {
+        let p = &self.plan;
+        let cols = p.unknowns.len();
+        let mut c = vec![0.0; p.rows.len() * cols];
+        let mut rhs = vec![0.0; p.rows.len()];
+        for (r, &(k, l)) in p.rows.iter().enumerate() {
+            let ins = &p.instruments[k];
+            for t in &p.equations[l] {
+                let m = term_moment(ins, &t.basis, view);
+                match t.coef {
+                    TermCoef::Unknown { col, scale } => c[r * cols + col] += scale * m,
+                    TermCoef::Known(v) => rhs[r] -= v * m,
+                }
+            }
+        }
+        (c, rhs)
+    }
+
+    /// The stacked system of all levels.
+    pub fn system(&self) -> LinearSystem {
+        let cols = self.plan.unknowns.len();
+        let mut out = LinearSystem {
+            c_matrix: vec![],
+            rhs: vec![],
+            rows: 0,
+            cols,
+            row_labels: vec![],
+        };
+        for (i, lm) in self.levels.iter().enumerate() {
+            let (c, r) = self.level_rows(&lm.view(None));
+            out.c_matrix.extend(c);
+            out.rhs.extend(r);
+            for &(k, l) in &self.plan.rows {
+                out.row_labels.push(format!(
+                    "level {}: {} → {}",
+                    i + 1,
+                    self.plan.instruments[k].label,
+                    self.ir.bodies[l].name
+                ));
+            }
+        }
+        out.rows = out.rhs.len();
+        out
+    }
+
+    /// Pool all levels into one least-squares problem.
+    pub fn identify_pooled(&self) -> Identification {
+        let all: Vec<usize> = (0..self.levels.len()).collect();
+        self.solve_levels(&all)
+    }
+
+    /// Use level `i` alone.
+    pub fn identify_level(&self, i: usize) -> Identification {
+        self.solve_levels(&[i])
+    }
+
+    fn solve_levels(&self, which: &[usize]) -> Identification {
+        let t0 = Instant::now();
+        let plan = &self.plan;
+        let ncol = plan.unknowns.len();
+        let nr = plan.rows.len();
+        let full: Vec<(Vec<f64>, Vec<f64>)> = which
+            .iter()
+            .map(|&i| self.level_rows(&self.levels[i].view(None)))
+            .collect();
+        let stack = |parts: &[&(Vec<f64>, Vec<f64>)]| {
+            let mut c = Vec::with_capacity(parts.len() * nr * ncol);
+            let mut r = Vec::with_capacity(parts.len() * nr);
+            for p in parts {
+                c.extend_from_slice(&p.0);
+                r.extend_from_slice(&p.1);
+            }
+            (c, r)
+        };
+        let (c_full, r_full) = stack(&full.iter().collect::<Vec<_>>());
+        let rows = r_full.len();
+        // Row normalisation: every row (with its right-hand side) gets unit norm, so rows of
+        // weak instruments and quiet levels count as much as loud ones.
+        let weights: Vec<f64> = (0..rows)
+            .map(|r| {
+                let n = (c_full[r * ncol..(r + 1) * ncol]
+                    .iter()
+                    .map(|v| v * v)
+                    .sum::<f64>()
+                    + r_full[r] * r_full[r])
+                    .sqrt();
+                if n > 0.0 {
+                    1.0 / n
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        // Jackknife replicates: every (level, block) deleted once.
+        let replicates: Vec<(Vec<f64>, Vec<f64>)> = which
+            .iter()
+            .enumerate()
+            .flat_map(|(pos, &i)| (0..self.levels[i].n_blocks()).map(move |b| (pos, i, b)))
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|(pos, i, b)| {
+                let del = self.level_rows(&self.levels[i].view(Some(b)));
+                let parts: Vec<&(Vec<f64>, Vec<f64>)> = full
+                    .iter()
+                    .enumerate()
+                    .map(|(q, f)| if q == pos { &del } else { f })
+                    .collect();
+                stack(&parts)
+            })
+            .collect();
+
+        let names: Vec<String> = plan
+            .unknowns
+            .iter()
+            .map(|&p| self.ir.params[p].name.clone())
+            .collect();
+        let mut active: Vec<usize> = (0..ncol).collect();
+        let mut unident = Vec::new();
+        let weighted = |c: &[f64], r: &[f64], active: &[usize]| {
+            let mut a = Vec::with_capacity(rows * active.len());
+            let mut b = Vec::with_capacity(rows);
+            for i in 0..rows {
+                for &j in active {
+                    a.push(weights[i] * c[i * ncol + j]);
+                }
+                b.push(weights[i] * r[i]);
+            }
+            (a, b)
+        };
+        let (sol, se) = loop {
+            let (a, b) = weighted(&c_full, &r_full, &active);
+            let sol = solve::lstsq(&a, &b, rows, active.len(), self.rcond);
+            if active.is_empty() {
+                break (sol, vec![]);
+            }
+            let cmax = sol.col_norms.iter().copied().fold(0.0, f64::max);
+            if let Some(j) = (0..active.len()).find(|&j| sol.col_norms[j] <= 1e-12 * cmax) {
+                unident.push(Unidentifiable {
+                    name: names[active[j]].clone(),
+                    reason: "never excited at these levels: its column of moments is zero \
+                             (the term it multiplies vanishes on the data)"
+                        .into(),
+                });
+                active.remove(j);
+                continue;
+            }
+            let cond = sol.condition();
+            if cond * self.rcond > 1.0 {
+                let vmax = sol.v_min.iter().map(|v| v.abs()).fold(0.0, f64::max);
+                let j = (0..active.len())
+                    .max_by(|&x, &y| sol.v_min[x].abs().total_cmp(&sol.v_min[y].abs()))
+                    .unwrap();
+                let partners: Vec<String> = (0..active.len())
+                    .filter(|&k| k != j && sol.v_min[k].abs() >= 0.1 * vmax)
+                    .map(|k| format!("`{}`", names[active[k]]))
+                    .collect();
+                unident.push(Unidentifiable {
+                    name: names[active[j]].clone(),
+                    reason: format!(
+                        "its column is collinear with {} (cond {:.1e}) — add an excitation \
+                         level where the terms are excited differently",
+                        if partners.is_empty() {
+                            "the other columns".to_string()
+                        } else {
+                            partners.join(", ")
+                        },
+                        cond
+                    ),
+                });
+                active.remove(j);
+                continue;
+            }
+            // Jackknife standard errors.
+            let reps: Vec<Vec<f64>> = replicates
+                .par_iter()
+                .map(|(c, r)| {
+                    let (a, b) = weighted(c, r, &active);
+                    solve::lstsq(&a, &b, rows, active.len(), self.rcond).x
+                })
+                .collect();
+            let g = reps.len() as f64;
+            let se: Vec<f64> = (0..active.len())
+                .map(|j| {
+                    let mean = reps.iter().map(|x| x[j]).sum::<f64>() / g;
+                    ((g - 1.0) / g * reps.iter().map(|x| (x[j] - mean).powi(2)).sum::<f64>()).sqrt()
+                })
+                .collect();
+            let worst = (0..active.len())
+                .filter(|&j| se[j] >= sol.x[j].abs())
+                .max_by(|&x, &y| (se[x] / sol.x[x].abs()).total_cmp(&(se[y] / sol.x[y].abs())));
+            if let Some(j) = worst {
+                unident.push(Unidentifiable {
+                    name: names[active[j]].clone(),
+                    reason: format!(
+                        "not resolved by the data: the estimate {:.3e} has a standard error \
+                         of {:.1e}, at least its own size — its effect is below the noise \
+                         at these levels",
+                        sol.x[j], se[j]
+                    ),
+                });
+                active.remove(j);
+                continue;
+            }
+            break (sol, se);
+        };
+
+        let mut p_full = vec![0.0; ncol];
+        for (k, &j) in active.iter().enumerate() {
+            p_full[j] = sol.x[k];
+        }
+        let params = active
+            .iter()
+            .enumerate()
+            .map(|(k, &j)| ParamEstimate {
+                name: names[j].clone(),
+                value: sol.x[k],
+                stderr: se[k],
+            })
+            .collect();
+        // Residuals per equation and level, on the weighted rows.
+        let residual = (0..self.ir.equations.len())
+            .map(|l| EquationResidual {
+                equation: self.ir.bodies[l].name.clone(),
+                per_level: (0..which.len())
+                    .map(|pos| {
+                        let (mut num, mut den) = (0.0, 0.0);
+                        for (r, &(_, eq)) in plan.rows.iter().enumerate() {
+                            if eq != l {
+                                continue;
+                            }
+                            let i = pos * nr + r;
+                            let fit: f64 =
+                                (0..ncol).map(|j| c_full[i * ncol + j] * p_full[j]).sum();
+                            num += (weights[i] * (fit - r_full[i])).powi(2);
+                            den += (weights[i] * r_full[i]).powi(2);
+                        }
+                        if den > 0.0 {
+                            (num / den).sqrt()
+                        } else {
+                            num.sqrt()
+                        }
+                    })
+                    .collect(),
+            })
+            .collect();
+        let mut times = self.times;
+        times.solve = t0.elapsed();
+        Identification {
+            params,
+            unidentifiable: unident,
+            condition: sol.condition(),
+            residual,
+            levels: which.iter().map(|&i| self.infos[i].clone()).collect(),
+            filter: self.filter_summary(),
+            rows,
+            times,
+        }
+    }
+}
+
+fn term_moment(ins: &Instrument, basis: &BasisMoment, v: &MomentView) -> f64 {
+    let a = &ins.a;
+    match *basis {
+        BasisMoment::Static(w) => v.mean(a, w),
+        BasisMoment::D1Pos(x) => -v.mean(ins.a1.as_ref().unwrap(), x) + v.bnd(a, x),
+        BasisMoment::D2Vel(w, body) => {
+            if ins.power == Some(body) {
+                0.5 * v.bnd(a, w)
+            } else {
+                -v.mean(ins.a1.as_ref().unwrap(), w) + v.bnd(a, w)
+            }
+        }
+        BasisMoment::D2Pos(x, q) => {
+            let a1 = ins.a1.as_ref().unwrap();
+            v.mean(ins.a2.as_ref().unwrap(), x) - v.bnd(a1, x) + v.bnd(a, q)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,364 @@
+//! Streaming accumulation of the raw cross moments of one excitation level.
+//!
+//! Per sample the only work is: evaluate the static basis `g`, advance the filter bank `ζ`,
+//! and add `ι wᵀ` (with `ι = [ζ; y]`, `w = [g; y]`) to the sum of the current time block —
+//! done per chunk as one matrix product. Every moment the equations need, including those
+//! with `ζ'` and `ζ''`, is a fixed linear combination of these (see [`super::plan`]).
+//!
+//! Time averages use the trapezoid rule over samples, `∫ f ≈ Tₛ (Σ f − ½ f₀ − ½ f_N)`, which
+//! splits exactly into time blocks: block `b` (samples `n_b … n_{b+1}`) contributes
+//! `Tₛ (Σ_{[n_b, n_{b+1})} f + ½ f(n_{b+1}) − ½ f(n_b))`. At the block boundaries the full
+//! products `ι qᵀ` are kept as snapshots; they supply both the trapezoid end corrections and
+//! the boundary terms `[ι q]` of the finite-record identities. Deleting a block (for the
+//! jackknife) therefore leaves a record on which every identity still holds exactly.
+
+use super::filter::{ChainDisc, Hold};
+use super::plan::Plan;
+use crate::basis::BasisEval;
+use faer::{Accum, MatMut, MatRef, Par};
+use std::time::{Duration, Instant};
+
+/// Where the time of a moment pass goes (summed over threads).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct PhaseTimes {
+    /// Reading and validating the data (parsing, for CSV).
+    pub read: Duration,
+    pub filter: Duration,
+    pub evaluate: Duration,
+    pub accumulate: Duration,
+    pub solve: Duration,
+}
+
+impl std::ops::AddAssign for PhaseTimes {
+    fn add_assign(&mut self, o: Self) {
+        self.read += o.read;
+        self.filter += o.filter;
+        self.evaluate += o.evaluate;
+        self.accumulate += o.accumulate;
+        self.solve += o.solve;
+    }
+}
+
+/// Raw moments of one level, per time block.
+#[derive(Clone, Debug)]
+pub(crate) struct LevelMoments {
+    pub n_i: usize,
+    pub n_w: usize,
+    pub n_q: usize,
+    pub ts: f64,
+    /// `Σ ι wᵀ` over the half-open sample range of each block (row-major `n_i × n_w`).
+    pub sums: Vec<Vec<f64>>,
+    /// Sample intervals per block.
+    pub lens: Vec<usize>,
+    /// `ι qᵀ` at each block boundary (row-major `n_i × n_q`), `blocks + 1` of them.
+    pub snaps: Vec<Vec<f64>>,
+}
+
+/// Time-averaged moments `⟨ι w⟩` and boundary terms `[ι q]/T` over a set of blocks.
+#[derive(Clone, Debug)]
+pub(crate) struct MomentView {
+    pub n_w: usize,
+    pub n_q: usize,
+    pub m: Vec<f64>,
+    pub bnd: Vec<f64>,
+}
+
+impl MomentView {
+    #[inline]
+    pub fn mean(&self, a: &[(usize, f64)], col: usize) -> f64 {
+        a.iter().map(|&(i, c)| c * self.m[i * self.n_w + col]).sum()
+    }
+    #[inline]
+    pub fn bnd(&self, a: &[(usize, f64)], col: usize) -> f64 {
+        a.iter()
+            .map(|&(i, c)| c * self.bnd[i * self.n_q + col])
+            .sum()
+    }
+}
+
+impl LevelMoments {
+    pub fn n_blocks(&self) -> usize {
+        self.lens.len()
+    }
+
+    /// The moments over all blocks except `exclude`.
+    pub fn view(&self, exclude: Option<usize>) -> MomentView {
+        let (n_i, n_w, n_q) = (self.n_i, self.n_w, self.n_q);
+        let mut m = vec![0.0; n_i * n_w];
+        let mut bnd = vec![0.0; n_i * n_q];
+        let mut intervals = 0usize;
+        for b in 0..self.n_blocks() {
+            if Some(b) == exclude {
+                continue;
+            }
+            intervals += self.lens[b];
+            let (s0, s1) = (&self.snaps[b], &self.snaps[b + 1]);
+            for i in 0..n_i {
+                for j in 0..n_w {
+                    m[i * n_w + j] +=
+                        self.sums[b][i * n_w + j] + 0.5 * (s1[i * n_q + j] - s0[i * n_q + j]);
+                }
+                for j in 0..n_q {
+                    bnd[i * n_q + j] += s1[i * n_q + j] - s0[i * n_q + j];
+                }
+            }
+        }
+        // ⟨f⟩ = Tₛ Σ(…)/T with T = Tₛ · intervals; boundary terms are divided by T.
+        let t = self.ts * intervals as f64;
+        m.iter_mut().for_each(|v| *v /= intervals as f64);
+        bnd.iter_mut().for_each(|v| *v /= t);
+        MomentView { n_w, n_q, m, bnd }
+    }
+}
+
+/// Number of samples in the backward window of the end-point velocity estimate.
+const VHAT_WINDOW: usize = 21;
+
+/// Velocity at the last point of `x` (uniform spacing `ts`) from a least-squares quadratic
+/// through the window. Its error enters only through boundary terms divided by the block
+/// length, so a short one-sided fit is ample.
+fn end_velocity(x: &[f64], ts: f64) -> f64 {
+    let n = x.len();
+    if n < 3 {
+        return 0.0;
+    }
+    // Local time τ_k = k − (n−1) ≤ 0; fit x ≈ c0 + c1 τ + c2 τ², velocity = c1 / Tₛ.
+    let mut s = [0.0f64; 5];
+    let mut r = [0.0f64; 3];
+    for (k, &xk) in x.iter().enumerate() {
+        let tau = k as f64 - (n - 1) as f64;
+        let mut p = 1.0;
+        for (j, sj) in s.iter_mut().enumerate() {
+            *sj += p;
+            if j < 3 {
+                r[j] += p * xk;
+            }
+            p *= tau;
+        }
+    }
+    let a = nalgebra::Matrix3::new(s[0], s[1], s[2], s[1], s[2], s[3], s[2], s[3], s[4]);
+    let c = a
+        .lu()
+        .solve(&nalgebra::Vector3::new(r[0], r[1], r[2]))
+        .unwrap_or_default();
+    c[1] / ts
+}
+
+/// Streams the samples of one level through the filter bank and accumulates moments.
+pub(crate) struct LevelAccumulator<'a> {
+    plan: &'a Plan,
+    eval: &'a dyn BasisEval,
+    chains: Vec<ChainDisc>,
+    ts: f64,
+    n_total: usize,
+    bounds: Vec<usize>,
+    pos: usize,
+    z_state: Vec<f64>,
+    s_prev: Vec<f64>,
+    sums: Vec<Vec<f64>>,
+    snaps: Vec<Vec<f64>>,
+    tails: Vec<Vec<f64>>,
+    iota: Vec<f64>,
+    wbuf: Vec<f64>,
+    scratch: Vec<f64>,
+    qrow: Vec<f64>,
+    pub times: PhaseTimes,
+}
+
+impl<'a> LevelAccumulator<'a> {
+    pub fn new(
+        plan: &'a Plan,
+        eval: &'a dyn BasisEval,
+        ts: f64,
+        n_total: usize,
+        n_blocks: usize,
+        hold: Hold,
+    ) -> Self {
+        let n_blocks = n_blocks.clamp(1, (n_total - 1).max(1));
+        let bounds: Vec<usize> = (0..=n_blocks)
+            .map(|b| ((b as u128 * (n_total - 1) as u128) / n_blocks as u128) as usize)
+            .collect();
+        let chains = plan
+            .corners
+            .iter()
+            .map(|&l| ChainDisc::new(l, plan.order, ts, hold))
+            .collect();
+        let (n_i, n_w, n_q) = (plan.n_i(), plan.n_w(), plan.n_q());
+        LevelAccumulator {
+            plan,
+            eval,
+            chains,
+            ts,
+            n_total,
+            bounds,
+            pos: 0,
+            z_state: vec![0.0; plan.n_z()],
+            s_prev: vec![0.0; plan.drivers.len()],
+            sums: vec![vec![0.0; n_i * n_w]; n_blocks],
+            snaps: vec![vec![0.0; n_i * n_q]; n_blocks + 1],
+            tails: vec![Vec::with_capacity(VHAT_WINDOW); plan.vhat_bodies.len()],
+            iota: Vec::new(),
+            wbuf: Vec::new(),
+            scratch: Vec::new(),
+            qrow: vec![0.0; n_q],
+            times: PhaseTimes::default(),
+        }
+    }
+
+    /// Feed the next `len` samples; `cols[s]` is signal `s` (by `SignalId`).
+    pub fn push(&mut self, cols: &[&[f64]], len: usize) {
+        let mut off = 0;
+        while off < len {
+            let p0 = self.pos;
+            // Split at the next block boundary strictly after p0 (and at the last sample).
+            let next_bound = self
+                .bounds
+                .iter()
+                .copied()
+                .find(|&b| b > p0)
+                .unwrap_or(self.n_total);
+            let piece = (len - off).min(next_bound - p0);
+            self.piece(cols, off, piece);
+            off += piece;
+        }
+    }
+
+    fn piece(&mut self, cols: &[&[f64]], off: usize, len: usize) {
+        let plan = self.plan;
+        let (n_z, n_i, n_w, n_q) = (plan.n_z(), plan.n_i(), plan.n_w(), plan.n_q());
+        let n_g = plan.roots.len();
+        let p0 = self.pos;
+        self.iota.resize(n_i * len, 0.0);
+        self.wbuf.resize(n_w * len, 0.0);
+        let view: Vec<&[f64]> = cols
+            .iter()
+            .map(|c| if c.is_empty() { *c } else { &c[off..off + len] })
+            .collect();
+
+        let (iota_z, iota_y) = self.iota.split_at_mut(n_z * len);
+        let (w_g, w_y) = self.wbuf.split_at_mut(n_g * len);
+        for (k, s) in plan.y.iter().enumerate() {
+            iota_y[k * len..(k + 1) * len].copy_from_slice(view[s.index()]);
+            w_y[k * len..(k + 1) * len].copy_from_slice(view[s.index()]);
+        }
+        let eval = self.eval;
+        let scratch = &mut self.scratch;
+        let chains = &self.chains;
+        let order = plan.order;
+        let n_c = plan.corners.len();
+        let z_state = &mut self.z_state;
+        let s_prev = &mut self.s_prev;
+        let first = p0 == 0;
+        let (t_eval, t_filter) = rayon::join(
+            || {
+                let t = Instant::now();
+                if n_g > 0 {
+                    eval.eval_block(&view, len, w_g, scratch);
+                }
+                t.elapsed()
+            },
+            || {
+                use rayon::prelude::*;
+                let t = Instant::now();
+                iota_z
+                    .par_chunks_mut(order * len)
+                    .zip(z_state.par_chunks_mut(order))
+                    .enumerate()
+                    .for_each(|(ch, (out, st))| {
+                        let d = ch / n_c;
+                        let s = view[plan.drivers[d].index()];
+                        if first {
+                            // ζ(0) = 0: the filters start at rest with the record.
+                            for i in 0..order {
+                                out[i * len] = 0.0;
+                            }
+                            chains[ch % n_c].run(st, s[0], &s[1..], &mut out[1..], len);
+                        } else {
+                            chains[ch % n_c].run(st, s_prev[d], s, out, len);
+                        }
+                    });
+                for (d, sp) in s_prev.iter_mut().enumerate() {
+                    *sp = view[plan.drivers[d].index()][len - 1];
+                }
+                t.elapsed()
+            },
+        );
+        self.times.evaluate += t_eval;
+        self.times.filter += t_filter;
+
+        let t = Instant::now();
+        // Snapshot at a block boundary (the first sample of this piece).
+        if let Some(b) = self.bounds.iter().position(|&b| b == p0) {
+            for k in 0..n_w {
+                self.qrow[k] = self.wbuf[k * len];
+            }
+            for (k, body) in plan.vhat_bodies.iter().enumerate() {
+                let x = view[self.plan_position(*body)][0];
+                let mut win: Vec<f64> = self.tails[k].clone();
+                win.push(x);
+                self.qrow[n_w + k] = end_velocity(&win, self.ts);
+            }
+            let snap = &mut self.snaps[b];
+            for i in 0..n_i {
+                let ii = self.iota[i * len];
+                for k in 0..n_q {
+                    snap[i * n_q + k] = ii * self.qrow[k];
+                }
+            }
+        }
+        // Sums over the half-open block range; the last sample only enters the snapshot.
+        let block = self.bounds.iter().rposition(|&b| b <= p0).unwrap_or(0);
+        if block < self.sums.len() {
+            let sum = &mut self.sums[block];
+            let half = n_i / 2;
+            let (s_top, s_bot) = sum.split_at_mut(half * n_w);
+            let iota = &self.iota;
+            let wt = MatRef::from_column_major_slice(&self.wbuf[..], len, n_w);
+            // Two fixed halves so the result does not depend on the number of threads.
+            rayon::join(
+                || {
+                    let a = MatRef::from_row_major_slice(&iota[..half * len], half, len);
+                    let dst = MatMut::from_row_major_slice_mut(s_top, half, n_w);
+                    faer::linalg::matmul::matmul(dst, Accum::Add, a, wt, 1.0, Par::Seq);
+                },
+                || {
+                    let a = MatRef::from_row_major_slice(&iota[half * len..], n_i - half, len);
+                    let dst = MatMut::from_row_major_slice_mut(s_bot, n_i - half, n_w);
+                    faer::linalg::matmul::matmul(dst, Accum::Add, a, wt, 1.0, Par::Seq);
+                },
+            );
+        }
+        // Keep the most recent positions for end-point velocity estimates.
+        for (k, body) in plan.vhat_bodies.iter().enumerate() {
+            let x = view[self.plan_position(*body)];
+            let tail = &mut self.tails[k];
+            let take = x.len().min(VHAT_WINDOW - 1);
+            let keep = (VHAT_WINDOW - 1 - take).min(tail.len());
+            tail.drain(..tail.len() - keep);
+            tail.extend_from_slice(&x[x.len() - take..]);
+        }
+        self.times.accumulate += t.elapsed();
+        self.pos += len;
+    }
+
+    fn plan_position(&self, b: dsl_parser::ir::BodyId) -> usize {
+        2 * b.index()
+    }
+
+    pub fn finish(self) -> (LevelMoments, PhaseTimes) {
+        assert_eq!(self.pos, self.n_total, "record ended early");
+        let lens = self.bounds.windows(2).map(|w| w[1] - w[0]).collect();
+        (
+            LevelMoments {
+                n_i: self.plan.n_i(),
+                n_w: self.plan.n_w(),
+                n_q: self.plan.n_q(),
+                ts: self.ts,
+                sums: self.sums,
+                lens,
+                snaps: self.snaps,
+            },
+            self.times,
+        )
+    }
+}

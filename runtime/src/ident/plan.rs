@@ -1,0 +1,370 @@
+//! The structure of the least-squares problem of one model: which signals are measured,
+//! which filter states and balance signals serve as instruments, how every term of every
+//! equation turns into a moment, and which (instrument, equation) rows are computable.
+//!
+//! Notation: the accumulated "row" signals are `ι = [ζ; y]` (filter states, then measured
+//! signals), the "column" signals are `w = [g; y]` (static basis roots, then measured
+//! signals), and boundary snapshots use `q = [w; v̂]` where `v̂` are end-point velocity
+//! estimates of bodies whose velocity is not measured.
+
+use super::IdentifyError;
+use dsl_parser::ir::{Basis, BodyId, ExprId, ModelIr, ParamKind, SignalId, SignalKind};
+
+/// A sparse linear combination of the row signals `ι`.
+pub(crate) type Comb = Vec<(usize, f64)>;
+
+/// How a term's basis becomes a moment with an instrument `a` (see [`super::moments`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum BasisMoment {
+    /// `⟨a g⟩` for a static column `w`.
+    Static(usize),
+    /// `ẋ` with `x` at column `w`, velocity not measured: `−⟨a' x⟩ + [a x]/T`.
+    D1Pos(usize),
+    /// `ẍ` with measured velocity at column `w`: `−⟨a' v⟩ + [a v]/T`; body given for the
+    /// power-balance instrument.
+    D2Vel(usize, BodyId),
+    /// `ẍ` from positions only (`x` at column `w`, end-point velocity at snapshot column
+    /// `q`): `⟨a'' x⟩ − [a' x]/T + [a v̂]/T`.
+    D2Pos(usize, usize),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum TermCoef {
+    Unknown { col: usize, scale: f64 },
+    Known(f64),
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct PlanTerm {
+    pub coef: TermCoef,
+    pub basis: BasisMoment,
+}
+
+/// An instrument: a signal `a·ι` with, where computable, its first and second derivatives.
+#[derive(Clone, Debug)]
+pub(crate) struct Instrument {
+    pub label: String,
+    pub a: Comb,
+    pub a1: Option<Comb>,
+    pub a2: Option<Comb>,
+    /// Power balance `v_l`: used only in equation `l`, where `⟨v_l ẍ_l⟩ = [v_l²/2]/T`.
+    pub power: Option<BodyId>,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct Plan {
+    pub roots: Vec<ExprId>,
+    /// Measured signals (SignalId order) and the position of each signal among them.
+    pub y: Vec<SignalId>,
+    pub y_of: Vec<Option<usize>>,
+    pub drivers: Vec<SignalId>,
+    pub order: usize,
+    pub min_degree: usize,
+    pub corners: Vec<f64>,
+    pub vhat_bodies: Vec<BodyId>,
+    pub unknowns: Vec<usize>,
+    pub equations: Vec<Vec<PlanTerm>>,
+    pub instruments: Vec<Instrument>,
+    /// Computable (instrument, equation) pairs: the rows of one level.
+    pub rows: Vec<(usize, usize)>,
+    /// Use the virial and power-balance instruments where velocities are measured.
+    pub balance: bool,
+}
+
+/// Filter choices resolved from options, the model's filter block and the data.
+#[derive(Clone, Debug)]
+pub(crate) struct BankChoice {
+    pub drivers: Vec<SignalId>,
+    pub order: usize,
+    pub min_degree: usize,
+    pub n_corners: usize,
+}
+
+impl Plan {
+    pub fn n_z(&self) -> usize {
+        self.drivers.len() * self.corners.len() * self.order
+    }
+    pub fn n_i(&self) -> usize {
+        self.n_z() + self.y.len()
+    }
+    pub fn n_w(&self) -> usize {
+        self.roots.len() + self.y.len()
+    }
+    pub fn n_q(&self) -> usize {
+        self.n_w() + self.vhat_bodies.len()
+    }
+    /// Row index of a measured signal in `ι`.
+    pub fn iota_y(&self, s: SignalId) -> Option<usize> {
+        self.y_of[s.index()].map(|k| self.n_z() + k)
+    }
+    /// Filter state index of (driver, corner, section `i` = relative degree − 1).
+    pub fn state(&self, d: usize, c: usize, i: usize) -> usize {
+        (d * self.corners.len() + c) * self.order + i
+    }
+}
+
+/// Check that every term can be formed from the measured signals and classify it.
+pub(crate) fn build_structure(
+    ir: &ModelIr,
+    balance: bool,
+    bank: &BankChoice,
+) -> Result<Plan, IdentifyError> {
+    let roots = ir.eval_roots();
+    let y: Vec<SignalId> = ir.measured_signals();
+    let mut y_of = vec![None; ir.signals.len()];
+    for (k, s) in y.iter().enumerate() {
+        y_of[s.index()] = Some(k);
+    }
+    let unknowns = ir.unknowns();
+    let col_of = |p: dsl_parser::ir::ParamId| unknowns.iter().position(|u| *u == p);
+    let root_of = |e: ExprId| roots.iter().position(|r| *r == e).expect("root");
+    let n_g = roots.len();
+    let mut vhat_bodies = Vec::new();
+    let mut equations = Vec::new();
+    for (l, eq) in ir.equations.iter().enumerate() {
+        let mut terms = Vec::new();
+        for t in &eq.terms {
+            let coef = match t.coef.param {
+                Some(p) => match ir.params[p.index()].kind {
+                    ParamKind::Known(v) => TermCoef::Known(v * t.coef.scale),
+                    ParamKind::Unknown { .. } => TermCoef::Unknown {
+                        col: col_of(p).expect("unknown"),
+                        scale: t.coef.scale,
+                    },
+                },
+                None => TermCoef::Known(t.coef.scale),
+            };
+            let basis = match t.basis {
+                Basis::Expr(e) => {
+                    if let Some(s) = ir
+                        .expr_signals(e)
+                        .into_iter()
+                        .find(|s| y_of[s.index()].is_none())
+                    {
+                        return Err(IdentifyError::UnmeasuredInTerm {
+                            equation: ir.bodies[l].name.clone(),
+                            term: super::print::expr_to_string(ir, e),
+                            signal: ir.signal(s).name.clone(),
+                        });
+                    }
+                    BasisMoment::Static(root_of(e))
+                }
+                Basis::Deriv { body, order } => {
+                    let xs = ir.position(body);
+                    let vs = ir.velocity(body);
+                    let xw = y_of[xs.index()].map(|k| n_g + k);
+                    let vw = y_of[vs.index()].map(|k| n_g + k);
+                    match (order, vw, xw) {
+                        (1, Some(v), _) => BasisMoment::Static(v),
+                        (1, None, Some(x)) => BasisMoment::D1Pos(x),
+                        (2, Some(v), _) => BasisMoment::D2Vel(v, body),
+                        (2, None, Some(x)) => {
+                            let k = match vhat_bodies.iter().position(|b| *b == body) {
+                                Some(k) => k,
+                                None => {
+                                    vhat_bodies.push(body);
+                                    vhat_bodies.len() - 1
+                                }
+                            };
+                            // The snapshot column is fixed below once n_w is known.
+                            BasisMoment::D2Pos(x, usize::MAX - k)
+                        }
+                        _ => {
+                            return Err(IdentifyError::UnmeasuredInTerm {
+                                equation: ir.bodies[l].name.clone(),
+                                term: format!(
+                                    "{}{}",
+                                    ir.signal(xs).name,
+                                    "'".repeat(order as usize)
+                                ),
+                                signal: ir.signal(xs).name.clone(),
+                            })
+                        }
+                    }
+                }
+            };
+            terms.push(PlanTerm { coef, basis });
+        }
+        equations.push(terms);
+    }
+    let n_w = n_g + y.len();
+    for eq in &mut equations {
+        for t in eq.iter_mut() {
+            if let BasisMoment::D2Pos(x, q) = t.basis {
+                t.basis = BasisMoment::D2Pos(x, n_w + (usize::MAX - q));
+            }
+        }
+    }
+    for d in &bank.drivers {
+        if y_of[d.index()].is_none() {
+            return Err(IdentifyError::UnmeasuredDriver {
+                signal: ir.signal(*d).name.clone(),
+            });
+        }
+    }
+    Ok(Plan {
+        roots,
+        y,
+        y_of,
+        drivers: bank.drivers.clone(),
+        order: bank.order,
+        min_degree: bank.min_degree,
+        corners: vec![0.0; bank.n_corners],
+        vhat_bodies,
+        unknowns: unknowns.iter().map(|p| p.index()).collect(),
+        equations,
+        instruments: Vec::new(),
+        rows: Vec::new(),
+        balance,
+    })
+}
+
+impl Plan {
+    /// Fix the corners and derive the instruments and the computable rows.
+    pub fn set_corners(&mut self, ir: &ModelIr, corners: &[f64]) {
+        assert_eq!(corners.len(), self.corners.len());
+        self.corners = corners.to_vec();
+        let mut inst = Vec::new();
+        for (d, &sig) in self.drivers.iter().enumerate() {
+            for (c, &lam) in self.corners.iter().enumerate() {
+                for i in (self.min_degree - 1)..self.order {
+                    let a = vec![(self.state(d, c, i), 1.0)];
+                    let a1 = self.deriv(ir, &a);
+                    let a2 = a1.as_ref().and_then(|a1| self.deriv(ir, a1));
+                    inst.push(Instrument {
+                        label: format!("ζ{}({}, λ={:.3})", i + 1, ir.signal(sig).name, lam),
+                        a,
+                        a1,
+                        a2,
+                        power: None,
+                    });
+                }
+            }
+        }
+        if self.balance {
+            for (b, body) in ir.bodies.iter().enumerate() {
+                let bid = BodyId(b as u32);
+                let (Some(xi), Some(vi)) =
+                    (self.iota_y(ir.position(bid)), self.iota_y(ir.velocity(bid)))
+                else {
+                    continue;
+                };
+                inst.push(Instrument {
+                    label: format!("{}.x (virial)", body.name),
+                    a: vec![(xi, 1.0)],
+                    a1: Some(vec![(vi, 1.0)]),
+                    a2: None,
+                    power: None,
+                });
+                inst.push(Instrument {
+                    label: format!("{}.v (power balance)", body.name),
+                    a: vec![(vi, 1.0)],
+                    a1: None,
+                    a2: None,
+                    power: Some(bid),
+                });
+            }
+        }
+        let w_signals: Vec<Vec<SignalId>> = self
+            .roots
+            .iter()
+            .map(|&r| ir.expr_signals(r))
+            .chain(self.y.iter().map(|&s| vec![s]))
+            .collect();
+        let mut rows = Vec::new();
+        for (k, ins) in inst.iter().enumerate() {
+            let filter_row = ins.a.iter().all(|&(i, _)| i < self.n_z());
+            for (l, eq) in self.equations.iter().enumerate() {
+                if let Some(p) = ins.power {
+                    if p.index() != l {
+                        continue;
+                    }
+                }
+                let ok = eq.iter().all(|t| {
+                    computable(ins, &t.basis)
+                        && (!filter_row || self.noise_free(ins, &t.basis, &w_signals))
+                });
+                if ok {
+                    rows.push((k, l));
+                }
+            }
+        }
+        self.instruments = inst;
+        self.rows = rows;
+    }
+
+    /// Signals that a combination depends on within the same sample: the driver of a
+    /// relative-degree-1 state (its exact discretisation weighs the current input sample
+    /// by `≈ λTₛ/2`) and raw measured signals.
+    fn same_sample(&self, c: &Comb) -> Vec<SignalId> {
+        let n_z = self.n_z();
+        c.iter()
+            .filter_map(|&(k, _)| {
+                if k >= n_z {
+                    Some(self.y[k - n_z])
+                } else if k % self.order == 0 {
+                    Some(self.drivers[k / self.order / self.corners.len()])
+                } else {
+                    None
+                }
+            })
+            .collect()
+    }
+
+    /// Whether a filter instrument's moment with this basis keeps white measurement noise
+    /// out: no product may pair a signal with something that depends on the same sample of
+    /// that signal, or the noise variance enters the moment (amplified by `λ²` in `ι''`).
+    fn noise_free(&self, ins: &Instrument, b: &BasisMoment, w_signals: &[Vec<SignalId>]) -> bool {
+        let (comb, col) = match *b {
+            BasisMoment::Static(w) => (Some(&ins.a), w),
+            BasisMoment::D1Pos(x) => (ins.a1.as_ref(), x),
+            BasisMoment::D2Vel(v, _) => (ins.a1.as_ref(), v),
+            BasisMoment::D2Pos(x, _) => (ins.a2.as_ref(), x),
+        };
+        let Some(comb) = comb else { return true };
+        let hazards = self.same_sample(comb);
+        !w_signals[col].iter().any(|s| hazards.contains(s))
+    }
+
+    /// Time derivative of `a·ι`, if it is again a combination of `ι`: filter states
+    /// differentiate through `ζ' = F ζ + H s`; a measured position differentiates to its
+    /// measured velocity; anything else (an input, a velocity) has no computable derivative.
+    fn deriv(&self, ir: &ModelIr, a: &Comb) -> Option<Comb> {
+        let n_z = self.n_z();
+        let mut out: Comb = Vec::new();
+        let mut add = |k: usize, v: f64| match out.iter_mut().find(|(j, _)| *j == k) {
+            Some(e) => e.1 += v,
+            None => out.push((k, v)),
+        };
+        for &(k, coef) in a {
+            if k < n_z {
+                let chain = k / self.order;
+                let i = k % self.order;
+                let lam = self.corners[chain % self.corners.len()];
+                let d = chain / self.corners.len();
+                add(k, -lam * coef);
+                if i == 0 {
+                    add(self.iota_y(self.drivers[d])?, lam * coef);
+                } else {
+                    add(k - 1, lam * coef);
+                }
+            } else {
+                let sig = self.y[k - n_z];
+                match ir.signal(sig).kind {
+                    SignalKind::Position(b) => add(self.iota_y(ir.velocity(b))?, coef),
+                    _ => return None,
+                }
+            }
+        }
+        Some(out)
+    }
+}
+
+fn computable(ins: &Instrument, b: &BasisMoment) -> bool {
+    match *b {
+        BasisMoment::Static(_) => true,
+        BasisMoment::D1Pos(_) => ins.a1.is_some(),
+        BasisMoment::D2Vel(_, body) => ins.a1.is_some() || ins.power == Some(body),
+        BasisMoment::D2Pos(_, _) => ins.a2.is_some(),
+    }
+}

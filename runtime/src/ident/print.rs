@@ -1,0 +1,180 @@
+//! Identified equations as a person reads them:
+//! `m1: 1.000 m1.x'' + 0.4010(±0.0020) m1.x' + 3.990 m1.x + … = u`.
+
+use super::Identification;
+use dsl_parser::ir::{Basis, BinaryOp, ExprId, ExprNode, ModelIr, ParamKind, TermOrigin, UnaryOp};
+
+/// Binding strength for parenthesisation.
+fn prec(n: ExprNode) -> u8 {
+    match n {
+        ExprNode::Binary(BinaryOp::Add | BinaryOp::Sub, ..) => 1,
+        ExprNode::Binary(BinaryOp::Mul | BinaryOp::Div, ..) => 2,
+        ExprNode::Unary(UnaryOp::Neg, _) => 3,
+        ExprNode::Powi(..) => 4,
+        _ => 5,
+    }
+}
+
+/// An expression of the model in the `.dyn` surface syntax.
+pub fn expr_to_string(ir: &ModelIr, e: ExprId) -> String {
+    let node = ir.expr(e);
+    let sub = |c: ExprId, min: u8| {
+        let s = expr_to_string(ir, c);
+        if prec(ir.expr(c)) < min {
+            format!("({s})")
+        } else {
+            s
+        }
+    };
+    match node {
+        ExprNode::Const(b) => fmt_num(f64::from_bits(b)),
+        ExprNode::Signal(s) => ir.signal(s).name.clone(),
+        ExprNode::Unary(UnaryOp::Neg, a) => format!("-{}", sub(a, 3)),
+        ExprNode::Unary(op, a) => {
+            let f = match op {
+                UnaryOp::Abs => "abs",
+                UnaryOp::Sign => "sign",
+                UnaryOp::Tanh => "tanh",
+                UnaryOp::Sqrt => "sqrt",
+                UnaryOp::Exp => "exp",
+                UnaryOp::Neg => unreachable!(),
+            };
+            format!("{f}({})", expr_to_string(ir, a))
+        }
+        ExprNode::Binary(op, a, b) => {
+            let (sym, p) = match op {
+                BinaryOp::Add => ("+", 1),
+                BinaryOp::Sub => ("-", 1),
+                BinaryOp::Mul => ("*", 2),
+                BinaryOp::Div => ("/", 2),
+            };
+            // Right operands of − and / need parentheses at equal precedence.
+            let rmin = if matches!(op, BinaryOp::Sub | BinaryOp::Div) {
+                p + 1
+            } else {
+                p
+            };
+            format!("{} {sym} {}", sub(a, p), sub(b, rmin))
+        }
+        ExprNode::Powi(a, k) => format!("{}^{k}", sub(a, 5)),
+        ExprNode::Deadzone(a, g) => format!(
+            "deadzone({}, {})",
+            expr_to_string(ir, a),
+            fmt_num(f64::from_bits(g))
+        ),
+        ExprNode::Saturate(a, l) => format!(
+            "saturate({}, {})",
+            expr_to_string(ir, a),
+            fmt_num(f64::from_bits(l))
+        ),
+    }
+}
+
+/// A number with four significant digits, without trailing noise.
+pub fn fmt_num(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let mag = v.abs().log10().floor() as i32;
+    if (-3..5).contains(&mag) {
+        let dec = (3 - mag).max(0) as usize;
+        format!("{v:.dec$}")
+    } else {
+        format!("{v:.3e}")
+    }
+}
+
+/// A standard error with two significant digits.
+fn fmt_se(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let mag = v.abs().log10().floor() as i32;
+    if (-4..4).contains(&mag) {
+        let dec = (1 - mag).max(0) as usize;
+        format!("{v:.dec$}")
+    } else {
+        format!("{v:.1e}")
+    }
+}
+
+fn basis_to_string(ir: &ModelIr, b: Basis) -> String {
+    match b {
+        Basis::Expr(e) => {
+            let s = expr_to_string(ir, e);
+            if prec(ir.expr(e)) < 2 {
+                format!("({s})")
+            } else {
+                s
+            }
+        }
+        Basis::Deriv { body, order } => format!(
+            "{}{}",
+            ir.signal(ir.position(body)).name,
+            "'".repeat(order as usize)
+        ),
+    }
+}
+
+/// Every equation of motion with the identified values substituted. Input forces are
+/// written on the right-hand side; unidentifiable parameters appear by name with `?`.
+pub fn format_equations(ir: &ModelIr, id: &Identification) -> String {
+    let mut out = String::new();
+    for (l, eq) in ir.equations.iter().enumerate() {
+        let mut lhs = String::new();
+        let mut rhs = String::new();
+        for t in &eq.terms {
+            let (val, unc) = match t.coef.param {
+                None => (Some(t.coef.scale), None),
+                Some(p) => {
+                    let param = &ir.params[p.index()];
+                    match param.kind {
+                        ParamKind::Known(v) => (Some(v * t.coef.scale), None),
+                        ParamKind::Unknown { .. } => match id.param(&param.name) {
+                            Some(e) => (Some(e.value * t.coef.scale), Some(e.stderr)),
+                            None => (None, None),
+                        },
+                    }
+                }
+            };
+            let basis = basis_to_string(ir, t.basis);
+            let to_rhs = matches!(t.origin, TermOrigin::Input(_));
+            let side = if to_rhs { &mut rhs } else { &mut lhs };
+            let val = val.map(|v| if to_rhs { -v } else { v });
+            let (neg, coef) = match val {
+                Some(v) => {
+                    let mag = v.abs();
+                    let c = match unc {
+                        Some(se) => format!("{}(±{}) ", fmt_num(mag), fmt_se(se)),
+                        None if (mag - 1.0).abs() < 1e-15 && to_rhs => String::new(),
+                        None => format!("{} ", fmt_num(mag)),
+                    };
+                    (v < 0.0, c)
+                }
+                None => {
+                    let p = t.coef.param.map(|p| ir.params[p.index()].name.clone());
+                    let s = if t.coef.scale == 1.0 {
+                        String::new()
+                    } else {
+                        format!("{}·", fmt_num(t.coef.scale))
+                    };
+                    (false, format!("{s}?{} ", p.unwrap_or_default()))
+                }
+            };
+            if side.is_empty() {
+                if neg {
+                    side.push('-');
+                }
+            } else {
+                side.push_str(if neg { " - " } else { " + " });
+            }
+            side.push_str(&coef);
+            side.push_str(&basis);
+        }
+        if rhs.is_empty() {
+            rhs.push('0');
+        }
+        out.push_str(&format!("{}: {} = {}\n", ir.bodies[l].name, lhs, rhs));
+    }
+    out
+}
