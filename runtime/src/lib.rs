@@ -9,7 +9,7 @@
 //! [`ident::measure`] for repeated solves), [`data`] (level sources: CSV files and in-memory
 //! [`record::Record`]s), [`basis::BasisEval`] (the evaluator plug-in shared by the tape
 //! interpreter and macro-generated code), [`sim`] (simulation), [`detect`] (nonlinearity
-//! detection from per-level linear fits).
+//! detection from per-level linear fits), [`silverbox`] (the Silverbox benchmark on real data).
 
 pub mod basis;
 pub mod data;
@@ -17,6 +17,7 @@ pub mod detect;
 pub mod ident;
 pub mod record;
 pub mod sim;
+pub mod silverbox;
 pub mod tape;
 #[cfg(any(test, feature = "test-support"))]
 pub mod test_support;

@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 pub mod common;
 pub mod compile;
 pub mod identify;
+pub mod silverbox;
 pub mod simulate;
 
 /// Detect, identify and diagnose nonlinear force elements in mechanical models from
@@ -24,6 +25,8 @@ pub enum Command {
     Simulate(simulate::Args),
     /// Identify the unknown parameters from measured data, one CSV per excitation level.
     Identify(identify::Args),
+    /// The Silverbox benchmark on the real measurement (identify, free-run RMS, arrow levels).
+    Silverbox(silverbox::Args),
 }
 
 pub fn run(cli: Cli) -> miette::Result<()> {
@@ -31,5 +34,6 @@ pub fn run(cli: Cli) -> miette::Result<()> {
         Command::Compile(a) => compile::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(a) => identify::run(a),
+        Command::Silverbox(a) => silverbox::run(a),
     }
 }

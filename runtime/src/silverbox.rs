@@ -1,0 +1,557 @@
+//! The Silverbox benchmark (Wigren & Schoukens 2013): a real electronic Duffing oscillator,
+//! `m y'' + d y' + (a + b y²) y = u`, measured as input voltage `V1 = u` and output voltage
+//! `V2 = y` only.
+//!
+//! Procedure (see `docs/silverbox.md`): load `SNLS80mV.csv`, remove the means of both
+//! columns, find the ten multisine realisations after the arrow from the pauses of the input
+//! (runs of near-zero input), identify on the first 75 % of the multisine samples (one
+//! level per realisation, so each realisation's start-up transient is covered by the
+//! finite-record boundary terms), and score the identified continuous-time model by
+//! free-run simulation driven by the measured input: on the arrow (the first 40 000
+//! samples, from rest) and on the last 25 % of the multisine samples.
+
+use crate::data::{DataError, LevelSource, RecordSource};
+use crate::ident::{identify, Identification, IdentifyError, IdentifyOptions};
+use crate::record::Record;
+use crate::sim::{simulate_driven, SimError};
+use dsl_parser::ir::{ModelIr, ParamKind, SignalKind};
+use serde::Serialize;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+
+/// Sample interval: the clock 10 MHz divided by 2¹⁴.
+pub const TS: f64 = 16384.0 / 1e7;
+/// The data file inside the data directory.
+pub const FILE: &str = "SNLS80mV.csv";
+/// Benchmark convention: the arrow (test set) is the first 40 000 samples.
+pub const ARROW_LEN: usize = 40_000;
+/// A pause is a run of at least this many samples with |u| below [`PAUSE_LEVEL`].
+pub const PAUSE_MIN_LEN: usize = 20;
+/// Input amplitude (V, after mean removal) below which a sample counts as quiet. The
+/// multisines have an input standard deviation of about 22 mV, so 20 quiet samples in a row
+/// do not happen inside a realisation.
+pub const PAUSE_LEVEL: f64 = 1e-3;
+/// Realisations shorter than this are not multisines (there are short bursts at the end).
+pub const MIN_REALISATION: usize = 5000;
+/// Share of the multisine samples (at the end) kept back as the multisine test.
+pub const TEST_SHARE: f64 = 0.25;
+
+/// Errors of the Silverbox procedure.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+pub enum SilverboxError {
+    #[error("cannot read the Silverbox data `{}`", path.display())]
+    #[diagnostic(
+        code(dynid::silverbox::io),
+        help("put the original SNLS80mV.csv (Wigren & Schoukens 2013) into the data directory, or point to its directory with `--data DIR`")
+    )]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}, line {line}: {what}", path.display())]
+    #[diagnostic(
+        code(dynid::silverbox::malformed),
+        help("the file must be the original SNLS80mV.csv: a header \"V1\",\"V2\" and two numbers (volts) per line")
+    )]
+    Malformed {
+        path: PathBuf,
+        line: u64,
+        what: String,
+    },
+    #[error("{}: found {found} multisine realisations after the arrow, expected {expected}", path.display())]
+    #[diagnostic(
+        code(dynid::silverbox::segments),
+        help("the file is not the original SNLS80mV.csv, or it was cut; use the unchanged file")
+    )]
+    Segments {
+        path: PathBuf,
+        found: usize,
+        expected: usize,
+    },
+    #[error("the model `{model}` does not fit the Silverbox data: {what}")]
+    #[diagnostic(
+        code(dynid::silverbox::model),
+        help("use one body whose position is measured and one measured input (e.g. `body y`, `input u on y`, `measure y.x, u`)")
+    )]
+    Model { model: String, what: String },
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Identify(#[from] IdentifyError),
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Sim(#[from] SimError),
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Data(#[from] DataError),
+}
+
+/// The measurement after mean removal.
+#[derive(Clone, Debug)]
+pub struct SilverboxData {
+    pub path: PathBuf,
+    /// Input V1 − mean, volts.
+    pub u: Vec<f64>,
+    /// Output V2 − mean, volts.
+    pub y: Vec<f64>,
+    /// The removed means (V1, V2), volts.
+    pub means: (f64, f64),
+}
+
+/// A half-open sample range `[start, end)` (0-based sample indices).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Segment {
+    pub start: usize,
+    pub end: usize,
+}
+
+impl Segment {
+    pub fn len(&self) -> usize {
+        self.end - self.start
+    }
+    pub fn is_empty(&self) -> bool {
+        self.end <= self.start
+    }
+}
+
+/// Read `DIR/SNLS80mV.csv` and remove the means of both columns.
+pub fn load(dir: &Path) -> Result<SilverboxData, SilverboxError> {
+    let path = dir.join(FILE);
+    let file = std::fs::File::open(&path).map_err(|source| SilverboxError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    let mut u = Vec::with_capacity(131_072);
+    let mut y = Vec::with_capacity(131_072);
+    let malformed = |line: u64, what: String| SilverboxError::Malformed {
+        path: path.clone(),
+        line,
+        what,
+    };
+    for (i, line) in BufReader::new(file).lines().enumerate() {
+        let line_no = i as u64 + 1;
+        let line = line.map_err(|source| SilverboxError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        let text = line.trim();
+        if i == 0 {
+            let header: Vec<&str> = text.split(',').map(|f| f.trim().trim_matches('"')).collect();
+            if header.len() < 2 || header[0] != "V1" || header[1] != "V2" {
+                return Err(malformed(
+                    line_no,
+                    format!("header `{text}`, expected \"V1\",\"V2\""),
+                ));
+            }
+            continue;
+        }
+        if text.is_empty() {
+            continue;
+        }
+        let mut fields = text.split(',').map(str::trim);
+        let mut num = |name: &str| -> Result<f64, SilverboxError> {
+            let f = fields
+                .next()
+                .filter(|f| !f.is_empty())
+                .ok_or_else(|| malformed(line_no, format!("no value for {name}")))?;
+            let v: f64 = f
+                .parse()
+                .map_err(|_| malformed(line_no, format!("`{f}` ({name}) is not a number")))?;
+            if !v.is_finite() {
+                return Err(malformed(line_no, format!("{name} = {v} is not finite")));
+            }
+            Ok(v)
+        };
+        u.push(num("V1")?);
+        y.push(num("V2")?);
+    }
+    if u.len() <= ARROW_LEN {
+        return Err(malformed(
+            u.len() as u64 + 1,
+            format!("only {} samples, the benchmark has 131 072", u.len()),
+        ));
+    }
+    let mu = mean(&u);
+    let my = mean(&y);
+    u.iter_mut().for_each(|v| *v -= mu);
+    y.iter_mut().for_each(|v| *v -= my);
+    Ok(SilverboxData {
+        path,
+        u,
+        y,
+        means: (mu, my),
+    })
+}
+
+fn mean(x: &[f64]) -> f64 {
+    x.iter().sum::<f64>() / x.len() as f64
+}
+
+/// The multisine realisations after `from`: maximal stretches between pauses (runs of at
+/// least [`PAUSE_MIN_LEN`] samples with |u| < [`PAUSE_LEVEL`]) that are at least
+/// [`MIN_REALISATION`] samples long.
+pub fn find_realisations(u: &[f64], from: usize) -> Vec<Segment> {
+    let mut out = Vec::new();
+    let mut quiet = 0usize;
+    let mut active_start: Option<usize> = None;
+    let close = |start: usize, end: usize, out: &mut Vec<Segment>| {
+        if end - start >= MIN_REALISATION {
+            out.push(Segment { start, end });
+        }
+    };
+    for (k, &v) in u.iter().enumerate().skip(from) {
+        if v.abs() < PAUSE_LEVEL {
+            quiet += 1;
+            if quiet == PAUSE_MIN_LEN {
+                if let Some(s) = active_start.take() {
+                    close(s, k + 1 - PAUSE_MIN_LEN, &mut out);
+                }
+            }
+        } else {
+            if quiet >= PAUSE_MIN_LEN || (active_start.is_none() && k == from) {
+                active_start = Some(k);
+            }
+            quiet = 0;
+        }
+    }
+    if let Some(s) = active_start {
+        close(s, u.len(), &mut out);
+    }
+    out
+}
+
+/// How the record is split.
+#[derive(Clone, Debug, Serialize)]
+pub struct Split {
+    pub arrow: Segment,
+    /// The ten multisine realisations found.
+    pub realisations: Vec<Segment>,
+    /// Estimation parts (the first 75 % of the multisine samples), one per realisation.
+    pub estimation: Vec<Segment>,
+    /// Test parts (the last 25 %).
+    pub test: Vec<Segment>,
+}
+
+/// Split the data into arrow, estimation and multisine test.
+pub fn split(data: &SilverboxData) -> Result<Split, SilverboxError> {
+    let realisations = find_realisations(&data.u, ARROW_LEN);
+    if realisations.len() != 10 {
+        return Err(SilverboxError::Segments {
+            path: data.path.clone(),
+            found: realisations.len(),
+            expected: 10,
+        });
+    }
+    let total: usize = realisations.iter().map(Segment::len).sum();
+    let n_est = ((1.0 - TEST_SHARE) * total as f64).round() as usize;
+    let (mut estimation, mut test) = (Vec::new(), Vec::new());
+    let mut seen = 0usize;
+    for r in &realisations {
+        let cut = (r.start + n_est.saturating_sub(seen)).min(r.end);
+        if cut > r.start {
+            estimation.push(Segment {
+                start: r.start,
+                end: cut,
+            });
+        }
+        if cut < r.end {
+            test.push(Segment {
+                start: cut,
+                end: r.end,
+            });
+        }
+        seen += r.len();
+    }
+    Ok(Split {
+        arrow: Segment {
+            start: 0,
+            end: ARROW_LEN,
+        },
+        realisations,
+        estimation,
+        test,
+    })
+}
+
+/// Signal names of the model's output (first body's position) and input.
+fn names(ir: &ModelIr) -> Result<(String, String), SilverboxError> {
+    let bad = |what: &str| SilverboxError::Model {
+        model: ir.name.clone(),
+        what: what.into(),
+    };
+    if ir.bodies.len() != 1 {
+        return Err(bad(&format!(
+            "{} bodies; the Silverbox has one output",
+            ir.bodies.len()
+        )));
+    }
+    if ir.inputs.len() != 1 {
+        return Err(bad(&format!(
+            "{} inputs; the Silverbox has one input",
+            ir.inputs.len()
+        )));
+    }
+    let y = ir
+        .signals
+        .iter()
+        .find(|s| matches!(s.kind, SignalKind::Position(_)))
+        .ok_or_else(|| bad("no position signal"))?;
+    if !y.measured {
+        return Err(bad(&format!("`{}` is not measured", y.name)));
+    }
+    if ir
+        .signals
+        .iter()
+        .any(|s| matches!(s.kind, SignalKind::Velocity(_)) && s.measured)
+    {
+        return Err(bad("the data has no velocity; add `measure y.x, u`"));
+    }
+    Ok((y.name.clone(), ir.inputs[0].name.clone()))
+}
+
+/// The samples `seg` as a record with the model's signal names (`t0` = start time).
+pub fn record(ir: &ModelIr, data: &SilverboxData, seg: Segment) -> Result<Record, SilverboxError> {
+    let (yn, un) = names(ir)?;
+    Ok(Record {
+        names: vec![yn, un],
+        columns: vec![
+            data.y[seg.start..seg.end].to_vec(),
+            data.u[seg.start..seg.end].to_vec(),
+        ],
+        ts: TS,
+        t0: seg.start as f64 * TS,
+    })
+}
+
+/// Identification options used for the Silverbox: the model's filter corners, or corners
+/// spread around the resonance (≈ 60 Hz ≈ 380 rad/s) up to well below Nyquist (1917 rad/s).
+pub fn default_options(ir: &ModelIr) -> IdentifyOptions {
+    let corners = match &ir.filter {
+        Some(f) if !f.corners.is_empty() => None,
+        _ => Some(vec![100.0, 200.0, 300.0, 450.0, 700.0, 1000.0]),
+    };
+    IdentifyOptions {
+        corners,
+        order: Some(4),
+        ..Default::default()
+    }
+}
+
+/// Identify on the estimation parts, one level per realisation.
+pub fn identify_estimation(
+    ir: &ModelIr,
+    data: &SilverboxData,
+    split: &Split,
+    opts: &IdentifyOptions,
+) -> Result<Identification, SilverboxError> {
+    let records = split
+        .estimation
+        .iter()
+        .map(|s| record(ir, data, *s))
+        .collect::<Result<Vec<_>, _>>()?;
+    let sources = records
+        .iter()
+        .zip(&split.estimation)
+        .map(|(r, s)| RecordSource::new(r, ir, format!("{FILE}[{}..{}]", s.start, s.end)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
+    Ok(identify(ir, &levels, opts)?)
+}
+
+/// `ir` with every unknown parameter's nominal value replaced by its estimate.
+pub fn with_estimates(ir: &ModelIr, id: &Identification) -> ModelIr {
+    let mut out = ir.clone();
+    for p in &mut out.params {
+        if let (ParamKind::Unknown { nominal }, Some(e)) = (&mut p.kind, id.param(&p.name)) {
+            *nominal = Some(e.value);
+        }
+    }
+    out
+}
+
+/// Free-run simulation of `ir` (at its nominal values) driven by the measured input over
+/// `sim` from rest; RMS error in volts over `score` (⊆ `sim`) and the simulated output.
+pub fn free_run_rms(
+    ir: &ModelIr,
+    data: &SilverboxData,
+    sim: Segment,
+    score: Segment,
+    substeps: usize,
+) -> Result<(f64, Vec<f64>), SilverboxError> {
+    let rec = record(ir, data, sim)?;
+    let out = simulate_driven(ir, &rec, substeps)?;
+    let (yn, _) = names(ir)?;
+    let ys = out.column(&yn).expect("simulated output column").to_vec();
+    let mut s2 = 0.0;
+    for k in score.start..score.end {
+        let e = ys[k - sim.start] - data.y[k];
+        s2 += e * e;
+    }
+    Ok(((s2 / score.len() as f64).sqrt(), ys))
+}
+
+/// Published free-run RMS errors on the arrow (mV).
+pub const PUBLISHED: [(&str, f64); 4] = [
+    ("best linear approximation", 13.7),
+    ("grey-box, 5 parameters (Hjalmarsson & Schoukens 2004)", 0.96),
+    ("NLARX", 0.30),
+    ("PNLSS, 37 parameters", 0.26),
+];
+
+/// Result of the procedure for one model.
+#[derive(Clone, Debug, Serialize)]
+pub struct SilverboxReport {
+    pub model: String,
+    pub n_params: usize,
+    pub params: Vec<crate::ident::ParamEstimate>,
+    pub unidentifiable: Vec<crate::ident::Unidentifiable>,
+    pub condition: f64,
+    pub filter_corners: Vec<f64>,
+    pub filter_order: usize,
+    pub split: Split,
+    pub substeps: usize,
+    /// Free-run RMS error on the arrow (first 40 000 samples), mV.
+    pub arrow_rms_mv: f64,
+    /// Free-run RMS error on the last 25 % of the multisine samples, mV.
+    pub multisine_test_rms_mv: f64,
+    /// RMS of the output over the same ranges (mV), for scale.
+    pub arrow_output_rms_mv: f64,
+    pub multisine_test_output_rms_mv: f64,
+}
+
+/// Settings of [`run`].
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    pub identify: IdentifyOptions,
+    /// RK4 sub-steps per sample in the free-run simulations.
+    pub substeps: usize,
+}
+
+/// The whole procedure for one model.
+pub fn run(
+    ir: &ModelIr,
+    data: &SilverboxData,
+    opts: &RunOptions,
+) -> Result<SilverboxReport, SilverboxError> {
+    let split = split(data)?;
+    let id = identify_estimation(ir, data, &split, &opts.identify)?;
+    let fitted = with_estimates(ir, &id);
+    let (arrow, _) = free_run_rms(&fitted, data, split.arrow, split.arrow, opts.substeps)?;
+    // Each test part is simulated from the start of its realisation (from the rest of the
+    // preceding pause) and scored on the test samples only.
+    let mut s2 = 0.0;
+    let mut n = 0usize;
+    let mut o2 = 0.0;
+    for t in &split.test {
+        let r = split
+            .realisations
+            .iter()
+            .find(|r| r.start <= t.start && t.end <= r.end)
+            .copied()
+            .expect("test part inside a realisation");
+        let (rms, _) = free_run_rms(&fitted, data, Segment { start: r.start, end: t.end }, *t, opts.substeps)?;
+        s2 += rms * rms * t.len() as f64;
+        n += t.len();
+        o2 += data.y[t.start..t.end].iter().map(|v| v * v).sum::<f64>();
+    }
+    let arrow_out = (data.y[..ARROW_LEN].iter().map(|v| v * v).sum::<f64>() / ARROW_LEN as f64).sqrt();
+    Ok(SilverboxReport {
+        model: ir.name.clone(),
+        n_params: ir.unknowns().len(),
+        params: id.params.clone(),
+        unidentifiable: id.unidentifiable.clone(),
+        condition: id.condition,
+        filter_corners: id.filter.corners.clone(),
+        filter_order: id.filter.order,
+        split,
+        substeps: opts.substeps,
+        arrow_rms_mv: 1e3 * arrow,
+        multisine_test_rms_mv: 1e3 * (s2 / n as f64).sqrt(),
+        arrow_output_rms_mv: 1e3 * arrow_out,
+        multisine_test_output_rms_mv: 1e3 * (o2 / n as f64).sqrt(),
+    })
+}
+
+/// One excitation level cut from the arrow, with the per-level linear fit.
+#[derive(Clone, Debug, Serialize)]
+pub struct ArrowLevel {
+    pub segment: Segment,
+    /// Standard deviations of input and output over the segment, mV.
+    pub u_std_mv: f64,
+    pub y_std_mv: f64,
+    /// Per-level identification of the (linear) model.
+    pub params: Vec<crate::ident::ParamEstimate>,
+}
+
+/// Cut the arrow into `n` consecutive equal segments: excitation levels of growing
+/// amplitude (the arrow's input amplitude grows linearly with time).
+pub fn arrow_levels(n: usize) -> Vec<Segment> {
+    (0..n)
+        .map(|i| Segment {
+            start: i * ARROW_LEN / n,
+            end: (i + 1) * ARROW_LEN / n,
+        })
+        .collect()
+}
+
+fn std_mv(x: &[f64]) -> f64 {
+    let m = mean(x);
+    1e3 * (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / x.len() as f64).sqrt()
+}
+
+/// Records of the arrow levels and the per-level identification of `ir` (for detection:
+/// the equivalent linear stiffness of a hardening spring rises with the level).
+pub fn arrow_level_fits(
+    ir: &ModelIr,
+    data: &SilverboxData,
+    n: usize,
+    opts: &IdentifyOptions,
+) -> Result<(Vec<Record>, Vec<ArrowLevel>), SilverboxError> {
+    let segs = arrow_levels(n);
+    let records = segs
+        .iter()
+        .map(|s| record(ir, data, *s))
+        .collect::<Result<Vec<_>, _>>()?;
+    let sources = records
+        .iter()
+        .zip(&segs)
+        .map(|(r, s)| RecordSource::new(r, ir, format!("arrow[{}..{}]", s.start, s.end)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
+    let fits = crate::ident::identify_per_level(ir, &levels, opts)?;
+    let out = segs
+        .iter()
+        .zip(fits)
+        .map(|(s, f)| ArrowLevel {
+            segment: *s,
+            u_std_mv: std_mv(&data.u[s.start..s.end]),
+            y_std_mv: std_mv(&data.y[s.start..s.end]),
+            params: f.params,
+        })
+        .collect();
+    Ok((records, out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn realisations_between_pauses() {
+        let mut u = vec![0.05; 100];
+        u.extend(vec![0.0; 30]);
+        u.extend((0..6000).map(|k| if k % 2 == 0 { 0.02 } else { -0.02 }));
+        u.extend(vec![0.0; 25]);
+        u.extend(vec![0.03; 5500]);
+        u.extend(vec![0.0; 40]);
+        u.extend(vec![0.03; 100]);
+        let r = find_realisations(&u, 50);
+        assert_eq!(
+            r,
+            vec![
+                Segment { start: 130, end: 6130 },
+                Segment { start: 6155, end: 11655 }
+            ]
+        );
+    }
+}

@@ -1,0 +1,199 @@
+//! `dynid silverbox`: the Silverbox benchmark on the real measurement — identify on the
+//! multisines, free-run simulate the arrow and the multisine test, compare with the
+//! published results; optionally export the arrow as excitation levels for detection.
+
+use dynid_runtime::sim::{level_file_names, write_level_csv};
+use dynid_runtime::silverbox::{self, RunOptions, SilverboxReport, PUBLISHED};
+use miette::{miette, IntoDiagnostic, WrapErr};
+use std::path::PathBuf;
+
+/// Arguments of `dynid silverbox`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Directory holding SNLS80mV.csv.
+    #[arg(long, value_name = "DIR", default_value = "../shared/data/silverbox")]
+    pub data: PathBuf,
+    /// Model(s) to identify and score (repeatable).
+    #[arg(long = "model", value_name = "MODEL", default_value = "models/silverbox_cubic.dyn")]
+    pub models: Vec<PathBuf>,
+    /// Write the reports as JSON to this file.
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+    /// RK4 sub-steps per sample in the free-run simulations.
+    #[arg(long, default_value_t = 10)]
+    pub substeps: usize,
+    /// Identification filter corners in rad/s (default: the model's, else 100…1000 rad/s).
+    #[arg(long = "filter-corners", value_delimiter = ',', value_name = "A,B,C")]
+    pub filter_corners: Option<Vec<f64>>,
+    /// Sections per identification low-pass chain.
+    #[arg(long = "filter-order", value_name = "N")]
+    pub filter_order: Option<usize>,
+    /// Signals driving the identification filters (default: the input only).
+    #[arg(long = "drivers", value_delimiter = ',', value_name = "SIGNALS")]
+    pub drivers: Option<Vec<String>>,
+    /// Cut the arrow into levels, write DIR/level_k.csv (header `t,<output>,<input>` of the
+    /// first model) and print the per-level fits of the first model instead of the table.
+    #[arg(long = "export-levels", value_name = "DIR")]
+    pub export_levels: Option<PathBuf>,
+    /// Number of arrow levels for `--export-levels`.
+    #[arg(long = "levels", default_value_t = 4, value_name = "N")]
+    pub n_levels: usize,
+}
+
+pub fn run(args: Args) -> miette::Result<()> {
+    let data = silverbox::load(&args.data)?;
+    if let Some(dir) = &args.export_levels {
+        return export_levels(&args, &data, dir);
+    }
+    let split = silverbox::split(&data)?;
+    println!(
+        "{}: {} samples, means removed (V1 {:.4} mV, V2 {:.4} mV)",
+        data.path.display(),
+        data.u.len(),
+        1e3 * data.means.0,
+        1e3 * data.means.1
+    );
+    println!(
+        "multisine realisations (0-based [start, end)): {}",
+        split
+            .realisations
+            .iter()
+            .map(|s| format!("[{}, {})", s.start, s.end))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    let mut reports = Vec::new();
+    for path in &args.models {
+        let ir = super::common::load_model(path)?;
+        let mut id = silverbox::default_options(&ir);
+        if args.filter_corners.is_some() {
+            id.corners = args.filter_corners.clone();
+        }
+        if args.filter_order.is_some() {
+            id.order = args.filter_order;
+        }
+        if let Some(d) = &args.drivers {
+            id.drivers = Some(
+                d.iter()
+                    .map(|n| {
+                        ir.signal_id(n)
+                            .ok_or_else(|| miette!("no signal `{n}` in the model"))
+                    })
+                    .collect::<miette::Result<_>>()?,
+            );
+        }
+        let r = silverbox::run(
+            &ir,
+            &data,
+            &RunOptions {
+                identify: id,
+                substeps: args.substeps,
+            },
+        )
+        .wrap_err_with(|| format!("model `{}`", path.display()))?;
+        print_params(&r);
+        reports.push(r);
+    }
+    print!("{}", table(&reports));
+    if let Some(out) = &args.json {
+        let text = serde_json::to_string_pretty(&reports).into_diagnostic()?;
+        super::identify::write_atomically(out, text.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn print_params(r: &SilverboxReport) {
+    println!(
+        "\n{} (filter corners {:?} rad/s, order {}, condition {:.2e})",
+        r.model, r.filter_corners, r.filter_order, r.condition
+    );
+    for p in &r.params {
+        println!(
+            "  {:<6} {:>13.6e} ± {:.2e} ({:.2} %)",
+            p.name,
+            p.value,
+            p.stderr,
+            100.0 * p.stderr / p.value.abs()
+        );
+    }
+    for u in &r.unidentifiable {
+        println!("  {:<6} not identifiable: {}", u.name, u.reason);
+    }
+}
+
+/// The results table next to the published figures.
+pub fn table(reports: &[SilverboxReport]) -> String {
+    let mut s = String::from("\n| model | params | arrow RMS (mV) | multisine test RMS (mV) |\n|---|---:|---:|---:|\n");
+    for r in reports {
+        s.push_str(&format!(
+            "| {} | {} | {:.3} | {:.3} |\n",
+            r.model, r.n_params, r.arrow_rms_mv, r.multisine_test_rms_mv
+        ));
+    }
+    for (name, v) in PUBLISHED {
+        s.push_str(&format!("| published: {name} | | {v:.2} | |\n"));
+    }
+    if let Some(r) = reports.first() {
+        s.push_str(&format!(
+            "\n(output RMS: arrow {:.1} mV, multisine test {:.1} mV)\n",
+            r.arrow_output_rms_mv, r.multisine_test_output_rms_mv
+        ));
+    }
+    s
+}
+
+fn export_levels(
+    args: &Args,
+    data: &silverbox::SilverboxData,
+    dir: &std::path::Path,
+) -> miette::Result<()> {
+    if args.n_levels < 2 {
+        return Err(miette!(
+            help = "detection compares at least two levels; use e.g. `--levels 4`",
+            "{} arrow levels",
+            args.n_levels
+        ));
+    }
+    let path = args.models.first().expect("a default model");
+    let ir = super::common::load_model(path)?;
+    let mut opts = silverbox::default_options(&ir);
+    if args.filter_corners.is_some() {
+        opts.corners = args.filter_corners.clone();
+    }
+    if args.filter_order.is_some() {
+        opts.order = args.filter_order;
+    }
+    let (records, levels) = silverbox::arrow_level_fits(&ir, data, args.n_levels, &opts)?;
+    std::fs::create_dir_all(dir)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("cannot create `{}`", dir.display()))?;
+    for (name, rec) in level_file_names(records.len()).iter().zip(&records) {
+        write_level_csv(&dir.join(name), rec)?;
+    }
+    let names: Vec<String> = levels[0].params.iter().map(|p| p.name.clone()).collect();
+    let mut s = format!(
+        "arrow levels of `{}` written to {}\n\n| level | samples | u std (mV) | y std (mV) |",
+        ir.name,
+        dir.display()
+    );
+    for n in &names {
+        s.push_str(&format!(" {n} |"));
+    }
+    s.push_str(&format!("\n|---|---|---:|---:|{}\n", "---:|".repeat(names.len())));
+    for (k, l) in levels.iter().enumerate() {
+        s.push_str(&format!(
+            "| {} | {}–{} | {:.2} | {:.2} |",
+            k + 1,
+            l.segment.start,
+            l.segment.end,
+            l.u_std_mv,
+            l.y_std_mv
+        ));
+        for p in &l.params {
+            s.push_str(&format!(" {:.5e} ± {:.1e} |", p.value, p.stderr));
+        }
+        s.push('\n');
+    }
+    print!("{s}");
+    Ok(())
+}
