@@ -2,8 +2,8 @@
 //! multisines, free-run simulate the arrow and the multisine test, compare with the
 //! published results; optionally export the arrow as excitation levels for detection.
 
-use dynid_runtime::sim::{level_file_names, write_level_csv};
 use dynid_runtime::silverbox::{self, RunOptions, SilverboxReport, PUBLISHED};
+use dynid_runtime::sim::{level_file_names, write_level_csv};
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
 
@@ -14,7 +14,11 @@ pub struct Args {
     #[arg(long, value_name = "DIR", default_value = "../shared/data/silverbox")]
     pub data: PathBuf,
     /// Model(s) to identify and score (repeatable).
-    #[arg(long = "model", value_name = "MODEL", default_value = "models/silverbox_cubic.dyn")]
+    #[arg(
+        long = "model",
+        value_name = "MODEL",
+        default_value = "models/silverbox_cubic.dyn"
+    )]
     pub models: Vec<PathBuf>,
     /// Write the reports as JSON to this file.
     #[arg(long, value_name = "OUT")]
@@ -22,6 +26,10 @@ pub struct Args {
     /// RK4 sub-steps per sample in the free-run simulations.
     #[arg(long, default_value_t = 10)]
     pub substeps: usize,
+    /// Band-limited (windowed-sinc) interpolation factor before identification and
+    /// simulation; 1 = linear interpolation between the measured samples.
+    #[arg(long, default_value_t = 4)]
+    pub upsample: usize,
     /// Identification filter corners in rad/s (default: the model's, else 100…1000 rad/s).
     #[arg(long = "filter-corners", value_delimiter = ',', value_name = "A,B,C")]
     pub filter_corners: Option<Vec<f64>>,
@@ -88,6 +96,7 @@ pub fn run(args: Args) -> miette::Result<()> {
             &RunOptions {
                 identify: id,
                 substeps: args.substeps,
+                upsample: args.upsample,
             },
         )
         .wrap_err_with(|| format!("model `{}`", path.display()))?;
@@ -123,7 +132,9 @@ fn print_params(r: &SilverboxReport) {
 
 /// The results table next to the published figures.
 pub fn table(reports: &[SilverboxReport]) -> String {
-    let mut s = String::from("\n| model | params | arrow RMS (mV) | multisine test RMS (mV) |\n|---|---:|---:|---:|\n");
+    let mut s = String::from(
+        "\n| model | params | arrow RMS (mV) | multisine test RMS (mV) |\n|---|---:|---:|---:|\n",
+    );
     for r in reports {
         s.push_str(&format!(
             "| {} | {} | {:.3} | {:.3} |\n",
@@ -179,7 +190,10 @@ fn export_levels(
     for n in &names {
         s.push_str(&format!(" {n} |"));
     }
-    s.push_str(&format!("\n|---|---|---:|---:|{}\n", "---:|".repeat(names.len())));
+    s.push_str(&format!(
+        "\n|---|---|---:|---:|{}\n",
+        "---:|".repeat(names.len())
+    ));
     for (k, l) in levels.iter().enumerate() {
         s.push_str(&format!(
             "| {} | {}–{} | {:.2} | {:.2} |",
