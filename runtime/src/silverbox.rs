@@ -418,7 +418,7 @@ pub fn identify_estimation(
     split: &Split,
     opts: &IdentifyOptions,
     upsample_factor: usize,
-) -> Result<Identification, SilverboxError> {
+) -> Result<(Identification, Vec<(String, f64)>), SilverboxError> {
     let records = split
         .estimation
         .iter()
@@ -430,20 +430,79 @@ pub fn identify_estimation(
         .map(|(r, s)| RecordSource::new(r, ir, format!("{FILE}[{}..{}]", s.start, s.end)))
         .collect::<Result<Vec<_>, _>>()?;
     let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
-    Ok(identify(ir, &levels, opts)?)
+    let id = identify(ir, &levels, opts)?;
+    let point = point_estimates(ir, &records, opts)?;
+    Ok((id, point))
 }
 
-/// `ir` with every unknown parameter's nominal value replaced by its estimate; a parameter
-/// the data could not determine is set to 0 (its term is left out of the simulation rather
-/// than simulated at an arbitrary nominal value).
-pub fn with_estimates(ir: &ModelIr, id: &Identification) -> ModelIr {
+/// `ir` with every unknown parameter's nominal value replaced by its estimate.
+pub fn with_estimates(ir: &ModelIr, values: &[(String, f64)]) -> ModelIr {
     let mut out = ir.clone();
     for p in &mut out.params {
         if let ParamKind::Unknown { nominal } = &mut p.kind {
-            *nominal = Some(id.param(&p.name).map_or(0.0, |e| e.value));
+            if let Some((_, v)) = values.iter().find(|(n, _)| *n == p.name) {
+                *nominal = Some(*v);
+            }
         }
     }
     out
+}
+
+/// Least-squares point estimates of *all* unknowns from the pooled system `C p = c`
+/// (rows normalised with their right-hand side, columns scaled, SVD), including those that
+/// [`identify`] reports as unresolved: a term whose standard error exceeds its value is
+/// still better simulated at its best estimate than left out or set to a nominal guess.
+pub fn point_estimates(
+    ir: &ModelIr,
+    records: &[Record],
+    opts: &IdentifyOptions,
+) -> Result<Vec<(String, f64)>, SilverboxError> {
+    let sources = records
+        .iter()
+        .enumerate()
+        .map(|(i, r)| RecordSource::new(r, ir, format!("estimation part {}", i + 1)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
+    let tape = crate::tape::Tape::compile(ir, &ir.eval_roots());
+    let sys = crate::ident::assemble(ir, &tape, &levels, opts)?;
+    let (rows, cols) = (sys.rows, sys.cols);
+    let mut a = nalgebra::DMatrix::<f64>::zeros(rows, cols);
+    let mut b = nalgebra::DVector::<f64>::zeros(rows);
+    for r in 0..rows {
+        let row = &sys.c_matrix[r * cols..(r + 1) * cols];
+        let n = (row.iter().map(|v| v * v).sum::<f64>() + sys.rhs[r].powi(2)).sqrt();
+        let w = if n > 0.0 { 1.0 / n } else { 0.0 };
+        for c in 0..cols {
+            a[(r, c)] = w * row[c];
+        }
+        b[r] = w * sys.rhs[r];
+    }
+    let scale: Vec<f64> = (0..cols)
+        .map(|c| {
+            let n = a.column(c).norm();
+            if n > 0.0 {
+                1.0 / n
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    for (c, s) in scale.iter().enumerate() {
+        a.column_mut(c).scale_mut(*s);
+    }
+    let x = a
+        .svd(true, true)
+        .solve(&b, 1e-12)
+        .map_err(|e| SilverboxError::Model {
+            model: ir.name.clone(),
+            what: format!("least squares failed: {e}"),
+        })?;
+    Ok(ir
+        .unknowns()
+        .iter()
+        .enumerate()
+        .map(|(c, p)| (ir.params[p.index()].name.clone(), x[c] * scale[c]))
+        .collect())
 }
 
 /// Free-run simulation of `ir` (at its nominal values) driven by the measured input over
@@ -493,6 +552,8 @@ pub struct SilverboxReport {
     pub n_params: usize,
     pub params: Vec<crate::ident::ParamEstimate>,
     pub unidentifiable: Vec<crate::ident::Unidentifiable>,
+    /// Least-squares values of all unknowns (also the unresolved ones): what is simulated.
+    pub simulated: Vec<(String, f64)>,
     pub condition: f64,
     pub filter_corners: Vec<f64>,
     pub filter_order: usize,
@@ -525,8 +586,8 @@ pub fn run(
     opts: &RunOptions,
 ) -> Result<SilverboxReport, SilverboxError> {
     let split = split(data)?;
-    let id = identify_estimation(ir, data, &split, &opts.identify, opts.upsample)?;
-    let fitted = with_estimates(ir, &id);
+    let (id, point) = identify_estimation(ir, data, &split, &opts.identify, opts.upsample)?;
+    let fitted = with_estimates(ir, &point);
     let (arrow, _) = free_run_rms(
         &fitted,
         data,
@@ -569,6 +630,7 @@ pub fn run(
         n_params: ir.unknowns().len(),
         params: id.params.clone(),
         unidentifiable: id.unidentifiable.clone(),
+        simulated: point,
         condition: id.condition,
         filter_corners: id.filter.corners.clone(),
         filter_order: id.filter.order,

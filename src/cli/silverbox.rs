@@ -128,6 +128,12 @@ fn print_params(r: &SilverboxReport) {
     for u in &r.unidentifiable {
         println!("  {:<6} not identifiable: {}", u.name, u.reason);
     }
+    let sim: Vec<String> = r
+        .simulated
+        .iter()
+        .map(|(n, v)| format!("{n} = {v:.6e}"))
+        .collect();
+    println!("  simulated with {}", sim.join(", "));
 }
 
 /// The results table next to the published figures.
