@@ -23,8 +23,8 @@ pub struct Args {
     /// Write the reports as JSON to this file.
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
-    /// RK4 sub-steps per sample in the free-run simulations.
-    #[arg(long, default_value_t = 10)]
+    /// RK4 sub-steps per (upsampled) sample in the free-run simulations.
+    #[arg(long, default_value_t = 4)]
     pub substeps: usize,
     /// Band-limited (windowed-sinc) interpolation factor before identification and
     /// simulation; 1 = linear interpolation between the measured samples.
