@@ -1,12 +1,16 @@
 //! The Silverbox benchmark on the real measurement. Runs when `../shared/data/silverbox`
 //! (relative to the repository root) holds SNLS80mV.csv, and is skipped with a note
-//! otherwise; the data is never copied into the repository.
+//! otherwise (`DYNID_SILVERBOX_DATA=DIR` points elsewhere, e.g. from a git worktree); the
+//! data is never copied into the repository.
 
 use dynid_runtime::silverbox::{self, RunOptions, Segment};
 use std::path::PathBuf;
 
 fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/silverbox");
+    let dir = std::env::var_os("DYNID_SILVERBOX_DATA").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/silverbox"),
+        PathBuf::from,
+    );
     if dir.join(silverbox::FILE).exists() {
         Some(dir)
     } else {

@@ -16,8 +16,8 @@ pub mod data;
 pub mod detect;
 pub mod ident;
 pub mod record;
-pub mod sim;
 pub mod silverbox;
+pub mod sim;
 pub mod tape;
 #[cfg(any(test, feature = "test-support"))]
 pub mod test_support;
