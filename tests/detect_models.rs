@@ -2,7 +2,7 @@
 //! its three excitation levels, its linear counterpart is identified per level, and the
 //! verdict and the implied nonlinear parameter are checked against the truth.
 
-use dynid::dsl_parser::{compile_file, ir::ModelIr};
+use dynid::dsl_parser::{compile_file, compile_str, ir::ModelIr};
 use dynid::runtime::data::{LevelSource, RecordSource};
 use dynid::runtime::detect::{
     detect_from_data, DetectOptions, Detection, ElementFinding, LevelFits, Verdict,
@@ -20,29 +20,35 @@ fn model(name: &str) -> ModelIr {
 }
 
 fn sim(truth: &str, duration: f64, seed: u64) -> Vec<Record> {
-    let ir = model(truth);
+    sim_ir(&model(truth), duration, seed)
+}
+
+fn sim_ir(ir: &ModelIr, duration: f64, seed: u64) -> Vec<Record> {
     let cfg = SimConfig {
         duration,
         seed,
         burn_in: 20.0,
         ..Default::default()
     };
-    simulate(&ir, &cfg).expect("simulate").records
+    simulate(ir, &cfg).expect("simulate").records
 }
 
 fn run(linear: &str, records: &[Record], balance: bool) -> (Detection, LevelFits) {
-    let ir = model(linear);
+    run_ir(&model(linear), records, balance)
+}
+
+fn run_ir(ir: &ModelIr, records: &[Record], balance: bool) -> (Detection, LevelFits) {
     let srcs: Vec<RecordSource> = records
         .iter()
         .enumerate()
-        .map(|(i, r)| RecordSource::new(r, &ir, format!("level {}", i + 1)).unwrap())
+        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
         .collect();
     let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
     let opts = IdentifyOptions {
         balance: Some(balance),
         ..Default::default()
     };
-    detect_from_data(&ir, &levels, &opts, &DetectOptions::default(), &[]).expect("detect")
+    detect_from_data(ir, &levels, &opts, &DetectOptions::default(), &[]).expect("detect")
 }
 
 fn finding<'a>(d: &'a Detection, element: &str) -> &'a ElementFinding {
@@ -52,20 +58,223 @@ fn finding<'a>(d: &'a Detection, element: &str) -> &'a ElementFinding {
         .unwrap_or_else(|| panic!("no element {element}"))
 }
 
+/// The verdict's template and its implied effect parameters by name.
+fn best(d: &Detection, element: &str) -> (String, Vec<(String, f64)>) {
+    let f = finding(d, element);
+    let name = match &f.verdict {
+        Verdict::Nonlinear { best, .. } => best.clone(),
+        v => panic!(
+            "{element}: expected a nonlinear verdict, got {v}\n{}",
+            d.render_table()
+        ),
+    };
+    let est = f.ranking[0]
+        .effect_estimates()
+        .iter()
+        .map(|e| (e.name.clone(), e.value))
+        .collect();
+    (name, est)
+}
+
+fn implied(est: &[(String, f64)], name: &str) -> f64 {
+    est.iter()
+        .find(|(n, _)| n == name)
+        .unwrap_or_else(|| panic!("no estimate {name} in {est:?}"))
+        .1
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b) / b
+}
+
+/// Simulate `truth`, detect on `linear`, check the verdict at `element` and the implied
+/// parameters against the truth within `tol` (relative).
+fn check(
+    truth: &str,
+    linear: &str,
+    element: &str,
+    template: &str,
+    expect: &[(&str, f64)],
+    tol: f64,
+) {
+    let recs = sim(truth, DURATION, 7);
+    let (d, _) = run(linear, &recs, false);
+    println!("{truth}:\n{}", d.render_table());
+    let (name, est) = best(&d, element);
+    assert_eq!(name, template, "{truth}\n{}", d.render_table());
+    for (p, t) in expect {
+        let e = rel(implied(&est, p), *t);
+        println!(
+            "{truth}: {p} = {:.4} (truth {t}, {:+.1} %)",
+            implied(&est, p),
+            100.0 * e
+        );
+        assert!(e.abs() < tol, "{truth}: {p} off by {:.1} %", 100.0 * e);
+    }
+}
+
+/// Seconds per level: long enough that every verdict below held on the seeds tried.
+const DURATION: f64 = 400.0;
+
 #[test]
-#[ignore = "exploration: prints per-level fits with and without balance rows"]
-fn explore() {
-    for (truth, linear) in [
-        ("sdof_duffing", "sdof_linear"),
-        ("sdof_coulomb", "sdof_linear"),
-        ("sdof_linear", "sdof_linear"),
-    ] {
-        let recs = sim(truth, 300.0, 1);
-        for balance in [false, true] {
-            let (d, _) = run(linear, &recs, balance);
-            println!("==== {truth} balance={balance}\n{}", d.render_table());
+fn duffing_is_cubic_at_the_spring() {
+    // Statistical linearisation assumes a Gaussian s; the hardening spring at the loudest
+    // level makes s markedly sub-Gaussian, so the implied k3 comes out low (see docs).
+    check(
+        "sdof_duffing",
+        "sdof_linear",
+        "k/d (ground, m)",
+        "cubic stiffness",
+        &[("k3", 2.0)],
+        0.35,
+    );
+}
+
+#[test]
+fn coulomb_is_friction_at_the_damper() {
+    check(
+        "sdof_coulomb",
+        "sdof_linear",
+        "k/d (ground, m)",
+        "Coulomb friction",
+        &[("r", 0.3)],
+        0.10,
+    );
+}
+
+#[test]
+fn quadratic_damping_is_found() {
+    check(
+        "quadratic_damping",
+        "quadratic_damping_linear",
+        "k/d (ground, m)",
+        "quadratic damping",
+        &[("c", 0.2)],
+        0.25,
+    );
+}
+
+#[test]
+fn prestress_is_found() {
+    check(
+        "prestress",
+        "prestress_linear",
+        "d/k (ground, m)",
+        "prestress",
+        &[("f0", 0.5)],
+        0.25,
+    );
+}
+
+#[test]
+fn backlash_is_found() {
+    check(
+        "backlash",
+        "backlash_linear",
+        "k/d (ground, m)",
+        "backlash",
+        &[("kb", 4.0), ("g", 0.1)],
+        0.5,
+    );
+}
+
+#[test]
+fn cubic_and_coulomb_in_one_element() {
+    let recs = sim("sdof_cubic_coulomb", DURATION, 7);
+    let (d, _) = run("sdof_linear", &recs, false);
+    println!("{}", d.render_table());
+    let f = finding(&d, "k/d (ground, m)");
+    assert_eq!(
+        f.drifting.len(),
+        2,
+        "both curves drift\n{}",
+        d.render_table()
+    );
+    let (name, est) = best(&d, "k/d (ground, m)");
+    assert!(
+        name.contains("cubic stiffness") && name.contains("Coulomb friction"),
+        "{name}"
+    );
+    println!(
+        "k3 = {:.3} (2.0), r = {:.3} (0.3)",
+        implied(&est, "k3"),
+        implied(&est, "r")
+    );
+}
+
+#[test]
+fn two_mass_nonlinear_coupling_linear_ground() {
+    let recs = sim("two_mass", DURATION, 7);
+    let (d, _) = run("two_mass_linear", &recs, false);
+    println!("{}", d.render_table());
+    assert_eq!(finding(&d, "k1/d1 (ground, m1)").verdict, Verdict::Linear);
+    let (name, est) = best(&d, "k2/d2 (m1, m2)");
+    assert!(name.contains("cubic stiffness"), "{name}");
+    println!("two_mass: {name}: {est:?} (truth k3 = 1.5, r = 0.2)");
+}
+
+const FRICTION_AT_GROUND: &str = "
+model two_mass_friction {
+    body m1 = 1.0
+    body m2 ~ 2.0
+    input u on m1
+    spring k1 (ground, m1) ~ 4.0
+    damper d1 (ground, m1) ~ 0.4
+    force fr (ground, m1) = r ~ 0.3 * sign(v)
+    spring k2 (m1, m2) ~ 3.0
+    damper d2 (m1, m2) ~ 0.2
+    excite u: lowpass(corner = 10) levels [6, 15, 40]
+    filter corners [0.5, 1, 2, 4, 8, 16] order 2
+}";
+
+#[test]
+fn two_mass_friction_at_ground_only() {
+    let truth = compile_str("two_mass_friction", FRICTION_AT_GROUND).unwrap();
+    let recs = sim_ir(&truth, DURATION, 7);
+    let (d, _) = run("two_mass_linear", &recs, false);
+    println!("{}", d.render_table());
+    assert_eq!(finding(&d, "k2/d2 (m1, m2)").verdict, Verdict::Linear);
+    let (name, est) = best(&d, "k1/d1 (ground, m1)");
+    assert_eq!(name, "Coulomb friction");
+    let r = implied(&est, "r");
+    println!(
+        "two_mass_friction: r = {r:.4} (truth 0.3, {:+.1} %)",
+        100.0 * rel(r, 0.3)
+    );
+    assert!(rel(r, 0.3).abs() < 0.15);
+}
+
+fn linear_detections(seeds: std::ops::Range<u64>) -> (usize, usize) {
+    let two = model("two_mass_linear");
+    let sdof = model("sdof_linear");
+    let (mut alarms, mut total) = (0, 0);
+    for seed in seeds {
+        for ir in [&sdof, &two] {
+            let recs = sim_ir(ir, DURATION, 1000 + seed);
+            let (d, _) = run_ir(ir, &recs, false);
+            for e in &d.elements {
+                total += 1;
+                if e.verdict != Verdict::Linear {
+                    alarms += 1;
+                    println!("seed {seed} {}: {}", ir.name, e.verdict);
+                }
+            }
         }
     }
-    let _ = finding;
-    let _ = Verdict::Linear;
+    (alarms, total)
+}
+
+#[test]
+fn linear_systems_give_no_detection() {
+    let (alarms, total) = linear_detections(0..3);
+    assert_eq!(alarms, 0, "{alarms} of {total} linear elements flagged");
+}
+
+/// `cargo test --test detect_models -- --ignored --nocapture false_positive_rate`
+#[test]
+#[ignore = "measurement: false-positive rate over 25 seeds"]
+fn false_positive_rate() {
+    let (alarms, total) = linear_detections(0..25);
+    println!("false positives: {alarms} of {total} linear elements");
+    assert!(alarms * 20 <= total, "more than 5 % false positives");
 }
