@@ -4,6 +4,7 @@ use clap::{Parser, Subcommand};
 
 pub mod common;
 pub mod compile;
+pub mod detect;
 pub mod identify;
 pub mod silverbox;
 pub mod simulate;
@@ -25,6 +26,8 @@ pub enum Command {
     Simulate(simulate::Args),
     /// Identify the unknown parameters from measured data, one CSV per excitation level.
     Identify(identify::Args),
+    /// Detect which elements of a linear model are nonlinear, from one CSV per level.
+    Detect(detect::Args),
     /// The Silverbox benchmark on the real measurement (identify, free-run RMS, arrow levels).
     Silverbox(silverbox::Args),
 }
@@ -34,6 +37,7 @@ pub fn run(cli: Cli) -> miette::Result<()> {
         Command::Compile(a) => compile::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(a) => identify::run(a),
+        Command::Detect(a) => detect::run(a),
         Command::Silverbox(a) => silverbox::run(a),
     }
 }

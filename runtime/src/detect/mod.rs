@@ -22,6 +22,7 @@
 
 mod candidate;
 mod fit;
+pub mod from_data;
 pub mod plot;
 mod quad;
 pub mod stats;
@@ -30,6 +31,7 @@ pub mod stats;
 mod tests;
 
 pub use candidate::{Candidate, Dependence, ShapeParam};
+pub use from_data::{detect_from_data, level_fits, FromDataError, LevelFits, SigmaVSource};
 pub use plot::plot_curves;
 pub use quad::NormalRule;
 

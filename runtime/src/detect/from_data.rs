@@ -1,0 +1,363 @@
+//! From measured levels to a [`DetectionInput`]: the linear model is identified separately
+//! at each level, every unknown parameter is attached to its element and role, and each
+//! element's intensities σ_s, σ_v are measured on the data.
+//!
+//! * **Grouping.** Springs, dampers and forces between the same two nodes form one
+//!   element for the templates (`k1/d1 (ground, m1)`), so a Coulomb friction hiding in a
+//!   spring–damper pair is explained on the damper's curve and a prestress on the spring's.
+//! * **Roles.** A coefficient of exactly `s` is a stiffness, of exactly `v` a damping (the
+//!   element kind decides for other linear terms); an unknown body mass is a mass; anything
+//!   else is `Other` (tested for constancy, no templates).
+//! * **σ_s** is the standard deviation of the element's `s` expression evaluated on the
+//!   streamed data. **σ_v** likewise from `v` when the velocities it needs are measured.
+//!   Otherwise it comes from Rice's formula for a stationary Gaussian process: the mean
+//!   rate of zero crossings of `s − ⟨s⟩` is `σ_v / (π σ_s)`, so `σ_v = π σ_s N₀ / T`. No
+//!   signal is differentiated; crossings are counted with a hysteresis of ±5 % σ_s so that
+//!   measurement noise does not add spurious ones. The template coefficients of damping
+//!   effects scale with σ_v, so their accuracy follows that of this estimate (see the
+//!   tests for the figure measured against measured velocities).
+//! * **Errors.** Per-level standard errors are the identification's delete-one-block
+//!   jackknife over `n_blocks` time blocks, so [`DetectOptions::se_dof`] is set to
+//!   `n_blocks − 1` unless the caller chose a value.
+
+use dsl_parser::ir::{ElementKind, ExprNode, ModelIr, Node, ParamId};
+use serde::Serialize;
+
+use super::{detect, Candidate, DetectError, DetectOptions, Detection, DetectionInput};
+use super::{ElementIntensity, ParamCurve, Role};
+use crate::data::{DataError, LevelSource};
+use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions};
+use crate::tape::{Tape, TapeScratch};
+
+/// Hysteresis of the zero-crossing count, as a fraction of σ_s.
+const CROSSING_HYSTERESIS: f64 = 0.05;
+
+/// Errors of detection from data: identification and data errors pass through.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+pub enum FromDataError {
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Identify(#[from] IdentifyError),
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Detect(#[from] DetectError),
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Data(#[from] DataError),
+    #[error("{origin}: the relative displacement of element `{element}` does not vary")]
+    #[diagnostic(
+        code(dynid::detect::no_motion),
+        help("check that the element's signals are measured and the record is excited")
+    )]
+    NoMotion { origin: String, element: String },
+}
+
+/// How an element's σ_v was obtained.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum SigmaVSource {
+    /// From the measured velocities.
+    Measured,
+    /// From positions by Rice's zero-crossing formula.
+    ZeroCrossings,
+}
+
+/// The per-level identifications next to the detection input built from them.
+#[derive(Debug)]
+pub struct LevelFits {
+    pub input: DetectionInput,
+    pub fits: Vec<Identification>,
+    /// Per grouped element, in the order of `input.elements`.
+    pub sigma_v_source: Vec<SigmaVSource>,
+    /// Time blocks of the jackknife (the dof of the standard errors is this minus one).
+    pub n_blocks: usize,
+}
+
+/// One grouped element: the IR elements between the same two nodes.
+struct Group {
+    name: String,
+    members: Vec<usize>,
+}
+
+fn node_name(ir: &ModelIr, n: Node) -> String {
+    match n {
+        Node::Ground => "ground".into(),
+        Node::Body(b) => ir.bodies[b.index()].name.clone(),
+    }
+}
+
+fn groups(ir: &ModelIr) -> Vec<Group> {
+    let key = |n: Node| match n {
+        Node::Ground => 0usize,
+        Node::Body(b) => b.index() + 1,
+    };
+    let mut out: Vec<(usize, usize, Group)> = Vec::new();
+    for (i, e) in ir.elements.iter().enumerate() {
+        let (a, b) = (key(e.nodes.0), key(e.nodes.1));
+        let k = (a.min(b), a.max(b));
+        match out.iter_mut().find(|(x, y, _)| (*x, *y) == k) {
+            Some((_, _, g)) => g.members.push(i),
+            None => out.push((
+                k.0,
+                k.1,
+                Group {
+                    name: String::new(),
+                    members: vec![i],
+                },
+            )),
+        }
+    }
+    out.into_iter()
+        .map(|(_, _, mut g)| {
+            let e0 = &ir.elements[g.members[0]];
+            let names: Vec<&str> = g
+                .members
+                .iter()
+                .map(|&i| ir.elements[i].name.as_str())
+                .collect();
+            g.name = format!(
+                "{} ({}, {})",
+                names.join("/"),
+                node_name(ir, e0.nodes.0),
+                node_name(ir, e0.nodes.1)
+            );
+            g
+        })
+        .collect()
+}
+
+/// The element group and role of an unknown parameter.
+fn param_role(ir: &ModelIr, groups: &[Group], p: ParamId) -> (String, Role) {
+    for g in groups {
+        for &i in &g.members {
+            let e = &ir.elements[i];
+            for t in &e.terms {
+                if t.coef.param != Some(p) {
+                    continue;
+                }
+                let role = if t.basis == e.s {
+                    Role::Stiffness
+                } else if t.basis == e.v {
+                    Role::Damping
+                } else {
+                    match (e.kind, ir.expr(t.basis)) {
+                        (ElementKind::Spring, _) => Role::Stiffness,
+                        (ElementKind::Damper, _) => Role::Damping,
+                        (_, ExprNode::Signal(_)) => Role::Other,
+                        _ => Role::Other,
+                    }
+                };
+                return (g.name.clone(), role);
+            }
+        }
+    }
+    for b in &ir.bodies {
+        if b.mass.param == Some(p) {
+            return (b.name.clone(), Role::Mass);
+        }
+    }
+    (ir.params[p.index()].name.clone(), Role::Other)
+}
+
+/// σ_s and σ_v of every group at one level, streamed in chunks.
+fn intensities(
+    ir: &ModelIr,
+    groups: &[Group],
+    v_measured: &[bool],
+    src: &dyn LevelSource,
+    chunk_len: usize,
+) -> Result<Vec<(f64, f64)>, FromDataError> {
+    let mut roots = Vec::new();
+    for (g, &vm) in groups.iter().zip(v_measured) {
+        let e = &ir.elements[g.members[0]];
+        roots.push(e.s);
+        roots.push(if vm { e.v } else { e.s });
+    }
+    let tape = Tape::compile(ir, &roots);
+    let nr = roots.len();
+    // Sums about the first sample, which removes most of the cancellation of Σx² − n x̄².
+    let mut shift: Option<Vec<f64>> = None;
+    let mut s1 = vec![0.0; nr];
+    let mut s2 = vec![0.0; nr];
+    let mut n = 0usize;
+    let mut out = vec![0.0; nr * chunk_len];
+    let mut scratch = TapeScratch::default();
+    src.stream(chunk_len, &mut |cols, len| {
+        tape.eval_block(cols, len, &mut out, &mut scratch);
+        let sh = shift.get_or_insert_with(|| (0..nr).map(|r| out[r * len]).collect());
+        for r in 0..nr {
+            let (mut a, mut b) = (0.0, 0.0);
+            for &x in &out[r * len..(r + 1) * len] {
+                let d = x - sh[r];
+                a += d;
+                b += d * d;
+            }
+            s1[r] += a;
+            s2[r] += b;
+        }
+        n += len;
+    })?;
+    let nf = n.max(1) as f64;
+    let shift = shift.unwrap_or_else(|| vec![0.0; nr]);
+    let mean: Vec<f64> = (0..nr).map(|r| shift[r] + s1[r] / nf).collect();
+    let std: Vec<f64> = (0..nr)
+        .map(|r| {
+            let m = s1[r] / nf;
+            (s2[r] / nf - m * m).max(0.0).sqrt()
+        })
+        .collect();
+    for (gi, g) in groups.iter().enumerate() {
+        if std[2 * gi] <= 0.0 || !std[2 * gi].is_finite() {
+            return Err(FromDataError::NoMotion {
+                origin: src.origin(),
+                element: g.name.clone(),
+            });
+        }
+    }
+
+    // Zero crossings with hysteresis for the groups whose velocity is not measured.
+    let mut crossings = vec![0usize; groups.len()];
+    let mut state = vec![0i8; groups.len()];
+    if v_measured.iter().any(|m| !m) {
+        src.stream(chunk_len, &mut |cols, len| {
+            tape.eval_block(cols, len, &mut out, &mut scratch);
+            for (gi, &vm) in v_measured.iter().enumerate() {
+                if vm {
+                    continue;
+                }
+                let r = 2 * gi;
+                let h = CROSSING_HYSTERESIS * std[r];
+                for &x in &out[r * len..(r + 1) * len] {
+                    let d = x - mean[r];
+                    let side = if d > h {
+                        1
+                    } else if d < -h {
+                        -1
+                    } else {
+                        0
+                    };
+                    if side != 0 {
+                        if state[gi] != 0 && side != state[gi] {
+                            crossings[gi] += 1;
+                        }
+                        state[gi] = side;
+                    }
+                }
+            }
+        })?;
+    }
+    let duration = (n.max(2) - 1) as f64 * src.ts();
+    Ok(groups
+        .iter()
+        .enumerate()
+        .map(|(gi, _)| {
+            let ss = std[2 * gi];
+            let sv = if v_measured[gi] {
+                std[2 * gi + 1]
+            } else {
+                std::f64::consts::PI * ss * crossings[gi] as f64 / duration
+            };
+            (ss, sv)
+        })
+        .collect())
+}
+
+/// Identify the linear model `ir` at each level separately and collect the curves and the
+/// element intensities. Each source is one level; at least two are needed.
+pub fn level_fits(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Result<LevelFits, FromDataError> {
+    if levels.len() < 2 {
+        return Err(DetectError::TooFewLevels(levels.len()).into());
+    }
+    let tape = Tape::compile(ir, &ir.eval_roots());
+    let moments = measure(ir, &tape, levels, opts)?;
+    let fits: Vec<Identification> = (0..levels.len())
+        .map(|i| moments.identify_level(i))
+        .collect();
+
+    let groups = groups(ir);
+    let v_measured: Vec<bool> = groups
+        .iter()
+        .map(|g| {
+            let e = &ir.elements[g.members[0]];
+            ir.expr_signals(e.v).iter().all(|s| ir.signal(*s).measured)
+        })
+        .collect();
+    let per_level: Vec<Vec<(f64, f64)>> = levels
+        .iter()
+        .map(|src| intensities(ir, &groups, &v_measured, *src, opts.chunk_len))
+        .collect::<Result<_, _>>()?;
+    let elements = groups
+        .iter()
+        .enumerate()
+        .map(|(gi, g)| ElementIntensity {
+            element: g.name.clone(),
+            sigma_s: per_level.iter().map(|l| l[gi].0).collect(),
+            sigma_v: per_level.iter().map(|l| l[gi].1).collect(),
+        })
+        .collect();
+
+    let curves = ir
+        .unknowns()
+        .into_iter()
+        .map(|p| {
+            let name = ir.params[p.index()].name.clone();
+            let (element, role) = param_role(ir, &groups, p);
+            let (values, stderrs) = fits
+                .iter()
+                .map(|f| {
+                    f.param(&name)
+                        .map(|e| (e.value, e.stderr))
+                        .unwrap_or((f64::NAN, f64::NAN))
+                })
+                .unzip();
+            ParamCurve {
+                param: name,
+                element,
+                role,
+                values,
+                stderrs,
+            }
+        })
+        .collect();
+    let level_labels = levels.iter().map(|l| l.origin()).collect();
+    Ok(LevelFits {
+        input: DetectionInput {
+            level_labels,
+            elements,
+            curves,
+        },
+        fits,
+        sigma_v_source: v_measured
+            .iter()
+            .map(|&m| {
+                if m {
+                    SigmaVSource::Measured
+                } else {
+                    SigmaVSource::ZeroCrossings
+                }
+            })
+            .collect(),
+        n_blocks: opts.n_blocks,
+    })
+}
+
+/// [`level_fits`] followed by [`detect`], with the jackknife's degrees of freedom filled in
+/// when `detect_opts.se_dof` is `None`.
+pub fn detect_from_data(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    ident_opts: &IdentifyOptions,
+    detect_opts: &DetectOptions,
+    extra: &[Candidate],
+) -> Result<(Detection, LevelFits), FromDataError> {
+    let fits = level_fits(ir, levels, ident_opts)?;
+    let mut opts = detect_opts.clone();
+    if opts.se_dof.is_none() {
+        opts.se_dof = Some(fits.n_blocks as f64 - 1.0);
+    }
+    let det = detect(&fits.input, extra, &opts)?;
+    Ok((det, fits))
+}

@@ -1,0 +1,119 @@
+//! `dynid detect` end to end on CSV files written by `dynid simulate`.
+
+use std::path::Path;
+use std::process::Command;
+
+fn dynid() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_dynid"))
+}
+
+fn models() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("models")
+}
+
+#[test]
+fn detects_friction_from_simulated_csv_and_writes_json_and_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let st = dynid()
+        .args([
+            "simulate",
+            models().join("sdof_coulomb.dyn").to_str().unwrap(),
+        ])
+        .args([
+            "--duration",
+            "300",
+            "--seed",
+            "3",
+            "--out",
+            data.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let json = dir.path().join("detect.json");
+    let plot = dir.path().join("curves.svg");
+    let out = dynid()
+        .arg("detect")
+        .arg(models().join("sdof_linear.dyn"))
+        .args((1..=3).map(|i| data.join(format!("level_{i}.csv"))))
+        .arg("--json")
+        .arg(&json)
+        .arg("--plot")
+        .arg(&plot)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("Element k/d (ground, m): nonlinear: Coulomb friction"),
+        "{stdout}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["detection"]["n_levels"], 3);
+    assert!(std::fs::read_to_string(&plot).unwrap().starts_with("<svg"));
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp.svg"))
+        .collect();
+    assert!(leftovers.is_empty());
+}
+
+#[test]
+fn one_level_is_a_clear_error_without_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let st = dynid()
+        .args([
+            "simulate",
+            models().join("sdof_linear.dyn").to_str().unwrap(),
+        ])
+        .args([
+            "--duration",
+            "100",
+            "--levels",
+            "10",
+            "--out",
+            data.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let json = dir.path().join("detect.json");
+    let out = dynid()
+        .arg("detect")
+        .arg(models().join("sdof_linear.dyn"))
+        .arg(data.join("level_1.csv"))
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("at least 2 excitation levels"), "{err}");
+    assert!(!json.exists());
+}
+
+#[test]
+fn help_teaches_with_an_example() {
+    let out = dynid().args(["detect", "--help"]).output().unwrap();
+    let s = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        s.contains("Example:") && s.contains("dynid detect models/sdof_linear.dyn"),
+        "{s}"
+    );
+}
