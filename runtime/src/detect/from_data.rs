@@ -21,7 +21,7 @@
 //!   jackknife over `n_blocks` time blocks, so [`DetectOptions::se_dof`] is set to
 //!   `n_blocks − 1` unless the caller chose a value.
 
-use dsl_parser::ir::{ElementKind, ExprNode, ModelIr, Node, ParamId};
+use dsl_parser::ir::{ElementKind, ModelIr, Node, ParamId};
 use serde::Serialize;
 
 use super::{detect, Candidate, DetectError, DetectOptions, Detection, DetectionInput};
@@ -140,11 +140,10 @@ fn param_role(ir: &ModelIr, groups: &[Group], p: ParamId) -> (String, Role) {
                 } else if t.basis == e.v {
                     Role::Damping
                 } else {
-                    match (e.kind, ir.expr(t.basis)) {
-                        (ElementKind::Spring, _) => Role::Stiffness,
-                        (ElementKind::Damper, _) => Role::Damping,
-                        (_, ExprNode::Signal(_)) => Role::Other,
-                        _ => Role::Other,
+                    match e.kind {
+                        ElementKind::Spring => Role::Stiffness,
+                        ElementKind::Damper => Role::Damping,
+                        ElementKind::Force => Role::Other,
                     }
                 };
                 return (g.name.clone(), role);
