@@ -290,3 +290,41 @@ fn false_positive_rate() {
     println!("false positives: {alarms} of {total} linear elements");
     assert!(alarms * 20 <= total, "more than 5 % false positives");
 }
+
+const SDOF_POSITIONS_ONLY: &str = "
+model sdof_linear_x {
+    body m = 1.0
+    input u on m
+    spring k (ground, m) ~ 4.0
+    damper d (ground, m) ~ 0.4
+    measure m.x, u
+}";
+
+/// σ_v from positions (Rice's zero-crossing rate) against the measured velocity, on a
+/// linear and on a friction-damped oscillator; and friction is still detected without
+/// velocities.
+#[test]
+fn sigma_v_from_zero_crossings() {
+    let x_only = compile_str("sdof_linear_x", SDOF_POSITIONS_ONLY).unwrap();
+    for truth in ["sdof_linear", "sdof_coulomb", "sdof_duffing"] {
+        let recs = sim(truth, DURATION, 7);
+        let (_, with_v) = run("sdof_linear", &recs, false);
+        let (d, no_v) = run_ir(&x_only, &recs, false);
+        let (a, b) = (&with_v.input.elements[0], &no_v.input.elements[0]);
+        let errs: Vec<f64> = a
+            .sigma_v
+            .iter()
+            .zip(&b.sigma_v)
+            .map(|(m, z)| rel(*z, *m))
+            .collect();
+        println!("{truth}: σ_v zero-crossing error per level {errs:+.4?}");
+        for e in &errs {
+            assert!(e.abs() < 0.2, "{truth}: {errs:?}");
+        }
+        if truth == "sdof_coulomb" {
+            let (name, est) = best(&d, "k/d (ground, m)");
+            assert_eq!(name, "Coulomb friction");
+            println!("positions only: r = {:.4} (truth 0.3)", implied(&est, "r"));
+        }
+    }
+}

@@ -17,8 +17,9 @@
 //! [`detect`] takes the curves ([`ParamCurve`]) and the intensities of each element
 //! ([`ElementIntensity`]), tests each curve for constancy, fits every applicable template
 //! to each element's stiffness and damping curves jointly, ranks the templates and returns
-//! a [`Detection`] with a verdict per element. Nothing here knows how the curves were
-//! obtained, so the identification back end only has to fill those two types.
+//! a [`Detection`] with a verdict per element. The core does not know how the curves were
+//! obtained; [`from_data`] fills those two types from measured levels (per-level
+//! identification, element grouping, measured intensities) for the CLI.
 
 mod candidate;
 mod fit;
