@@ -531,17 +531,75 @@ fn basis_eval_impl(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStrea
     }
 }
 
-/// Convenience methods on the model struct that call into the runtime:
-/// `identify(&self, levels: &[Record], opts) -> Result<Identified, _>` (the model's IR, this
-/// struct as the `BasisEval`, and the records of all excitation levels, returning the
-/// parameters as the generated `…Params`), and `simulate(&self, params: &…Params, cfg)`
-/// (the IR with the known and given unknown parameter values, returning a `Record`).
-///
-/// Emits nothing until the runtime's identification and simulation entry points exist;
-/// each generated method must be a single call into `#crate_path::runtime`, so that all
-/// behaviour stays in the runtime and the interpreter and compiled paths cannot differ.
-fn conveniences(_ir: &ModelIr, _names: &Names, _opts: &CodegenOptions) -> TokenStream {
-    TokenStream::new()
+/// Convenience methods that call into the runtime with this model's IR and this struct as
+/// the `BasisEval`: `identify` / `identify_with_options` (in-memory records, one per
+/// excitation level, pooled), `simulate` (the IR with the given unknown parameter values),
+/// and `…Params::from_identification`. Each is a thin forward to `#crate_path::runtime`, so
+/// that all behaviour stays in the runtime and the interpreted and compiled paths cannot
+/// differ in anything but the per-sample basis evaluation.
+fn conveniences(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStream {
+    let krate = &opts.crate_path;
+    let ty = &n.ty;
+    let params_ty = &n.params_ty;
+    let fields = &n.fields;
+    let names = ir
+        .unknowns()
+        .into_iter()
+        .map(|p| ir.params[p.index()].name.clone());
+    let rt = quote!(#krate::runtime);
+    quote! {
+        impl #ty {
+            /// Identify the unknown parameters from one record per excitation level, all
+            /// levels pooled into one least-squares problem, with the default options.
+            /// Every measured signal of the model must be a column of each record.
+            pub fn identify(
+                &self,
+                levels: &[#rt::record::Record],
+            ) -> ::core::result::Result<#rt::ident::Identification, #rt::ident::IdentifyError> {
+                self.identify_with_options(levels, &::core::default::Default::default())
+            }
+
+            /// [`Self::identify`] with explicit options.
+            pub fn identify_with_options(
+                &self,
+                levels: &[#rt::record::Record],
+                opts: &#rt::ident::IdentifyOptions,
+            ) -> ::core::result::Result<#rt::ident::Identification, #rt::ident::IdentifyError> {
+                let ir = self.ir();
+                let sources = levels
+                    .iter()
+                    .enumerate()
+                    .map(|(i, r)| {
+                        #rt::data::RecordSource::new(r, ir, ::std::format!("level {}", i + 1))
+                    })
+                    .collect::<::core::result::Result<::std::vec::Vec<_>, _>>()?;
+                let sources: ::std::vec::Vec<&dyn #rt::data::LevelSource> = sources
+                    .iter()
+                    .map(|s| s as &dyn #rt::data::LevelSource)
+                    .collect();
+                #rt::ident::identify_with(ir, self, &sources, opts)
+            }
+
+            /// Simulate every excitation level of the model with the unknown parameters set
+            /// to `params` (known parameters keep their values).
+            pub fn simulate(
+                &self,
+                params: &#params_ty,
+                cfg: &#rt::sim::SimConfig,
+            ) -> ::core::result::Result<#rt::sim::SimOutput, #rt::sim::SimError> {
+                #rt::sim::simulate(&self.ir().with_nominals(&params.to_vec()), cfg)
+            }
+        }
+
+        impl #params_ty {
+            /// The identified values, or `None` if some parameter was not identifiable.
+            pub fn from_identification(id: &#rt::ident::Identification) -> ::core::option::Option<Self> {
+                ::core::option::Option::Some(#params_ty {
+                    #(#fields: id.param(#names)?.value,)*
+                })
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -338,6 +338,26 @@ impl ModelIr {
             .filter(|p| self.params[p.index()].is_unknown())
             .collect()
     }
+    /// A copy whose unknown parameters have `values` (in [`Self::unknowns`] order) as their
+    /// nominal values: the model a simulation with those values runs.
+    ///
+    /// # Panics
+    /// If `values` does not hold one value per unknown parameter.
+    pub fn with_nominals(&self, values: &[f64]) -> ModelIr {
+        let unknowns = self.unknowns();
+        assert_eq!(
+            values.len(),
+            unknowns.len(),
+            "model `{}` has {} unknown parameters",
+            self.name,
+            unknowns.len()
+        );
+        let mut ir = self.clone();
+        for (p, &v) in unknowns.iter().zip(values) {
+            ir.params[p.index()].kind = ParamKind::Unknown { nominal: Some(v) };
+        }
+        ir
+    }
     pub fn measured_signals(&self) -> Vec<SignalId> {
         (0..self.signals.len() as u32)
             .map(SignalId)

@@ -29,17 +29,7 @@ mod mock {
     }
 
     pub mod runtime {
-        /// Same signature as `dynid_runtime::BasisEval`.
-        pub trait BasisEval: Sync {
-            fn n_roots(&self) -> usize;
-            fn eval_block(
-                &self,
-                signals: &[&[f64]],
-                len: usize,
-                out: &mut [f64],
-                scratch: &mut Vec<f64>,
-            );
-        }
+        pub use ::dynid_runtime::*;
     }
 }
 

@@ -36,9 +36,22 @@ pub fn run(args: Args) -> miette::Result<()> {
     // All diagnostics of the file are rendered by the caller through miette.
     let ir = dsl_parser::compile_file(&args.model)?;
     match (args.emit, args.format) {
-        (Some(Emit::Rust), _) => Err(miette::miette!(
-            "code generation (--emit rust) is not available yet"
-        )),
+        (Some(Emit::Rust), _) => {
+            let source = std::fs::read_to_string(&args.model)
+                .map_err(|e| miette::miette!("cannot read {}: {e}", args.model.display()))?;
+            let opts = dsl_parser::codegen::CodegenOptions {
+                source_name: args
+                    .model
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned()),
+                ..Default::default()
+            };
+            print!(
+                "{}",
+                dsl_parser::codegen::generate_pretty(&ir, &source, &opts)
+            );
+            Ok(())
+        }
         (Some(Emit::Json), _) => {
             let text = serde_json::to_string_pretty(&ir)
                 .map_err(|e| miette::miette!("cannot serialise the IR: {e}"))?;

@@ -1,10 +1,11 @@
-// A parameter must enter the force linearly (as a coefficient), not inside `tanh`.
+// A parameter must enter the force as a coefficient, not as an exponent.
 dynid::model! {
-    model sdof {
-        body m1 { mass = 1.0 }
-        param k ~ 4.0
-        param a ~ 10.0
-        spring k1 (ground, m1) = k * tanh(a * s)
+    model nonlinear {
+        body m = 1.0
+        input u on m
+        param n ~ 3
+        spring k (ground, m) ~ 4.0
+        force a (ground, m) = c ~ 1.0 * s^n
     }
 }
 

@@ -1,9 +1,9 @@
-// A force expression that ends after an operator.
+// The connection of an element needs a comma between its two nodes.
 dynid::model! {
-    model sdof {
-        body m1 { mass = 1.0 }
-        param k ~ 4.0
-        spring k1 (ground, m1) = k * s +
+    model oops {
+        body m = 1.0
+        input u on m
+        spring k (ground m) ~ 4.0
     }
 }
 

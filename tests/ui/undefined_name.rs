@@ -1,9 +1,9 @@
-// `k4` is used but never declared.
+// `m2` is used as a node but never declared.
 dynid::model! {
-    model sdof {
-        body m1 { mass = 1.0 }
-        param k ~ 4.0
-        spring k1 (ground, m1) = k * s + k4 * s^3
+    model undefined {
+        body m1 = 1.0
+        input u on m1
+        spring k (ground, m2) ~ 4.0
     }
 }
 

@@ -1,10 +1,10 @@
-// `k3` is declared but no force uses it, so it cannot be identified.
+// `q` is declared but no force uses it, so it cannot be identified.
 dynid::model! {
-    model sdof {
-        body m1 { mass = 1.0 }
-        param k ~ 4.0
-        param k3 ~ 2.0
-        spring k1 (ground, m1) = k * s
+    model unused {
+        body m = 1.0
+        input u on m
+        param q ~ 1.0
+        spring k (ground, m) ~ 4.0
     }
 }
 

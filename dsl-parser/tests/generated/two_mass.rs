@@ -241,3 +241,81 @@ impl crate::mock::runtime::BasisEval for TwoMass {
         }
     }
 }
+impl TwoMass {
+    /// Identify the unknown parameters from one record per excitation level, all
+    /// levels pooled into one least-squares problem, with the default options.
+    /// Every measured signal of the model must be a column of each record.
+    pub fn identify(
+        &self,
+        levels: &[crate::mock::runtime::record::Record],
+    ) -> ::core::result::Result<
+        crate::mock::runtime::ident::Identification,
+        crate::mock::runtime::ident::IdentifyError,
+    > {
+        self.identify_with_options(levels, &::core::default::Default::default())
+    }
+    /// [`Self::identify`] with explicit options.
+    pub fn identify_with_options(
+        &self,
+        levels: &[crate::mock::runtime::record::Record],
+        opts: &crate::mock::runtime::ident::IdentifyOptions,
+    ) -> ::core::result::Result<
+        crate::mock::runtime::ident::Identification,
+        crate::mock::runtime::ident::IdentifyError,
+    > {
+        let ir = self.ir();
+        let sources = levels
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                crate::mock::runtime::data::RecordSource::new(
+                    r,
+                    ir,
+                    ::std::format!("level {}", i + 1),
+                )
+            })
+            .collect::<::core::result::Result<::std::vec::Vec<_>, _>>()?;
+        let sources: ::std::vec::Vec<&dyn crate::mock::runtime::data::LevelSource> = sources
+            .iter()
+            .map(|s| s as &dyn crate::mock::runtime::data::LevelSource)
+            .collect();
+        crate::mock::runtime::ident::identify_with(ir, self, &sources, opts)
+    }
+    /// Simulate every excitation level of the model with the unknown parameters set
+    /// to `params` (known parameters keep their values).
+    pub fn simulate(
+        &self,
+        params: &TwoMassParams,
+        cfg: &crate::mock::runtime::sim::SimConfig,
+    ) -> ::core::result::Result<
+        crate::mock::runtime::sim::SimOutput,
+        crate::mock::runtime::sim::SimError,
+    > {
+        crate::mock::runtime::sim::simulate(
+            &self.ir().with_nominals(&params.to_vec()),
+            cfg,
+        )
+    }
+}
+impl TwoMassParams {
+    /// The identified values, or `None` if some parameter was not identifiable.
+    pub fn from_identification(
+        id: &crate::mock::runtime::ident::Identification,
+    ) -> ::core::option::Option<Self> {
+        ::core::option::Option::Some(TwoMassParams {
+            m2: id.param("m2")?.value,
+            k1: id.param("k1")?.value,
+            k3: id.param("k3")?.value,
+            g: id.param("g")?.value,
+            d1: id.param("d1")?.value,
+            c: id.param("c")?.value,
+            k2: id.param("k2")?.value,
+            k5: id.param("k5")?.value,
+            f0: id.param("f0")?.value,
+            h: id.param("h")?.value,
+            fr: id.param("fr")?.value,
+            e: id.param("e")?.value,
+            q: id.param("q")?.value,
+        })
+    }
+}

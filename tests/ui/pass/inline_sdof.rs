@@ -1,15 +1,14 @@
-// A valid model compiles, and its evaluator computes the basis functions per sample.
+// A valid model compiles; its evaluator and conveniences are usable.
 use dynid::runtime::BasisEval;
 
 dynid::model! {
     model sdof {
-        body m1 { mass = 1.0 }
+        body m1 = 1.0
         input u on m1
-        param d ~ 0.4
-        param k ~ 4.0
-        param k3 ~ 2.0
-        spring k1 (ground, m1) = k * s + k3 * s^3
-        damper d1 (ground, m1) = d * v
+        spring k (ground, m1) ~ 4.0
+        damper d (ground, m1) ~ 0.4
+        force nl (ground, m1) = k3 ~ 2.0 * s^3
+        excite u: lowpass(corner = 10) levels [6, 15]
     }
 }
 
@@ -22,5 +21,6 @@ fn main() {
     let u = [1.0, 1.0];
     let mut out = vec![0.0; n * 2];
     model.eval_block(&[&x, &v, &u], 2, &mut out, &mut Vec::new());
-    assert_eq!(SdofParams::default().to_vec(), vec![0.4, 4.0, 2.0]);
+    assert_eq!(SdofParams::default().to_vec(), vec![4.0, 0.4, 2.0]);
+    let _: fn(&Sdof, &[dynid::runtime::record::Record]) -> Result<_, _> = Sdof::identify;
 }
