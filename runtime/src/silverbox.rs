@@ -472,8 +472,8 @@ pub fn point_estimates(
         let row = &sys.c_matrix[r * cols..(r + 1) * cols];
         let n = (row.iter().map(|v| v * v).sum::<f64>() + sys.rhs[r].powi(2)).sqrt();
         let w = if n > 0.0 { 1.0 / n } else { 0.0 };
-        for c in 0..cols {
-            a[(r, c)] = w * row[c];
+        for (c, v) in row.iter().enumerate() {
+            a[(r, c)] = w * v;
         }
         b[r] = w * sys.rhs[r];
     }
@@ -526,11 +526,11 @@ pub fn free_run_rms(
         .step_by(l)
         .copied()
         .collect();
-    let mut s2 = 0.0;
-    for k in score.start..score.end {
-        let e = ys[k - sim.start] - data.y[k];
-        s2 += e * e;
-    }
+    let s2: f64 = ys[score.start - sim.start..score.end - sim.start]
+        .iter()
+        .zip(&data.y[score.start..score.end])
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum();
     Ok(((s2 / score.len() as f64).sqrt(), ys))
 }
 
