@@ -638,7 +638,19 @@ impl LevelSource for RecordSource<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_support::{sdof_ir, Sdof};
+    use crate::sim::test_models::{sdof, SdofParams};
+    use dsl_parser::ir::FormFilter;
+
+    /// The SDOF model (signals `m1.x`, `m1.v`, `u`), optionally without a measured velocity.
+    fn sdof_ir(measured_v: bool) -> ModelIr {
+        let mut ir = sdof(
+            &SdofParams::benchmark(),
+            FormFilter::Lowpass { corner: 10.0 },
+            vec![1.0],
+        );
+        ir.signals[1].measured = measured_v;
+        ir
+    }
     use std::io::Write;
 
     fn file(body: &str) -> tempfile::NamedTempFile {
@@ -658,7 +670,7 @@ mod tests {
 
     /// Open and stream; the error message of the first failure.
     fn read(body: &str, opts: &CsvOptions) -> Result<usize, String> {
-        let ir = sdof_ir(Sdof::default(), true, true);
+        let ir = sdof_ir(true);
         let f = file(body);
         let src = CsvSource::open(f.path(), &ir, opts).map_err(|e| e.to_string())?;
         let mut n = 0;
@@ -690,7 +702,7 @@ mod tests {
 
     #[test]
     fn unmeasured_signals_are_not_required() {
-        let ir = sdof_ir(Sdof::default(), true, false);
+        let ir = sdof_ir(false);
         let body = rows(300, 0.01).replace(",m1.v,", ",other,");
         let f = file(&body);
         assert!(CsvSource::open(f.path(), &ir, &CsvOptions::default()).is_ok());
