@@ -1,15 +1,23 @@
-//! Identification throughput: the two-mass model (cubic stiffness + Coulomb friction) on
-//! three levels of 10⁶ samples each, from memory and from CSV files.
+//! Identification throughput on `models/two_mass.dyn` (cubic stiffness + Coulomb friction):
+//! three levels from memory and from CSV files, at two record lengths.
 //!
-//! Run: `cargo bench -p dynid-runtime --features test-support --bench identify`
-//! (`DYNID_BENCH_SAMPLES` overrides the samples per level.)
+//! Run: `cargo bench -p dynid-runtime --bench identify`
+//! (`DYNID_BENCH_SAMPLES=100000,1000000` sets the samples per level of each run.)
+//!
+//! Every time is also given as a ratio to a reference measured in the same run on the same
+//! data: from memory, one pass that streams the records and sums every value; from CSV,
+//! one pass that splits every line and parses every field. Peak memory is the process's
+//! high-water mark (`VmHWM`) above its resident size before the CSV identification, with
+//! the peak reset beforehand (`/proc/self/clear_refs`), so it shows what identification
+//! itself holds — it must not grow with the record length.
 
 use dynid_runtime::data::{CsvOptions, CsvSource, LevelSource, RecordSource};
 use dynid_runtime::ident::{identify, IdentifyOptions, PhaseTimes};
 use dynid_runtime::record::Record;
-use dynid_runtime::test_support::{simulate_two_mass, two_mass_ir, SimSpec, TwoMass};
+use dynid_runtime::sim::{self, SimConfig};
 use rayon::prelude::*;
-use std::io::Write;
+use std::hint::black_box;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 fn shares(t: &PhaseTimes) -> String {
@@ -23,35 +31,108 @@ fn shares(t: &PhaseTimes) -> String {
     let total: f64 = parts.iter().map(|(_, d)| d.as_secs_f64()).sum();
     parts
         .iter()
-        .map(|(n, d)| {
-            format!(
-                "{n} {:.0}% ({:.3} s)",
-                100.0 * d.as_secs_f64() / total,
-                d.as_secs_f64()
-            )
-        })
+        .map(|(n, d)| format!("{n} {:.0}%", 100.0 * d.as_secs_f64() / total))
         .collect::<Vec<_>>()
         .join(", ")
 }
 
-fn main() {
-    let n: usize = std::env::var("DYNID_BENCH_SAMPLES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1_000_000);
-    let p = TwoMass::default();
-    let ir = two_mass_ir(p);
-    let t = Instant::now();
-    let recs: Vec<Record> = [6.0, 15.0, 40.0]
-        .par_iter()
+/// `VmHWM` and `VmRSS` in MiB (Linux), `None` elsewhere.
+fn memory() -> Option<(f64, f64)> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let field = |name: &str| {
+        s.lines()
+            .find(|l| l.starts_with(name))
+            .and_then(|l| l.split_whitespace().nth(1))
+            .and_then(|v| v.parse::<f64>().ok())
+            .map(|kb| kb / 1024.0)
+    };
+    Some((field("VmHWM:")?, field("VmRSS:")?))
+}
+
+/// Reset the high-water mark to the current resident size (Linux ≥ 4.0).
+fn reset_peak() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
+fn best_of<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut best = f64::INFINITY;
+    let mut last = None;
+    for _ in 0..runs {
+        let t = Instant::now();
+        let v = f();
+        best = best.min(t.elapsed().as_secs_f64());
+        last = Some(v);
+    }
+    (best, last.unwrap())
+}
+
+fn write_csvs(recs: &[Record], dir: &Path) -> Vec<PathBuf> {
+    recs.par_iter()
         .enumerate()
-        .map(|(i, &l)| simulate_two_mass(p, SimSpec::new(l, n as f64 * 0.01, 500 + i as u64)))
-        .collect();
-    eprintln!(
-        "simulated 3 × {n} samples in {:.2} s",
-        t.elapsed().as_secs_f64()
+        .map(|(i, r)| {
+            let p = dir.join(format!("level_{}.csv", i + 1));
+            sim::write_level_csv(&p, r).unwrap();
+            p
+        })
+        .collect()
+}
+
+/// Reference for CSV: split and parse every field of every file (levels in parallel).
+fn csv_reference(paths: &[PathBuf]) -> f64 {
+    paths
+        .par_iter()
+        .map(|p| {
+            let mut rdr = csv::Reader::from_path(p).unwrap();
+            let mut rec = csv::ByteRecord::new();
+            let mut sum = 0.0;
+            while rdr.read_byte_record(&mut rec).unwrap() {
+                for f in rec.iter() {
+                    sum += std::str::from_utf8(f).unwrap().parse::<f64>().unwrap();
+                }
+            }
+            sum
+        })
+        .sum()
+}
+
+/// Reference for memory: stream every source and sum its values (levels in parallel).
+fn memory_reference(levels: &[&dyn LevelSource], chunk: usize) -> f64 {
+    levels
+        .par_iter()
+        .map(|src| {
+            let mut sum = 0.0;
+            src.stream(chunk, &mut |cols, len| {
+                for c in cols.iter().filter(|c| !c.is_empty()) {
+                    sum += c[..len].iter().sum::<f64>();
+                }
+            })
+            .unwrap();
+            sum
+        })
+        .sum()
+}
+
+fn run(n: usize) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/two_mass.dyn");
+    let ir = dsl_parser::compile_file(&path).expect("models/two_mass.dyn");
+    let ts = 0.01;
+    let cfg = SimConfig {
+        duration: n as f64 * ts,
+        sample: ts,
+        seed: 500,
+        ..Default::default()
+    };
+    let t = Instant::now();
+    let recs = sim::simulate(&ir, &cfg).expect("simulation").records;
+    let total = recs.iter().map(Record::len).sum::<usize>() as f64;
+    println!(
+        "\n== two_mass, {} levels × {} samples ({:.0} s each; simulated in {:.1} s), {} threads",
+        recs.len(),
+        recs[0].len(),
+        n as f64 * ts,
+        t.elapsed().as_secs_f64(),
+        rayon::current_num_threads()
     );
-    let total = (3 * n) as f64;
     let opts = IdentifyOptions::default();
 
     let srcs: Vec<RecordSource> = recs
@@ -60,45 +141,28 @@ fn main() {
         .map(|(i, r)| RecordSource::new(r, &ir, format!("level {}", i + 1)).unwrap())
         .collect();
     let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
-    let mut best = f64::INFINITY;
-    let mut last = None;
-    for _ in 0..3 {
-        let t = Instant::now();
-        let id = identify(&ir, &levels, &opts).unwrap();
-        best = best.min(t.elapsed().as_secs_f64());
-        last = Some(id);
-    }
-    let id = last.unwrap();
+    let (t_ref, _) = best_of(3, || black_box(memory_reference(&levels, opts.chunk_len)));
+    let (t_mem, id) = best_of(3, || identify(&ir, &levels, &opts).unwrap());
     println!(
-        "memory: {:.3} s for 3 × {n} samples ({:.1} M samples/s) on {} threads; {}",
-        best,
-        total / best / 1e6,
-        rayon::current_num_threads(),
+        "memory: {t_mem:.3} s, {:.1} M samples/s, {:.0}× the reference pass ({t_ref:.4} s); {}",
+        total / t_mem / 1e6,
+        t_mem / t_ref,
         shares(&id.times)
     );
-    for e in &id.params {
-        println!("  {:<3} {:>9.4} ± {:.4}", e.name, e.value, e.stderr);
-    }
-
-    let dir = std::env::temp_dir().join(format!("dynid-bench-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let paths: Vec<_> = recs
-        .par_iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let path = dir.join(format!("level{i}.csv"));
-            let mut f = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
-            writeln!(f, "t,{}", r.names.join(",")).unwrap();
-            for k in 0..r.len() {
-                write!(f, "{:.2}", k as f64 * r.ts).unwrap();
-                for c in &r.columns {
-                    write!(f, ",{:.9e}", c[k]).unwrap();
-                }
-                writeln!(f).unwrap();
-            }
-            path
-        })
+    let estimates: Vec<String> = id
+        .params
+        .iter()
+        .map(|e| format!("{} {:.4}±{:.4}", e.name, e.value, e.stderr))
         .collect();
+    println!("  estimates: {}", estimates.join(", "));
+
+    let dir = tempfile::tempdir().unwrap();
+    let paths = write_csvs(&recs, dir.path());
+    drop(srcs);
+    drop(recs);
+    let (t_ref, _) = best_of(1, || black_box(csv_reference(&paths)));
+    let before = memory();
+    let peak_reset = reset_peak();
     let t = Instant::now();
     let csvs: Vec<CsvSource> = paths
         .iter()
@@ -106,12 +170,28 @@ fn main() {
         .collect();
     let levels: Vec<&dyn LevelSource> = csvs.iter().map(|s| s as &dyn LevelSource).collect();
     let id = identify(&ir, &levels, &opts).unwrap();
-    let dt = t.elapsed().as_secs_f64();
+    let t_csv = t.elapsed().as_secs_f64();
+    let peak = match (before, memory(), peak_reset) {
+        (Some((_, rss0)), Some((hwm, _)), true) => {
+            format!("peak memory {:.1} MiB above the start", hwm - rss0)
+        }
+        (_, Some((hwm, _)), false) => format!("peak memory (process) {hwm:.1} MiB"),
+        _ => "peak memory n/a".into(),
+    };
     println!(
-        "csv:    {:.3} s for 3 × {n} samples ({:.2} M samples/s); {}",
-        dt,
-        total / dt / 1e6,
+        "csv:    {t_csv:.3} s, {:.2} M samples/s, {:.2}× the reference parse ({t_ref:.3} s); {}; {peak}",
+        total / t_csv / 1e6,
+        t_csv / t_ref,
         shares(&id.times)
     );
-    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn main() {
+    let lengths: Vec<usize> = std::env::var("DYNID_BENCH_SAMPLES")
+        .ok()
+        .map(|s| s.split(',').filter_map(|v| v.trim().parse().ok()).collect())
+        .unwrap_or_else(|| vec![100_000, 1_000_000]);
+    for n in lengths {
+        run(n);
+    }
 }

@@ -210,11 +210,16 @@ impl CsvOptions {
 pub struct CsvSource {
     path: PathBuf,
     ts: f64,
+    /// Time of the first sample (0 without a `t` column).
+    t0: f64,
     n_fields: usize,
     header: Vec<String>,
-    /// For each `SignalId`, the column it is read from.
-    col_of: Vec<Option<usize>>,
+    /// `(slot, column)`: slot `s` of every streamed chunk is read from file column `c`.
+    wanted: Vec<(usize, usize)>,
+    /// Slots per chunk (`SignalId`s of the model; empty slots stay empty).
+    n_slots: usize,
     t_col: Option<usize>,
+    min_samples: usize,
 }
 
 fn io_err(path: &Path, e: impl std::fmt::Display) -> DataError {
@@ -262,6 +267,35 @@ impl CsvSource {
     /// Open `path`, match its header to the measured signals of `ir` and fix the sample
     /// interval (from `t`, else from `opts.ts`).
     pub fn open(path: &Path, ir: &ModelIr, opts: &CsvOptions) -> Result<CsvSource, DataError> {
+        let select = |names: &[String], header: &[String]| {
+            let mut wanted = Vec::new();
+            for s in ir.measured_signals() {
+                let name = &ir.signal(s).name;
+                match names.iter().position(|n| n == name) {
+                    Some(k) => wanted.push((s.index(), k)),
+                    None => {
+                        return Err(DataError::MissingColumn {
+                            path: path.display().to_string(),
+                            signal: name.clone(),
+                            present: header.join(", "),
+                        })
+                    }
+                }
+            }
+            Ok((wanted, ir.signals.len()))
+        };
+        Self::open_with(path, opts, select, MIN_SAMPLES)
+    }
+
+    /// Open with a caller's choice of columns: `select(names, header)` returns the
+    /// `(slot, column)` pairs to stream and the number of slots; `names` is the header after
+    /// the `--map` renamings.
+    fn open_with(
+        path: &Path,
+        opts: &CsvOptions,
+        select: impl FnOnce(&[String], &[String]) -> Result<(Vec<(usize, usize)>, usize), DataError>,
+        min_samples: usize,
+    ) -> Result<CsvSource, DataError> {
         let p = path.display().to_string();
         if let Some(ts) = opts.ts {
             if !(ts.is_finite() && ts > 0.0) {
@@ -296,20 +330,7 @@ impl CsvSource {
                 });
             }
         }
-        let mut col_of = vec![None; ir.signals.len()];
-        for s in ir.measured_signals() {
-            let name = &ir.signal(s).name;
-            match names.iter().position(|n| n == name) {
-                Some(k) => col_of[s.index()] = Some(k),
-                None => {
-                    return Err(DataError::MissingColumn {
-                        path: p,
-                        signal: name.clone(),
-                        present: header.join(", "),
-                    })
-                }
-            }
-        }
+        let (wanted, n_slots) = select(&names, &header)?;
         let t_col = names.iter().position(|n| n == "t");
         // Read the first two samples for the sample interval (and to tell an empty body).
         let mut rec = csv::ByteRecord::new();
@@ -355,7 +376,7 @@ impl CsvSource {
                 return Err(DataError::TooFewSamples {
                     path: p,
                     n: first_t.len(),
-                    need: MIN_SAMPLES,
+                    need: min_samples,
                 })
             }
             (None, _) => return Err(DataError::NoSampleInterval { path: p }),
@@ -363,10 +384,13 @@ impl CsvSource {
         Ok(CsvSource {
             path: path.to_path_buf(),
             ts,
+            t0: first_t.first().copied().unwrap_or(0.0),
             n_fields: header.len(),
             header,
-            col_of,
+            wanted,
+            n_slots,
             t_col,
+            min_samples,
         })
     }
 
@@ -396,24 +420,23 @@ impl LevelSource for CsvSource {
         let path = self.path.as_path();
         let p = || path.display().to_string();
         let mut rdr = Self::reader(path)?;
-        let wanted: Vec<(usize, usize)> = self
-            .col_of
-            .iter()
-            .enumerate()
-            .filter_map(|(s, c)| c.map(|c| (s, c)))
-            .collect();
-        let mut bufs: Vec<Vec<f64>> = vec![Vec::with_capacity(max_len); self.col_of.len()];
+        let mut bufs: Vec<Vec<f64>> = vec![Vec::new(); self.n_slots];
+        for &(s, _) in &self.wanted {
+            bufs[s].reserve(max_len);
+        }
         let mut rec = csv::ByteRecord::new();
         let mut n = 0usize;
+        let mut in_chunk = 0usize;
         let mut t_prev = f64::NAN;
-        let flush = |bufs: &mut Vec<Vec<f64>>, sink: &mut dyn FnMut(&[&[f64]], usize)| {
-            let len = bufs.iter().map(Vec::len).max().unwrap_or(0);
-            if len > 0 {
-                let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
-                sink(&cols, len);
-                bufs.iter_mut().for_each(Vec::clear);
-            }
-        };
+        let flush =
+            |bufs: &mut Vec<Vec<f64>>, len: &mut usize, sink: &mut dyn FnMut(&[&[f64]], usize)| {
+                if *len > 0 {
+                    let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
+                    sink(&cols, *len);
+                    bufs.iter_mut().for_each(Vec::clear);
+                    *len = 0;
+                }
+            };
         // Streaming means an error can surface after earlier chunks were handed on; callers
         // discard their partial results on error.
         loop {
@@ -435,7 +458,7 @@ impl LevelSource for CsvSource {
                     found: rec.len(),
                 });
             }
-            for &(s, c) in &wanted {
+            for &(s, c) in &self.wanted {
                 let v = parse_cell(path, line, &self.header[c], &rec[c])?;
                 bufs[s].push(v);
             }
@@ -455,23 +478,63 @@ impl LevelSource for CsvSource {
                 t_prev = t;
             }
             n += 1;
-            if bufs[wanted[0].0].len() == max_len {
-                flush(&mut bufs, sink);
+            in_chunk += 1;
+            if in_chunk == max_len {
+                flush(&mut bufs, &mut in_chunk, sink);
             }
         }
         if n == 0 {
             return Err(DataError::HeaderOnly { path: p() });
         }
-        if n < MIN_SAMPLES {
+        if n < self.min_samples {
             return Err(DataError::TooFewSamples {
                 path: p(),
                 n,
-                need: MIN_SAMPLES,
+                need: self.min_samples,
             });
         }
-        flush(&mut bufs, sink);
+        flush(&mut bufs, &mut in_chunk, sink);
         Ok(())
     }
+}
+
+/// Read a whole CSV file into a [`Record`] (every column except `t`, renamed by
+/// `opts.map`), with the same validation as [`CsvSource`]: a header, equal field counts,
+/// finite numbers and a uniform time step (`t` column or `opts.ts`). At least two samples.
+/// For inputs that drive a simulation; identification streams with [`CsvSource`] instead.
+pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, DataError> {
+    let mut names = Vec::new();
+    let src = CsvSource::open_with(
+        path,
+        opts,
+        |renamed, _| {
+            let wanted: Vec<(usize, usize)> = renamed
+                .iter()
+                .enumerate()
+                .filter(|(_, n)| *n != "t")
+                .enumerate()
+                .map(|(slot, (k, n))| {
+                    names.push(n.clone());
+                    (slot, k)
+                })
+                .collect();
+            let n = wanted.len();
+            Ok((wanted, n))
+        },
+        2,
+    )?;
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+    src.stream(1 << 16, &mut |cols, len| {
+        for (c, chunk) in columns.iter_mut().zip(cols) {
+            c.extend_from_slice(&chunk[..len]);
+        }
+    })?;
+    Ok(Record {
+        names,
+        columns,
+        ts: src.ts,
+        t0: src.t0,
+    })
 }
 
 /// An in-memory record bound to a model (checked once on construction).
@@ -575,7 +638,19 @@ impl LevelSource for RecordSource<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_support::{sdof_ir, Sdof};
+    use crate::sim::test_models::{sdof, SdofParams};
+    use dsl_parser::ir::FormFilter;
+
+    /// The SDOF model (signals `m1.x`, `m1.v`, `u`), optionally without a measured velocity.
+    fn sdof_ir(measured_v: bool) -> ModelIr {
+        let mut ir = sdof(
+            &SdofParams::benchmark(),
+            FormFilter::Lowpass { corner: 10.0 },
+            vec![1.0],
+        );
+        ir.signals[1].measured = measured_v;
+        ir
+    }
     use std::io::Write;
 
     fn file(body: &str) -> tempfile::NamedTempFile {
@@ -595,7 +670,7 @@ mod tests {
 
     /// Open and stream; the error message of the first failure.
     fn read(body: &str, opts: &CsvOptions) -> Result<usize, String> {
-        let ir = sdof_ir(Sdof::default(), true, true);
+        let ir = sdof_ir(true);
         let f = file(body);
         let src = CsvSource::open(f.path(), &ir, opts).map_err(|e| e.to_string())?;
         let mut n = 0;
@@ -627,7 +702,7 @@ mod tests {
 
     #[test]
     fn unmeasured_signals_are_not_required() {
-        let ir = sdof_ir(Sdof::default(), true, false);
+        let ir = sdof_ir(false);
         let body = rows(300, 0.01).replace(",m1.v,", ",other,");
         let f = file(&body);
         assert!(CsvSource::open(f.path(), &ir, &CsvOptions::default()).is_ok());

@@ -19,8 +19,6 @@ pub mod record;
 pub mod silverbox;
 pub mod sim;
 pub mod tape;
-#[cfg(any(test, feature = "test-support"))]
-pub mod test_support;
 
 pub use basis::BasisEval;
 pub use ident::{identify, identify_per_level, identify_with, IdentifyError, IdentifyOptions};

@@ -91,7 +91,7 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
         s.push_str(&format!("{:<12} not identifiable: {}\n", u.name, u.reason));
     }
     s.push_str(&format!(
-        "\ncondition {:.3e}, {} rows, filter corners {:?} rad/s\n",
+        "\ncondition {:.3e}, {} rows, filter corners {} rad/s\n",
         id.condition,
         id.rows,
         id.filter
@@ -99,6 +99,7 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
             .iter()
             .map(|c| print::fmt_num(*c))
             .collect::<Vec<_>>()
+            .join(", ")
     ));
     for r in &id.residual {
         let lv: Vec<String> = r.per_level.iter().map(|v| format!("{v:.2e}")).collect();
@@ -160,7 +161,17 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> miette::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dynid_runtime::test_support::{sdof_ir, simulate_sdof, Sdof, SimSpec};
+    use dsl_parser::ir::FormFilter;
+    use dynid_runtime::sim::test_models::{sdof, SdofParams};
+    use dynid_runtime::sim::{simulate, SimConfig};
+
+    fn sdof_ir() -> ModelIr {
+        sdof(
+            &SdofParams::benchmark(),
+            FormFilter::Lowpass { corner: 10.0 },
+            vec![6.0, 15.0, 40.0],
+        )
+    }
     use std::io::Write;
 
     fn write_csv(path: &Path, rec: &dynid_runtime::record::Record) {
@@ -178,12 +189,16 @@ mod tests {
     #[test]
     fn identifies_from_csv_files_and_writes_json() {
         let dir = tempfile::tempdir().unwrap();
-        let ir = sdof_ir(Sdof::default(), true, true);
+        let ir = sdof_ir();
+        let cfg = SimConfig {
+            duration: 400.0,
+            seed: 10,
+            ..Default::default()
+        };
         let mut data = Vec::new();
-        for (i, level) in [6.0, 15.0, 40.0].into_iter().enumerate() {
-            let rec = simulate_sdof(Sdof::default(), SimSpec::new(level, 400.0, 10 + i as u64));
+        for (i, rec) in simulate(&ir, &cfg).unwrap().records.iter().enumerate() {
             let p = dir.path().join(format!("level{i}.csv"));
-            write_csv(&p, &rec);
+            write_csv(&p, rec);
             data.push(p);
         }
         let out = dir.path().join("result.json");
@@ -226,7 +241,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("bad.csv");
         std::fs::write(&p, "t,m1.x,u\n0,1,2\n").unwrap();
-        let ir = sdof_ir(Sdof::default(), true, true);
+        let ir = sdof_ir();
         let args = Args {
             model: "sdof.dyn".into(),
             data: vec![p.clone()],

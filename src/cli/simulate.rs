@@ -3,9 +3,10 @@
 
 use super::common::load_model;
 use dsl_parser::ir::ModelIr;
+use dynid_runtime::data;
 use dynid_runtime::record::Record;
 use dynid_runtime::sim::{self, SimConfig, DEFAULT_SUBSTEPS};
-use miette::{miette, Context, IntoDiagnostic};
+use miette::{Context, IntoDiagnostic};
 use std::path::{Path, PathBuf};
 
 /// Shown by `--help` after the options. (The subcommand's one-line description in
@@ -190,93 +191,9 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
     Ok(())
 }
 
-/// Read a CSV with a header line, a uniform time column `t` and numeric columns.
+/// The driving inputs: the shared CSV reader, whose errors name the file and line.
 fn read_input_csv(path: &Path) -> miette::Result<Record> {
-    let text = std::fs::read_to_string(path)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot read the input data `{}`", path.display()))?;
-    let file = path.display();
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    let (_, header) = lines.next().ok_or_else(|| {
-        miette!(
-            help = "the first line must name the columns, e.g. `t,u`",
-            "`{file}` is empty"
-        )
-    })?;
-    let names: Vec<String> = header.split(',').map(|s| s.trim().to_string()).collect();
-    let t_col = names.iter().position(|n| n == "t").ok_or_else(|| {
-        miette!(
-            help = "add a time column named `t` (seconds, uniformly sampled)",
-            "`{file}` line 1: no time column `t` in the header `{header}`"
-        )
-    })?;
-    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
-    for (i, line) in lines {
-        let lineno = i + 1;
-        let fields: Vec<&str> = line.split(',').collect();
-        if fields.len() != names.len() {
-            return Err(miette!(
-                help = "every row needs one value per header column",
-                "`{file}` line {lineno}: {} values, but the header has {} columns",
-                fields.len(),
-                names.len()
-            ));
-        }
-        for ((f, col), name) in fields.iter().zip(&mut columns).zip(&names) {
-            let x: f64 = f.trim().parse().map_err(|_| {
-                miette!(
-                    help = "values must be plain numbers such as 0.25 or -1.5e-3",
-                    "`{file}` line {lineno}, column `{name}`: `{}` is not a number",
-                    f.trim()
-                )
-            })?;
-            if !x.is_finite() {
-                return Err(miette!(
-                    help = "remove or fill gaps before simulating; NaN and infinite values cannot drive a model",
-                    "`{file}` line {lineno}, column `{name}`: the value `{}` is not finite",
-                    f.trim()
-                ));
-            }
-            col.push(x);
-        }
-    }
-    let t = columns.remove(t_col);
-    let mut names = names;
-    names.remove(t_col);
-    if t.len() < 2 {
-        return Err(miette!(
-            help = "give at least two samples",
-            "`{file}` has {} data rows",
-            t.len()
-        ));
-    }
-    let ts = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-    if !ts.is_finite() || ts <= 0.0 {
-        return Err(miette!(
-            help = "the time column must increase",
-            "`{file}`: time does not increase"
-        ));
-    }
-    if let Some(i) = (0..t.len())
-        .find(|&i| (t[i] - (t[0] + i as f64 * ts)).abs() > 1e-6 * ts.max(t[i].abs() * 1e-3))
-    {
-        return Err(miette!(
-            help = "the data must be uniformly sampled; resample it first",
-            "`{file}` line {}: t = {} is off the uniform grid t0 + i·{ts} (expected {})",
-            i + 2,
-            t[i],
-            t[0] + i as f64 * ts
-        ));
-    }
-    Ok(Record {
-        names,
-        columns,
-        ts,
-        t0: t[0],
-    })
+    Ok(data::read_record(path, &data::CsvOptions::default())?)
 }
 
 fn progress_bar(total: u64) -> indicatif::ProgressBar {
@@ -366,15 +283,15 @@ mod tests {
                 read_input_csv(&write(dir.path(), "a.csv", text)).unwrap_err()
             )
         };
-        assert!(err("u\n1\n2\n").contains("no time column"));
+        assert!(err("u\n1\n2\n").contains("no `t` column"));
         assert!(err("t,u\n0,1\n0.1\n").contains("line 3"));
         let e = err("t,u\n0,1\n0.1,NaN\n");
         assert!(
-            e.contains("line 3") && e.contains("`u`") && e.contains("not finite"),
+            e.contains("line 3") && e.contains("`u`") && e.contains("not a finite number"),
             "{e}"
         );
         assert!(err("t,u\n0,1\n0.1,x\n").contains("not a number"));
-        assert!(err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n").contains("uniform"));
+        assert!(err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n").contains("line 4: the time step"));
         let r = read_input_csv(&write(dir.path(), "b.csv", "t,u\n1,1\n1.5,2\n2,3\n\n")).unwrap();
         assert_eq!(
             (r.t0, r.ts, r.names.clone()),

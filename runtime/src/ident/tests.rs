@@ -3,39 +3,59 @@
 use super::*;
 use crate::data::RecordSource;
 use crate::record::Record;
-use crate::test_support::*;
+use crate::sim::{self, SimConfig};
 use std::sync::OnceLock;
 
-const LEVELS: [f64; 3] = [6.0, 15.0, 40.0];
 /// Seconds per level, as in the method's reference measurements.
 const DURATION: f64 = 2000.0;
 
-fn sdof_data() -> &'static Vec<Record> {
-    static DATA: OnceLock<Vec<Record>> = OnceLock::new();
-    DATA.get_or_init(|| {
-        LEVELS
-            .par_iter()
-            .enumerate()
-            .map(|(i, &l)| {
-                simulate_sdof(Sdof::default(), SimSpec::new(l, DURATION, 1000 + i as u64))
-            })
-            .collect()
-    })
+/// The method's benchmark SDOF (m = 1 known; d, k, k3, r unknown with the true values as
+/// nominals, which the simulator uses), with `extra` lines added to the model body.
+fn sdof_model(extra: &str) -> ModelIr {
+    let src = format!(
+        "model sdof {{
+            body m1 = 1.0
+            input u on m1
+            damper d (ground, m1) ~ 0.4
+            spring k (ground, m1) ~ 4.0
+            force nl (ground, m1) = k3 ~ 2.0 * s^3 + r ~ 0.3 * sign(v)
+            excite u: lowpass(corner = 10) levels [6, 15, 40]
+            {extra}
+        }}"
+    );
+    dsl_parser::compile_str("sdof", &src).expect("valid model")
 }
 
-fn duffing_data() -> &'static Vec<Record> {
+/// The Duffing oscillator measured by position and input only.
+fn duffing_model() -> ModelIr {
+    dsl_parser::compile_str(
+        "duffing",
+        "model duffing {
+            body m1 = 1.0
+            input u on m1
+            measure m1.x, u
+            damper d (ground, m1) ~ 0.4
+            spring k (ground, m1) ~ 4.0
+            force nl (ground, m1) = k3 ~ 2.0 * s^3
+            excite u: lowpass(corner = 10) levels [6, 15, 40]
+        }",
+    )
+    .expect("valid model")
+}
+
+fn simulate(ir: &ModelIr, noise: f64, seed: u64) -> Vec<Record> {
+    let cfg = SimConfig {
+        duration: DURATION,
+        noise,
+        seed,
+        ..Default::default()
+    };
+    sim::simulate(ir, &cfg).expect("simulation").records
+}
+
+fn sdof_data() -> &'static Vec<Record> {
     static DATA: OnceLock<Vec<Record>> = OnceLock::new();
-    DATA.get_or_init(|| {
-        let p = Sdof {
-            r: 0.0,
-            ..Sdof::default()
-        };
-        LEVELS
-            .par_iter()
-            .enumerate()
-            .map(|(i, &l)| simulate_sdof(p, SimSpec::new(l, DURATION, 2000 + i as u64)))
-            .collect()
-    })
+    DATA.get_or_init(|| simulate(&sdof_model(""), 0.0, 1000))
 }
 
 fn run(ir: &ModelIr, recs: &[Record], opts: &IdentifyOptions) -> Identification {
@@ -61,19 +81,13 @@ fn rel_errors(id: &Identification, truth: &[(&str, f64)]) -> Vec<f64> {
 }
 
 fn sdof_truth() -> Vec<(&'static str, f64)> {
-    let p = Sdof::default();
-    vec![("d", p.d), ("k", p.k), ("k3", p.k3), ("r", p.r)]
+    vec![("d", 0.4), ("k", 4.0), ("k3", 2.0), ("r", 0.3)]
 }
 
-fn noisy(recs: &[Record], cols: &[&str], eta: f64) -> Vec<Record> {
-    recs.iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let mut r = r.clone();
-            add_noise(&mut r, cols, eta, 77 + i as u64);
-            r
-        })
-        .collect()
+/// Records with 5 % measurement noise on every measured signal, inputs included.
+fn noisy_sdof_data() -> &'static Vec<Record> {
+    static DATA: OnceLock<Vec<Record>> = OnceLock::new();
+    DATA.get_or_init(|| simulate(&sdof_model(""), 0.05, 1000))
 }
 
 fn fmt_errs(e: &[f64]) -> String {
@@ -85,7 +99,7 @@ fn fmt_errs(e: &[f64]) -> String {
 
 #[test]
 fn sdof_noise_free_within_one_percent() {
-    let ir = sdof_ir(Sdof::default(), true, true);
+    let ir = sdof_model("");
     for balance in [false, true] {
         let opts = IdentifyOptions {
             balance: Some(balance),
@@ -114,14 +128,14 @@ fn sdof_noise_free_within_one_percent() {
 
 #[test]
 fn sdof_five_percent_noise_within_two_percent() {
-    let ir = sdof_ir(Sdof::default(), true, true);
-    let recs = noisy(sdof_data(), &["m1.x", "m1.v", "u"], 0.05);
+    let ir = sdof_model("");
+    let recs = noisy_sdof_data();
     for balance in [false, true] {
         let opts = IdentifyOptions {
             balance: Some(balance),
             ..Default::default()
         };
-        let id = run(&ir, &recs, &opts);
+        let id = run(&ir, recs, &opts);
         let e = rel_errors(&id, &sdof_truth());
         eprintln!(
             "noise 5 %, balance {balance}: (d, k, k3, r) {}",
@@ -133,11 +147,10 @@ fn sdof_five_percent_noise_within_two_percent() {
 
 #[test]
 fn duffing_from_positions_only_within_one_percent() {
-    let ir = sdof_ir(Sdof::default(), false, false);
+    let ir = duffing_model();
     let truth = [("d", 0.4), ("k", 4.0), ("k3", 2.0)];
     for eta in [0.0, 0.05] {
-        let mut recs = noisy(duffing_data(), &["m1.x", "u"], eta);
-        recs.iter_mut().for_each(|r| drop_column(r, "m1.v"));
+        let recs = simulate(&ir, eta, 2000);
         let id = run(&ir, &recs, &IdentifyOptions::default());
         let e = rel_errors(&id, &truth);
         eprintln!(
@@ -154,7 +167,7 @@ fn duffing_from_positions_only_within_one_percent() {
 #[test]
 fn unexcited_deadzone_is_named_and_gets_no_value() {
     // A gap larger than any displacement: the deadzone term is identically zero.
-    let ir = with_deadzone(sdof_ir(Sdof::default(), true, true), 1e3, "kgap");
+    let ir = sdof_model("force gap (ground, m1) = kgap ~ 1.0 * deadzone(s, 1000)");
     let id = run(&ir, sdof_data(), &IdentifyOptions::default());
     assert!(id.param("kgap").is_none());
     let u = id.unidentifiable.iter().find(|u| u.name == "kgap").unwrap();
@@ -166,14 +179,7 @@ fn unexcited_deadzone_is_named_and_gets_no_value() {
 #[test]
 fn duplicated_column_is_reported_as_collinear() {
     // A second linear spring on the same coordinate: `k` and `k_b` cannot be told apart.
-    let mut ir = sdof_ir(Sdof::default(), true, true);
-    ir.params.push(dsl_parser::ir::ParamIr {
-        name: "k_b".into(),
-        kind: dsl_parser::ir::ParamKind::Unknown { nominal: None },
-    });
-    let mut t = ir.equations[0].terms[2].clone();
-    t.coef = dsl_parser::ir::Coef::param(dsl_parser::ir::ParamId(5));
-    ir.equations[0].terms.insert(3, t);
+    let ir = sdof_model("spring k_b (ground, m1)");
     let id = run(&ir, &sdof_data()[..2], &IdentifyOptions::default());
     assert_eq!(id.unidentifiable.len(), 1, "{:?}", id.unidentifiable);
     let u = &id.unidentifiable[0];
@@ -185,7 +191,7 @@ fn duplicated_column_is_reported_as_collinear() {
 
 #[test]
 fn printer_writes_the_identified_equation() {
-    let ir = sdof_ir(Sdof::default(), true, true);
+    let ir = sdof_model("");
     let id = run(&ir, sdof_data(), &IdentifyOptions::default());
     let s = print::format_equations(&ir, &id);
     assert!(
@@ -202,7 +208,7 @@ fn printer_writes_the_identified_equation() {
 /// The moment formulas against direct quadrature with the analytic derivatives, on a smooth
 /// deterministic signal (filters at arbitrary corners, finite record, boundary terms on).
 fn check_identity(corners: &[f64], n_blocks: usize) -> f64 {
-    let ir = sdof_ir(Sdof::default(), false, false);
+    let ir = duffing_model();
     let ts = 0.01;
     let n = 20_000;
     let w = [0.7, 1.9, 3.3];
@@ -309,7 +315,7 @@ proptest::proptest! {
 /// hold error only delays the instrument as a whole — which leaves every identity valid.
 #[test]
 fn chains_make_the_hold_assumption_nearly_harmless() {
-    let ir = sdof_ir(Sdof::default(), true, true);
+    let ir = sdof_model("");
     let recs = &sdof_data()[..];
     let foh = run(&ir, recs, &IdentifyOptions::default());
     let zoh = run(
@@ -328,107 +334,4 @@ fn chains_make_the_hold_assumption_nearly_harmless() {
     );
     assert!(d(&foh).abs() < 0.01);
     assert!(d(&zoh).abs() < 0.02);
-}
-
-/// Accuracy survey over filter choices (run with `--ignored --nocapture`).
-#[test]
-#[ignore]
-fn survey() {
-    let ir = sdof_ir(Sdof::default(), true, true);
-    let cases: Vec<(&str, IdentifyOptions)> = vec![
-        ("auto", IdentifyOptions::default()),
-        (
-            "0.5-16",
-            IdentifyOptions {
-                corners: Some(vec![0.5, 1.0, 2.0, 4.0, 8.0, 16.0]),
-                ..Default::default()
-            },
-        ),
-        (
-            "0.5-8",
-            IdentifyOptions {
-                corners: Some(vec![0.5, 0.8, 1.3, 2.0, 4.0, 8.0]),
-                ..Default::default()
-            },
-        ),
-        (
-            "1-31",
-            IdentifyOptions {
-                corners: Some(vec![1.0, 2.0, 4.0, 8.0, 16.0, 31.0]),
-                ..Default::default()
-            },
-        ),
-        (
-            "0.5-16 ord2",
-            IdentifyOptions {
-                corners: Some(vec![0.5, 1.0, 2.0, 4.0, 8.0, 16.0]),
-                order: Some(2),
-                ..Default::default()
-            },
-        ),
-        (
-            "0.5-16 xvu",
-            IdentifyOptions {
-                corners: Some(vec![0.5, 1.0, 2.0, 4.0, 8.0, 16.0]),
-                drivers: Some(vec![SignalId(0), SignalId(1), SignalId(2)]),
-                ..Default::default()
-            },
-        ),
-        (
-            "0.5-16 x",
-            IdentifyOptions {
-                corners: Some(vec![0.5, 1.0, 2.0, 4.0, 8.0, 16.0]),
-                drivers: Some(vec![SignalId(0)]),
-                ..Default::default()
-            },
-        ),
-        (
-            "0.5-16 u",
-            IdentifyOptions {
-                corners: Some(vec![0.5, 1.0, 2.0, 4.0, 8.0, 16.0]),
-                drivers: Some(vec![SignalId(2)]),
-                ..Default::default()
-            },
-        ),
-    ];
-    for eta in [0.0, 0.05] {
-        let recs = noisy(sdof_data(), &["m1.x", "m1.v", "u"], eta);
-        for (name, o) in &cases {
-            for bal in [false, true] {
-                let o = IdentifyOptions {
-                    balance: Some(bal),
-                    ..o.clone()
-                };
-                let id = run(&ir, &recs, &o);
-                let e = rel_errors(&id, &sdof_truth());
-                eprintln!(
-                    "eta {eta} {name:12} bal {bal}: {}  cond {:.1}",
-                    fmt_errs(&e),
-                    id.condition
-                );
-            }
-        }
-    }
-    let ird = sdof_ir(Sdof::default(), false, false);
-    let truth = [("d", 0.4), ("k", 4.0), ("k3", 2.0)];
-    for eta in [0.0, 0.05] {
-        let mut recs = noisy(duffing_data(), &["m1.x", "u"], eta);
-        recs.iter_mut().for_each(|r| drop_column(r, "m1.v"));
-        for (name, c) in [
-            ("auto", None),
-            ("0.5-16", Some(vec![0.5, 1.0, 2.0, 4.0, 8.0, 16.0])),
-            ("0.5-8", Some(vec![0.5, 0.8, 1.3, 2.0, 4.0, 8.0])),
-        ] {
-            for order in [4usize, 5] {
-                let o = IdentifyOptions {
-                    corners: c.clone(),
-                    order: Some(order),
-                    ..Default::default()
-                };
-                let id = run(&ird, &recs, &o);
-                let e = rel_errors(&id, &truth);
-                eprintln!("displ eta {eta} {name:8} order {order}: {}", fmt_errs(&e));
-            }
-        }
-    }
 }

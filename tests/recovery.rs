@@ -1,0 +1,198 @@
+//! Recovery of known parameters from data of the project's own simulator (fixed seeds).
+//!
+//! Each case parses a model from `models/`, simulates its excitation levels in memory with
+//! `runtime::sim`, identifies the unknown parameters from the records and compares them with
+//! the nominal values the simulation used. The bounds are what the covariance method achieves
+//! on these records (see the table printed with `--nocapture`), not aspirations.
+
+use dynid::dsl_parser::{self, ir::ModelIr};
+use dynid::runtime::data::{LevelSource, RecordSource};
+use dynid::runtime::ident::Identification;
+use dynid::runtime::record::Record;
+use dynid::runtime::sim::{self, SimConfig};
+use dynid::runtime::{identify, IdentifyOptions};
+use std::path::Path;
+
+fn model(name: &str) -> ModelIr {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("models/{name}.dyn"));
+    dsl_parser::compile_file(&path).unwrap_or_else(|e| panic!("{name}: {e:?}"))
+}
+
+fn model_str(name: &str, text: &str) -> ModelIr {
+    dsl_parser::compile_str(name, text).unwrap_or_else(|e| panic!("{name}: {e:?}"))
+}
+
+fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
+    let cfg = SimConfig {
+        duration,
+        sample: 0.01,
+        seed,
+        noise,
+        noise_on_inputs: true,
+        ..Default::default()
+    };
+    sim::simulate(ir, &cfg).expect("simulation").records
+}
+
+fn identify_records(ir: &ModelIr, recs: &[Record]) -> Identification {
+    let srcs: Vec<RecordSource> = recs
+        .iter()
+        .enumerate()
+        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
+        .collect();
+    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
+    identify(ir, &levels, &IdentifyOptions::default()).expect("identification")
+}
+
+/// The simulated truth: the nominal value of every unknown parameter.
+fn truth(ir: &ModelIr) -> Vec<(String, f64)> {
+    let values = sim::parameter_values(ir).unwrap();
+    ir.unknowns()
+        .iter()
+        .map(|&p| (ir.params[p.index()].name.clone(), values[p.index()]))
+        .collect()
+}
+
+/// Relative error per unknown parameter; prints one table row per case.
+fn errors(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, f64)> {
+    let errs: Vec<(String, f64)> = truth(ir)
+        .into_iter()
+        .map(|(name, t)| {
+            let p = id
+                .param(&name)
+                .unwrap_or_else(|| panic!("{case}: `{name}` not identified: {id:#?}"));
+            (name, (p.value - t) / t)
+        })
+        .collect();
+    let row: Vec<String> = errs
+        .iter()
+        .map(|(n, e)| {
+            let se = id.param(n).map_or(0.0, |p| p.stderr / p.value.abs());
+            format!("{n} {:+.2}% (±{:.2}%)", 100.0 * e, 100.0 * se)
+        })
+        .collect();
+    println!(
+        "| {case:<34} | {} | cond {:.1e} |",
+        row.join(", "),
+        id.condition
+    );
+    errs
+}
+
+fn assert_within(case: &str, errs: &[(String, f64)], tol: f64) {
+    for (n, e) in errs {
+        assert!(
+            e.abs() < tol,
+            "{case}: `{n}` off by {:+.3}% (bound {}%)",
+            100.0 * e,
+            100.0 * tol
+        );
+    }
+}
+
+#[test]
+fn sdof_cubic_coulomb_noise_free_within_one_percent() {
+    let ir = model("sdof_cubic_coulomb");
+    let recs = simulate(&ir, 2000.0, 0.0, 11);
+    let id = identify_records(&ir, &recs);
+    assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
+    let e = errors("sdof_cubic_coulomb, noise 0 %", &ir, &id);
+    assert_within("sdof_cubic_coulomb noise-free", &e, 0.01);
+}
+
+#[test]
+fn sdof_cubic_coulomb_five_percent_noise_within_two_percent() {
+    // Noise of 5 % of each signal's std on position, velocity and input alike.
+    let ir = model("sdof_cubic_coulomb");
+    let recs = simulate(&ir, 2000.0, 0.05, 12);
+    let id = identify_records(&ir, &recs);
+    let e = errors("sdof_cubic_coulomb, noise 5 %", &ir, &id);
+    assert_within("sdof_cubic_coulomb 5 % noise", &e, 0.02);
+}
+
+#[test]
+fn two_mass_within_two_percent() {
+    let ir = model("two_mass");
+    let recs = simulate(&ir, 2000.0, 0.0, 13);
+    let id = identify_records(&ir, &recs);
+    let e = errors("two_mass, noise 0 %", &ir, &id);
+    assert_within("two_mass", &e, 0.02);
+}
+
+/// Parameters of the backlash-with-preload element `n4` of chain4: `k4 s + b4 dz(s, g) +
+/// f4 sign(s)` is nearly collinear (beyond the gap `dz(s, g) = s − g sign(s)`), so the three
+/// are determined only as well as the displacement spends time inside the 0.05 gap. The
+/// identification reports this through large standard errors (measured at 2000 s per level:
+/// errors +2.1 / −3.2 / −3.2 % with standard errors 7 / 12 / 11 %; 6000 s per level did not
+/// tighten them), so their errors are bounded by the reported standard errors.
+const CHAIN4_WEAK: [&str; 3] = ["k4", "b4", "f4"];
+
+/// Seconds per level for chain4.
+const CHAIN4_DURATION: f64 = 2000.0;
+
+#[test]
+fn chain4_within_two_percent() {
+    let ir = model("chain4");
+    let recs = simulate(&ir, CHAIN4_DURATION, 0.0, 14);
+    let id = identify_records(&ir, &recs);
+    let e = errors("chain4, noise 0 %", &ir, &id);
+    let (weak, strong): (Vec<_>, Vec<_>) = e
+        .into_iter()
+        .partition(|(n, _)| CHAIN4_WEAK.contains(&n.as_str()));
+    assert_within("chain4", &strong, 0.02);
+    for (n, err) in weak {
+        let p = id.param(&n).unwrap();
+        let rel_se = p.stderr / p.value.abs();
+        assert!(
+            err.abs() < 3.0 * rel_se && err.abs() < 0.1,
+            "chain4: `{n}` off by {:+.2}% with a standard error of {:.2}%",
+            100.0 * err,
+            100.0 * rel_se
+        );
+    }
+}
+
+#[test]
+fn duffing_from_positions_and_input_only_within_one_percent() {
+    // The velocity is declared unmeasured, so it is absent from the records: the damping
+    // moves onto the filters and accelerations come from positions alone.
+    let src = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("models/sdof_duffing.dyn"),
+    )
+    .unwrap();
+    let src = src.replace("input u on m\n", "input u on m\n    measure m.x, u\n");
+    let ir = model_str("sdof_duffing_positions", &src);
+    let recs = simulate(&ir, 2000.0, 0.0, 15);
+    assert!(recs.iter().all(|r| r.column("m.v").is_none()));
+    let id = identify_records(&ir, &recs);
+    let e = errors("sdof_duffing, x and u only, noise 0 %", &ir, &id);
+    assert_within("sdof_duffing from positions", &e, 0.01);
+}
+
+#[test]
+fn unexcited_term_is_named_and_gets_no_value() {
+    // A dead-zone gap far larger than any displacement: the term is identically zero.
+    let ir = model_str(
+        "sdof_gap",
+        "model sdof_gap {
+            body m = 1.0
+            input u on m
+            spring k (ground, m) ~ 4.0
+            damper d (ground, m) ~ 0.4
+            force nl (ground, m) = k3 ~ 2.0 * s^3 + kgap ~ 1.0 * deadzone(s, 1000)
+            excite u: lowpass(corner = 10) levels [6, 15, 40]
+        }",
+    );
+    let recs = simulate(&ir, 500.0, 0.0, 16);
+    let id = identify_records(&ir, &recs);
+    assert!(id.param("kgap").is_none(), "{:?}", id.params);
+    let u = id
+        .unidentifiable
+        .iter()
+        .find(|u| u.name == "kgap")
+        .unwrap_or_else(|| panic!("kgap not reported: {:?}", id.unidentifiable));
+    assert!(u.reason.contains("never excited"), "{}", u.reason);
+    for name in ["d", "k", "k3"] {
+        assert!(id.param(name).is_some(), "{name} missing");
+    }
+}
