@@ -4,6 +4,8 @@ use clap::{Parser, Subcommand};
 
 pub mod common;
 pub mod compile;
+pub mod demo;
+pub mod diagnose;
 pub mod identify;
 pub mod simulate;
 
@@ -24,6 +26,10 @@ pub enum Command {
     Simulate(simulate::Args),
     /// Identify the unknown parameters from measured data, one CSV per excitation level.
     Identify(identify::Args),
+    /// Diagnose the sim-to-real gap: where, which unmodelled effect, how far it shrinks.
+    Diagnose(diagnose::Args),
+    /// Simulate a system with friction and diagnose the friction-free model against it.
+    Demo(demo::Args),
 }
 
 pub fn run(cli: Cli) -> miette::Result<()> {
@@ -31,5 +37,7 @@ pub fn run(cli: Cli) -> miette::Result<()> {
         Command::Compile(a) => compile::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(a) => identify::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
+        Command::Demo(a) => demo::run(a),
     }
 }
