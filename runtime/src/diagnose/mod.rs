@@ -807,9 +807,17 @@ fn search_step(
             let cir = dsl_parser::compile_str(&ir.name, &src).ok()?;
             let m = measure_all(&cir, data, opts).ok()?;
             let all = m.identify_pooled();
-            let est = all.param(&p)?.clone();
+            let est = all.param(&p).cloned().unwrap_or(crate::ident::ParamEstimate {
+                name: p.clone(),
+                value: f64::NAN,
+                stderr: f64::NAN,
+            });
             let (cv, fits) = cross_validate(&m, &cir, n);
-            let t = est.value.abs() / est.stderr.max(f64::MIN_POSITIVE);
+            let t = if est.value.is_finite() {
+                est.value.abs() / est.stderr.max(f64::MIN_POSITIVE)
+            } else {
+                0.0
+            };
             let mut added = base.added.clone();
             added.push(p);
             let score = CandidateScore {
@@ -818,7 +826,7 @@ fn search_step(
                 value: est.value,
                 stderr: est.stderr,
                 t_ratio: t,
-                sign_ok: eff.sign_ok(est.value),
+                sign_ok: est.value.is_finite() && eff.sign_ok(est.value),
                 cv_residual: cv,
                 gap: None,
                 accepted: false,
@@ -875,7 +883,9 @@ fn search_step(
         }
         let r = &results[i];
         if !r.0.sign_ok || r.0.t_ratio <= opts.t_min {
-            results[i].0.note = if !r.0.sign_ok {
+            results[i].0.note = if !r.0.value.is_finite() {
+                "not resolved by the data".into()
+            } else if !r.0.sign_ok {
                 "unphysical sign".into()
             } else {
                 format!("not significant (|p|/σ = {:.1})", r.0.t_ratio)
