@@ -583,8 +583,8 @@ fn level_gap(
             continue;
         };
         let (y, m) = (&y[start..], &m[start..]);
-        let (f, pm) = metrics::welch(m, rec.ts, 1024);
-        let (_, ps) = metrics::welch(y, rec.ts, 1024);
+        let (f, pm) = metrics::welch(m, rec.ts, 4096);
+        let (_, ps) = metrics::welch(y, rec.ts, 4096);
         let sm = metrics::std_dev(m);
         signals.push(SignalGap {
             signal: name.clone(),
@@ -658,9 +658,11 @@ fn cov_residual(m: &Moments, p: &[f64], w: usize, equation: Option<&str>) -> f64
         let cp = row.iter().zip(p).map(|(a, b)| a * b).sum::<f64>();
         let e = cp - sys.rhs[r];
         num += (e / norm).powi(2);
-        // An equation without input has a zero right-hand side: measure against the mean
-        // size of both sides instead.
-        den += 0.5 * (sys.rhs[r] * sys.rhs[r] + cp * cp) / (norm * norm);
+        // Relative to the size of the individual terms: an equation without input has a
+        // zero right-hand side, so `c` alone is no scale.
+        let terms: f64 =
+            row.iter().zip(p).map(|(a, b)| (a * b).powi(2)).sum::<f64>() + sys.rhs[r] * sys.rhs[r];
+        den += terms / (norm * norm);
     }
     if den > 0.0 {
         100.0 * (num / den).sqrt()
@@ -1127,8 +1129,10 @@ pub fn diagnose(
         ..current_gap.clone()
     };
 
-    // Spectra of the nominal and corrected models on the largest level.
-    let big = n - 1;
+    // Spectra on the level where the nominal model misses most.
+    let big = (0..n)
+        .max_by(|&a, &b| nominal.levels[a].gap.total_cmp(&nominal.levels[b].gap))
+        .unwrap_or(0);
     let corrected_runs = level_gap(&fixed_ir, &data, big, opts, true);
     let mut spectra = Vec::new();
     if let (Some(nom), Some(cor)) = (&nominal_runs[big].1, &corrected_runs.1) {

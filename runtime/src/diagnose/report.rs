@@ -103,7 +103,9 @@ fn bars_svg(d: &Diagnosis) -> Result<String, String> {
                 }))
                 .map_err(|e| e.to_string())?
                 .label(m.label.clone())
-                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.filled()));
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.filled())
+                });
         }
         chart
             .configure_series_labels()
@@ -174,7 +176,9 @@ fn drift_svg(d: &Diagnosis) -> Result<String, String> {
                 .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
                 .map_err(|e| e.to_string())?
                 .label(name.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2)));
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2))
+                });
             chart
                 .draw_series(pts.iter().map(|p| Circle::new(*p, 4, color.filled())))
                 .map_err(|e| e.to_string())?;
@@ -208,7 +212,9 @@ fn spectrum_svg(sp: &super::Spectrum) -> Result<String, String> {
     let lg = |v: f64| (v + floor).log10();
     let mut all: Vec<(String, Vec<(f64, f64)>)> = vec![(
         "measured".into(),
-        (1..=last).map(|k| (sp.freqs[k], lg(sp.measured[k]))).collect(),
+        (1..=last)
+            .map(|k| (sp.freqs[k], lg(sp.measured[k])))
+            .collect(),
     )];
     for (name, p) in &sp.models {
         all.push((
@@ -220,11 +226,13 @@ fn spectrum_svg(sp: &super::Spectrum) -> Result<String, String> {
         .iter()
         .flat_map(|s| s.1.iter().map(|p| p.1))
         .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| (a.min(y), b.max(y)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+            (a.min(y), b.max(y))
+        });
     let xmax = sp.freqs[last];
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (560, 330)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (520, 320)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut chart = ChartBuilder::on(&root)
             .caption(
@@ -244,13 +252,19 @@ fn spectrum_svg(sp: &super::Spectrum) -> Result<String, String> {
             .draw()
             .map_err(|e| e.to_string())?;
         for (i, (name, pts)) in all.iter().enumerate() {
-            let color = if i == 0 { BLACK } else { COLORS[i % COLORS.len()] };
+            let color = if i == 0 {
+                BLACK
+            } else {
+                COLORS[i % COLORS.len()]
+            };
             let width = if i == 0 { 3 } else { 2 };
             chart
                 .draw_series(LineSeries::new(pts.clone(), color.stroke_width(width)))
                 .map_err(|e| e.to_string())?
                 .label(name.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2)));
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2))
+                });
         }
         chart
             .configure_series_labels()
@@ -292,7 +306,11 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
 </style></head><body>",
         esc(&d.model)
     );
-    let _ = write!(h, "<h1>Sim-to-real gap of <code>{}</code></h1>", esc(&d.model));
+    let _ = write!(
+        h,
+        "<h1>Sim-to-real gap of <code>{}</code></h1>",
+        esc(&d.model)
+    );
     let headline = match (&d.effect, &d.location) {
         (Some(e), Some(l)) => format!(
             "Missing effect: <b>{}</b> at <b>{}</b>. Gap {:.1} % → {:.1} % on withheld levels (<b>{:.0} %</b> of the gap removed).",
