@@ -878,7 +878,7 @@ fn search_step(
     });
     // Free-run score for the best few physically admissible candidates.
     let mut scored = 0;
-    let mut best: Option<(usize, ModelGap)> = None;
+    let mut gaps: Vec<(usize, ModelGap)> = Vec::new();
     for i in 0..results.len() {
         if scored >= opts.top_k {
             break;
@@ -897,10 +897,20 @@ fn search_step(
         scored += 1;
         let g = cv_gap(&r.1.ir, &r.2, data, opts, "corrected");
         results[i].0.gap = Some(g.gap);
-        if best.as_ref().is_none_or(|(_, b)| g.gap < b.gap) {
-            best = Some((i, g));
-        }
+        gaps.push((i, g));
     }
+    // Free-run gaps within 10 % of the best are a tie (a wide dead zone mimics a cubic
+    // spring): the cross-validated covariance residual, which sees every instrument, breaks it.
+    let best_gap = gaps.iter().map(|g| g.1.gap).fold(f64::INFINITY, f64::min);
+    let best = gaps
+        .into_iter()
+        .filter(|(_, g)| g.gap <= 1.1 * best_gap)
+        .min_by(|a, b| {
+            results[a.0]
+                .0
+                .cv_residual
+                .total_cmp(&results[b.0].0.cv_residual)
+        });
     let mut out_best = None;
     if let Some((i, g)) = best {
         let shrink_abs = baseline - g.gap;
