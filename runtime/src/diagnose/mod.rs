@@ -553,6 +553,7 @@ struct Data<'a> {
 }
 
 /// Free-run gap of `ir` (with its nominal values) on level `w`.
+#[allow(clippy::type_complexity)]
 fn level_gap(
     ir: &ModelIr,
     data: &Data,
@@ -879,6 +880,7 @@ fn search_step(
     // Free-run score for the best few physically admissible candidates.
     let mut scored = 0;
     let mut gaps: Vec<(usize, ModelGap)> = Vec::new();
+    #[allow(clippy::needless_range_loop)]
     for i in 0..results.len() {
         if scored >= opts.top_k {
             break;
@@ -1291,7 +1293,7 @@ impl Diagnosis {
                 let v: Vec<String> = d
                     .per_level
                     .iter()
-                    .map(|x| x.map_or("–".into(), |x| fmt_num(x)))
+                    .map(|x| x.map_or("–".into(), fmt_num))
                     .collect();
                 format!("{} [{}]", d.name, v.join(" → "))
             })
