@@ -14,6 +14,7 @@
 pub mod basis;
 pub mod data;
 pub mod detect;
+pub mod diagnose;
 pub mod ident;
 pub mod record;
 pub mod silverbox;

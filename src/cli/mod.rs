@@ -4,7 +4,9 @@ use clap::{Parser, Subcommand};
 
 pub mod common;
 pub mod compile;
+pub mod demo;
 pub mod detect;
+pub mod diagnose;
 pub mod identify;
 pub mod silverbox;
 pub mod simulate;
@@ -30,6 +32,10 @@ pub enum Command {
     Detect(detect::Args),
     /// The Silverbox benchmark on the real measurement (identify, free-run RMS, arrow levels).
     Silverbox(silverbox::Args),
+    /// Diagnose the sim-to-real gap: where, which unmodelled effect, how far it shrinks.
+    Diagnose(diagnose::Args),
+    /// Simulate a system with friction and diagnose the friction-free model against it.
+    Demo(demo::Args),
 }
 
 pub fn run(cli: Cli) -> miette::Result<()> {
@@ -39,5 +45,7 @@ pub fn run(cli: Cli) -> miette::Result<()> {
         Command::Identify(a) => identify::run(a),
         Command::Detect(a) => detect::run(a),
         Command::Silverbox(a) => silverbox::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
+        Command::Demo(a) => demo::run(a),
     }
 }

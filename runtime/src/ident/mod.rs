@@ -596,6 +596,11 @@ impl<'m> Moments<'m> {
         self.solve_levels(&[i])
     }
 
+    /// Pool the given levels only (cross-validation: fit on some levels, score on another).
+    pub fn identify_levels(&self, which: &[usize]) -> Identification {
+        self.solve_levels(which)
+    }
+
     fn solve_levels(&self, which: &[usize]) -> Identification {
         let t0 = Instant::now();
         let plan = &self.plan;

@@ -1,0 +1,156 @@
+//! Gap metrics between a simulated and a measured response (definitions in
+//! `docs/diagnosis.md`): free-run NRMSE, relative error of the standard deviation, and a
+//! Welch power-spectrum gap.
+
+/// Root mean square of `a − b` divided by the standard deviation of `b`.
+pub fn nrmse(sim: &[f64], meas: &[f64]) -> f64 {
+    let n = sim.len().min(meas.len());
+    if n == 0 {
+        return f64::NAN;
+    }
+    let e2: f64 = sim
+        .iter()
+        .zip(meas)
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        / n as f64;
+    let s = std_dev(&meas[..n]);
+    if s > 0.0 {
+        e2.sqrt() / s
+    } else {
+        f64::NAN
+    }
+}
+
+pub fn std_dev(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    let n = x.len() as f64;
+    let m = x.iter().sum::<f64>() / n;
+    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n).sqrt()
+}
+
+/// In-place radix-2 FFT of (re, im); the length must be a power of two.
+fn fft(re: &mut [f64], im: &mut [f64]) {
+    let n = re.len();
+    let mut j = 0;
+    for i in 1..n {
+        let mut bit = n >> 1;
+        while j & bit != 0 {
+            j ^= bit;
+            bit >>= 1;
+        }
+        j |= bit;
+        if i < j {
+            re.swap(i, j);
+            im.swap(i, j);
+        }
+    }
+    let mut len = 2;
+    while len <= n {
+        let ang = -2.0 * std::f64::consts::PI / len as f64;
+        for start in (0..n).step_by(len) {
+            for k in 0..len / 2 {
+                let (s, c) = (ang * k as f64).sin_cos();
+                let (a, b) = (start + k, start + k + len / 2);
+                let tr = re[b] * c - im[b] * s;
+                let ti = re[b] * s + im[b] * c;
+                re[b] = re[a] - tr;
+                im[b] = im[a] - ti;
+                re[a] += tr;
+                im[a] += ti;
+            }
+        }
+        len <<= 1;
+    }
+}
+
+/// One-sided Welch power spectral density (Hann window, 50 % overlap) at bins
+/// `k / (nseg · ts)`, `k = 0 … nseg/2`. Returns (frequencies in Hz, PSD).
+pub fn welch(x: &[f64], ts: f64, nseg_max: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut nseg = 16usize;
+    while nseg * 2 <= nseg_max && nseg * 2 <= x.len() {
+        nseg *= 2;
+    }
+    let nb = nseg / 2 + 1;
+    let mut psd = vec![0.0; nb];
+    let win: Vec<f64> = (0..nseg)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / nseg as f64).cos())
+        .collect();
+    let wsum: f64 = win.iter().map(|w| w * w).sum();
+    let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
+    let (mut re, mut im) = (vec![0.0; nseg], vec![0.0; nseg]);
+    let mut count = 0;
+    let mut start = 0;
+    while start + nseg <= x.len() {
+        for i in 0..nseg {
+            re[i] = (x[start + i] - mean) * win[i];
+            im[i] = 0.0;
+        }
+        fft(&mut re, &mut im);
+        for k in 0..nb {
+            let p = re[k] * re[k] + im[k] * im[k];
+            psd[k] += if k == 0 || k == nseg / 2 { p } else { 2.0 * p };
+        }
+        count += 1;
+        start += nseg / 2;
+    }
+    let scale = ts / (wsum * count.max(1) as f64);
+    psd.iter_mut().for_each(|p| *p *= scale);
+    let freqs = (0..nb).map(|k| k as f64 / (nseg as f64 * ts)).collect();
+    (freqs, psd)
+}
+
+/// Mean |log10(P_sim / P_meas)| over the bins (DC excluded) up to the frequency below
+/// which the measured spectrum holds 99 % of its power.
+pub fn psd_gap(p_sim: &[f64], p_meas: &[f64]) -> f64 {
+    let total: f64 = p_meas.iter().skip(1).sum();
+    if total <= 0.0 {
+        return f64::NAN;
+    }
+    let mut acc = 0.0;
+    let mut last = p_meas.len() - 1;
+    for (k, p) in p_meas.iter().enumerate().skip(1) {
+        acc += p;
+        if acc >= 0.99 * total {
+            last = k;
+            break;
+        }
+    }
+    let floor = 1e-12 * p_meas.iter().cloned().fold(0.0, f64::max);
+    let n = last.max(1);
+    (1..=n)
+        .map(|k| ((p_sim[k] + floor) / (p_meas[k] + floor)).log10().abs())
+        .sum::<f64>()
+        / n as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn welch_of_a_sine_peaks_at_its_frequency() {
+        let ts = 0.01;
+        let x: Vec<f64> = (0..8192)
+            .map(|i| (2.0 * std::f64::consts::PI * 5.0 * i as f64 * ts).sin())
+            .collect();
+        let (f, p) = welch(&x, ts, 1024);
+        let k = (0..p.len()).max_by(|a, b| p[*a].total_cmp(&p[*b])).unwrap();
+        assert!((f[k] - 5.0).abs() < 0.1, "peak at {}", f[k]);
+        // Parseval: the PSD integrates to the variance (0.5).
+        let df = f[1] - f[0];
+        let var: f64 = p.iter().sum::<f64>() * df;
+        assert!((var - 0.5).abs() < 0.02, "variance {var}");
+        assert!(psd_gap(&p, &p) < 1e-12);
+    }
+
+    #[test]
+    fn nrmse_is_zero_for_identical_signals() {
+        let x: Vec<f64> = (0..100).map(|i| (i as f64).sin()).collect();
+        assert_eq!(nrmse(&x, &x), 0.0);
+        let y: Vec<f64> = x.iter().map(|v| 0.0 * v).collect();
+        assert!((nrmse(&y, &x) - 1.0).abs() < 0.05);
+    }
+}

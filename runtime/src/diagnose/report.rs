@@ -1,0 +1,447 @@
+//! The HTML report of a diagnosis: one self-contained page (inline SVG figures drawn with
+//! plotters, inline CSS, no scripts), so that it opens offline and can be mailed around.
+
+use std::fmt::Write;
+use std::sync::Once;
+
+use plotters::prelude::*;
+
+use super::{fmt_num, Diagnosis, ModelGap};
+
+static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+static REGISTER: Once = Once::new();
+
+fn register_font() {
+    REGISTER.call_once(|| {
+        // The embedded file is a valid TrueType font; failure here is a build defect.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Bold, FONT);
+    });
+}
+
+const COLORS: [RGBColor; 4] = [
+    RGBColor(25, 60, 160),
+    RGBColor(200, 30, 45),
+    RGBColor(20, 140, 60),
+    RGBColor(230, 140, 0),
+];
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// Mean NRMSE (%) of one signal over the levels of a model's gap.
+fn signal_mean(g: &ModelGap, sig: &str) -> f64 {
+    let v: Vec<f64> = g
+        .levels
+        .iter()
+        .filter_map(|l| l.signals.iter().find(|s| s.signal == sig))
+        .map(|s| s.nrmse)
+        .collect();
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+fn bars_svg(d: &Diagnosis) -> Result<String, String> {
+    let models: Vec<&ModelGap> = if d.found.is_empty() {
+        vec![&d.nominal, &d.reidentified]
+    } else {
+        vec![&d.nominal, &d.reidentified, &d.corrected]
+    };
+    let sigs = &d.response_signals;
+    let vals: Vec<Vec<f64>> = models
+        .iter()
+        .map(|m| sigs.iter().map(|s| signal_mean(m, s)).collect())
+        .collect();
+    let ymax = vals
+        .iter()
+        .flatten()
+        .filter(|v| v.is_finite())
+        .fold(1.0f64, |a, b| a.max(*b))
+        * 1.15;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (760, 360)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let n = sigs.len() as f64;
+        let mut chart = ChartBuilder::on(&root)
+            .caption("Free-run gap per signal (NRMSE, %)", ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(36)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..n, 0.0..ymax)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(sigs.len() * 2 + 1)
+            .x_label_formatter(&|x| {
+                let k = x.floor() as usize;
+                if (x - k as f64 - 0.5).abs() < 0.26 && k < sigs.len() {
+                    sigs[k].clone()
+                } else {
+                    String::new()
+                }
+            })
+            .y_desc("NRMSE %")
+            .label_style(("sans-serif", 14))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let w = 0.8 / models.len() as f64;
+        for (mi, m) in models.iter().enumerate() {
+            let color = COLORS[mi % COLORS.len()];
+            chart
+                .draw_series(vals[mi].iter().enumerate().map(|(k, v)| {
+                    let x0 = k as f64 + 0.1 + mi as f64 * w;
+                    let v = if v.is_finite() { *v } else { ymax };
+                    Rectangle::new([(x0, 0.0), (x0 + w * 0.92, v)], color.filled())
+                }))
+                .map_err(|e| e.to_string())?
+                .label(m.label.clone())
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.filled())
+                });
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}
+
+fn drift_svg(d: &Diagnosis) -> Result<String, String> {
+    let n = d.levels.len();
+    let series: Vec<(String, Vec<(f64, f64)>)> = d
+        .drift
+        .iter()
+        .filter_map(|p| {
+            let pooled = p.pooled?;
+            if pooled == 0.0 {
+                return None;
+            }
+            let pts: Vec<(f64, f64)> = p
+                .per_level
+                .iter()
+                .enumerate()
+                .filter_map(|(k, v)| v.map(|v| ((k + 1) as f64, v / pooled)))
+                .collect();
+            Some((p.name.clone(), pts))
+        })
+        .collect();
+    let (lo, hi) = series
+        .iter()
+        .flat_map(|s| s.1.iter().map(|p| p.1))
+        .fold((0.8f64, 1.2f64), |(a, b), y| (a.min(y), b.max(y)));
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (760, 360)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                "Per-level identification of the model as given (value / pooled value)",
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(36)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.7..n as f64 + 0.3, (lo - 0.05)..(hi + 0.05))
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_labels(n)
+            .x_label_formatter(&|x| {
+                if (x - x.round()).abs() < 1e-6 {
+                    format!("level {}", x.round())
+                } else {
+                    String::new()
+                }
+            })
+            .label_style(("sans-serif", 14))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for (i, (name, pts)) in series.iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                .map_err(|e| e.to_string())?
+                .label(name.clone())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2))
+                });
+            chart
+                .draw_series(pts.iter().map(|p| Circle::new(*p, 4, color.filled())))
+                .map_err(|e| e.to_string())?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}
+
+fn spectrum_svg(sp: &super::Spectrum) -> Result<String, String> {
+    // Up to the frequency holding 99.9 % of the measured power, log10 of the PSD.
+    let total: f64 = sp.measured.iter().skip(1).sum();
+    let mut acc = 0.0;
+    let mut last = sp.measured.len() - 1;
+    for (k, p) in sp.measured.iter().enumerate().skip(1) {
+        acc += p;
+        if acc >= 0.999 * total {
+            last = (k * 3 / 2).min(sp.measured.len() - 1);
+            break;
+        }
+    }
+    let floor = 1e-14 * sp.measured.iter().cloned().fold(0.0, f64::max);
+    let lg = |v: f64| (v + floor).log10();
+    let mut all: Vec<(String, Vec<(f64, f64)>)> = vec![(
+        "measured".into(),
+        (1..=last)
+            .map(|k| (sp.freqs[k], lg(sp.measured[k])))
+            .collect(),
+    )];
+    for (name, p) in &sp.models {
+        all.push((
+            name.clone(),
+            (1..=last).map(|k| (sp.freqs[k], lg(p[k]))).collect(),
+        ));
+    }
+    let (ylo, yhi) = all
+        .iter()
+        .flat_map(|s| s.1.iter().map(|p| p.1))
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+            (a.min(y), b.max(y))
+        });
+    let xmax = sp.freqs[last];
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (520, 320)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                format!("PSD of {} (level {})", sp.signal, sp.level + 1),
+                ("sans-serif", 17),
+            )
+            .margin(10)
+            .x_label_area_size(36)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..xmax, (ylo - 0.3)..(yhi + 0.3))
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("frequency (Hz)")
+            .y_desc("log10 PSD")
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for (i, (name, pts)) in all.iter().enumerate() {
+            let color = if i == 0 {
+                BLACK
+            } else {
+                COLORS[i % COLORS.len()]
+            };
+            let width = if i == 0 { 3 } else { 2 };
+            chart
+                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(width)))
+                .map_err(|e| e.to_string())?
+                .label(name.clone())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2))
+                });
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 13))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}
+
+fn figure(out: &mut String, svg: Result<String, String>) {
+    match svg {
+        Ok(s) => {
+            let _ = write!(out, "<div class=\"fig\">{s}</div>");
+        }
+        Err(e) => {
+            let _ = write!(out, "<p class=\"err\">figure not drawn: {}</p>", esc(&e));
+        }
+    }
+}
+
+/// A self-contained HTML page (inline SVG and CSS, no scripts).
+pub fn render_html(d: &Diagnosis) -> String {
+    register_font();
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>dynid diagnosis: {}</title><style>\
+body{{font-family:sans-serif;max-width:1100px;margin:24px auto;padding:0 16px;color:#222}}\
+h1{{font-size:26px}} h2{{font-size:20px;margin-top:32px;border-bottom:1px solid #ccc}}\
+table{{border-collapse:collapse;font-size:14px}} td,th{{border:1px solid #ccc;padding:4px 8px;text-align:right}}\
+th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6;font-weight:bold}}\
+.big{{font-size:20px;padding:12px 16px;background:#f4f7fc;border-left:5px solid #193ca0}}\
+.fig{{display:inline-block;margin:8px}} pre{{background:#f7f7f7;padding:10px;overflow-x:auto}}\
+</style></head><body>",
+        esc(&d.model)
+    );
+    let _ = write!(
+        h,
+        "<h1>Sim-to-real gap of <code>{}</code></h1>",
+        esc(&d.model)
+    );
+    let headline = match (&d.effect, &d.location) {
+        (Some(e), Some(l)) => format!(
+            "Missing effect: <b>{}</b> at <b>{}</b>. Gap {:.1} % → {:.1} % on withheld levels (<b>{:.0} %</b> of the gap removed).",
+            esc(e),
+            esc(l),
+            d.gap_before,
+            d.gap_after,
+            100.0 * d.shrink
+        ),
+        _ => format!(
+            "No significant unmodelled effect ({:?}). Gap: nominal {:.1} %, re-identified {:.1} %.",
+            d.verdict, d.nominal.gap, d.reidentified.gap
+        ),
+    };
+    let _ = write!(h, "<p class=\"big\">{headline}</p>");
+    let _ = write!(h, "<h2>Summary</h2><pre>{}</pre>", esc(&d.summary()));
+
+    let _ = write!(h, "<h2>Where: gap per signal</h2>");
+    figure(&mut h, bars_svg(d));
+    let _ = write!(
+        h,
+        "<table><tr><th class=\"l\">signal</th><th class=\"l\">model</th><th>NRMSE %</th><th>std error %</th><th>PSD gap (log10)</th></tr>"
+    );
+    for sig in &d.response_signals {
+        for m in [&d.nominal, &d.reidentified, &d.corrected] {
+            let rows: Vec<_> = m
+                .levels
+                .iter()
+                .filter_map(|l| l.signals.iter().find(|s| &s.signal == sig))
+                .collect();
+            let k = rows.len().max(1) as f64;
+            let _ = write!(
+                h,
+                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.1}</td><td>{:+.1}</td><td>{:.3}</td></tr>",
+                esc(sig),
+                esc(&m.label),
+                rows.iter().map(|s| s.nrmse).sum::<f64>() / k,
+                rows.iter().map(|s| s.std_error).sum::<f64>() / k,
+                rows.iter().map(|s| s.psd_gap).sum::<f64>() / k
+            );
+        }
+    }
+    let _ = write!(h, "</table>");
+    let _ = write!(
+        h,
+        "<h3>Covariance-equation residual of the nominal model (%)</h3><table><tr><th class=\"l\">equation</th>"
+    );
+    for l in &d.levels {
+        let _ = write!(h, "<th>{}</th>", esc(l));
+    }
+    let _ = write!(h, "</tr>");
+    for e in &d.equations {
+        let _ = write!(h, "<tr><td class=\"l\">{}</td>", esc(&e.equation));
+        for v in &e.per_level {
+            let _ = write!(h, "<td>{v:.1}</td>");
+        }
+        let _ = write!(h, "</tr>");
+    }
+    let _ = write!(h, "</table>");
+
+    let _ = write!(h, "<h2>Parameter drift over the levels</h2>");
+    figure(&mut h, drift_svg(d));
+    let _ = write!(
+        h,
+        "<table><tr><th class=\"l\">parameter</th><th>nominal</th><th>pooled</th>"
+    );
+    for k in 0..d.levels.len() {
+        let _ = write!(h, "<th>level {}</th>", k + 1);
+    }
+    let _ = write!(h, "<th>drift %</th><th class=\"l\">significant</th></tr>");
+    for p in &d.drift {
+        let _ = write!(
+            h,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td>",
+            esc(&p.name),
+            p.nominal.map_or("–".into(), fmt_num),
+            p.pooled.map_or("–".into(), fmt_num)
+        );
+        for (v, e) in p.per_level.iter().zip(&p.stderr) {
+            let _ = write!(
+                h,
+                "<td>{}</td>",
+                match (v, e) {
+                    (Some(v), Some(e)) => format!("{} ± {}", fmt_num(*v), fmt_num(*e)),
+                    _ => "–".into(),
+                }
+            );
+        }
+        let _ = write!(
+            h,
+            "<td>{:.1}</td><td class=\"l\">{}</td></tr>",
+            p.drift,
+            if p.significant { "yes" } else { "no" }
+        );
+    }
+    let _ = write!(h, "</table>");
+
+    let _ = write!(h, "<h2>Spectra before and after</h2>");
+    for sp in &d.spectra {
+        figure(&mut h, spectrum_svg(sp));
+    }
+
+    let _ = write!(
+        h,
+        "<h2>Candidate ranking (first search step)</h2><p>Each candidate is fitted on all levels but one and scored on the withheld one (rotated). The free-run gap is computed for the best admissible candidates by covariance score.</p>\
+<table><tr><th>#</th><th class=\"l\">effect</th><th class=\"l\">location</th><th>coefficient</th><th>|p|/σ</th><th>CV cov. residual %</th><th>CV free-run gap %</th><th class=\"l\">note</th></tr>"
+    );
+    for (i, c) in d.ranking.iter().enumerate() {
+        let _ = write!(
+            h,
+            "<tr{}><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{:.1}</td><td>{:.2}</td><td>{}</td><td class=\"l\">{}</td></tr>",
+            if c.accepted { " class=\"acc\"" } else { "" },
+            i + 1,
+            esc(&c.effect.name()),
+            esc(&c.location.label()),
+            if c.value.is_finite() {
+                format!("{} ± {}", fmt_num(c.value), fmt_num(c.stderr))
+            } else {
+                "–".into()
+            },
+            c.t_ratio,
+            c.cv_residual,
+            c.gap.map_or("".into(), |g| format!("{g:.1}")),
+            esc(&c.note)
+        );
+    }
+    let _ = write!(h, "</table>");
+    let _ = write!(
+        h,
+        "<h2>Corrected model</h2><pre>{}</pre></body></html>",
+        esc(&d.fixed_source)
+    );
+    h
+}

@@ -1,0 +1,136 @@
+//! `dynid diagnose MODEL.dyn LEVEL.csv...`: where the model misses the data, which
+//! unmodelled effect explains the gap, and how far it shrinks once that effect is added.
+
+use dynid_runtime::data::{CsvOptions, CsvSource};
+use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
+use dynid_runtime::record::Record;
+use indicatif::{ProgressBar, ProgressStyle};
+use miette::{miette, IntoDiagnostic, WrapErr};
+use std::path::{Path, PathBuf};
+
+use super::identify::write_atomically;
+
+/// Arguments of `dynid diagnose`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The simulation model (.dyn, with nominal values).
+    pub model: PathBuf,
+    /// One CSV file per excitation level (at least 2).
+    #[arg(required = true, num_args = 2..)]
+    pub data: Vec<PathBuf>,
+    /// Write an HTML report (opens offline) to this file.
+    #[arg(long, value_name = "HTML")]
+    pub report: Option<PathBuf>,
+    /// Write the diagnosis as JSON to this file.
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+    /// Write the corrected model (.dyn) to this file.
+    #[arg(long = "write-model", value_name = "DYN")]
+    pub write_model: Option<PathBuf>,
+    /// Read column COLUMN as signal SIGNAL (repeatable), e.g. `--map disp=m1.x`.
+    #[arg(long = "map", value_name = "COLUMN=SIGNAL")]
+    pub map: Vec<String>,
+    /// Sample interval in seconds (needed when the files have no `t` column).
+    #[arg(long = "sample", value_name = "TS")]
+    pub sample: Option<f64>,
+    /// Hide the progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+pub fn run(args: Args) -> miette::Result<()> {
+    if args.model.extension().is_some_and(|e| e == "json") {
+        return Err(miette!(
+            help = "pass the .dyn source: the corrected model is written as .dyn text",
+            "diagnose needs the model's .dyn source, not a compiled JSON model"
+        ));
+    }
+    let source = std::fs::read_to_string(&args.model)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("cannot read the model `{}`", args.model.display()))?;
+    let ir = super::common::load_model(&args.model)?;
+    let mut csv = CsvOptions {
+        map: Vec::new(),
+        ts: args.sample,
+    };
+    for spec in &args.map {
+        csv.map.push(CsvOptions::parse_map(spec, &ir)?);
+    }
+    let mut records = Vec::new();
+    for p in &args.data {
+        let src = CsvSource::open(p, &ir, &csv)?;
+        records.push(diagnose::read_record(&src, &ir)?);
+    }
+    let origins: Vec<String> = args.data.iter().map(|p| p.display().to_string()).collect();
+    let name = args.model.display().to_string();
+    let d = run_diagnosis(&source, &name, &records, &origins, args.quiet)?;
+    print!("{}", d.summary());
+    write_outputs(
+        &d,
+        args.report.as_deref(),
+        args.json.as_deref(),
+        args.write_model.as_deref(),
+    )
+}
+
+/// Run the diagnosis with a progress bar on stderr.
+pub fn run_diagnosis(
+    source: &str,
+    name: &str,
+    records: &[Record],
+    origins: &[String],
+    quiet: bool,
+) -> miette::Result<Diagnosis> {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        let b = ProgressBar::new(0);
+        b.set_style(
+            ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} candidates ({elapsed})")
+                .expect("valid template")
+                .progress_chars("=> "),
+        );
+        b.set_prefix("searching unmodelled effects");
+        b
+    };
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    let d = diagnose::diagnose(
+        source,
+        name,
+        records,
+        origins,
+        &DiagnoseOptions::default(),
+        &progress,
+    );
+    bar.finish_and_clear();
+    Ok(d?)
+}
+
+/// Render everything first, then write: an error never leaves a partial set of files.
+pub fn write_outputs(
+    d: &Diagnosis,
+    report: Option<&Path>,
+    json: Option<&Path>,
+    model: Option<&Path>,
+) -> miette::Result<()> {
+    let html = report.map(|_| diagnose::report::render_html(d));
+    let js = match json {
+        Some(_) => Some(serde_json::to_string_pretty(d).into_diagnostic()?),
+        None => None,
+    };
+    if let (Some(p), Some(h)) = (report, &html) {
+        write_atomically(p, h.as_bytes())?;
+        eprintln!("report written to {}", p.display());
+    }
+    if let (Some(p), Some(j)) = (json, &js) {
+        write_atomically(p, j.as_bytes())?;
+    }
+    if let Some(p) = model {
+        write_atomically(p, d.fixed_source.as_bytes())?;
+        eprintln!("corrected model written to {}", p.display());
+    }
+    Ok(())
+}
