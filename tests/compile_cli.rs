@@ -86,7 +86,8 @@ fn emit_rust_prints_the_generated_items() {
         "pub struct TwoMassParams",
         "pub struct TwoMass;",
         "impl ::dynid::runtime::BasisEval for TwoMass",
-        "compile_str(\"two_mass.dyn\"",
+        "::dynid::dsl_parser::compile_str(",
+        "\"two_mass.dyn\"",
     ] {
         assert!(text.contains(item), "`{item}` missing from\n{text}");
     }
