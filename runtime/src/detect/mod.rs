@@ -677,10 +677,13 @@ fn explain_element(
     finding.ranking = fits;
     let best = &finding.ranking[0];
     if !best.aicc.is_finite() || best.explained < opts.min_explained {
+        // Only fits that can be ranked count: a template with as many parameters as levels
+        // explains everything and proves nothing.
         finding.verdict = Verdict::Unexplained {
             best_explained: finding
                 .ranking
                 .iter()
+                .filter(|f| f.aicc.is_finite())
                 .map(|f| f.explained)
                 .fold(0.0, f64::max),
         };
