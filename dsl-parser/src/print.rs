@@ -109,7 +109,7 @@ pub fn render_expr(ir: &ModelIr, e: ExprId) -> String {
 }
 
 /// A basis as it stands after a coefficient (`k1 (m2.x - m1.x)`, `k3 m1.x^3`).
-fn render_basis(ir: &ModelIr, b: Basis) -> String {
+pub fn render_basis(ir: &ModelIr, b: Basis) -> String {
     match b {
         Basis::Deriv { body, order } => {
             format!(

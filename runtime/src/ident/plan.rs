@@ -143,7 +143,7 @@ pub(crate) fn build_structure(
                     {
                         return Err(IdentifyError::UnmeasuredInTerm {
                             equation: ir.bodies[l].name.clone(),
-                            term: super::print::expr_to_string(ir, e),
+                            term: dsl_parser::print::render_expr(ir, e),
                             signal: ir.signal(s).name.clone(),
                         });
                     }

@@ -2,73 +2,8 @@
 //! `m1: 1.000 m1.x'' + 0.4010(±0.0020) m1.x' + 3.990 m1.x + … = u`.
 
 use super::Identification;
-use dsl_parser::ir::{Basis, BinaryOp, ExprId, ExprNode, ModelIr, ParamKind, TermOrigin, UnaryOp};
-
-/// Binding strength for parenthesisation.
-fn prec(n: ExprNode) -> u8 {
-    match n {
-        ExprNode::Binary(BinaryOp::Add | BinaryOp::Sub, ..) => 1,
-        ExprNode::Binary(BinaryOp::Mul | BinaryOp::Div, ..) => 2,
-        ExprNode::Unary(UnaryOp::Neg, _) => 3,
-        ExprNode::Powi(..) => 4,
-        _ => 5,
-    }
-}
-
-/// An expression of the model in the `.dyn` surface syntax.
-pub fn expr_to_string(ir: &ModelIr, e: ExprId) -> String {
-    let node = ir.expr(e);
-    let sub = |c: ExprId, min: u8| {
-        let s = expr_to_string(ir, c);
-        if prec(ir.expr(c)) < min {
-            format!("({s})")
-        } else {
-            s
-        }
-    };
-    match node {
-        ExprNode::Const(b) => fmt_num(f64::from_bits(b)),
-        ExprNode::Signal(s) => ir.signal(s).name.clone(),
-        ExprNode::Unary(UnaryOp::Neg, a) => format!("-{}", sub(a, 3)),
-        ExprNode::Unary(op, a) => {
-            let f = match op {
-                UnaryOp::Abs => "abs",
-                UnaryOp::Sign => "sign",
-                UnaryOp::Tanh => "tanh",
-                UnaryOp::Sqrt => "sqrt",
-                UnaryOp::Exp => "exp",
-                UnaryOp::Neg => unreachable!(),
-            };
-            format!("{f}({})", expr_to_string(ir, a))
-        }
-        ExprNode::Binary(op, a, b) => {
-            let (sym, p) = match op {
-                BinaryOp::Add => ("+", 1),
-                BinaryOp::Sub => ("-", 1),
-                BinaryOp::Mul => ("*", 2),
-                BinaryOp::Div => ("/", 2),
-            };
-            // Right operands of − and / need parentheses at equal precedence.
-            let rmin = if matches!(op, BinaryOp::Sub | BinaryOp::Div) {
-                p + 1
-            } else {
-                p
-            };
-            format!("{} {sym} {}", sub(a, p), sub(b, rmin))
-        }
-        ExprNode::Powi(a, k) => format!("{}^{k}", sub(a, 5)),
-        ExprNode::Deadzone(a, g) => format!(
-            "deadzone({}, {})",
-            expr_to_string(ir, a),
-            fmt_num(f64::from_bits(g))
-        ),
-        ExprNode::Saturate(a, l) => format!(
-            "saturate({}, {})",
-            expr_to_string(ir, a),
-            fmt_num(f64::from_bits(l))
-        ),
-    }
-}
+use dsl_parser::ir::{ModelIr, ParamKind, TermOrigin};
+use dsl_parser::print::render_basis;
 
 /// A number with four significant digits, without trailing noise.
 pub fn fmt_num(v: f64) -> String {
@@ -98,24 +33,6 @@ fn fmt_se(v: f64) -> String {
     }
 }
 
-fn basis_to_string(ir: &ModelIr, b: Basis) -> String {
-    match b {
-        Basis::Expr(e) => {
-            let s = expr_to_string(ir, e);
-            if prec(ir.expr(e)) < 2 {
-                format!("({s})")
-            } else {
-                s
-            }
-        }
-        Basis::Deriv { body, order } => format!(
-            "{}{}",
-            ir.signal(ir.position(body)).name,
-            "'".repeat(order as usize)
-        ),
-    }
-}
-
 /// Every equation of motion with the identified values substituted. Input forces are
 /// written on the right-hand side; unidentifiable parameters appear by name with `?`.
 pub fn format_equations(ir: &ModelIr, id: &Identification) -> String {
@@ -137,7 +54,7 @@ pub fn format_equations(ir: &ModelIr, id: &Identification) -> String {
                     }
                 }
             };
-            let basis = basis_to_string(ir, t.basis);
+            let basis = render_basis(ir, t.basis);
             let to_rhs = matches!(t.origin, TermOrigin::Input(_));
             let side = if to_rhs { &mut rhs } else { &mut lhs };
             let val = val.map(|v| if to_rhs { -v } else { v });
