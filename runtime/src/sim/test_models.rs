@@ -1,5 +1,6 @@
-//! Hand-built IRs for tests of the back ends, lowered by the same rules as the front end
-//! (see the IR documentation). Not part of the stable API.
+//! Small models for tests of the back ends, written in the modelling language and compiled
+//! by the front end; nominal values and form filters are then set on the IR directly.
+//! Not part of the stable API.
 
 use dsl_parser::ir::*;
 
@@ -38,125 +39,41 @@ impl SdofParams {
 
 /// The SDOF oscillator on body `m1` (signals `m1.x`, `m1.v`, `u`) excited through `filter`.
 pub fn sdof(p: &SdofParams, filter: FormFilter, levels: Vec<f64>) -> ModelIr {
-    let mut arena = ExprArena::default();
-    let b = BodyId(0);
-    let x = arena.signal(SignalId(0));
-    let v = arena.signal(SignalId(1));
-    let u = arena.signal(SignalId(2));
-    let mut params = vec![ParamIr {
-        name: "m".into(),
-        kind: ParamKind::Known(p.m),
-    }];
-    let mut add_param = |name: &str, value: f64| {
-        params.push(ParamIr {
-            name: name.into(),
-            kind: ParamKind::Unknown {
-                nominal: Some(value),
-            },
-        });
-        Coef::param(ParamId(params.len() as u32 - 1))
+    let mut force = Vec::new();
+    if p.k3.is_some() {
+        force.push("k3 ~ 1 * s^3");
+    }
+    if p.r.is_some() {
+        force.push("r ~ 1 * sign(v)");
+    }
+    let force = if force.is_empty() {
+        String::new()
+    } else {
+        format!("force nl (ground, m1) = {}\n", force.join(" + "))
     };
-    let d = add_param("d", p.d);
-    let k = add_param("k", p.k);
-    let k3 = p.k3.map(|v| add_param("k3", v));
-    let r = p.r.map(|v| add_param("r", v));
-
-    let mut elements = Vec::new();
-    let mut terms = vec![TermIr {
-        coef: Coef::param(ParamId(0)),
-        basis: Basis::Deriv { body: b, order: 2 },
-        origin: TermOrigin::Inertia(b),
-    }];
-    let nodes = (Node::Ground, Node::Body(b));
-    let mut element = |name: &str, kind, force: Vec<ForceTerm>, eq: Vec<(Coef, Basis)>| {
-        let id = ElementId(elements.len() as u32);
-        elements.push(ElementIr {
-            name: name.into(),
-            kind,
-            nodes,
-            s: x,
-            v,
-            terms: force,
-        });
-        for (coef, basis) in eq {
-            terms.push(TermIr {
-                coef,
-                basis,
-                origin: TermOrigin::Element(id),
-            });
+    let mut ir = compile(&format!(
+        "model sdof {{
+            body m1 = {m:?}
+            input u on m1
+            damper d (ground, m1) ~ 1
+            spring k (ground, m1) ~ 1
+            {force}
+            excite u: white levels [1]
+        }}",
+        m = p.m
+    ));
+    let nominal = [("d", Some(p.d)), ("k", Some(p.k)), ("k3", p.k3), ("r", p.r)];
+    for (name, value) in nominal {
+        if let Some(v) = value {
+            set_nominal(&mut ir, name, v);
         }
-    };
-    element(
-        "damper",
-        ElementKind::Damper,
-        vec![ForceTerm { coef: d, basis: v }],
-        vec![(d, Basis::Deriv { body: b, order: 1 })],
-    );
-    let mut spring = vec![(k, x)];
-    if let Some(k3) = k3 {
-        spring.push((k3, arena.intern(ExprNode::Powi(x, 3))));
     }
-    element(
-        "spring",
-        ElementKind::Spring,
-        spring
-            .iter()
-            .map(|&(coef, basis)| ForceTerm { coef, basis })
-            .collect(),
-        spring.iter().map(|&(c, e)| (c, Basis::Expr(e))).collect(),
-    );
-    if let Some(r) = r {
-        let sg = arena.unary(UnaryOp::Sign, v);
-        element(
-            "friction",
-            ElementKind::Force,
-            vec![ForceTerm { coef: r, basis: sg }],
-            vec![(r, Basis::Expr(sg))],
-        );
-    }
-    terms.push(TermIr {
-        coef: Coef::constant(-1.0),
-        basis: Basis::Expr(u),
-        origin: TermOrigin::Input(InputId(0)),
-    });
-    let signal = |name: &str, kind| SignalIr {
-        name: name.into(),
-        kind,
-        measured: true,
-    };
-    let ir = ModelIr {
-        name: "sdof".into(),
-        bodies: vec![BodyIr {
-            name: "m1".into(),
-            mass: Coef::param(ParamId(0)),
-        }],
-        inputs: vec![InputIr {
-            name: "u".into(),
-            body: b,
-        }],
-        params,
-        signals: vec![
-            signal("m1.x", SignalKind::Position(b)),
-            signal("m1.v", SignalKind::Velocity(b)),
-            signal("u", SignalKind::Input(InputId(0))),
-        ],
-        elements,
-        exprs: arena.into_nodes(),
-        equations: vec![EquationIr { body: b, terms }],
-        excitation: vec![ExcitationIr {
-            input: InputId(0),
-            filter,
-            levels,
-        }],
-        filter: None,
-        spans: SpanTable::default(),
-    };
-    debug_assert!(ir.check_invariants().is_ok());
+    excite(&mut ir, filter, levels);
     ir
 }
 
-/// Two bodies in a chain, ground –(k1, d1)– m1 –(k2, d2)– m2, force `u` on `m2`; all
-/// coefficients known (for multi-body tests).
+/// Two bodies in a chain, ground –(k1, d1)– m1 –(k2, d2)– m2, force `u` on `m2`; the
+/// masses are known, the springs and dampers unknown with these nominal values.
 pub fn two_mass_chain(
     m: [f64; 2],
     k: [f64; 2],
@@ -164,131 +81,40 @@ pub fn two_mass_chain(
     filter: FormFilter,
     levels: Vec<f64>,
 ) -> ModelIr {
-    let mut arena = ExprArena::default();
-    let (b1, b2) = (BodyId(0), BodyId(1));
-    let x1 = arena.signal(SignalId(0));
-    let v1 = arena.signal(SignalId(1));
-    let x2 = arena.signal(SignalId(2));
-    let v2 = arena.signal(SignalId(3));
-    let u = arena.signal(SignalId(4));
-    let s12 = arena.binary(BinaryOp::Sub, x2, x1);
-    let v12 = arena.binary(BinaryOp::Sub, v2, v1);
-    let c = Coef::constant;
-    let term = |coef, basis, origin| TermIr {
-        coef,
-        basis,
-        origin,
-    };
-    let el = |i| TermOrigin::Element(ElementId(i));
-    // Element 0 (ground, m1): s = x1. Element 1 (m1, m2): s = x2 − x1, pushes m1 by +f.
-    let eq1 = vec![
-        term(
-            c(m[0]),
-            Basis::Deriv { body: b1, order: 2 },
-            TermOrigin::Inertia(b1),
-        ),
-        term(c(k[0]), Basis::Expr(x1), el(0)),
-        term(c(d[0]), Basis::Deriv { body: b1, order: 1 }, el(0)),
-        term(c(-k[1]), Basis::Expr(s12), el(1)),
-        term(c(-d[1]), Basis::Deriv { body: b2, order: 1 }, el(1)),
-        term(c(d[1]), Basis::Deriv { body: b1, order: 1 }, el(1)),
-    ];
-    let eq2 = vec![
-        term(
-            c(m[1]),
-            Basis::Deriv { body: b2, order: 2 },
-            TermOrigin::Inertia(b2),
-        ),
-        term(c(k[1]), Basis::Expr(s12), el(1)),
-        term(c(d[1]), Basis::Deriv { body: b2, order: 1 }, el(1)),
-        term(c(-d[1]), Basis::Deriv { body: b1, order: 1 }, el(1)),
-        term(c(-1.0), Basis::Expr(u), TermOrigin::Input(InputId(0))),
-    ];
-    let signal = |name: &str, kind| SignalIr {
-        name: name.into(),
-        kind,
-        measured: true,
-    };
-    let elements = vec![
-        ElementIr {
-            name: "k1".into(),
-            kind: ElementKind::Spring,
-            nodes: (Node::Ground, Node::Body(b1)),
-            s: x1,
-            v: v1,
-            terms: vec![
-                ForceTerm {
-                    coef: c(k[0]),
-                    basis: x1,
-                },
-                ForceTerm {
-                    coef: c(d[0]),
-                    basis: v1,
-                },
-            ],
-        },
-        ElementIr {
-            name: "k2".into(),
-            kind: ElementKind::Spring,
-            nodes: (Node::Body(b1), Node::Body(b2)),
-            s: s12,
-            v: v12,
-            terms: vec![
-                ForceTerm {
-                    coef: c(k[1]),
-                    basis: s12,
-                },
-                ForceTerm {
-                    coef: c(d[1]),
-                    basis: v12,
-                },
-            ],
-        },
-    ];
-    let ir = ModelIr {
-        name: "chain2".into(),
-        bodies: vec![
-            BodyIr {
-                name: "m1".into(),
-                mass: c(m[0]),
-            },
-            BodyIr {
-                name: "m2".into(),
-                mass: c(m[1]),
-            },
-        ],
-        inputs: vec![InputIr {
-            name: "u".into(),
-            body: b2,
-        }],
-        params: Vec::new(),
-        signals: vec![
-            signal("m1.x", SignalKind::Position(b1)),
-            signal("m1.v", SignalKind::Velocity(b1)),
-            signal("m2.x", SignalKind::Position(b2)),
-            signal("m2.v", SignalKind::Velocity(b2)),
-            signal("u", SignalKind::Input(InputId(0))),
-        ],
-        elements,
-        exprs: arena.into_nodes(),
-        equations: vec![
-            EquationIr {
-                body: b1,
-                terms: eq1,
-            },
-            EquationIr {
-                body: b2,
-                terms: eq2,
-            },
-        ],
-        excitation: vec![ExcitationIr {
-            input: InputId(0),
-            filter,
-            levels,
-        }],
-        filter: None,
-        spans: SpanTable::default(),
-    };
-    debug_assert!(ir.check_invariants().is_ok());
+    let mut ir = compile(&format!(
+        "model two_mass_chain {{
+            body m1 = {:?}
+            body m2 = {:?}
+            input u on m2
+            spring k1 (ground, m1) ~ {:?}
+            damper d1 (ground, m1) ~ {:?}
+            spring k2 (m1, m2) ~ {:?}
+            damper d2 (m1, m2) ~ {:?}
+            excite u: white levels [1]
+        }}",
+        m[0], m[1], k[0], d[0], k[1], d[1]
+    ));
+    excite(&mut ir, filter, levels);
     ir
+}
+
+fn compile(src: &str) -> ModelIr {
+    dsl_parser::compile_str("test_model.dyn", src)
+        .unwrap_or_else(|e| panic!("test model does not compile: {e:?}\n{src}"))
+}
+
+/// Nominal values are set on the IR, not in the text, so tests may use values the
+/// language would reject (negative damping for divergence tests).
+fn set_nominal(ir: &mut ModelIr, name: &str, value: f64) {
+    let p = ir.params.iter_mut().find(|p| p.name == name).unwrap();
+    p.kind = ParamKind::Unknown {
+        nominal: Some(value),
+    };
+}
+
+/// The form filter is set on the IR for the same reason (a zero corner must reach the
+/// simulator's own check).
+fn excite(ir: &mut ModelIr, filter: FormFilter, levels: Vec<f64>) {
+    ir.excitation[0].filter = filter;
+    ir.excitation[0].levels = levels;
 }

@@ -326,7 +326,8 @@ fn driven_run_reproduces_the_excited_run_from_rest() {
 #[test]
 fn errors_name_the_culprit() {
     let mut ir = sdof(&SdofParams::benchmark(), lowpass(), vec![6.0]);
-    ir.params[4].kind = ParamKind::Unknown { nominal: None };
+    let r = ir.params.iter_mut().find(|p| p.name == "r").unwrap();
+    r.kind = ParamKind::Unknown { nominal: None };
     let e = simulate(&ir, &cfg(10.0)).unwrap_err();
     assert!(e.to_string().contains("`r`"), "{e}");
 
