@@ -1,6 +1,7 @@
 //! Helpers shared by the subcommands.
 
 use dsl_parser::ir::ModelIr;
+use dynid_runtime::data::CsvOptions;
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::Path;
 
@@ -19,4 +20,29 @@ pub fn load_model(path: &Path) -> miette::Result<ModelIr> {
         return Ok(ir);
     }
     Ok(dsl_parser::compile_file(path)?)
+}
+
+/// How the data files' columns are read; shared by every command that reads level CSVs.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct CsvArgs {
+    /// Read column COLUMN as signal SIGNAL (repeatable), e.g. `--map disp=m1.x`.
+    #[arg(long = "map", value_name = "COLUMN=SIGNAL")]
+    pub map: Vec<String>,
+    /// Sample interval in seconds (needed when the files have no `t` column).
+    #[arg(long = "sample", value_name = "TS")]
+    pub sample: Option<f64>,
+}
+
+impl CsvArgs {
+    /// The reader options, with each `--map` checked against the model's signals.
+    pub fn options(&self, ir: &ModelIr) -> miette::Result<CsvOptions> {
+        let mut csv = CsvOptions {
+            map: Vec::new(),
+            ts: self.sample,
+        };
+        for spec in &self.map {
+            csv.map.push(CsvOptions::parse_map(spec, ir)?);
+        }
+        Ok(csv)
+    }
 }

@@ -1,7 +1,8 @@
 //! `dynid detect LINEAR_MODEL.dyn LEVEL1.csv LEVEL2.csv ...`: which force elements of a
 //! linear model hide a nonlinearity, which kind, and how sure.
 
-use dynid_runtime::data::{CsvOptions, CsvSource, LevelSource};
+use super::common::CsvArgs;
+use dynid_runtime::data::{CsvSource, LevelSource};
 use dynid_runtime::detect::{detect_from_data, plot_curves, DetectOptions, SigmaVSource};
 use dynid_runtime::IdentifyOptions;
 use miette::{miette, IntoDiagnostic, WrapErr};
@@ -43,12 +44,8 @@ pub struct Args {
     /// Plot the parameter curves with the best templates: SVG, or PNG if the name ends in `.png`.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
-    /// Read column COLUMN as signal SIGNAL (repeatable), e.g. `--map disp=m1.x`.
-    #[arg(long = "map", value_name = "COLUMN=SIGNAL")]
-    pub map: Vec<String>,
-    /// Sample interval in seconds (needed when the files have no `t` column).
-    #[arg(long = "sample", value_name = "TS")]
-    pub sample: Option<f64>,
+    #[command(flatten)]
+    pub csv: CsvArgs,
     /// Significance of the constancy test of each curve.
     #[arg(long, default_value_t = 1e-3, value_name = "P")]
     pub alpha: f64,
@@ -56,13 +53,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> miette::Result<()> {
     let ir = super::common::load_model(&args.model)?;
-    let mut csv = CsvOptions {
-        map: Vec::new(),
-        ts: args.sample,
-    };
-    for spec in &args.map {
-        csv.map.push(CsvOptions::parse_map(spec, &ir)?);
-    }
+    let csv = args.csv.options(&ir)?;
     let sources = args
         .data
         .iter()

@@ -1,7 +1,8 @@
 //! `dynid diagnose MODEL.dyn LEVEL.csv...`: where the model misses the data, which
 //! unmodelled effect explains the gap, and how far it shrinks once that effect is added.
 
-use dynid_runtime::data::{CsvOptions, CsvSource};
+use super::common::CsvArgs;
+use dynid_runtime::data::CsvSource;
 use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
 use dynid_runtime::record::Record;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -27,12 +28,8 @@ pub struct Args {
     /// Write the corrected model (.dyn) to this file.
     #[arg(long = "write-model", value_name = "DYN")]
     pub write_model: Option<PathBuf>,
-    /// Read column COLUMN as signal SIGNAL (repeatable), e.g. `--map disp=m1.x`.
-    #[arg(long = "map", value_name = "COLUMN=SIGNAL")]
-    pub map: Vec<String>,
-    /// Sample interval in seconds (needed when the files have no `t` column).
-    #[arg(long = "sample", value_name = "TS")]
-    pub sample: Option<f64>,
+    #[command(flatten)]
+    pub csv: CsvArgs,
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -49,13 +46,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         .into_diagnostic()
         .wrap_err_with(|| format!("cannot read the model `{}`", args.model.display()))?;
     let ir = super::common::load_model(&args.model)?;
-    let mut csv = CsvOptions {
-        map: Vec::new(),
-        ts: args.sample,
-    };
-    for spec in &args.map {
-        csv.map.push(CsvOptions::parse_map(spec, &ir)?);
-    }
+    let csv = args.csv.options(&ir)?;
     let mut records = Vec::new();
     for p in &args.data {
         let src = CsvSource::open(p, &ir, &csv)?;

@@ -1,8 +1,9 @@
 //! `dynid identify MODEL.dyn DATA.csv...`: identify the unknown parameters from one CSV file
 //! per excitation level, print the identified equations and optionally write JSON.
 
+use super::common::CsvArgs;
 use dsl_parser::ir::ModelIr;
-use dynid_runtime::data::{CsvOptions, CsvSource, LevelSource};
+use dynid_runtime::data::{CsvSource, LevelSource};
 use dynid_runtime::ident::{print, Identification};
 use dynid_runtime::{identify, IdentifyOptions};
 use miette::{miette, Context, IntoDiagnostic};
@@ -19,12 +20,8 @@ pub struct Args {
     /// Write the result as JSON to this file.
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
-    /// Read column COLUMN as signal SIGNAL (repeatable), e.g. `--map disp=m1.x`.
-    #[arg(long = "map", value_name = "COLUMN=SIGNAL")]
-    pub map: Vec<String>,
-    /// Sample interval in seconds (needed when the files have no `t` column).
-    #[arg(long = "sample", value_name = "TS")]
-    pub sample: Option<f64>,
+    #[command(flatten)]
+    pub csv: CsvArgs,
     /// Identification filter corners in rad/s (default: designed from the data).
     #[arg(long = "filter-corners", value_delimiter = ',', value_name = "A,B,C")]
     pub filter_corners: Option<Vec<f64>>,
@@ -49,13 +46,7 @@ pub fn run(args: Args) -> miette::Result<()> {
 
 /// Identify from the CSV files named in `args`.
 pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identification> {
-    let mut csv = CsvOptions {
-        map: Vec::new(),
-        ts: args.sample,
-    };
-    for spec in &args.map {
-        csv.map.push(CsvOptions::parse_map(spec, ir)?);
-    }
+    let csv = args.csv.options(ir)?;
     let sources = args
         .data
         .iter()
@@ -206,8 +197,10 @@ mod tests {
             model: "sdof.dyn".into(),
             data,
             json: Some(out.clone()),
-            map: vec!["disp=m1.x".into()],
-            sample: None,
+            csv: CsvArgs {
+                map: vec!["disp=m1.x".into()],
+                sample: None,
+            },
             filter_corners: None,
             no_balance: false,
             balance: false,
@@ -246,8 +239,7 @@ mod tests {
             model: "sdof.dyn".into(),
             data: vec![p.clone()],
             json: None,
-            map: vec![],
-            sample: None,
+            csv: CsvArgs::default(),
             filter_corners: None,
             no_balance: false,
             balance: false,
