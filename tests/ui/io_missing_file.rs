@@ -1,4 +1,6 @@
-// The path is relative to the calling crate's Cargo.toml; this file does not exist.
-dynid::include_model!("models/does_not_exist.dyn");
+// The model file does not exist. (A relative path, the usual form, is taken from the
+// directory of the calling crate's Cargo.toml; the error then names the absolute path it
+// tried, which differs between checkouts, so this case uses an absolute path.)
+dynid::include_model!("/nonexistent/models/two_mass.dyn");
 
 fn main() {}

@@ -295,11 +295,18 @@ pub fn expand_include_model<E: Diagnostic>(
     let source = match std::fs::read_to_string(&abs) {
         Ok(s) => s,
         Err(e) => {
-            let msg = format!(
-                "cannot read model file `{rel}`: {e} [dyn::io]\n  = help: the path is \
-                 relative to the directory of the crate's Cargo.toml; looked for `{}`",
-                abs.display(),
-            );
+            let help = if Path::new(&rel).is_absolute() {
+                "check the path; a relative path is taken from the directory of the \
+                 crate's Cargo.toml"
+                    .to_string()
+            } else {
+                format!(
+                    "the path is relative to the directory of the crate's Cargo.toml; \
+                     looked for `{}`",
+                    abs.display()
+                )
+            };
+            let msg = format!("cannot read model file `{rel}`: {e} [dyn::io]\n  = help: {help}");
             let err = syn::Error::new(path.span(), msg).to_compile_error();
             let stub = stem_stub();
             return quote!(#err #stub);
@@ -476,6 +483,18 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("/nonexistent/crate"), "{text}");
+
+        // An absolute path is not joined to the crate's directory.
+        let lit: syn::LitStr = syn::parse_quote!("/nonexistent/missing.dyn");
+        let out = expand_include_model(
+            &lit,
+            Path::new("/nonexistent/crate"),
+            |_, _| -> Result<ModelIr, Vec<Undefined>> { unreachable!() },
+            &Default::default(),
+        );
+        let text = out.to_string();
+        assert!(text.contains("help: check the path"), "{text}");
+        assert!(!text.contains("/nonexistent/crate"), "{text}");
         assert!(text.contains("pub struct Missing ;"), "{text}");
         assert!(!text.contains("include_str"), "{text}");
     }
