@@ -90,11 +90,22 @@ pub fn generate_pretty(ir: &ModelIr, source: &str, opts: &CodegenOptions) -> Str
     )
 }
 
-/// What to emit in place of a model that failed to compile: the model struct alone, so that
-/// the user sees the diagnostic rather than a cascade of "cannot find type" errors.
-pub fn error_stub(model: &str) -> TokenStream {
-    let ty = Ident::new(&type_name(model), Span::call_site());
-    quote! { pub struct #ty; }
+/// What to emit beside the diagnostics of a model that failed to compile, so that the user
+/// sees those rather than a cascade of "cannot find type" and "no function `new`" errors
+/// from the code that uses the model: the items of a placeholder model of the same name,
+/// which have the whole API (`new`, `simulate`, `identify`, the params struct …) and lack
+/// only the model's own parameter fields and signal constants. The crate never links, as
+/// the diagnostics are errors. A name the placeholder cannot take gets a bare struct.
+pub fn error_stub(model: &str, opts: &CodegenOptions) -> TokenStream {
+    let placeholder =
+        format!("model {model} {{\n body m = 1\n input u on m\n spring k (ground, m) ~ 1\n}}\n");
+    match crate::compile_str(model, &placeholder) {
+        Ok(ir) if ir.name == model => generate(&ir, &placeholder, opts),
+        _ => {
+            let ty = Ident::new(&type_name(model), Span::call_site());
+            quote! { pub struct #ty; }
+        }
+    }
 }
 
 /// Identifiers used by the generated code, resolved once so that every item agrees.

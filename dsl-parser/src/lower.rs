@@ -435,6 +435,10 @@ impl Lowerer<'_> {
                 "reserved",
                 "choose another name; `ground`, `s`, `v`, `t`, the functions and the keywords are reserved".into(),
             );
+            // Still declared, so that its uses are not reported again as unknown names.
+            self.names
+                .entry(ident.name.clone())
+                .or_insert((decl, ident.span));
             return false;
         }
         if let Some(&(_, first)) = self.names.get(&ident.name) {

@@ -28,8 +28,8 @@ pub fn line_col(source: &str, offset: usize) -> (usize, usize) {
 /// A diagnostic flattened into the text of a `compile_error!`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RenderedError {
-    /// Byte offset of the primary label in the source, if the diagnostic has one.
-    pub offset: Option<usize>,
+    /// Byte range of the primary label in the source, if the diagnostic has one.
+    pub range: Option<std::ops::Range<usize>>,
     pub message: String,
 }
 
@@ -69,7 +69,7 @@ pub fn render(diag: &dyn Diagnostic, source: &str, file: Option<&str>) -> Render
         let _ = write!(msg, "\n  = help: {help}");
     }
     RenderedError {
-        offset: label.map(|l| l.offset()),
+        range: label.map(|l| l.offset()..l.offset() + l.len()),
         message: msg,
     }
 }
@@ -237,19 +237,40 @@ impl TokenSource {
             .or(self.tokens.last())
             .map_or_else(Span::call_site, |t| t.2)
     }
+
+    /// The spans of the first and the last token that byte range `range` of
+    /// [`Self::text`] touches (both [`Self::span_at`] the start for an empty range).
+    pub fn span_range(&self, range: std::ops::Range<usize>) -> (Span, Span) {
+        let first = self.span_at(range.start);
+        let last = self
+            .tokens
+            .iter()
+            .rev()
+            .find(|(start, _, _)| *start < range.end && *start >= range.start)
+            .map_or(first, |t| t.2);
+        (first, last)
+    }
 }
 
+/// One `compile_error!` per diagnostic, spanning from the first to the last token that
+/// `spans_of` gives for the diagnostic's byte range.
 fn errors_to_tokens<E: Diagnostic>(
     errors: &[E],
     source: &str,
     file: Option<&str>,
-    span_of: impl Fn(Option<usize>) -> Span,
+    spans_of: impl Fn(Option<std::ops::Range<usize>>) -> (Span, Span),
 ) -> TokenStream {
     errors
         .iter()
         .map(|e| {
             let r = render(e, source, file);
-            syn::Error::new(span_of(r.offset), r.message).to_compile_error()
+            let (first, last) = spans_of(r.range);
+            // A stable proc macro cannot join spans; syn's error spans its tokens' range
+            // by giving the first and last token of `compile_error!` these spans.
+            let ends = quote::quote_spanned!(first=> a)
+                .into_iter()
+                .chain(quote::quote_spanned!(last=> b));
+            syn::Error::new_spanned(ends.collect::<TokenStream>(), r.message).to_compile_error()
         })
         .collect()
 }
@@ -268,18 +289,24 @@ pub fn expand_include_model<E: Diagnostic>(
         Path::new(&rel)
             .file_stem()
             .and_then(|s| s.to_str())
-            .map(error_stub)
+            .map(|n| error_stub(n, opts))
             .unwrap_or_default()
     };
     let source = match std::fs::read_to_string(&abs) {
         Ok(s) => s,
         Err(e) => {
-            let msg = format!(
-                "cannot read model file `{rel}` ({}): {e}\n  = help: the path is relative to \
-                 the crate's directory `{}`",
-                abs.display(),
-                manifest_dir.display()
-            );
+            let help = if Path::new(&rel).is_absolute() {
+                "check the path; a relative path is taken from the directory of the \
+                 crate's Cargo.toml"
+                    .to_string()
+            } else {
+                format!(
+                    "the path is relative to the directory of the crate's Cargo.toml; \
+                     looked for `{}`",
+                    abs.display()
+                )
+            };
+            let msg = format!("cannot read model file `{rel}`: {e} [dyn::io]\n  = help: {help}");
             let err = syn::Error::new(path.span(), msg).to_compile_error();
             let stub = stem_stub();
             return quote!(#err #stub);
@@ -302,9 +329,10 @@ pub fn expand_include_model<E: Diagnostic>(
             quote!(#rebuild #items)
         }
         Err(errors) => {
-            let errs = errors_to_tokens(&errors, &source, Some(&rel), |_| path.span());
+            let errs =
+                errors_to_tokens(&errors, &source, Some(&rel), |_| (path.span(), path.span()));
             let stub = model_name_hint(&source)
-                .map(|n| error_stub(&n))
+                .map(|n| error_stub(&n, opts))
                 .unwrap_or_else(stem_stub);
             quote!(#rebuild #errs #stub)
         }
@@ -326,11 +354,14 @@ pub fn expand_model<E: Diagnostic>(
             generate(&ir, &src.text, &opts)
         }
         Err(errors) => {
-            let errs = errors_to_tokens(&errors, &src.text, None, |off| {
-                off.map_or_else(Span::call_site, |o| src.span_at(o))
+            let errs = errors_to_tokens(&errors, &src.text, None, |range| {
+                range.map_or_else(
+                    || (Span::call_site(), Span::call_site()),
+                    |r| src.span_range(r),
+                )
             });
             let stub = model_name_hint(&src.text)
-                .map(|n| error_stub(&n))
+                .map(|n| error_stub(&n, opts))
                 .unwrap_or_default();
             quote!(#errs #stub)
         }
@@ -375,7 +406,8 @@ mod tests {
     #[test]
     fn rendered_error_names_file_line_column_and_help() {
         let r = render(&undefined_k4(), SRC, Some("models/sdof.dyn"));
-        assert_eq!(r.offset, SRC.find("k4"));
+        let at = SRC.find("k4").unwrap();
+        assert_eq!(r.range, Some(at..at + 2));
         insta::assert_snapshot!(r.message, @r"
         models/sdof.dyn:3:28: undefined name `k4` [dsl::undefined_name]
           |
@@ -414,6 +446,13 @@ mod tests {
         assert_eq!(at(" = k"), (2, 25));
         let past_end = src.span_at(10_000).start();
         assert_eq!((past_end.line, past_end.column), (4, 0));
+
+        // A range maps to its first and last token: `k * m1.x` is `k` … `x`.
+        let start = src.text.find("k *").unwrap();
+        let (first, last) = src.span_range(start..start + "k * m1.x".len());
+        assert_eq!((first.start().column, last.start().column), (27, 34));
+        let (first, last) = src.span_range(start..start);
+        assert_eq!((first.start().column, last.start().column), (27, 27));
     }
 
     #[test]
@@ -444,6 +483,18 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("/nonexistent/crate"), "{text}");
+
+        // An absolute path is not joined to the crate's directory.
+        let lit: syn::LitStr = syn::parse_quote!("/nonexistent/missing.dyn");
+        let out = expand_include_model(
+            &lit,
+            Path::new("/nonexistent/crate"),
+            |_, _| -> Result<ModelIr, Vec<Undefined>> { unreachable!() },
+            &Default::default(),
+        );
+        let text = out.to_string();
+        assert!(text.contains("help: check the path"), "{text}");
+        assert!(!text.contains("/nonexistent/crate"), "{text}");
         assert!(text.contains("pub struct Missing ;"), "{text}");
         assert!(!text.contains("include_str"), "{text}");
     }
