@@ -8,6 +8,7 @@ use std::path::Path;
 fn main() {
     println!("cargo:rerun-if-changed=models");
     println!("cargo:rerun-if-changed=build.rs");
+    println!("cargo:rerun-if-changed=dsl-parser/src/codegen/naming.rs");
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
     let mut files: Vec<String> = std::fs::read_dir(&dir)
         .map(|rd| {
@@ -28,7 +29,7 @@ fn main() {
             stem.replace(|c: char| !c.is_ascii_alphanumeric(), "_")
         );
         // A model whose name cannot be found is still included, so the macro reports why.
-        let Some(model) = model_name(&source) else {
+        let Some(model) = model_name_hint(&source) else {
             let _ = writeln!(modules, "::dynid::include_model!(\"models/{file}\");");
             continue;
         };
@@ -50,41 +51,5 @@ fn main() {
     std::fs::write(path, out).expect("OUT_DIR is writable");
 }
 
-/// The word after the first `model` outside comments (as `dsl_parser::codegen`'s
-/// `model_name_hint`; a mismatch shows up as a compile error of the parity test).
-fn model_name(source: &str) -> Option<String> {
-    let mut words = source
-        .lines()
-        .map(|l| {
-            l.split("//")
-                .next()
-                .unwrap_or("")
-                .split('#')
-                .next()
-                .unwrap_or("")
-        })
-        .flat_map(|l| l.split(|c: char| !(c.is_alphanumeric() || c == '_')))
-        .filter(|w| !w.is_empty());
-    while let Some(w) = words.next() {
-        if w == "model" {
-            return words.next().map(str::to_string);
-        }
-    }
-    None
-}
-
-/// `dsl_parser::codegen::type_name`: `two_mass` → `TwoMass`.
-fn type_name(model: &str) -> String {
-    let mut out = String::new();
-    for part in model.split(|c: char| !c.is_ascii_alphanumeric()) {
-        let mut chars = part.chars();
-        if let Some(first) = chars.next() {
-            out.push(first.to_ascii_uppercase());
-            out.extend(chars);
-        }
-    }
-    if out.is_empty() || out.starts_with(|c: char| c.is_ascii_digit()) {
-        out.insert_str(0, "Model");
-    }
-    out
-}
+// `model_name_hint` and `type_name`, exactly as the macros use them.
+include!("dsl-parser/src/codegen/naming.rs");

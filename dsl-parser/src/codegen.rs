@@ -21,6 +21,9 @@ use quote::{format_ident, quote};
 use std::collections::HashSet;
 
 pub mod macro_support;
+mod naming;
+
+pub use naming::{model_name_hint, type_name};
 
 /// Options of the code generator.
 #[derive(Clone)]
@@ -50,22 +53,6 @@ impl Default for CodegenOptions {
             source_name: None,
         }
     }
-}
-
-/// The Rust type name of a model: `two_mass` → `TwoMass`.
-pub fn type_name(model: &str) -> String {
-    let mut out = String::new();
-    for part in model.split(|c: char| !c.is_ascii_alphanumeric()) {
-        let mut chars = part.chars();
-        if let Some(first) = chars.next() {
-            out.push(first.to_ascii_uppercase());
-            out.extend(chars);
-        }
-    }
-    if out.is_empty() || out.starts_with(|c: char| c.is_ascii_digit()) {
-        out.insert_str(0, "Model");
-    }
-    out
 }
 
 /// Generate the items for `ir`; `source` is the `.dyn` text `ir` was compiled from.

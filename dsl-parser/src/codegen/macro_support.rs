@@ -5,7 +5,7 @@
 //! list of diagnostics; the diagnostics are used only through [`miette::Diagnostic`], whose
 //! labels are byte offsets into `source`.
 
-use super::{error_stub, generate, CodegenOptions};
+use super::{error_stub, generate, model_name_hint, CodegenOptions};
 use crate::ir::ModelIr;
 use miette::Diagnostic;
 use proc_macro2::{Delimiter, Span, TokenStream, TokenTree};
@@ -96,29 +96,6 @@ fn snippet(source: &str, offset: usize, len: usize, label: Option<&str>) -> Stri
         let _ = write!(out, " {label}");
     }
     out
-}
-
-/// The model name in `.dyn` text, found cheaply (the word after the first `model` outside
-/// `#` and `//` comments), for the error stub of a model that does not compile.
-pub fn model_name_hint(source: &str) -> Option<String> {
-    let mut words = source
-        .lines()
-        .map(|l| {
-            l.split("//")
-                .next()
-                .unwrap_or("")
-                .split('#')
-                .next()
-                .unwrap_or("")
-        })
-        .flat_map(|l| l.split(|c: char| !(c.is_alphanumeric() || c == '_')))
-        .filter(|w| !w.is_empty());
-    while let Some(w) = words.next() {
-        if w == "model" {
-            return words.next().map(str::to_string);
-        }
-    }
-    None
 }
 
 /// The `.dyn` text of a `model! { ... }` invocation, with the span of every token, so that a
