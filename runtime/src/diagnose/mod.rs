@@ -737,9 +737,11 @@ struct Search {
     best: Option<(CandidateScore, Variant, ModelGap, Identification)>,
 }
 
-/// One greedy step: try every effect at every location on top of `base`.
+/// One greedy step: try every effect at every location on top of `base`, except the kinds
+/// already `found` at a location (a second copy of a term is collinear with the first).
 fn search_step(
     base: &Variant,
+    found: &[FoundEffect],
     data: &Data,
     baseline: f64,
     opts: &DiagnoseOptions,
@@ -783,6 +785,11 @@ fn search_step(
     let locs = locations(ir);
     let mut cands: Vec<(Effect, Location)> = Vec::new();
     let mut skipped_velocity = false;
+    let already = |kind: &str, loc: &Location| {
+        found
+            .iter()
+            .any(|f| f.effect.kind() == kind && f.location.a == loc.a && f.location.b == loc.b)
+    };
     for loc in &locs {
         for eff in [
             Effect::Cubic,
@@ -795,10 +802,13 @@ fn search_step(
                 skipped_velocity = true;
                 continue;
             }
+            if already(eff.kind(), loc) {
+                continue;
+            }
             cands.push((eff, loc.clone()));
         }
         let sg = sigma_s(loc);
-        if sg > 0.0 {
+        if sg > 0.0 && !already("backlash", loc) {
             for f in [0.1, 0.25, 0.5, 1.0] {
                 cands.push((
                     Effect::Backlash {
@@ -1111,7 +1121,15 @@ pub fn diagnose(
     let mut ranking = Vec::new();
     let mut residual_ranking = Vec::new();
     for step in 0..opts.max_effects {
-        let s = search_step(&current, &data, current_gap.gap, opts, &mut notes, progress);
+        let s = search_step(
+            &current,
+            &found,
+            &data,
+            current_gap.gap,
+            opts,
+            &mut notes,
+            progress,
+        );
         if step == 0 {
             ranking = s.ranking;
         } else if s.best.is_none() {
