@@ -40,9 +40,14 @@ pub struct Args {
     #[arg(long = "drivers", value_delimiter = ',', value_name = "SIGNALS")]
     pub drivers: Option<Vec<String>>,
     /// Cut the arrow into levels, write DIR/level_k.csv (header `t,<output>,<input>` of the
-    /// first model) and print the per-level fits of the first model instead of the table.
+    /// first model, at the `--upsample` rate) and print the per-level fits of the first
+    /// model instead of the table.
     #[arg(long = "export-levels", value_name = "DIR")]
     pub export_levels: Option<PathBuf>,
+    /// Write the estimation parts of the multisines (one per realisation, at the
+    /// `--upsample` rate) as DIR/level_k.csv, e.g. for `dynid diagnose`.
+    #[arg(long = "export-estimation", value_name = "DIR")]
+    pub export_estimation: Option<PathBuf>,
     /// Number of arrow levels for `--export-levels`.
     #[arg(long = "levels", default_value_t = 4, value_name = "N")]
     pub n_levels: usize,
@@ -52,6 +57,9 @@ pub fn run(args: Args) -> miette::Result<()> {
     let data = silverbox::load(&args.data)?;
     if let Some(dir) = &args.export_levels {
         return export_levels(&args, &data, dir);
+    }
+    if let Some(dir) = &args.export_estimation {
+        return export_estimation(&args, &data, dir);
     }
     let split = silverbox::split(&data)?;
     println!(
@@ -159,6 +167,40 @@ pub fn table(reports: &[SilverboxReport]) -> String {
     s
 }
 
+fn export_estimation(
+    args: &Args,
+    data: &silverbox::SilverboxData,
+    dir: &std::path::Path,
+) -> miette::Result<()> {
+    let path = args.models.first().expect("a default model");
+    let ir = super::common::load_model(path)?;
+    let split = silverbox::split(data)?;
+    let records = split
+        .estimation
+        .iter()
+        .map(|s| silverbox::record_upsampled(&ir, data, *s, args.upsample))
+        .collect::<Result<Vec<_>, _>>()?;
+    std::fs::create_dir_all(dir)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("cannot create `{}`", dir.display()))?;
+    for (name, rec) in level_file_names(records.len()).iter().zip(&records) {
+        write_level_csv(&dir.join(name), rec)?;
+    }
+    println!(
+        "{} multisine estimation parts of `{}` written to {}: {}",
+        records.len(),
+        ir.name,
+        dir.display(),
+        split
+            .estimation
+            .iter()
+            .map(|s| format!("[{}, {})", s.start, s.end))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    Ok(())
+}
+
 fn export_levels(
     args: &Args,
     data: &silverbox::SilverboxData,
@@ -180,7 +222,8 @@ fn export_levels(
     if args.filter_order.is_some() {
         opts.order = args.filter_order;
     }
-    let (records, levels) = silverbox::arrow_level_fits(&ir, data, args.n_levels, &opts)?;
+    let (records, levels) =
+        silverbox::arrow_level_fits(&ir, data, args.n_levels, &opts, args.upsample)?;
     std::fs::create_dir_all(dir)
         .into_diagnostic()
         .wrap_err_with(|| format!("cannot create `{}`", dir.display()))?;

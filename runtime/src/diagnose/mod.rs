@@ -96,9 +96,13 @@ impl Default for DiagnoseOptions {
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Effect {
     Cubic,
+    /// An asymmetric spring: stiffer in one direction than the other.
+    QuadraticStiffness,
     Coulomb,
     QuadraticDamping,
-    Backlash { gap: f64 },
+    Backlash {
+        gap: f64,
+    },
     Prestress,
 }
 
@@ -106,6 +110,7 @@ impl Effect {
     pub fn name(&self) -> String {
         match self {
             Effect::Cubic => "cubic stiffness s^3".into(),
+            Effect::QuadraticStiffness => "quadratic (asymmetric) stiffness s^2".into(),
             Effect::Coulomb => "Coulomb friction sign(v)".into(),
             Effect::QuadraticDamping => "quadratic damping v*abs(v)".into(),
             Effect::Backlash { gap } => format!("backlash deadzone(s, {})", fmt_num(*gap)),
@@ -116,6 +121,7 @@ impl Effect {
     pub fn kind(&self) -> &'static str {
         match self {
             Effect::Cubic => "cubic",
+            Effect::QuadraticStiffness => "quadratic_stiffness",
             Effect::Coulomb => "coulomb",
             Effect::QuadraticDamping => "quadratic_damping",
             Effect::Backlash { .. } => "backlash",
@@ -125,6 +131,7 @@ impl Effect {
     fn basis(&self) -> String {
         match self {
             Effect::Cubic => "s^3".into(),
+            Effect::QuadraticStiffness => "s^2".into(),
             Effect::Coulomb => "sign(v)".into(),
             Effect::QuadraticDamping => "v * abs(v)".into(),
             Effect::Backlash { gap } => format!("deadzone(s, {})", fmt_num(*gap)),
@@ -134,6 +141,7 @@ impl Effect {
     fn param_stem(&self) -> &'static str {
         match self {
             Effect::Cubic => "k3",
+            Effect::QuadraticStiffness => "k2",
             Effect::Coulomb => "r",
             Effect::QuadraticDamping => "q",
             Effect::Backlash { .. } => "kb",
@@ -144,9 +152,10 @@ impl Effect {
         matches!(self, Effect::Coulomb | Effect::QuadraticDamping)
     }
     /// Friction, damping, backlash and preload dissipate or resist: a negative coefficient
-    /// is unphysical. A cubic term may harden or soften.
+    /// is unphysical. A cubic term may harden or soften; the sign of a quadratic term only
+    /// says in which direction the spring is stiffer.
     fn sign_ok(&self, p: f64) -> bool {
-        matches!(self, Effect::Cubic) || p >= 0.0
+        matches!(self, Effect::Cubic | Effect::QuadraticStiffness) || p >= 0.0
     }
 }
 
@@ -293,6 +302,10 @@ pub struct Diagnosis {
     pub found: Vec<FoundEffect>,
     /// Candidates of the first search step, best first.
     pub ranking: Vec<CandidateScore>,
+    /// Candidates of the last search step, the one that added nothing (on top of the found
+    /// effects), best first; empty when the first step found nothing or the search stopped at
+    /// `max_effects`. What else the data hints at, below the acceptance threshold.
+    pub residual_ranking: Vec<CandidateScore>,
     pub notes: Vec<String>,
     /// The corrected model's source (identified values as nominals).
     pub fixed_source: String,
@@ -724,9 +737,11 @@ struct Search {
     best: Option<(CandidateScore, Variant, ModelGap, Identification)>,
 }
 
-/// One greedy step: try every effect at every location on top of `base`.
+/// One greedy step: try every effect at every location on top of `base`, except the kinds
+/// already `found` at a location (a second copy of a term is collinear with the first).
 fn search_step(
     base: &Variant,
+    found: &[FoundEffect],
     data: &Data,
     baseline: f64,
     opts: &DiagnoseOptions,
@@ -770,9 +785,15 @@ fn search_step(
     let locs = locations(ir);
     let mut cands: Vec<(Effect, Location)> = Vec::new();
     let mut skipped_velocity = false;
+    let already = |kind: &str, loc: &Location| {
+        found
+            .iter()
+            .any(|f| f.effect.kind() == kind && f.location.a == loc.a && f.location.b == loc.b)
+    };
     for loc in &locs {
         for eff in [
             Effect::Cubic,
+            Effect::QuadraticStiffness,
             Effect::Coulomb,
             Effect::QuadraticDamping,
             Effect::Prestress,
@@ -781,10 +802,13 @@ fn search_step(
                 skipped_velocity = true;
                 continue;
             }
+            if already(eff.kind(), loc) {
+                continue;
+            }
             cands.push((eff, loc.clone()));
         }
         let sg = sigma_s(loc);
-        if sg > 0.0 {
+        if sg > 0.0 && !already("backlash", loc) {
             for f in [0.1, 0.25, 0.5, 1.0] {
                 cands.push((
                     Effect::Backlash {
@@ -798,7 +822,7 @@ fn search_step(
     if skipped_velocity && !notes.iter().any(|s| s.contains("velocities")) {
         notes.push(
             "velocities are not measured: Coulomb friction and quadratic damping candidates \
-             were skipped (cubic, backlash and prestress were searched)"
+             were skipped (cubic, quadratic stiffness, backlash and prestress were searched)"
                 .into(),
         );
     }
@@ -1095,10 +1119,21 @@ pub fn diagnose(
     let mut current_fit = pooled.clone();
     let mut found = Vec::new();
     let mut ranking = Vec::new();
+    let mut residual_ranking = Vec::new();
     for step in 0..opts.max_effects {
-        let s = search_step(&current, &data, current_gap.gap, opts, &mut notes, progress);
+        let s = search_step(
+            &current,
+            &found,
+            &data,
+            current_gap.gap,
+            opts,
+            &mut notes,
+            progress,
+        );
         if step == 0 {
             ranking = s.ranking;
+        } else if s.best.is_none() {
+            residual_ranking = s.ranking;
         }
         let Some((c, v, g, fit)) = s.best else { break };
         let param = v.added.last().cloned().unwrap_or_default();
@@ -1207,6 +1242,7 @@ pub fn diagnose(
         moved,
         found,
         ranking,
+        residual_ranking,
         notes,
         fixed_source: fixed,
         spectra,
@@ -1359,6 +1395,30 @@ impl Diagnosis {
                         next.location.label(),
                         next.gap.unwrap_or(f64::NAN)
                     );
+                }
+                if !self.residual_ranking.is_empty() {
+                    let _ = writeln!(s, "On top of that, below the acceptance threshold:");
+                    for c in self.residual_ranking.iter().take(4) {
+                        let gap = c
+                            .gap
+                            .map_or(String::new(), |g| format!(", withheld gap {g:.1} %"));
+                        let val = if c.value.is_finite() {
+                            format!("{} ± {}", fmt_num(c.value), fmt_num(c.stderr))
+                        } else {
+                            "–".into()
+                        };
+                        let _ = writeln!(
+                            s,
+                            "  {} at {}: {val}{gap} ({})",
+                            c.effect.name(),
+                            c.location.label(),
+                            if c.note.is_empty() {
+                                "not scored"
+                            } else {
+                                &c.note
+                            }
+                        );
+                    }
                 }
             }
             Verdict::MistunedParameters => {

@@ -144,6 +144,46 @@ fn end_velocity(x: &[f64], ts: f64) -> f64 {
     c[1] / ts
 }
 
+/// Half-width of the centred window of the velocity estimate at interior block boundaries.
+const VHAT_HALF: usize = 10;
+
+/// Velocity at the centre of `x` (2·[`VHAT_HALF`] + 1 samples, spacing `ts`) from a
+/// least-squares polynomial of degree 5 (Savitzky–Golay). At interior block boundaries
+/// samples on both sides are available; the one-sided quadratic of [`end_velocity`] is
+/// biased there by the curvature of the signal, and with only tens of samples per period
+/// its error at every boundary of a deleted block inflated the jackknife spread many times
+/// over (the boundary terms of the two edges of a deleted block no longer cancel). The
+/// centred fit is exact for polynomials of degree 5 and passes a sinusoid with 35 samples
+/// per period within 0.1 % (the one-sided fit: about 100 % RMS error there), for a white-noise
+/// gain of 0.16 / Tₛ (one-sided: 0.14 / Tₛ).
+fn central_velocity(x: &[f64], ts: f64) -> f64 {
+    let h = (x.len() / 2) as f64;
+    let deg = 5;
+    let mut a = nalgebra::DMatrix::<f64>::zeros(deg + 1, deg + 1);
+    let mut e = nalgebra::DVector::<f64>::zeros(deg + 1);
+    e[1] = 1.0;
+    for k in 0..x.len() {
+        let t = k as f64 - h;
+        for i in 0..=deg {
+            for j in 0..=deg {
+                a[(i, j)] += t.powi((i + j) as i32);
+            }
+        }
+    }
+    let Some(c) = a.lu().solve(&e) else {
+        return end_velocity(x, ts);
+    };
+    x.iter()
+        .enumerate()
+        .map(|(k, &xk)| {
+            let t = k as f64 - h;
+            let w: f64 = (0..=deg).map(|j| c[j] * t.powi(j as i32)).sum();
+            w * xk
+        })
+        .sum::<f64>()
+        / ts
+}
+
 /// Streams the samples of one level through the filter bank and accumulates moments.
 pub(crate) struct LevelAccumulator<'a> {
     plan: &'a Plan,
@@ -293,10 +333,19 @@ impl<'a> LevelAccumulator<'a> {
                 self.qrow[k] = self.wbuf[k * len];
             }
             for (k, body) in plan.vhat_bodies.iter().enumerate() {
-                let x = view[self.plan_position(*body)][0];
-                let mut win: Vec<f64> = self.tails[k].clone();
-                win.push(x);
-                self.qrow[n_w + k] = end_velocity(&win, self.ts);
+                let x = view[self.plan_position(*body)];
+                let tail = &self.tails[k];
+                // Interior boundary with enough samples on both sides in hand: centred fit.
+                // (A boundary within a few samples of a chunk end keeps the one-sided fit.)
+                if tail.len() >= VHAT_HALF && x.len() > VHAT_HALF {
+                    let mut win: Vec<f64> = tail[tail.len() - VHAT_HALF..].to_vec();
+                    win.extend_from_slice(&x[..=VHAT_HALF]);
+                    self.qrow[n_w + k] = central_velocity(&win, self.ts);
+                } else {
+                    let mut win: Vec<f64> = tail.clone();
+                    win.push(x[0]);
+                    self.qrow[n_w + k] = end_velocity(&win, self.ts);
+                }
             }
             let snap = &mut self.snaps[b];
             for i in 0..n_i {
