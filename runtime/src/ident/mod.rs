@@ -597,9 +597,9 @@ impl<'m> Moments<'m> {
     }
 
     /// Use level `i` alone with some unknowns held at given values (moved to the
-    /// right-hand side; they are not reported among the estimates). Detection holds the
-    /// inertia at its pooled estimate this way: a mass is the same at every level, and a
-    /// short level cannot separate it from the stiffness.
+    /// right-hand side; they are not reported among the estimates). Detection holds an
+    /// unknown mass at one value for all levels this way: a mass is the same at every
+    /// level, and a short level cannot separate it from the stiffness.
     pub fn identify_level_holding(&self, i: usize, held: &[(String, f64)]) -> Identification {
         let cols: Vec<(usize, f64)> = held
             .iter()
