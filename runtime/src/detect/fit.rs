@@ -12,7 +12,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::candidate::{Candidate, Dependence};
+use super::candidate::{Candidate, Dependence, Distribution};
 use super::{Estimate, Prediction, TemplateFit};
 
 /// One curve of an element as the fit sees it.
@@ -30,6 +30,9 @@ pub(crate) struct ElementData {
     pub damping: Option<CurveData>,
     pub sigma_s: Vec<f64>,
     pub sigma_v: Vec<f64>,
+    /// Measured distributions per level, or empty (Gaussian gains).
+    pub s_dist: Vec<Distribution>,
+    pub v_dist: Vec<Distribution>,
 }
 
 impl ElementData {
@@ -37,6 +40,31 @@ impl ElementData {
         self.stiffness.as_ref().map_or(0, |c| c.y.len())
             + self.damping.as_ref().map_or(0, |c| c.y.len())
     }
+    /// The gains of an effect at level `l`.
+    pub fn gains(&self, c: &Candidate, l: usize, theta: f64) -> (f64, f64) {
+        c.gains_with(
+            self.sigma_s[l],
+            self.sigma_v[l],
+            theta,
+            self.s_dist.get(l),
+            self.v_dist.get(l),
+        )
+    }
+
+    /// The gains along the plotting path at (σ_s, σ_v): with the distribution of the level
+    /// nearest in σ_s, so that the curve passes through the fitted value at each level.
+    fn gains_at(&self, c: &Candidate, ss: f64, sv: f64, theta: f64) -> (f64, f64) {
+        let l = (0..self.sigma_s.len())
+            .min_by(|&a, &b| {
+                (self.sigma_s[a] / ss)
+                    .ln()
+                    .abs()
+                    .total_cmp(&(self.sigma_s[b] / ss).ln().abs())
+            })
+            .unwrap_or(0);
+        c.gains_with(ss, sv, theta, self.s_dist.get(l), self.v_dist.get(l))
+    }
+
     fn n_bases(&self) -> usize {
         usize::from(self.stiffness.is_some()) + usize::from(self.damping.is_some())
     }
@@ -130,7 +158,7 @@ fn design(
             effects
                 .iter()
                 .zip(thetas)
-                .map(|(c, &t)| c.gains(el.sigma_s[l], el.sigma_v[l], t))
+                .map(|(c, &t)| el.gains(c, l, t))
                 .collect()
         })
         .collect();
@@ -405,7 +433,7 @@ pub(crate) fn fit_template(
     for &(ss, sv) in &path {
         let (mut yk, mut yd) = (0.0, 0.0);
         for (j, e) in effects.iter().enumerate() {
-            let (hk, hd) = e.gains(ss, sv, thetas[j]);
+            let (hk, hd) = el.gains_at(e, ss, sv, thetas[j]);
             yk += fit.beta[nb + j] * hk;
             yd += fit.beta[nb + j] * hd;
         }
