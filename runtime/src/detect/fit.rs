@@ -51,18 +51,45 @@ impl ElementData {
         )
     }
 
-    /// The gains along the plotting path at (σ_s, σ_v): with the distribution of the level
-    /// nearest in σ_s, so that the curve passes through the fitted value at each level.
+    /// The gains along the plotting path at (σ_s, σ_v): the Gaussian gain times the ratio
+    /// measured/Gaussian interpolated in ln σ_s between the levels (held beyond them), so
+    /// that the curve is smooth and passes through the fitted value at each level.
     fn gains_at(&self, c: &Candidate, ss: f64, sv: f64, theta: f64) -> (f64, f64) {
-        let l = (0..self.sigma_s.len())
-            .min_by(|&a, &b| {
-                (self.sigma_s[a] / ss)
-                    .ln()
-                    .abs()
-                    .total_cmp(&(self.sigma_s[b] / ss).ln().abs())
+        let g = c.gains(ss, sv, theta);
+        if self.s_dist.is_empty() && self.v_dist.is_empty() {
+            return g;
+        }
+        let ratio = |m: f64, g: f64| {
+            if g != 0.0 && m.is_finite() {
+                m / g
+            } else {
+                1.0
+            }
+        };
+        let mut pts: Vec<(f64, f64, f64)> = (0..self.sigma_s.len())
+            .map(|l| {
+                let m = self.gains(c, l, theta);
+                let g = c.gains(self.sigma_s[l], self.sigma_v[l], theta);
+                (self.sigma_s[l].ln(), ratio(m.0, g.0), ratio(m.1, g.1))
             })
-            .unwrap_or(0);
-        c.gains_with(ss, sv, theta, self.s_dist.get(l), self.v_dist.get(l))
+            .collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let x = ss.ln();
+        let k = pts.iter().position(|p| p.0 >= x).unwrap_or(pts.len());
+        let (rk, rd) = if k == 0 {
+            (pts[0].1, pts[0].2)
+        } else if k == pts.len() {
+            (pts[k - 1].1, pts[k - 1].2)
+        } else {
+            let (a, b) = (pts[k - 1], pts[k]);
+            let f = if b.0 > a.0 {
+                (x - a.0) / (b.0 - a.0)
+            } else {
+                0.0
+            };
+            (a.1 + f * (b.1 - a.1), a.2 + f * (b.2 - a.2))
+        };
+        (g.0 * rk, g.1 * rd)
     }
 
     fn n_bases(&self) -> usize {
