@@ -3,8 +3,9 @@
 //! A linear model fitted separately at each excitation level gives, for every linear
 //! parameter, a curve over the levels. A linear element gives a constant; an element that
 //! hides a nonlinearity gives an equivalent-linear parameter that drifts with the level's
-//! intensity, and the shape of the drift names the effect (statistical linearisation with
-//! Gaussian s, v; see [`Candidate`]):
+//! intensity, and the shape of the drift names the effect (statistical linearisation; the
+//! closed forms below are for Gaussian s, v, and effects of s are by default linearised
+//! over the measured distribution of s instead, see [`Linearisation`] and [`Candidate`]):
 //!
 //! | effect            | force          | equivalent linear parameter           |
 //! |-------------------|----------------|---------------------------------------|
