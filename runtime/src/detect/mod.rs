@@ -1040,7 +1040,7 @@ impl Detection {
                 let _ = writeln!(
                     out,
                     "  also suspected: {} — `{}` drifts too (p = {:.1e}) and the verdict leaves \
-                     that unexplained;\n  the pair ranks {} (ΔAICc {}): {};\n  more levels \
+                     that unexplained;\n  the pair is #{} in the ranking (ΔAICc {}): {};\n  more levels \
                      would separate the two",
                     x.effect,
                     x.curve,
