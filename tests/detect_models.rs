@@ -5,7 +5,8 @@
 use dynid::dsl_parser::{compile_file, compile_str, ir::ModelIr};
 use dynid::runtime::data::{LevelSource, RecordSource};
 use dynid::runtime::detect::{
-    detect_from_data, DetectOptions, Detection, ElementFinding, LevelFits, Verdict,
+    detect, detect_from_data, DetectOptions, Detection, ElementFinding, LevelFits, Linearisation,
+    Verdict,
 };
 use dynid::runtime::record::Record;
 use dynid::runtime::sim::{simulate, SimConfig};
@@ -118,15 +119,15 @@ const DURATION: f64 = 400.0;
 
 #[test]
 fn duffing_is_cubic_at_the_spring() {
-    // Statistical linearisation assumes a Gaussian s; the hardening spring at the loudest
-    // level makes s markedly sub-Gaussian, so the implied k3 comes out low (see docs).
+    // The hardening spring makes s light-tailed at the loudest level; linearised over the
+    // measured distribution of s the implied k3 is 2.08 (a Gaussian s gave 1.50).
     check(
         "sdof_duffing",
         "sdof_linear",
         "k/d (ground, m)",
         "cubic stiffness",
         &[("k3", 2.0)],
-        0.35,
+        0.10,
     );
 }
 
@@ -169,7 +170,7 @@ fn prestress_is_found() {
 #[test]
 fn backlash_is_found() {
     // The gap and the stiffness trade off along three points: the template is named
-    // reliably, its two parameters only roughly (measured: kb −36 %, g +63 %).
+    // reliably, its two parameters only roughly (measured: kb −17 %, g +20 %).
     check(
         "backlash",
         "backlash_linear",
@@ -180,20 +181,27 @@ fn backlash_is_found() {
     );
 }
 
-/// Both effects in one element: at 400 s per level the cubic spring dominates the verdict
-/// and the pair template ranks second with the friction visible (r ≈ 0.2 of 0.3).
+/// Both effects in one element at three levels: the cubic spring is the verdict, the
+/// friction is reported as suspected (the damping curve drifts too, and the pair ranks
+/// second with r ≈ 0.2 of 0.3). Over seeds 7, 8, 9 the pair won once at three levels
+/// (`cubic_coulomb_level_count`).
 #[test]
 fn cubic_and_coulomb_in_one_element() {
     let recs = sim("sdof_cubic_coulomb", DURATION, 7);
     let (d, _) = run("sdof_linear", &recs, false);
     println!("{}", d.render_table());
-    let (name, _) = best(&d, "k/d (ground, m)");
-    assert!(name.contains("cubic stiffness"), "{name}");
+    let (name, est) = best(&d, "k/d (ground, m)");
+    assert_eq!(name, "cubic stiffness");
+    assert!(rel(implied(&est, "k3"), 2.0).abs() < 0.15, "{est:?}");
     let f = finding(&d, "k/d (ground, m)");
-    let pair = f.ranking[..2]
+    let sus = f.suspected.as_ref().expect("the friction is suspected");
+    assert_eq!(sus.effect, "Coulomb friction");
+    assert_eq!(sus.curve, "d");
+    let pair = f
+        .ranking
         .iter()
         .find(|t| t.name == "cubic stiffness + Coulomb friction")
-        .expect("the pair template ranks in the top two");
+        .unwrap();
     let r = pair
         .effect_estimates()
         .iter()
@@ -204,25 +212,38 @@ fn cubic_and_coulomb_in_one_element() {
     assert!(r > 0.1, "the friction shows in the pair fit");
 }
 
-/// two_mass hides cubic stiffness and Coulomb friction in the coupling: the coupling must
-/// be flagged (the best template is the cubic spring; the verdict is not always a clean
-/// `nonlinear`) and the ground element must stay linear.
+/// With four levels over the same range the pair is the verdict (seeds 7, 8, 9 all, and
+/// with 5, 6, 7 levels too): k3 within 3 %, r 0.21–0.29 of 0.3.
+#[test]
+fn cubic_and_coulomb_separate_at_four_levels() {
+    let ir = compile_str("sdof_cubic_coulomb", &cubic_coulomb_levels(4)).unwrap();
+    let recs = sim_ir(&ir, DURATION, 7);
+    let (d, _) = run("sdof_linear", &recs, false);
+    println!("{}", d.render_table());
+    let (name, est) = best(&d, "k/d (ground, m)");
+    assert_eq!(name, "cubic stiffness + Coulomb friction");
+    assert!(rel(implied(&est, "k3"), 2.0).abs() < 0.1, "{est:?}");
+    assert!(rel(implied(&est, "r"), 0.3).abs() < 0.35, "{est:?}");
+}
+
+/// two_mass hides cubic stiffness and Coulomb friction in the coupling: at three levels
+/// the coupling's verdict is the cubic spring (k3 = 1.49 of 1.5) with the friction
+/// suspected, and the ground element stays linear.
 #[test]
 fn two_mass_nonlinear_coupling_linear_ground() {
     let recs = sim("two_mass", DURATION, 7);
     let (d, _) = run("two_mass_linear", &recs, false);
     println!("{}", d.render_table());
     assert_eq!(finding(&d, "k1/d1 (ground, m1)").verdict, Verdict::Linear);
+    let (name, est) = best(&d, "k2/d2 (m1, m2)");
+    assert_eq!(name, "cubic stiffness");
+    assert!(rel(implied(&est, "k3"), 1.5).abs() < 0.15, "{est:?}");
     let f = finding(&d, "k2/d2 (m1, m2)");
-    assert_ne!(f.verdict, Verdict::Linear);
-    assert!(
-        f.ranking[0].name.contains("cubic stiffness"),
-        "{}",
-        f.ranking[0].name
+    assert_eq!(
+        f.suspected.as_ref().map(|s| s.effect.as_str()),
+        Some("Coulomb friction")
     );
-    assert!(f.ranking[..2]
-        .iter()
-        .any(|t| t.name == "cubic stiffness + Coulomb friction"));
+    assert_eq!(f.ranking[1].name, "cubic stiffness + Coulomb friction");
 }
 
 const FRICTION_AT_GROUND: &str = "
@@ -327,4 +348,146 @@ fn sigma_v_from_zero_crossings() {
             println!("positions only: r = {:.4} (truth 0.3)", implied(&est, "r"));
         }
     }
+}
+
+/// Truth model, linear model, element, truth of the implied parameters.
+type Case = (
+    &'static str,
+    &'static str,
+    &'static str,
+    &'static [(&'static str, f64)],
+);
+
+/// Implied parameters with Gaussian and with measured linearisation on the same per-level
+/// fits, mean over seeds:
+/// `cargo test --release --test detect_models -- --ignored --nocapture linearisation_bias`
+#[test]
+#[ignore = "measurement: implied-parameter bias of the two linearisations"]
+fn linearisation_bias() {
+    let cases: [Case; 6] = [
+        (
+            "sdof_duffing",
+            "sdof_linear",
+            "k/d (ground, m)",
+            &[("k3", 2.0)],
+        ),
+        (
+            "sdof_coulomb",
+            "sdof_linear",
+            "k/d (ground, m)",
+            &[("r", 0.3)],
+        ),
+        (
+            "quadratic_damping",
+            "quadratic_damping_linear",
+            "k/d (ground, m)",
+            &[("c", 0.2)],
+        ),
+        (
+            "prestress",
+            "prestress_linear",
+            "d/k (ground, m)",
+            &[("f0", 0.5)],
+        ),
+        (
+            "backlash",
+            "backlash_linear",
+            "k/d (ground, m)",
+            &[("kb", 4.0), ("g", 0.1)],
+        ),
+        (
+            "sdof_cubic_coulomb",
+            "sdof_linear",
+            "k/d (ground, m)",
+            &[("k3", 2.0)],
+        ),
+    ];
+    let seeds = 7..11u64;
+    for (truth, linear, element, expect) in cases {
+        let ir = model(linear);
+        let mut sums = vec![[0.0f64; 2]; expect.len()];
+        for seed in seeds.clone() {
+            let recs = sim(truth, DURATION, seed);
+            let (_, fits) = run_ir(&ir, &recs, false);
+            for (k, lin) in [Linearisation::Gaussian, Linearisation::Measured]
+                .into_iter()
+                .enumerate()
+            {
+                let opts = DetectOptions {
+                    linearisation: lin,
+                    se_dof: Some(fits.n_blocks as f64 - 1.0),
+                    ..Default::default()
+                };
+                let d = detect(&fits.input, &[], &opts).unwrap();
+                let f = finding(&d, element);
+                let top = &f.ranking[0];
+                for (j, (p, _)) in expect.iter().enumerate() {
+                    let v = top
+                        .effect_estimates()
+                        .iter()
+                        .find(|e| e.name == *p)
+                        .map_or(f64::NAN, |e| e.value);
+                    sums[j][k] += v;
+                }
+                println!(
+                    "{truth} seed {seed} {}: {} ({})",
+                    if k == 1 { "measured" } else { "gaussian" },
+                    f.verdict,
+                    top.summary()
+                );
+            }
+        }
+        let n = seeds.clone().count() as f64;
+        for (j, (p, t)) in expect.iter().enumerate() {
+            let (g, m) = (sums[j][0] / n, sums[j][1] / n);
+            println!(
+                "SUMMARY {truth}: {p} truth {t}: gaussian {g:.4} ({:+.1} %), measured {m:.4} ({:+.1} %)",
+                100.0 * rel(g, *t),
+                100.0 * rel(m, *t)
+            );
+        }
+    }
+}
+
+/// sdof_cubic_coulomb with 3 to 7 levels spanning the same range (6…40), for how many
+/// levels the pair wins: `cargo test --release --test detect_models -- --ignored
+/// --nocapture cubic_coulomb_level_count`
+#[test]
+#[ignore = "measurement: levels needed to separate two effects in one element"]
+fn cubic_coulomb_level_count() {
+    for n in 3..=7usize {
+        for seed in [7u64, 8, 9] {
+            let ir = compile_str("sdof_cubic_coulomb", &cubic_coulomb_levels(n)).unwrap();
+            let recs = sim_ir(&ir, DURATION, seed);
+            let (d, _) = run("sdof_linear", &recs, false);
+            let f = finding(&d, "k/d (ground, m)");
+            println!(
+                "LEVELS {n} seed {seed}: {} | top: {} | suspected: {:?}",
+                f.verdict,
+                f.ranking[0].summary(),
+                f.suspected.as_ref().map(|s| (&s.effect, s.pair_delta_aicc))
+            );
+        }
+    }
+}
+
+/// The prototype system with `n` levels geometrically spaced over 6…40.
+fn cubic_coulomb_levels(n: usize) -> String {
+    let levels: Vec<String> = (0..n)
+        .map(|i| {
+            let t = i as f64 / (n - 1) as f64;
+            format!("{:.3}", 6.0 * (40.0f64 / 6.0).powf(t))
+        })
+        .collect();
+    format!(
+        "model sdof_cubic_coulomb {{
+    body m = 1.0
+    input u on m
+    spring k (ground, m) ~ 4.0
+    damper d (ground, m) ~ 0.4
+    force nl (ground, m) = k3 ~ 2.0 * s^3 + r ~ 0.3 * sign(v)
+    excite u: lowpass(corner = 10) levels [{}]
+}}",
+        levels.join(", ")
+    )
 }

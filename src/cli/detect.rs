@@ -24,7 +24,11 @@ Example:
       --plot curves.png --json detect.json
 
   Element k/d (ground, m): nonlinear: cubic stiffness
-    k3 = 1.49 ± 0.20; explains 95.0 % of the drift
+    k3 = 1.98 ± 0.28; explains 94.2 % of the drift, χ²/dof = 5.234
+
+Unknown masses are held at one value for all levels (a nonlinear force linearises to a
+stiffness or damping, never to a mass). A second effect that a single-effect verdict
+leaves unexplained is reported as `also suspected`; more levels separate the two.
 
 Next step: add the named term to the model (e.g. `force nl (ground, m) = k3 * s^3`) and
 run `dynid identify` on the same files.";

@@ -14,6 +14,43 @@
 
 use super::quad::NormalRule;
 
+/// The measured distribution of a signal at one level, standardised (z = (x − mean)/σ):
+/// histogram bin centres with their probabilities. With it, the gains are the
+/// least-squares projections over the data's own distribution instead of a Gaussian one
+/// (see [`Candidate::gains_with`]).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Distribution {
+    pub z: Vec<f64>,
+    pub w: Vec<f64>,
+}
+
+impl Distribution {
+    /// From histogram counts over equal bins `[lo + i·h, lo + (i+1)·h)` of the raw signal.
+    pub fn from_counts(counts: &[u64], lo: f64, h: f64, mean: f64, sigma: f64) -> Self {
+        let n: u64 = counts.iter().sum();
+        let mut out = Self::default();
+        if n == 0 || sigma.is_nan() || sigma <= 0.0 {
+            return out;
+        }
+        for (i, &c) in counts.iter().enumerate() {
+            if c > 0 {
+                out.z.push((lo + (i as f64 + 0.5) * h - mean) / sigma);
+                out.w.push(c as f64 / n as f64);
+            }
+        }
+        out
+    }
+
+    /// E[f(Z)].
+    pub fn expect(&self, f: impl Fn(f64) -> f64) -> f64 {
+        self.z.iter().zip(&self.w).map(|(z, w)| w * f(*z)).sum()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.z.is_empty()
+    }
+}
+
 /// Which of the element's relative signals φ depends on; it decides whether the
 /// expectation is one- or two-dimensional.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -223,7 +260,38 @@ impl Candidate {
         ]
     }
 
-    /// Equivalent-linear gains (h_k, h_d) at intensities (σ_s, σ_v) and shape θ.
+    /// Equivalent-linear gains as projections over measured distributions of s and v
+    /// (standardised, see [`Distribution`]): h_k = E[s φ]/E[s²], h_d = E[v φ]/E[v²] with
+    /// the expectations taken over the data. An effect that reshapes the motion (a
+    /// hardening spring makes s light-tailed, stick–slip piles v up near zero) then gets
+    /// the gain it has on that motion rather than on a Gaussian one. `None` (or an
+    /// effect of both s and v, whose joint distribution is not kept) falls back to the
+    /// Gaussian [`Candidate::gains`].
+    pub fn gains_with(
+        &self,
+        sigma_s: f64,
+        sigma_v: f64,
+        theta: f64,
+        s_dist: Option<&Distribution>,
+        v_dist: Option<&Distribution>,
+    ) -> (f64, f64) {
+        match (self.dependence, s_dist, v_dist) {
+            (Dependence::S, Some(d), _) if !d.is_empty() => {
+                let num = d.expect(|z| z * self.phi(sigma_s * z, 0.0, theta));
+                let den = d.expect(|z| z * z);
+                (num / (den * sigma_s), 0.0)
+            }
+            (Dependence::V, _, Some(d)) if !d.is_empty() => {
+                let num = d.expect(|z| z * self.phi(0.0, sigma_v * z, theta));
+                let den = d.expect(|z| z * z);
+                (0.0, num / (den * sigma_v))
+            }
+            _ => self.gains(sigma_s, sigma_v, theta),
+        }
+    }
+
+    /// Equivalent-linear gains (h_k, h_d) at intensities (σ_s, σ_v) and shape θ, for
+    /// Gaussian s and v.
     pub fn gains(&self, sigma_s: f64, sigma_v: f64, theta: f64) -> (f64, f64) {
         let breaks = |fixed: &[f64], sigma: f64, shaped: bool| {
             let mut b: Vec<f64> = fixed.iter().map(|k| k / sigma).collect();

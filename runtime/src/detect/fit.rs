@@ -12,7 +12,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::candidate::{Candidate, Dependence};
+use super::candidate::{Candidate, Dependence, Distribution};
 use super::{Estimate, Prediction, TemplateFit};
 
 /// One curve of an element as the fit sees it.
@@ -30,6 +30,9 @@ pub(crate) struct ElementData {
     pub damping: Option<CurveData>,
     pub sigma_s: Vec<f64>,
     pub sigma_v: Vec<f64>,
+    /// Measured distributions per level, or empty (Gaussian gains).
+    pub s_dist: Vec<Distribution>,
+    pub v_dist: Vec<Distribution>,
 }
 
 impl ElementData {
@@ -37,6 +40,58 @@ impl ElementData {
         self.stiffness.as_ref().map_or(0, |c| c.y.len())
             + self.damping.as_ref().map_or(0, |c| c.y.len())
     }
+    /// The gains of an effect at level `l`.
+    pub fn gains(&self, c: &Candidate, l: usize, theta: f64) -> (f64, f64) {
+        c.gains_with(
+            self.sigma_s[l],
+            self.sigma_v[l],
+            theta,
+            self.s_dist.get(l),
+            self.v_dist.get(l),
+        )
+    }
+
+    /// The gains along the plotting path at (σ_s, σ_v): the Gaussian gain times the ratio
+    /// measured/Gaussian interpolated in ln σ_s between the levels (held beyond them), so
+    /// that the curve is smooth and passes through the fitted value at each level.
+    fn gains_at(&self, c: &Candidate, ss: f64, sv: f64, theta: f64) -> (f64, f64) {
+        let g = c.gains(ss, sv, theta);
+        if self.s_dist.is_empty() && self.v_dist.is_empty() {
+            return g;
+        }
+        let ratio = |m: f64, g: f64| {
+            if g != 0.0 && m.is_finite() {
+                m / g
+            } else {
+                1.0
+            }
+        };
+        let mut pts: Vec<(f64, f64, f64)> = (0..self.sigma_s.len())
+            .map(|l| {
+                let m = self.gains(c, l, theta);
+                let g = c.gains(self.sigma_s[l], self.sigma_v[l], theta);
+                (self.sigma_s[l].ln(), ratio(m.0, g.0), ratio(m.1, g.1))
+            })
+            .collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let x = ss.ln();
+        let k = pts.iter().position(|p| p.0 >= x).unwrap_or(pts.len());
+        let (rk, rd) = if k == 0 {
+            (pts[0].1, pts[0].2)
+        } else if k == pts.len() {
+            (pts[k - 1].1, pts[k - 1].2)
+        } else {
+            let (a, b) = (pts[k - 1], pts[k]);
+            let f = if b.0 > a.0 {
+                (x - a.0) / (b.0 - a.0)
+            } else {
+                0.0
+            };
+            (a.1 + f * (b.1 - a.1), a.2 + f * (b.2 - a.2))
+        };
+        (g.0 * rk, g.1 * rd)
+    }
+
     fn n_bases(&self) -> usize {
         usize::from(self.stiffness.is_some()) + usize::from(self.damping.is_some())
     }
@@ -130,7 +185,7 @@ fn design(
             effects
                 .iter()
                 .zip(thetas)
-                .map(|(c, &t)| c.gains(el.sigma_s[l], el.sigma_v[l], t))
+                .map(|(c, &t)| el.gains(c, l, t))
                 .collect()
         })
         .collect();
@@ -405,7 +460,7 @@ pub(crate) fn fit_template(
     for &(ss, sv) in &path {
         let (mut yk, mut yd) = (0.0, 0.0);
         for (j, e) in effects.iter().enumerate() {
-            let (hk, hd) = e.gains(ss, sv, thetas[j]);
+            let (hk, hd) = el.gains_at(e, ss, sv, thetas[j]);
             yk += fit.beta[nb + j] * hk;
             yd += fit.beta[nb + j] * hd;
         }

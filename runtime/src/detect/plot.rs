@@ -189,7 +189,13 @@ fn panel<DB: DrawingBackend>(
         "{} · {} ({status}, {p_text}) — {}",
         p.curve.element,
         p.curve.param,
-        finding.map_or_else(|| "—".to_string(), |f| short_verdict(&f.verdict)),
+        finding.map_or_else(
+            || "—".to_string(),
+            |f| match &f.suspected {
+                Some(x) => format!("{} (+ {}?)", short_verdict(&f.verdict), x.effect),
+                None => short_verdict(&f.verdict),
+            }
+        ),
     );
     let mut chart = ChartBuilder::on(area)
         .caption(title, ("sans-serif", 17))

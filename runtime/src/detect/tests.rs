@@ -92,11 +92,13 @@ fn input_kd(
     d: (Vec<f64>, Vec<f64>),
 ) -> DetectionInput {
     DetectionInput {
+        held: Vec::new(),
         level_labels: Vec::new(),
         elements: vec![ElementIntensity {
             element: "e1".into(),
             sigma_s,
             sigma_v,
+            ..Default::default()
         }],
         curves: vec![
             curve("k", "e1", Role::Stiffness, k.0, k.1),
@@ -460,17 +462,20 @@ fn demo_detection() -> Detection {
     let ss2: Vec<f64> = ss.iter().map(|s| 0.5 * s).collect();
     let sv2: Vec<f64> = sv.iter().map(|v| 0.5 * v).collect();
     let input = DetectionInput {
+        held: Vec::new(),
         level_labels: Vec::new(),
         elements: vec![
             ElementIntensity {
                 element: "spring1".into(),
                 sigma_s: ss,
                 sigma_v: sv,
+                ..Default::default()
             },
             ElementIntensity {
                 element: "spring2".into(),
                 sigma_s: ss2,
                 sigma_v: sv2,
+                ..Default::default()
             },
         ],
         curves: vec![
@@ -511,4 +516,35 @@ fn report_table_json_and_plots() {
     // No partial file is left when the target cannot be written.
     let bad = dir.join("missing-dir").join("x.png");
     assert!(plot_curves(&det, &bad).is_err());
+}
+
+#[test]
+fn measured_gains_follow_the_distribution() {
+    let sig = 0.3;
+    // A fine histogram of N(0, 1) gives the Gaussian closed forms back.
+    let bins = 4001;
+    let (lo, h) = (-8.0, 16.0 / bins as f64);
+    let counts: Vec<u64> = (0..bins)
+        .map(|i| {
+            let z = lo + (i as f64 + 0.5) * h;
+            (1e9 * h * (-0.5 * z * z).exp() / (2.0 * PI).sqrt()).round() as u64
+        })
+        .collect();
+    let gauss = super::Distribution::from_counts(&counts, lo, h, 0.0, 1.0);
+    let c = Candidate::cubic_stiffness();
+    let (hk, _) = c.gains_with(sig, 1.0, 0.0, Some(&gauss), None);
+    assert!(rel(hk, 3.0 * sig * sig) < 1e-4, "{hk}");
+    let (_, hd) = Candidate::coulomb().gains_with(1.0, sig, 0.0, None, Some(&gauss));
+    assert!(rel(hd, (2.0 / PI).sqrt() / sig) < 1e-3, "{hd}");
+    // A light-tailed (uniform) s: E[s⁴]/E[s²] = 9/5 σ², not 3 σ².
+    let a = 3f64.sqrt();
+    let uniform = super::Distribution::from_counts(&vec![1; 2000], -a, 2.0 * a / 2000.0, 0.0, 1.0);
+    let (hk, _) = c.gains_with(sig, 1.0, 0.0, Some(&uniform), None);
+    assert!(rel(hk, 1.8 * sig * sig) < 1e-4, "{hk}");
+    // Effects of both s and v fall back to the Gaussian forms.
+    let sv = Candidate::custom("s²v", "a", "a·s²·v", Dependence::SV, |s, v| s * s * v);
+    assert_eq!(
+        sv.gains_with(sig, 1.0, 0.0, Some(&uniform), Some(&uniform)),
+        sv.gains(sig, 1.0, 0.0)
+    );
 }

@@ -596,19 +596,54 @@ impl<'m> Moments<'m> {
         self.solve_levels(&[i])
     }
 
+    /// Use level `i` alone with some unknowns held at given values (moved to the
+    /// right-hand side; they are not reported among the estimates). Detection holds an
+    /// unknown mass at one value for all levels this way: a mass is the same at every
+    /// level, and a short level cannot separate it from the stiffness.
+    pub fn identify_level_holding(&self, i: usize, held: &[(String, f64)]) -> Identification {
+        let cols: Vec<(usize, f64)> = held
+            .iter()
+            .filter_map(|(name, v)| {
+                self.plan
+                    .unknowns
+                    .iter()
+                    .position(|&p| self.ir.params[p].name == *name)
+                    .map(|c| (c, *v))
+            })
+            .collect();
+        self.solve_levels_holding(&[i], &cols)
+    }
+
     /// Pool the given levels only (cross-validation: fit on some levels, score on another).
     pub fn identify_levels(&self, which: &[usize]) -> Identification {
         self.solve_levels(which)
     }
 
     fn solve_levels(&self, which: &[usize]) -> Identification {
+        self.solve_levels_holding(which, &[])
+    }
+
+    /// Rows of one level with the held columns moved to the right-hand side.
+    fn level_rows_holding(&self, view: &MomentView, held: &[(usize, f64)]) -> (Vec<f64>, Vec<f64>) {
+        let (mut c, mut rhs) = self.level_rows(view);
+        let ncol = self.plan.unknowns.len();
+        for (r, b) in rhs.iter_mut().enumerate() {
+            for &(j, v) in held {
+                *b -= v * c[r * ncol + j];
+                c[r * ncol + j] = 0.0;
+            }
+        }
+        (c, rhs)
+    }
+
+    fn solve_levels_holding(&self, which: &[usize], held: &[(usize, f64)]) -> Identification {
         let t0 = Instant::now();
         let plan = &self.plan;
         let ncol = plan.unknowns.len();
         let nr = plan.rows.len();
         let full: Vec<(Vec<f64>, Vec<f64>)> = which
             .iter()
-            .map(|&i| self.level_rows(&self.levels[i].view(None)))
+            .map(|&i| self.level_rows_holding(&self.levels[i].view(None), held))
             .collect();
         let stack = |parts: &[&(Vec<f64>, Vec<f64>)]| {
             let mut c = Vec::with_capacity(parts.len() * nr * ncol);
@@ -646,7 +681,7 @@ impl<'m> Moments<'m> {
             .collect::<Vec<_>>()
             .into_par_iter()
             .map(|(pos, i, b)| {
-                let del = self.level_rows(&self.levels[i].view(Some(b)));
+                let del = self.level_rows_holding(&self.levels[i].view(Some(b)), held);
                 let parts: Vec<&(Vec<f64>, Vec<f64>)> = full
                     .iter()
                     .enumerate()
@@ -661,7 +696,9 @@ impl<'m> Moments<'m> {
             .iter()
             .map(|&p| self.ir.params[p].name.clone())
             .collect();
-        let mut active: Vec<usize> = (0..ncol).collect();
+        let mut active: Vec<usize> = (0..ncol)
+            .filter(|j| !held.iter().any(|(h, _)| h == j))
+            .collect();
         let mut unident = Vec::new();
         let weighted = |c: &[f64], r: &[f64], active: &[usize]| {
             let mut a = Vec::with_capacity(rows * active.len());
@@ -752,6 +789,9 @@ impl<'m> Moments<'m> {
         };
 
         let mut p_full = vec![0.0; ncol];
+        for &(j, v) in held {
+            p_full[j] = v;
+        }
         for (k, &j) in active.iter().enumerate() {
             p_full[j] = sol.x[k];
         }
