@@ -32,8 +32,9 @@ fn detect_arrow(opts: DetectOptions) -> Option<Detection> {
     let data = silverbox::load(&dir).expect("data loads");
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/silverbox_linear.dyn");
     let ir = dsl_parser::compile_file(&path).expect("model compiles");
-    let (records, _) = silverbox::arrow_level_fits(&ir, &data, 4, &silverbox::default_options(&ir))
-        .expect("arrow levels");
+    let (records, _) =
+        silverbox::arrow_level_fits(&ir, &data, 4, &silverbox::default_options(&ir), 4)
+            .expect("arrow levels");
     let sources: Vec<RecordSource> = records
         .iter()
         .enumerate()
