@@ -246,6 +246,69 @@ fn two_mass_nonlinear_coupling_linear_ground() {
     assert_eq!(f.ranking[1].name, "cubic stiffness + Coulomb friction");
 }
 
+/// models/two_mass_friction.dyn (the demo's true system): Coulomb friction in the coupling.
+#[test]
+fn two_mass_friction_in_the_coupling() {
+    check(
+        "two_mass_friction",
+        "two_mass_linear",
+        "k2/d2 (m1, m2)",
+        "Coulomb friction",
+        &[("r", 0.3)],
+        0.10,
+    );
+    let (d, _) = run(
+        "two_mass_linear",
+        &sim("two_mass_friction", DURATION, 7),
+        false,
+    );
+    assert_eq!(finding(&d, "k1/d1 (ground, m1)").verdict, Verdict::Linear);
+}
+
+/// chain4 spreads seven terms over four elements. At its three levels the two hardening
+/// springs dominate and are found with their k3 (2.0 at (ground, m1), 1.0 at (m2, m3));
+/// the weaker terms are not resolved at 400 s per level and must not be misnamed: the
+/// quadratic damper of (m1, m2) moves d2 within its error, and at (m3, m4) the backlash
+/// (gap 0.05, far below σ_s ≈ 1) and the preload pull the stiffness in opposite directions
+/// by about 1 %. Measured (seed 7): k3 = 2.03 ± 0.22 and 1.002 ± 0.099; (m1, m2) and
+/// (m3, m4) linear.
+#[test]
+fn chain4_hardening_springs_are_found() {
+    let recs = sim("chain4", DURATION, 7);
+    let (d, _) = run("chain4_linear", &recs, false);
+    println!("{}", d.render_table());
+    for (element, k3) in [("k1/d1 (ground, m1)", 2.0), ("k3/d3 (m2, m3)", 1.0)] {
+        let (name, est) = best(&d, element);
+        assert_eq!(name, "cubic stiffness", "{element}");
+        let e = rel(implied(&est, "k3"), k3);
+        assert!(e.abs() < 0.15, "{element}: k3 off by {:.1} %", 100.0 * e);
+    }
+    for element in ["k2/d2 (m1, m2)", "k4/d4 (m3, m4)"] {
+        match &finding(&d, element).verdict {
+            Verdict::Linear => {}
+            Verdict::Nonlinear { best, .. } => assert!(
+                [
+                    "quadratic damping",
+                    "backlash",
+                    "prestress",
+                    "prestress + backlash"
+                ]
+                .iter()
+                .any(|t| best.contains(t)),
+                "{element}: {best} is not among its true effects"
+            ),
+            // The paper's inverse pair (prestress against backlash) may be reported as such.
+            Verdict::Ambiguous { candidates } if element.starts_with("k4") => assert!(
+                candidates
+                    .iter()
+                    .all(|c| c.contains("backlash") || c.contains("prestress")),
+                "{element}: {candidates:?}"
+            ),
+            v => panic!("{element}: {v}"),
+        }
+    }
+}
+
 const FRICTION_AT_GROUND: &str = "
 model two_mass_friction {
     body m1 = 1.0

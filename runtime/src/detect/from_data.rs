@@ -415,8 +415,17 @@ pub fn level_fits(
             let (values, stderrs) = fits
                 .iter()
                 .map(|f| {
+                    // A value too uncertain to report still counts, with its large standard
+                    // error as its (small) weight; only a parameter without any estimate at
+                    // a level leaves a gap that the checks of `detect` report.
                     f.param(&name)
                         .map(|e| (e.value, e.stderr))
+                        .or_else(|| {
+                            f.unidentifiable
+                                .iter()
+                                .find(|u| u.name == name)
+                                .and_then(|u| u.unresolved)
+                        })
                         .unwrap_or((f64::NAN, f64::NAN))
                 })
                 .unzip();

@@ -155,6 +155,11 @@ pub struct ParamEstimate {
 pub struct Unidentifiable {
     pub name: String,
     pub reason: String,
+    /// The estimate and its standard error where the data gave one that is too uncertain
+    /// to report (stderr ≥ |value|); none for a zero or collinear column. Detection uses
+    /// it as a point of little weight rather than a missing one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unresolved: Option<(f64, f64)>,
 }
 
 /// Relative residual `‖W (C p − c)‖ / ‖W c‖` over the rows of one equation, per level.
@@ -724,6 +729,7 @@ impl<'m> Moments<'m> {
                     reason: "never excited at these levels: its column of moments is zero \
                              (the term it multiplies vanishes on the data)"
                         .into(),
+                    unresolved: None,
                 });
                 active.remove(j);
                 continue;
@@ -750,6 +756,7 @@ impl<'m> Moments<'m> {
                         },
                         cond
                     ),
+                    unresolved: None,
                 });
                 active.remove(j);
                 continue;
@@ -781,6 +788,7 @@ impl<'m> Moments<'m> {
                          at these levels",
                         sol.x[j], se[j]
                     ),
+                    unresolved: Some((sol.x[j], se[j])),
                 });
                 active.remove(j);
                 continue;
