@@ -187,6 +187,15 @@ fn silverbox_diagnose_names_the_cubic_spring() {
     // 79.7 % → 3.5 % (96 % removed); nothing else material (quadratic stiffness
     // 0.51 ± 0.51 on top of the cubic).
     assert_eq!(d.verdict, Verdict::MissingEffect, "{}", d.summary());
+    // "Where": with the mass held, the spring's stiffness is the one parameter that drifts
+    // (a: 1.016 → 1.032 → 1.052 → 1.085).
+    let drifting: Vec<&str> = d
+        .drift
+        .iter()
+        .filter(|p| p.significant)
+        .map(|p| p.name.as_str())
+        .collect();
+    assert_eq!(drifting, ["a"], "{}", d.summary());
     assert_eq!(d.found.len(), 1, "{}", d.summary());
     let f = &d.found[0];
     assert_eq!(f.effect.kind(), "cubic", "{}", d.summary());

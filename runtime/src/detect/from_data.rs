@@ -30,7 +30,7 @@ use serde::Serialize;
 use super::{detect, Candidate, DetectError, DetectOptions, Detection, DetectionInput};
 use super::{Distribution, ElementIntensity, HeldParam, ParamCurve, Role};
 use crate::data::{DataError, LevelSource};
-use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions};
+use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions, Moments};
 use crate::tape::{Tape, TapeScratch};
 
 /// Hysteresis of the zero-crossing count, as a fraction of σ_s.
@@ -316,12 +316,45 @@ fn intensities(
         .collect())
 }
 
+/// Unknown body masses and the value to hold each at in per-level fits: the weighted mean
+/// of its free per-level estimates (see [`level_fits`] for why). A mass that some level
+/// cannot estimate is not held.
+pub fn held_inertia(ir: &ModelIr, moments: &Moments) -> Vec<HeldParam> {
+    let groups = groups(ir);
+    let free: Vec<Identification> = (0..moments.levels().len())
+        .map(|i| moments.identify_level(i))
+        .collect();
+    ir.unknowns()
+        .into_iter()
+        .filter(|&p| param_role(ir, &groups, p).1 == Role::Mass)
+        .filter_map(|p| {
+            let name = &ir.params[p.index()].name;
+            let est: Vec<(f64, f64)> = free
+                .iter()
+                .filter_map(|f| f.param(name))
+                .filter(|e| e.value.is_finite() && e.stderr > 0.0)
+                .map(|e| (e.value, e.stderr))
+                .collect();
+            if est.len() < free.len() {
+                return None;
+            }
+            let (y, se): (Vec<f64>, Vec<f64>) = est.into_iter().unzip();
+            let (value, stderr) = super::fit::weighted_mean(&y, &se);
+            Some(HeldParam {
+                param: name.clone(),
+                value,
+                stderr,
+            })
+        })
+        .collect()
+}
+
 /// Identify the linear model `ir` at each level separately and collect the curves and the
 /// element intensities. Each source is one level; at least two are needed.
 ///
 /// With `hold_inertia`, unknown body masses are held at the weighted mean of their free
-/// per-level estimates in the
-/// per-level fits and get no curve (listed in [`DetectionInput::held`]).
+/// per-level estimates in the per-level fits and get no curve (listed in
+/// [`DetectionInput::held`]).
 pub fn level_fits(
     ir: &ModelIr,
     levels: &[&dyn LevelSource],
@@ -343,33 +376,8 @@ pub fn level_fits(
     // true mass, while a pooled linear fit forces every stiffness to be constant as well —
     // the very hypothesis under test — and its mass absorbs the misfit (on two_mass with a
     // cubic coupling the pooled m2 came out 0.52 for a truth of 2).
-    let held: Vec<HeldParam> = if hold_inertia {
-        let free: Vec<Identification> = (0..levels.len())
-            .map(|i| moments.identify_level(i))
-            .collect();
-        ir.unknowns()
-            .into_iter()
-            .filter(|&p| param_role(ir, &groups, p).1 == Role::Mass)
-            .filter_map(|p| {
-                let name = &ir.params[p.index()].name;
-                let est: Vec<(f64, f64)> = free
-                    .iter()
-                    .filter_map(|f| f.param(name))
-                    .filter(|e| e.value.is_finite() && e.stderr > 0.0)
-                    .map(|e| (e.value, e.stderr))
-                    .collect();
-                if est.len() < free.len() {
-                    return None;
-                }
-                let (y, se): (Vec<f64>, Vec<f64>) = est.into_iter().unzip();
-                let (value, stderr) = super::fit::weighted_mean(&y, &se);
-                Some(HeldParam {
-                    param: name.clone(),
-                    value,
-                    stderr,
-                })
-            })
-            .collect()
+    let held = if hold_inertia {
+        held_inertia(ir, &moments)
     } else {
         Vec::new()
     };

@@ -33,7 +33,9 @@ pub mod stats;
 mod tests;
 
 pub use candidate::{Candidate, Dependence, Distribution, ShapeParam};
-pub use from_data::{detect_from_data, level_fits, FromDataError, LevelFits, SigmaVSource};
+pub use from_data::{
+    detect_from_data, held_inertia, level_fits, FromDataError, LevelFits, SigmaVSource,
+};
 pub use plot::plot_curves;
 pub use quad::NormalRule;
 

@@ -1051,10 +1051,19 @@ pub fn diagnose(
         })
         .collect();
     let pooled = m.identify_pooled();
-    let per_level: Vec<Identification> = (0..n).map(|i| m.identify_level(i)).collect();
+    // Masses held at one value, as detection does: a mass fitted freely per level trades
+    // off against the stiffness and hides its drift (Silverbox: m and a each scatter by
+    // 10 % while their ratio rises 8 %).
+    let held: Vec<(String, f64)> = crate::detect::held_inertia(&ir, &m)
+        .into_iter()
+        .map(|h| (h.param, h.value))
+        .collect();
+    let per_level: Vec<Identification> =
+        (0..n).map(|i| m.identify_level_holding(i, &held)).collect();
     let drift: Vec<ParamDrift> = ir
         .unknowns()
         .iter()
+        .filter(|p| !held.iter().any(|(h, _)| *h == ir.params[p.index()].name))
         .map(|p| {
             let name = ir.params[p.index()].name.clone();
             let vals: Vec<Option<f64>> = per_level
