@@ -8,8 +8,9 @@
 
 use crate::record::Record;
 use dsl_parser::ir::ModelIr;
-use std::io::Read;
+use std::io::{BufReader, BufWriter, Read, Seek, Write};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 /// Fewest samples any record may have (the filters need far more; identification checks
 /// the actual need against the filter time constants).
@@ -206,6 +207,12 @@ impl CsvOptions {
 
 /// A CSV file bound to a model: validated header, known sample interval; the body is
 /// validated while streaming.
+///
+/// Identification streams every level twice (statistics, then filters). Parsing text
+/// dominates the cost of a pass, so the first complete pass also writes the selected columns
+/// as raw binary `f64` to an anonymous temporary file (deleted by the system when the source
+/// is dropped), and later passes replay that file. Memory use stays independent of the record
+/// length; if the temporary file cannot be written, every pass parses the text again.
 #[derive(Clone, Debug)]
 pub struct CsvSource {
     path: PathBuf,
@@ -220,6 +227,11 @@ pub struct CsvSource {
     n_slots: usize,
     t_col: Option<usize>,
     min_samples: usize,
+    /// Whether the first pass writes a binary copy for later passes.
+    spill: bool,
+    /// The binary copy of a complete, validated pass: samples in order, each the `wanted`
+    /// columns as little-endian `f64`.
+    replay: Arc<Mutex<Option<std::fs::File>>>,
 }
 
 fn io_err(path: &Path, e: impl std::fmt::Display) -> DataError {
@@ -391,7 +403,63 @@ impl CsvSource {
             n_slots,
             t_col,
             min_samples,
+            spill: true,
+            replay: Arc::default(),
         })
+    }
+
+    /// Parse the text on every pass instead of keeping a binary copy (for a source that is
+    /// streamed only once).
+    pub fn without_replay(mut self) -> Self {
+        self.spill = false;
+        self.replay = Arc::default();
+        self
+    }
+
+    /// Stream the binary copy written by an earlier complete pass.
+    fn stream_copy(
+        &self,
+        file: &mut std::fs::File,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+    ) -> Result<(), DataError> {
+        let path = self.path.as_path();
+        file.rewind().map_err(|e| io_err(path, e))?;
+        let width = self.wanted.len();
+        let row_bytes = 8 * width;
+        let mut reader = BufReader::with_capacity(1 << 20, &*file);
+        let mut bufs: Vec<Vec<f64>> = vec![Vec::new(); self.n_slots];
+        for &(s, _) in &self.wanted {
+            bufs[s].reserve(max_len);
+        }
+        let mut raw = vec![0u8; row_bytes * max_len];
+        loop {
+            let mut filled = 0;
+            while filled < raw.len() {
+                match reader.read(&mut raw[filled..]) {
+                    Ok(0) => break,
+                    Ok(k) => filled += k,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(e) => return Err(io_err(path, e)),
+                }
+            }
+            let len = filled / row_bytes.max(1);
+            if len == 0 {
+                return Ok(());
+            }
+            for (k, &(s, _)) in self.wanted.iter().enumerate() {
+                bufs[s].extend(raw[..len * row_bytes].chunks_exact(row_bytes).map(|row| {
+                    let b = &row[8 * k..8 * k + 8];
+                    f64::from_le_bytes(b.try_into().expect("8 bytes"))
+                }));
+            }
+            let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
+            sink(&cols, len);
+            bufs.iter_mut().for_each(Vec::clear);
+            if filled < raw.len() {
+                return Ok(());
+            }
+        }
     }
 
     fn reader(path: &Path) -> Result<csv::Reader<Box<dyn Read + Send>>, DataError> {
@@ -416,6 +484,34 @@ impl LevelSource for CsvSource {
         &self,
         max_len: usize,
         sink: &mut dyn FnMut(&[&[f64]], usize),
+    ) -> Result<(), DataError> {
+        // Passes of one source run one at a time; different sources do not share the lock.
+        let mut replay = self.replay.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(file) = replay.as_mut() {
+            return self.stream_copy(file, max_len, sink);
+        }
+        let mut copy = if self.spill {
+            tempfile::tempfile()
+                .ok()
+                .map(|f| BufWriter::with_capacity(1 << 20, f))
+        } else {
+            None
+        };
+        self.parse(max_len, sink, &mut copy)?;
+        // Keep the copy only if it is complete.
+        *replay = copy.and_then(|w| w.into_inner().ok());
+        Ok(())
+    }
+}
+
+impl CsvSource {
+    /// Stream by parsing the text, validating every row; with `copy`, also write the binary
+    /// copy (dropped, and the text parsed next time, at the first write error).
+    fn parse(
+        &self,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+        copy: &mut Option<BufWriter<std::fs::File>>,
     ) -> Result<(), DataError> {
         let path = self.path.as_path();
         let p = || path.display().to_string();
@@ -461,6 +557,11 @@ impl LevelSource for CsvSource {
             for &(s, c) in &self.wanted {
                 let v = parse_cell(path, line, &self.header[c], &rec[c])?;
                 bufs[s].push(v);
+                if let Some(w) = copy {
+                    if w.write_all(&v.to_le_bytes()).is_err() {
+                        *copy = None;
+                    }
+                }
             }
             if let Some(tc) = self.t_col {
                 let t = parse_cell(path, line, &self.header[tc], &rec[tc])?;
@@ -522,7 +623,8 @@ pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, DataError> 
             Ok((wanted, n))
         },
         2,
-    )?;
+    )?
+    .without_replay();
     let mut columns: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
     src.stream(1 << 16, &mut |cols, len| {
         for (c, chunk) in columns.iter_mut().zip(cols) {
@@ -682,6 +784,47 @@ mod tests {
     #[test]
     fn reads_a_valid_file_in_chunks() {
         assert_eq!(read(&rows(300, 0.01), &CsvOptions::default()), Ok(300));
+    }
+
+    /// One streamed chunk: its length and the chunk's columns.
+    type Chunk = (usize, Vec<Vec<f64>>);
+
+    /// Every chunk of one pass.
+    fn pass(src: &CsvSource, max_len: usize) -> Result<Vec<Chunk>, DataError> {
+        let mut chunks = Vec::new();
+        src.stream(max_len, &mut |cols, len| {
+            chunks.push((len, cols.iter().map(|c| c.to_vec()).collect()));
+        })?;
+        Ok(chunks)
+    }
+
+    #[test]
+    fn later_passes_replay_exactly_what_the_first_parsed() {
+        let ir = sdof_ir(true);
+        let f = file(&rows(1000, 0.01));
+        let src = CsvSource::open(f.path(), &ir, &CsvOptions::default()).unwrap();
+        let uncopied = src.clone().without_replay();
+        for max_len in [64, 1000, 4096, 7] {
+            let first = pass(&src, max_len).unwrap();
+            assert!(src.replay.lock().unwrap().is_some(), "no copy kept");
+            assert_eq!(pass(&src, max_len).unwrap(), first, "max_len {max_len}");
+            assert_eq!(pass(&uncopied, max_len).unwrap(), first);
+            assert_eq!(first.iter().map(|c| c.0).sum::<usize>(), 1000);
+        }
+        assert!(uncopied.replay.lock().unwrap().is_none());
+    }
+
+    #[test]
+    fn a_failed_pass_keeps_no_copy_and_fails_again() {
+        let ir = sdof_ir(true);
+        let body = rows(300, 0.01) + "3.0,1,nan,0\n";
+        let f = file(&body);
+        let src = CsvSource::open(f.path(), &ir, &CsvOptions::default()).unwrap();
+        for _ in 0..2 {
+            let e = pass(&src, 64).unwrap_err().to_string();
+            assert!(e.contains("line 302"), "{e}");
+            assert!(src.replay.lock().unwrap().is_none());
+        }
     }
 
     #[test]
