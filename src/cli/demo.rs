@@ -27,6 +27,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
+    super::common::check_output(&args.report, "the report")?;
     let t0 = Instant::now();
     let truth = dsl_parser::compile_str("two_mass_friction.dyn", TRUTH)?;
     println!("dynid demo — diagnosing a simulation model against \"measured\" data");

@@ -1,12 +1,12 @@
 //! `dynid detect LINEAR_MODEL.dyn LEVEL1.csv LEVEL2.csv ...`: which force elements of a
 //! linear model hide a nonlinearity, which kind, and how sure.
 
-use super::common::CsvArgs;
+use super::common::{check_outputs, CsvArgs, Staged};
 use dynid_runtime::data::{CsvSource, LevelSource};
 use dynid_runtime::detect::{detect_from_data, plot_curves, DetectOptions, SigmaVSource};
 use dynid_runtime::IdentifyOptions;
 use miette::{miette, IntoDiagnostic, WrapErr};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 const EXAMPLE: &str = "\
 How it works: the LINEAR model is identified separately at every level (one CSV file per
@@ -56,6 +56,10 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
+    check_outputs([
+        (args.json.as_deref(), "the JSON output"),
+        (args.plot.as_deref(), "the plot"),
+    ])?;
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
     let sources = args
@@ -77,12 +81,11 @@ pub fn run(args: Args) -> miette::Result<()> {
     };
     let (det, fits) = detect_from_data(&ir, &levels, &IdentifyOptions::default(), &dopts, &[])?;
 
-    // Write outputs to temporary names first so that a failure leaves no partial file.
-    let mut staged: Vec<(PathBuf, PathBuf)> = Vec::new();
+    // Write all outputs or none (the plot format follows the extension, which the staged
+    // name keeps).
     let result = (|| -> miette::Result<()> {
+        let mut staged = Staged::new();
         if let Some(out) = &args.json {
-            let tmp = temp_name(out)?;
-            staged.push((tmp.clone(), out.clone()));
             let text = serde_json::to_string_pretty(&serde_json::json!({
                 "detection": det,
                 "intensities": fits.input.elements,
@@ -90,27 +93,14 @@ pub fn run(args: Args) -> miette::Result<()> {
                 "jackknife_blocks": fits.n_blocks,
             }))
             .into_diagnostic()?;
-            std::fs::write(&tmp, text)
-                .into_diagnostic()
-                .wrap_err_with(|| format!("cannot write {}", out.display()))?;
+            staged.write(out, text.as_bytes())?;
         }
         if let Some(out) = &args.plot {
-            let tmp = temp_name(out)?;
-            staged.push((tmp.clone(), out.clone()));
-            plot_curves(&det, &tmp)?;
+            let tmp = staged.temp_for(out)?;
+            plot_curves(&det, &tmp).wrap_err_with(|| format!("cannot write {}", out.display()))?;
         }
-        for (tmp, out) in &staged {
-            std::fs::rename(tmp, out)
-                .into_diagnostic()
-                .wrap_err_with(|| format!("cannot write {}", out.display()))?;
-        }
-        Ok(())
+        staged.commit()
     })();
-    if result.is_err() {
-        for (tmp, _) in &staged {
-            let _ = std::fs::remove_file(tmp);
-        }
-    }
     print!("{}", det.render_table());
     let estimated: Vec<&str> = fits
         .input
@@ -127,22 +117,4 @@ pub fn run(args: Args) -> miette::Result<()> {
         );
     }
     result
-}
-
-/// A temporary name in the same directory, keeping the extension (the plot format
-/// follows it).
-fn temp_name(path: &Path) -> miette::Result<PathBuf> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .ok_or_else(|| miette!("{}: not a file name", path.display()))?
-        .to_string_lossy();
-    let ext = path
-        .extension()
-        .map(|e| format!(".{}", e.to_string_lossy()))
-        .unwrap_or_default();
-    Ok(dir.join(format!(".{name}.{}.tmp{ext}", std::process::id())))
 }

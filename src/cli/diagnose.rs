@@ -1,15 +1,13 @@
 //! `dynid diagnose MODEL.dyn LEVEL.csv...`: where the model misses the data, which
 //! unmodelled effect explains the gap, and how far it shrinks once that effect is added.
 
-use super::common::CsvArgs;
+use super::common::{check_outputs, CsvArgs, Staged};
 use dynid_runtime::data::CsvSource;
 use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
 use dynid_runtime::record::Record;
 use indicatif::{ProgressBar, ProgressStyle};
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::{Path, PathBuf};
-
-use super::identify::write_atomically;
 
 /// Arguments of `dynid diagnose`.
 #[derive(clap::Args, Debug)]
@@ -36,6 +34,11 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
+    check_outputs([
+        (args.report.as_deref(), "the report"),
+        (args.json.as_deref(), "the JSON output"),
+        (args.write_model.as_deref(), "the corrected model"),
+    ])?;
     if args.model.extension().is_some_and(|e| e == "json") {
         return Err(miette!(
             help = "pass the .dyn source: the corrected model is written as .dyn text",
@@ -100,7 +103,8 @@ pub fn run_diagnosis(
     Ok(d?)
 }
 
-/// Render everything first, then write: an error never leaves a partial set of files.
+/// Render everything first, then write all or nothing: an error never leaves a partial set
+/// of files.
 pub fn write_outputs(
     d: &Diagnosis,
     report: Option<&Path>,
@@ -112,15 +116,21 @@ pub fn write_outputs(
         Some(_) => Some(serde_json::to_string_pretty(d).into_diagnostic()?),
         None => None,
     };
+    let mut staged = Staged::new();
     if let (Some(p), Some(h)) = (report, &html) {
-        write_atomically(p, h.as_bytes())?;
-        eprintln!("report written to {}", p.display());
+        staged.write(p, h.as_bytes())?;
     }
     if let (Some(p), Some(j)) = (json, &js) {
-        write_atomically(p, j.as_bytes())?;
+        staged.write(p, j.as_bytes())?;
     }
     if let Some(p) = model {
-        write_atomically(p, d.fixed_source.as_bytes())?;
+        staged.write(p, d.fixed_source.as_bytes())?;
+    }
+    staged.commit()?;
+    if let Some(p) = report {
+        eprintln!("report written to {}", p.display());
+    }
+    if let Some(p) = model {
         eprintln!("corrected model written to {}", p.display());
     }
     Ok(())

@@ -1,13 +1,13 @@
 //! `dynid identify MODEL.dyn DATA.csv...`: identify the unknown parameters from one CSV file
 //! per excitation level, print the identified equations and optionally write JSON.
 
-use super::common::CsvArgs;
+use super::common::{check_outputs, write_atomically, CsvArgs};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::{CsvSource, LevelSource};
 use dynid_runtime::ident::{print, Identification};
 use dynid_runtime::{identify, IdentifyOptions};
-use miette::{miette, Context, IntoDiagnostic};
-use std::path::{Path, PathBuf};
+use miette::IntoDiagnostic;
+use std::path::PathBuf;
 
 /// Arguments of `dynid identify`.
 #[derive(clap::Args, Debug)]
@@ -34,6 +34,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
+    check_outputs([(args.json.as_deref(), "the JSON output")])?;
     let ir = super::common::load_model(&args.model)?;
     let id = identify_files(&ir, &args)?;
     print!("{}", render(&ir, &id));
@@ -126,35 +127,13 @@ pub fn to_json(id: &Identification) -> serde_json::Value {
     })
 }
 
-/// Write via a temporary file in the same directory and a rename, so that an error never
-/// leaves a partial output file behind.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> miette::Result<()> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .ok_or_else(|| miette!("{}: not a file name", path.display()))?;
-    let tmp = dir.join(format!(
-        ".{}.{}.tmp",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let res = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
-    if res.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    res.into_diagnostic()
-        .wrap_err_with(|| format!("cannot write {}", path.display()))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use dsl_parser::ir::FormFilter;
     use dynid_runtime::sim::test_models::{sdof, SdofParams};
     use dynid_runtime::sim::{simulate, SimConfig};
+    use std::path::Path;
 
     fn sdof_ir() -> ModelIr {
         sdof(

@@ -54,6 +54,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
+    super::common::check_outputs([(args.json.as_deref(), "the JSON output")])?;
     let data = silverbox::load(&args.data)?;
     if let Some(dir) = &args.export_levels {
         return export_levels(&args, &data, dir);
@@ -114,7 +115,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     print!("{}", table(&reports));
     if let Some(out) = &args.json {
         let text = serde_json::to_string_pretty(&reports).into_diagnostic()?;
-        super::identify::write_atomically(out, text.as_bytes())?;
+        super::common::write_atomically(out, text.as_bytes())?;
     }
     Ok(())
 }

@@ -1,7 +1,7 @@
 //! `dynid simulate`: synthetic test data from a model, or the model's response to
 //! measured inputs.
 
-use super::common::load_model;
+use super::common::{load_model, write_atomically};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data;
 use dynid_runtime::record::Record;
@@ -165,7 +165,7 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
     let json_path = args.out.join("truth.json");
     write_atomically(
         &json_path,
-        &(serde_json::to_string_pretty(&truth).into_diagnostic()? + "\n"),
+        (serde_json::to_string_pretty(&truth).into_diagnostic()? + "\n").as_bytes(),
     )?;
     let summary = level_summary(&response, &csv, None);
     match args.format {
@@ -213,17 +213,6 @@ fn create_dir(dir: &Path) -> miette::Result<()> {
     std::fs::create_dir_all(dir)
         .into_diagnostic()
         .wrap_err_with(|| format!("cannot create the output directory `{}`", dir.display()))
-}
-
-fn write_atomically(path: &Path, text: &str) -> miette::Result<()> {
-    let tmp = path.with_extension("json.tmp");
-    std::fs::write(&tmp, text)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .inspect_err(|_| {
-            let _ = std::fs::remove_file(&tmp);
-        })
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot write `{}`", path.display()))
 }
 
 fn level_summary(r: &Record, path: &Path, level: Option<f64>) -> serde_json::Value {

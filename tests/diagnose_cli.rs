@@ -1,0 +1,144 @@
+//! `dynid diagnose` end to end: outputs written all or nothing, bad input refused before
+//! the work starts.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn dynid() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_dynid"))
+}
+
+fn model(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("models")
+        .join(name)
+}
+
+/// Standard error with miette's line wrapping undone.
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr)
+        .split_whitespace()
+        .filter(|w| *w != "│")
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Three levels of two_mass (cubic coupling spring and Coulomb friction) in `dir/data`.
+fn simulate(dir: &Path) -> Vec<PathBuf> {
+    let data = dir.join("data");
+    let st = dynid()
+        .arg("simulate")
+        .arg(model("two_mass.dyn"))
+        .args(["--duration", "200", "--seed", "5", "--out"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{}", stderr(&st));
+    (1..=3)
+        .map(|i| data.join(format!("level_{i}.csv")))
+        .collect()
+}
+
+/// Files directly in `dir` (not the data folder).
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.path().is_file())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn diagnosis_writes_report_json_and_a_model_that_compiles() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = simulate(dir.path());
+    let (report, json, fixed) = (
+        dir.path().join("gap.html"),
+        dir.path().join("gap.json"),
+        dir.path().join("fixed.dyn"),
+    );
+    let out = dynid()
+        .arg("diagnose")
+        .arg(model("two_mass_linear.dyn"))
+        .args(&levels)
+        .arg("--report")
+        .arg(&report)
+        .arg("--json")
+        .arg(&json)
+        .arg("--write-model")
+        .arg(&fixed)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("Most likely missing effect:"), "{stdout}");
+    assert_eq!(files_in(dir.path()), ["fixed.dyn", "gap.html", "gap.json"]);
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(v.is_object());
+    assert!(std::fs::read_to_string(&report).unwrap().contains("<html"));
+    let compiled = dynid().arg("compile").arg(&fixed).output().unwrap();
+    assert!(compiled.status.success(), "{}", stderr(&compiled));
+}
+
+#[test]
+fn an_unwritable_output_is_refused_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = simulate(dir.path());
+    let json = dir.path().join("gap.json");
+    let out = dynid()
+        .arg("diagnose")
+        .arg(model("two_mass_linear.dyn"))
+        .args(&levels)
+        .arg("--json")
+        .arg(&json)
+        .arg("--report")
+        .arg(dir.path().join("no_such_dir").join("gap.html"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(
+        err.contains("the directory of the report") && err.contains("does not exist"),
+        "{err}"
+    );
+    // Nothing was computed, nothing written.
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(files_in(dir.path()).is_empty());
+}
+
+#[test]
+fn a_bad_level_file_names_file_and_line_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut levels = simulate(dir.path());
+    let text = std::fs::read_to_string(&levels[2]).unwrap();
+    let mut lines: Vec<&str> = text.lines().collect();
+    lines[10] = "0.09,1.0,2.0";
+    let bad = dir.path().join("data").join("ragged.csv");
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    levels[2] = bad;
+    let json = dir.path().join("gap.json");
+    let out = dynid()
+        .arg("diagnose")
+        .arg(model("two_mass_linear.dyn"))
+        .args(&levels)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(
+        err.contains("ragged.csv") && err.contains("line 11"),
+        "{err}"
+    );
+    assert!(files_in(dir.path()).is_empty());
+}
