@@ -362,6 +362,61 @@ fn level_path(el: &ElementData, n: usize) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// Standard error of θ_j from the curvature of the χ² profile in ln θ (Δχ² = 1 at one
+/// standard error); NaN where the profile is flat or not convex.
+fn profile_stderr(
+    el: &ElementData,
+    effects: &[&Candidate],
+    thetas: &[f64],
+    j: usize,
+    chi2: f64,
+) -> f64 {
+    let h: f64 = 0.02;
+    let th = thetas[j];
+    let mut t = thetas.to_vec();
+    t[j] = th * h.exp();
+    let fp = chi2_at(el, effects, &t);
+    t[j] = th * (-h).exp();
+    let fm = chi2_at(el, effects, &t);
+    let curv = (fp - 2.0 * chi2 + fm) / (h * h);
+    if curv > 0.0 && curv.is_finite() {
+        th * (2.0 / curv).sqrt()
+    } else {
+        f64::NAN
+    }
+}
+
+/// Covariance of (β, ln θ_shaped) at the optimum: the weighted design augmented by one
+/// column per shape, ∂(A(θ) β)/∂ln θ_j (central difference), solved by SVD. `None` when
+/// there is no shape or the augmented design is rank-deficient.
+fn joint_covariance(
+    el: &ElementData,
+    effects: &[&Candidate],
+    thetas: &[f64],
+    shaped: &[usize],
+    beta: &[f64],
+) -> Option<DMatrix<f64>> {
+    if shaped.is_empty() {
+        return None;
+    }
+    let (a, y, se) = design(el, effects, thetas);
+    let (n, m) = a.shape();
+    let mut aug = a.clone().resize_horizontally(m + shaped.len(), 0.0);
+    let h: f64 = 1e-3;
+    let b = DVector::from_column_slice(beta);
+    for (k, &j) in shaped.iter().enumerate() {
+        let mut t = thetas.to_vec();
+        t[j] = thetas[j] * h.exp();
+        let plus = design(el, effects, &t).0 * &b;
+        t[j] = thetas[j] * (-h).exp();
+        let minus = design(el, effects, &t).0 * &b;
+        for i in 0..n {
+            aug[(i, m + k)] = (plus[i] - minus[i]) / (2.0 * h);
+        }
+    }
+    weighted_ls(&aug, &y, &se).map(|f| f.cov)
+}
+
 /// Fit one template (a set of effects) and score it; `None` when it does not apply to
 /// this element's curves (no gain on any curve present, or unidentifiable).
 pub(crate) fn fit_template(
@@ -395,13 +450,19 @@ pub(crate) fn fit_template(
     } else {
         1.0
     };
+    // Errors of the linear coefficients at a fixed shape would ignore how they trade off
+    // against it (a backlash's kb against its gap); the Gauss–Newton covariance of
+    // (β, ln θ) at the optimum includes that. Where θ is not resolved (rank-deficient
+    // augmented design) the conditional errors stand and θ's error comes from the χ² profile.
+    let joint = joint_covariance(el, effects, &thetas, &shaped, &fit.beta);
+    let cov = joint.as_ref().unwrap_or(&fit.cov);
     let mut estimates = Vec::new();
     let mut col = 0;
     for c in [&el.stiffness, &el.damping].into_iter().flatten() {
         estimates.push(Estimate {
             name: format!("{} (linear part)", c.param),
             value: fit.beta[col],
-            stderr: fit.cov[(col, col)].sqrt() * inflate,
+            stderr: cov[(col, col)].sqrt() * inflate,
         });
         col += 1;
     }
@@ -409,27 +470,19 @@ pub(crate) fn fit_template(
         estimates.push(Estimate {
             name: e.coef_name.clone(),
             value: fit.beta[col],
-            stderr: fit.cov[(col, col)].sqrt() * inflate,
+            stderr: cov[(col, col)].sqrt() * inflate,
         });
         col += 1;
     }
     for &j in &shaped {
         let shape = effects[j].shape.as_ref().expect("shaped effect");
-        // Curvature of the χ² profile in ln θ: Δχ² = 1 at one standard error.
-        let h: f64 = 0.02;
         let th = thetas[j];
-        let mut t = thetas.clone();
-        let f0 = fit.chi2;
-        t[j] = th * h.exp();
-        let fp = chi2_at(el, effects, &t);
-        t[j] = th * (-h).exp();
-        let fm = chi2_at(el, effects, &t);
-        let curv = (fp - 2.0 * f0 + fm) / (h * h);
-        let se = if curv > 0.0 && curv.is_finite() {
-            th * (2.0 / curv).sqrt() * inflate
-        } else {
-            f64::NAN
+        let se = match &joint {
+            // Error of ln θ → error of θ.
+            Some(cov) => th * cov[(col, col)].sqrt() * inflate,
+            None => profile_stderr(el, effects, &thetas, j, fit.chi2) * inflate,
         };
+        col += 1;
         estimates.push(Estimate {
             name: shape.name.clone(),
             value: th,
