@@ -1,7 +1,8 @@
 //! Diagnosis of the sim-to-real gap: where a simulation model misses measured data, which
 //! unmodelled effect explains it, and how far the gap shrinks once that effect is added.
 //!
-//! The gap is measured by simulation (the model driven from rest by the measured input,
+//! The gap is measured by simulation (the model driven by the measured input from the
+//! measured initial state,
 //! free run, compared with the measured response) and by the covariance-equation residual.
 //! Candidate effects from a small library are added as new unknown force terms by editing
 //! the model's source text and recompiling it, so that names and spans stay those of the
@@ -16,7 +17,7 @@ pub mod report;
 use crate::data::{DataError, LevelSource, RecordSource};
 use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions, Moments};
 use crate::record::Record;
-use crate::sim::{simulate_driven, SimError, DEFAULT_SUBSTEPS};
+use crate::sim::{simulate_driven_from, SimError, Start, DEFAULT_SUBSTEPS};
 use crate::tape::Tape;
 use dsl_parser::ir::{ModelIr, Node, ParamKind, SignalKind};
 use rayon::prelude::*;
@@ -585,7 +586,7 @@ fn level_gap(
         signals: vec![],
         diverged: true,
     };
-    let sim = match simulate_driven(ir, rec, opts.substeps) {
+    let sim = match simulate_driven_from(ir, rec, opts.substeps, Start::Measured) {
         Ok(s) => s,
         Err(_) => return (diverged(&data.origins[w]), None),
     };

@@ -151,6 +151,29 @@ pub fn total_samples(cfg: &SimConfig, n_levels: usize) -> u64 {
 /// length) and one column per measured signal in IR order; input columns are copies of
 /// the driving data.
 pub fn simulate_driven(ir: &ModelIr, input: &Record, substeps: usize) -> Result<Record, SimError> {
+    simulate_driven_from(ir, input, substeps, Start::Rest)
+}
+
+/// Where a driven run starts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Start {
+    /// At rest at the origin.
+    #[default]
+    Rest,
+    /// At the state of the record's first sample: a body's position from its `name.x`
+    /// column, its velocity from `name.v` or, without one, from the first three positions
+    /// (second-order one-sided difference); a body without a position column starts at rest.
+    /// Comparing a model with measured responses then starts without a transient from rest.
+    Measured,
+}
+
+/// [`simulate_driven`] from a chosen initial state.
+pub fn simulate_driven_from(
+    ir: &ModelIr,
+    input: &Record,
+    substeps: usize,
+    start: Start,
+) -> Result<Record, SimError> {
     if substeps == 0 {
         return Err(config_error("substeps is 0", "use at least 1 sub-step"));
     }
@@ -187,6 +210,9 @@ pub fn simulate_driven(ir: &ModelIr, input: &Record, substeps: usize) -> Result<
     let n = input.len();
     let limit = divergence_limit(cols.iter().map(|c| std_dev(c)));
     let mut rk = Rk4::new(&mech);
+    if start == Start::Measured {
+        set_measured_state(ir, input, &mut rk);
+    }
     let mut res = Resolution::new(mech.n_bodies);
     let measured = ir.measured_signals();
     let mut out: Vec<Vec<f64>> = measured.iter().map(|_| Vec::with_capacity(n)).collect();
@@ -386,6 +412,22 @@ fn simulate_level(
 }
 
 #[inline]
+/// Initial positions and velocities from the first samples of `rec` (see [`Start::Measured`]).
+fn set_measured_state(ir: &ModelIr, rec: &Record, rk: &mut Rk4) {
+    let finite = |c: &[f64]| c.iter().take(3).all(|x| x.is_finite());
+    for b in 0..ir.bodies.len() {
+        let name = |k: usize| ir.signals[2 * b + k].name.as_str();
+        let Some(x) = rec.column(name(0)).filter(|c| c.len() >= 3 && finite(c)) else {
+            continue;
+        };
+        rk.x[b] = x[0];
+        rk.v[b] = match rec.column(name(1)).filter(|c| finite(c)) {
+            Some(v) => v[0],
+            None => (-3.0 * x[0] + 4.0 * x[1] - x[2]) / (2.0 * rec.ts),
+        };
+    }
+}
+
 fn signal_value(ir: &ModelIr, s: dsl_parser::ir::SignalId, rk: &Rk4, u: &[f64]) -> f64 {
     match ir.signal(s).kind {
         SignalKind::Position(b) => rk.x[b.index()],
