@@ -51,6 +51,19 @@ fn files_in(dir: &Path) -> Vec<String> {
     v
 }
 
+/// `dynid diagnose two_mass_linear.dyn LEVELS... FLAGS...` (each flag followed by its path).
+fn diagnose(levels: &[PathBuf], flags: &[(&str, &Path)]) -> Output {
+    let mut cmd = dynid();
+    cmd.arg("diagnose")
+        .arg(model("two_mass_linear.dyn"))
+        .args(levels)
+        .arg("--quiet");
+    for (flag, path) in flags {
+        cmd.arg(flag).arg(path);
+    }
+    cmd.output().unwrap()
+}
+
 #[test]
 fn diagnosis_writes_report_json_and_a_model_that_compiles() {
     let dir = tempfile::tempdir().unwrap();
@@ -60,19 +73,14 @@ fn diagnosis_writes_report_json_and_a_model_that_compiles() {
         dir.path().join("gap.json"),
         dir.path().join("fixed.dyn"),
     );
-    let out = dynid()
-        .arg("diagnose")
-        .arg(model("two_mass_linear.dyn"))
-        .args(&levels)
-        .arg("--report")
-        .arg(&report)
-        .arg("--json")
-        .arg(&json)
-        .arg("--write-model")
-        .arg(&fixed)
-        .arg("--quiet")
-        .output()
-        .unwrap();
+    let out = diagnose(
+        &levels,
+        &[
+            ("--report", &report),
+            ("--json", &json),
+            ("--write-model", &fixed),
+        ],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("Most likely missing effect:"), "{stdout}");
@@ -90,16 +98,8 @@ fn an_unwritable_output_is_refused_before_the_work() {
     let dir = tempfile::tempdir().unwrap();
     let levels = simulate(dir.path());
     let json = dir.path().join("gap.json");
-    let out = dynid()
-        .arg("diagnose")
-        .arg(model("two_mass_linear.dyn"))
-        .args(&levels)
-        .arg("--json")
-        .arg(&json)
-        .arg("--report")
-        .arg(dir.path().join("no_such_dir").join("gap.html"))
-        .output()
-        .unwrap();
+    let missing = dir.path().join("no_such_dir").join("gap.html");
+    let out = diagnose(&levels, &[("--json", &json), ("--report", &missing)]);
     assert!(!out.status.success());
     let err = stderr(&out);
     assert!(
@@ -126,14 +126,7 @@ fn a_bad_level_file_names_file_and_line_and_writes_nothing() {
     std::fs::write(&bad, lines.join("\n")).unwrap();
     levels[2] = bad;
     let json = dir.path().join("gap.json");
-    let out = dynid()
-        .arg("diagnose")
-        .arg(model("two_mass_linear.dyn"))
-        .args(&levels)
-        .arg("--json")
-        .arg(&json)
-        .output()
-        .unwrap();
+    let out = diagnose(&levels, &[("--json", &json)]);
     assert!(!out.status.success());
     let err = stderr(&out);
     assert!(
