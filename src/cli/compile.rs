@@ -19,8 +19,26 @@ pub enum Emit {
     Json,
 }
 
+const LONG_HELP: &str = "\
+Checks a model and shows what identification will solve for: the equations of motion, the
+parameters (known, unknown with a nominal value) and the least-squares columns. All errors
+of a file are reported at once with line:column and a hint; the exit code is non-zero.
+
+Examples:
+  dynid compile models/sdof_duffing.dyn
+    model sdof_duffing: 1 body, 1 input, 3 parameters (3 unknown)
+    equations of motion:
+      m: 1 m.x'' + k m.x + d m.x' + k3 m.x^3 = u
+  dynid compile models/two_mass.dyn --format json     # the same report for scripts
+  dynid compile models/two_mass.dyn --emit rust       # the code include_model! generates
+  dynid compile models/two_mass.dyn --emit json > two_mass.json   # compiled IR; other
+                                                      # commands accept it as MODEL
+
+The language is described in docs/language.md.";
+
 /// Arguments of `dynid compile`.
 #[derive(clap::Args, Debug)]
+#[command(after_long_help = LONG_HELP)]
 pub struct Args {
     /// The model file.
     pub model: PathBuf,

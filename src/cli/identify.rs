@@ -9,8 +9,32 @@ use dynid_runtime::{identify, IdentifyOptions};
 use miette::IntoDiagnostic;
 use std::path::PathBuf;
 
+const LONG_HELP: &str = "\
+Identifies every unknown parameter of MODEL by the covariance method: the data of all
+levels are filtered (no numerical differentiation), their filter covariances pooled into
+one least-squares problem and solved by SVD. Each CSV file is one excitation level with a
+header naming the model's measured signals (`m1.x`, `m1.v`, `u`; extra columns are
+ignored) and a uniform time column `t` (or give `--sample`). Velocities may be left
+unmeasured (declare them so in the model); accelerations never need to be measured.
+
+Example:
+  dynid simulate models/two_mass.dyn --out data/
+  dynid identify models/two_mass.dyn data/level_1.csv data/level_2.csv data/level_3.csv \\
+      --json result.json
+
+    parameter             value   std. error      rel.
+    m2                    1.999     6.105e-5     0.00%
+    k3                    1.499     7.983e-5     0.01%
+    ...
+    condition 8.917e0, 108 rows, filter corners 0.5000, ... 16.00 rad/s
+
+Standard errors come from a delete-one-block jackknife; a parameter the data cannot
+resolve is named (never excited, or collinear with partners) and given no number. Columns
+with other names: `--map disp=m1.x`.";
+
 /// Arguments of `dynid identify`.
 #[derive(clap::Args, Debug)]
+#[command(after_long_help = LONG_HELP)]
 pub struct Args {
     /// The model file.
     pub model: PathBuf,

@@ -7,8 +7,23 @@ use dynid_runtime::sim::{level_file_names, write_level_csv};
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
 
+const LONG_HELP: &str = "\
+Runs the Silverbox benchmark (an electronic Duffing oscillator, m y'' + d y' + a y + b y^3 = u)
+on the original measurement: means removed, identification on the estimation part of the
+multisines only, free-run RMS error (mV) on the arrow test and on the multisine test next
+to the published figures.
+
+Examples:
+  dynid silverbox                                     # the cubic model, default data path
+  dynid silverbox --model models/silverbox_linear.dyn --model models/silverbox_cubic.dyn
+  dynid silverbox --model models/silverbox_linear.dyn --export-levels arrow/
+  dynid diagnose models/silverbox_linear.dyn arrow/level_*.csv   # names the cubic spring
+
+The procedure, the segment boundaries and the figures are in docs/silverbox.md.";
+
 /// Arguments of `dynid silverbox`.
 #[derive(clap::Args, Debug)]
+#[command(after_long_help = LONG_HELP)]
 pub struct Args {
     /// Directory holding SNLS80mV.csv.
     #[arg(long, value_name = "DIR", default_value = "../shared/data/silverbox")]

@@ -29,7 +29,7 @@ response is written to DIR/driven.csv on the same time base — to compare the m
 reality.
 
 Example:
-  dynid simulate models/sdof.dyn --levels 6,15,40 --duration 2000 --sample 0.01 \\
+  dynid simulate models/sdof_cubic_coulomb.dyn --levels 6,15,40 --duration 2000 --sample 0.01 \\
       --noise 0.05 --seed 1 --out data/
   writes data/level_1.csv, data/level_2.csv, data/level_3.csv and data/truth.json";
 
