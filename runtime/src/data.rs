@@ -490,7 +490,8 @@ impl LevelSource for CsvSource {
         if let Some(file) = replay.as_mut() {
             return self.stream_copy(file, max_len, sink);
         }
-        let mut copy = if self.spill {
+        // (Nothing to copy without selected columns: every pass then parses.)
+        let mut copy = if self.spill && !self.wanted.is_empty() {
             tempfile::tempfile()
                 .ok()
                 .map(|f| BufWriter::with_capacity(1 << 20, f))
