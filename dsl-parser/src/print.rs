@@ -304,27 +304,48 @@ pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
 }
 
 fn table(header: &[&str], rows: &[Vec<String>]) -> String {
-    let mut w: Vec<usize> = header.iter().map(|h| h.chars().count()).collect();
-    for r in rows {
-        for (i, c) in r.iter().enumerate() {
-            w[i] = w[i].max(c.chars().count());
-        }
-    }
+    let all: Vec<Vec<String>> = std::iter::once(header.iter().map(|h| h.to_string()).collect())
+        .chain(rows.iter().cloned())
+        .collect();
+    aligned(&all, &[], "  ")
+}
+
+/// Text columns padded to their widest cell, counted in characters (so that σ, χ² and Δ
+/// do not throw the alignment off), two spaces apart, each line starting with `indent`.
+/// `right[j]` right-aligns column j (left where absent); a left-aligned last cell is not
+/// padded and lines carry no trailing spaces.
+pub fn aligned(rows: &[Vec<String>], right: &[bool], indent: &str) -> String {
+    let ncol = rows.iter().map(Vec::len).max().unwrap_or(0);
+    let width: Vec<usize> = (0..ncol)
+        .map(|j| {
+            rows.iter()
+                .filter_map(|r| r.get(j))
+                .map(|c| c.chars().count())
+                .max()
+                .unwrap_or(0)
+        })
+        .collect();
     let mut out = String::new();
-    let line = |cells: Vec<&str>, out: &mut String| {
-        let mut l = String::from("  ");
-        for (i, c) in cells.iter().enumerate() {
-            l.push_str(c);
-            if i + 1 < cells.len() {
-                l.push_str(&" ".repeat(w[i] - c.chars().count() + 2));
+    for r in rows {
+        let mut line = indent.to_string();
+        for (j, c) in r.iter().enumerate() {
+            let pad = " ".repeat(width[j] - c.chars().count());
+            let last = j + 1 == r.len();
+            if j > 0 {
+                line.push_str("  ");
+            }
+            if right.get(j).copied().unwrap_or(false) {
+                line.push_str(&pad);
+                line.push_str(c);
+            } else {
+                line.push_str(c);
+                if !last {
+                    line.push_str(&pad);
+                }
             }
         }
-        out.push_str(l.trim_end());
+        out.push_str(line.trim_end());
         out.push('\n');
-    };
-    line(header.to_vec(), &mut out);
-    for r in rows {
-        line(r.iter().map(String::as_str).collect(), &mut out);
     }
     out
 }

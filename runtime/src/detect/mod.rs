@@ -39,6 +39,7 @@ pub use from_data::{
 pub use plot::plot_curves;
 pub use quad::NormalRule;
 
+use dsl_parser::print::aligned;
 use serde::{Deserialize, Serialize};
 
 use fit::{CurveData, ElementData};
@@ -924,45 +925,6 @@ pub fn fmt_g(x: f64) -> String {
         };
         format!("{x:.digits$}")
     }
-}
-
-/// Columns padded to their widest cell (counted in characters, so that σ, χ² and Δ do
-/// not throw the alignment off); `right[j]` right-aligns column j. The last column is not
-/// padded.
-fn aligned(rows: &[Vec<String>], right: &[bool], indent: &str) -> String {
-    let ncol = rows.iter().map(Vec::len).max().unwrap_or(0);
-    let width: Vec<usize> = (0..ncol)
-        .map(|j| {
-            rows.iter()
-                .filter_map(|r| r.get(j))
-                .map(|c| c.chars().count())
-                .max()
-                .unwrap_or(0)
-        })
-        .collect();
-    let mut out = String::new();
-    for r in rows {
-        let mut line = indent.to_string();
-        for (j, c) in r.iter().enumerate() {
-            let pad = " ".repeat(width[j] - c.chars().count());
-            let last = j + 1 == r.len();
-            if j > 0 {
-                line.push_str("  ");
-            }
-            if right.get(j).copied().unwrap_or(false) {
-                line.push_str(&pad);
-                line.push_str(c);
-            } else {
-                line.push_str(c);
-                if !last {
-                    line.push_str(&pad);
-                }
-            }
-        }
-        out.push_str(line.trim_end());
-        out.push('\n');
-    }
-    out
 }
 
 impl Detection {
