@@ -460,62 +460,6 @@ pub fn with_estimates(ir: &ModelIr, values: &[(String, f64)]) -> ModelIr {
     out
 }
 
-/// Least-squares point estimates of *all* unknowns from the pooled system `C p = c`
-/// (rows normalised with their right-hand side, columns scaled, SVD), including those that
-/// [`identify`] reports as unresolved (for comparison; [`run`] simulates the resolved ones).
-pub fn point_estimates(
-    ir: &ModelIr,
-    records: &[Record],
-    opts: &IdentifyOptions,
-) -> Result<Vec<(String, f64)>, SilverboxError> {
-    let sources = records
-        .iter()
-        .enumerate()
-        .map(|(i, r)| RecordSource::new(r, ir, format!("estimation part {}", i + 1)))
-        .collect::<Result<Vec<_>, _>>()?;
-    let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
-    let tape = crate::tape::Tape::compile(ir, &ir.eval_roots());
-    let sys = crate::ident::assemble(ir, &tape, &levels, opts)?;
-    let (rows, cols) = (sys.rows, sys.cols);
-    let mut a = nalgebra::DMatrix::<f64>::zeros(rows, cols);
-    let mut b = nalgebra::DVector::<f64>::zeros(rows);
-    for r in 0..rows {
-        let row = &sys.c_matrix[r * cols..(r + 1) * cols];
-        let n = (row.iter().map(|v| v * v).sum::<f64>() + sys.rhs[r].powi(2)).sqrt();
-        let w = if n > 0.0 { 1.0 / n } else { 0.0 };
-        for (c, v) in row.iter().enumerate() {
-            a[(r, c)] = w * v;
-        }
-        b[r] = w * sys.rhs[r];
-    }
-    let scale: Vec<f64> = (0..cols)
-        .map(|c| {
-            let n = a.column(c).norm();
-            if n > 0.0 {
-                1.0 / n
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    for (c, s) in scale.iter().enumerate() {
-        a.column_mut(c).scale_mut(*s);
-    }
-    let x = a
-        .svd(true, true)
-        .solve(&b, 1e-12)
-        .map_err(|e| SilverboxError::Model {
-            model: ir.name.clone(),
-            what: format!("least squares failed: {e}"),
-        })?;
-    Ok(ir
-        .unknowns()
-        .iter()
-        .enumerate()
-        .map(|(c, p)| (ir.params[p.index()].name.clone(), x[c] * scale[c]))
-        .collect())
-}
-
 /// Free-run simulation of `ir` (at its nominal values) driven by the measured input over
 /// `sim` from rest; RMS error in volts over `score` (⊆ `sim`) and the simulated output.
 pub fn free_run_rms(
