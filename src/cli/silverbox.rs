@@ -2,6 +2,7 @@
 //! multisines, free-run simulate the arrow and the multisine test, compare with the
 //! published results; optionally export the arrow as excitation levels for detection.
 
+use dynid_runtime::record::Record;
 use dynid_runtime::silverbox::{self, RunOptions, SilverboxReport, PUBLISHED};
 use dynid_runtime::sim::{level_file_names, write_level_csv};
 use miette::{miette, IntoDiagnostic, WrapErr};
@@ -183,6 +184,17 @@ pub fn table(reports: &[SilverboxReport]) -> String {
     s
 }
 
+/// Write `records` as DIR/level_k.csv (each file atomically).
+fn write_levels(dir: &std::path::Path, records: &[Record]) -> miette::Result<()> {
+    std::fs::create_dir_all(dir)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("cannot create `{}`", dir.display()))?;
+    for (name, rec) in level_file_names(records.len()).iter().zip(records) {
+        write_level_csv(&dir.join(name), rec)?;
+    }
+    Ok(())
+}
+
 fn export_estimation(
     args: &Args,
     data: &silverbox::SilverboxData,
@@ -196,12 +208,7 @@ fn export_estimation(
         .iter()
         .map(|s| silverbox::record_upsampled(&ir, data, *s, args.upsample))
         .collect::<Result<Vec<_>, _>>()?;
-    std::fs::create_dir_all(dir)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot create `{}`", dir.display()))?;
-    for (name, rec) in level_file_names(records.len()).iter().zip(&records) {
-        write_level_csv(&dir.join(name), rec)?;
-    }
+    write_levels(dir, &records)?;
     println!(
         "{} multisine estimation parts of `{}` written to {}: {}",
         records.len(),
@@ -240,12 +247,7 @@ fn export_levels(
     }
     let (records, levels) =
         silverbox::arrow_level_fits(&ir, data, args.n_levels, &opts, args.upsample)?;
-    std::fs::create_dir_all(dir)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot create `{}`", dir.display()))?;
-    for (name, rec) in level_file_names(records.len()).iter().zip(&records) {
-        write_level_csv(&dir.join(name), rec)?;
-    }
+    write_levels(dir, &records)?;
     let names: Vec<String> = levels[0].params.iter().map(|p| p.name.clone()).collect();
     let mut s = format!(
         "arrow levels of `{}` written to {}\n\n| level | samples | u std (mV) | y std (mV) |",
