@@ -2,8 +2,8 @@
 //! unmodelled effect explains it, and how far the gap shrinks once that effect is added.
 //!
 //! The gap is measured by simulation (the model driven by the measured input from the
-//! measured initial state,
-//! free run, compared with the measured response) and by the covariance-equation residual.
+//! measured initial state, free run, compared with the measured response) and by the
+//! covariance-equation residual.
 //! Candidate effects from a small library are added as new unknown force terms by editing
 //! the model's source text and recompiling it, so that names and spans stay those of the
 //! user's model and the corrected model is ordinary `.dyn` text. Every candidate is fitted
