@@ -216,7 +216,7 @@ fn cubic_and_coulomb_in_one_element() {
 /// with 5, 6, 7 levels too): k3 within 3 %, r 0.21–0.29 of 0.3.
 #[test]
 fn cubic_and_coulomb_separate_at_four_levels() {
-    let ir = compile_str("sdof_cubic_coulomb", &cubic_coulomb_levels(4)).unwrap();
+    let ir = cubic_coulomb_levels(4);
     let recs = sim_ir(&ir, DURATION, 7);
     let (d, _) = run("sdof_linear", &recs, false);
     println!("{}", d.render_table());
@@ -520,7 +520,7 @@ fn linearisation_bias() {
 fn cubic_coulomb_level_count() {
     for n in 3..=7usize {
         for seed in [7u64, 8, 9] {
-            let ir = compile_str("sdof_cubic_coulomb", &cubic_coulomb_levels(n)).unwrap();
+            let ir = cubic_coulomb_levels(n);
             let recs = sim_ir(&ir, DURATION, seed);
             let (d, _) = run("sdof_linear", &recs, false);
             let f = finding(&d, "k/d (ground, m)");
@@ -535,22 +535,16 @@ fn cubic_coulomb_level_count() {
 }
 
 /// The prototype system with `n` levels geometrically spaced over 6…40.
-fn cubic_coulomb_levels(n: usize) -> String {
-    let levels: Vec<String> = (0..n)
+fn cubic_coulomb_levels(n: usize) -> ModelIr {
+    let mut ir = model("sdof_cubic_coulomb");
+    ir.excitation[0].levels = (0..n)
         .map(|i| {
             let t = i as f64 / (n - 1) as f64;
+            // Three decimals, as a model file would write them.
             format!("{:.3}", 6.0 * (40.0f64 / 6.0).powf(t))
+                .parse()
+                .unwrap()
         })
         .collect();
-    format!(
-        "model sdof_cubic_coulomb {{
-    body m = 1.0
-    input u on m
-    spring k (ground, m) ~ 4.0
-    damper d (ground, m) ~ 0.4
-    force nl (ground, m) = k3 ~ 2.0 * s^3 + r ~ 0.3 * sign(v)
-    excite u: lowpass(corner = 10) levels [{}]
-}}",
-        levels.join(", ")
-    )
+    ir
 }
