@@ -1489,10 +1489,16 @@ impl Lowerer<'_> {
                 if t.basis == e.v {
                     continue;
                 }
+                // An unmeasured velocity of a body whose position is measured is estimated
+                // from the position at identification.
                 let missing: Vec<SignalId> = ir
                     .expr_signals(t.basis)
                     .into_iter()
                     .filter(|&s| !measured(s))
+                    .filter(|&s| match ir.signal(s).kind {
+                        SignalKind::Velocity(b) => !measured(ir.position(b)),
+                        _ => true,
+                    })
                     .collect();
                 if missing.is_empty() {
                     continue;
@@ -1506,7 +1512,7 @@ impl Lowerer<'_> {
                     .iter()
                     .any(|&s| matches!(ir.signal(s).kind, SignalKind::Velocity(_)));
                 let help = if any_velocity {
-                    format!("a nonlinear function of a velocity cannot be moved onto the filter; add {} to `measure`, or remove the term (only terms exactly linear in the relative velocity, `c * v`, work without a velocity channel)", names.join(" and "))
+                    format!("a nonlinear function of a velocity needs the velocity or the body's position (from which it is estimated); add {} or the position to `measure`", names.join(" and "))
                 } else {
                     format!("add {} to `measure`: a static term is computed from the data sample by sample", names.join(" and "))
                 };

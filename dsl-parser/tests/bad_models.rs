@@ -97,14 +97,24 @@ fn unreadable_file_is_a_diagnostic() {
 
 #[test]
 fn unmeasured_term_names_the_term_and_the_signal() {
-    let src = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/bad_models/unmeasured_velocity.dyn"),
-    )
-    .unwrap();
-    let errs = compile_str("u.dyn", &src).unwrap_err();
+    // A static term in an unmeasured position cannot be formed; the linear damper can.
+    let src = "model no_position {\n body m = 1.0\n input u on m\n measure m.v, u\n \
+               spring k (ground, m) ~ 4.0\n damper d (ground, m) ~ 0.4\n \
+               force h (ground, m) = k3 ~ 2.0 * s^3\n}\n";
+    let errs = compile_str("u.dyn", src).unwrap_err();
     assert_eq!(errs.errors.len(), 1, "the linear damper is accepted");
     let msg = errs.errors[0].message();
-    assert!(msg.contains("sign(m.v)") && msg.contains("`m.v`"), "{msg}");
+    assert!(msg.contains("m.x^3") && msg.contains("`m.x`"), "{msg}");
+}
+
+#[test]
+fn nonlinear_velocity_term_compiles_when_the_position_is_measured() {
+    // Identification estimates `m.v` from `m.x` for `sign(v)`.
+    let src = "model no_velocity {\n body m = 1.0\n input u on m\n measure m.x, u\n \
+               spring k (ground, m) ~ 4.0\n damper d (ground, m) ~ 0.4\n \
+               force friction (ground, m) = r ~ 0.3 * sign(v)\n}\n";
+    let ir = compile_str("v.dyn", src).unwrap_or_else(|e| panic!("{e:?}"));
+    assert!(!ir.signal(ir.signal_id("m.v").unwrap()).measured);
 }
 
 /// Deterministic mutations of every model (deleting, duplicating and swapping bytes,

@@ -121,6 +121,15 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
         let lv: Vec<String> = r.per_level.iter().map(|v| format!("{v:.2e}")).collect();
         s.push_str(&format!("residual {}: {}\n", r.equation, lv.join(" / ")));
     }
+    for e in &id.estimated {
+        let cut: Vec<String> = e.cutoff.iter().map(|c| print::fmt_num(*c)).collect();
+        s.push_str(&format!(
+            "velocity {} estimated from {} (zero-phase differentiator, cutoff {} rad/s per level)\n",
+            e.signal,
+            e.from,
+            cut.join(" / ")
+        ));
+    }
     s
 }
 
@@ -148,6 +157,7 @@ pub fn to_json(id: &Identification) -> serde_json::Value {
         "levels": id.levels,
         "unidentifiable": id.unidentifiable,
         "filter": id.filter,
+        "estimated": id.estimated,
     })
 }
 

@@ -19,14 +19,17 @@
 //! least-squares problem `C p = c`, solved by SVD after row normalisation and column
 //! scaling; standard errors come from a delete-one-block jackknife over time blocks.
 
+pub mod design;
 pub mod filter;
 mod moments;
 mod plan;
 pub mod print;
 mod solve;
+pub mod velocity;
 
 pub use filter::Hold;
 pub use moments::PhaseTimes;
+pub use velocity::VelocityEstimate;
 
 use crate::basis::BasisEval;
 use crate::data::{DataError, LevelSource};
@@ -116,16 +119,15 @@ pub enum IdentifyError {
     )]
     NoLevels,
     #[error("{origin}: {n} samples span {duration:.3} s, too short for the slowest filter (time constant {tau:.3} s)")]
-    #[diagnostic(
-        code(dynid::identify::too_short),
-        help("record at least {need} samples, or choose higher filter corners")
-    )]
+    #[diagnostic(code(dynid::identify::too_short), help("{advice}"))]
     TooShort {
         origin: String,
         n: usize,
         duration: f64,
         tau: f64,
         need: usize,
+        /// What to do: the samples needed, and corners that fit this record where any do.
+        advice: String,
     },
     #[error("{rows} equations for {cols} unknown parameters")]
     #[diagnostic(
@@ -200,6 +202,9 @@ pub struct Identification {
     pub residual: Vec<EquationResidual>,
     pub levels: Vec<LevelInfo>,
     pub filter: FilterSummary,
+    /// Unmeasured velocities estimated from measured positions for nonlinear terms.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub estimated: Vec<VelocityEstimate>,
     /// Rows of the stacked system.
     pub rows: usize,
     #[serde(skip)]
@@ -230,6 +235,7 @@ pub struct Moments<'m> {
     plan: Plan,
     levels: Vec<LevelMoments>,
     infos: Vec<LevelInfo>,
+    estimated: Vec<VelocityEstimate>,
     rcond: f64,
     times: PhaseTimes,
 }
@@ -305,14 +311,26 @@ pub fn measure<'m>(
         .collect::<Result<_, _>>()?;
     let stats_time = t0.elapsed();
 
+    // The shortest level bounds the slowest filter.
+    let min_duration = stats
+        .iter()
+        .map(|s| s.n.saturating_sub(1) as f64 * s.ts)
+        .fold(f64::INFINITY, f64::min);
+    let ts_min = stats.iter().map(|s| s.ts).fold(f64::INFINITY, f64::min);
+    let omegas: Vec<f64> = stats.iter().flat_map(|s| s.omegas.clone()).collect();
+    let designed = design::fit_corners(&omegas, ts_min, min_duration, bank.order, bank.n_corners);
     let corners = match (&opts.corners, ir.filter.as_ref().map(|f| &f.corners)) {
         (Some(c), _) => c.clone(),
         (None, Some(c)) if !c.is_empty() => c.clone(),
-        _ => {
-            let omegas: Vec<f64> = stats.iter().flat_map(|s| s.omegas.clone()).collect();
-            let ts = stats.iter().map(|s| s.ts).fold(f64::INFINITY, f64::min);
-            filter::design_corners(&omegas, ts, opts.n_corners)
-        }
+        _ => match &designed {
+            Some(c) => c.clone(),
+            // Not even the fastest admissible corners settle: fall through to the check,
+            // which names the record length they need.
+            None => {
+                let cap = design::max_corner(ts_min);
+                vec![cap / 2.0; bank.n_corners]
+            }
+        },
     };
     if corners.is_empty() || corners.iter().any(|c| !(c.is_finite() && *c > 0.0)) {
         return Err(IdentifyError::BadOption {
@@ -325,15 +343,42 @@ pub fn measure<'m>(
     let lam_min = corners.iter().copied().fold(f64::INFINITY, f64::min);
     // The slowest section must forget its start within a small part of the record.
     let tau = bank.order as f64 / lam_min;
+    let settle = design::min_duration(&corners, bank.order);
     for (s, src) in stats.iter().zip(levels) {
         let duration = (s.n.saturating_sub(1)) as f64 * s.ts;
-        if duration < 10.0 * tau || s.n < 4 * opts.n_blocks {
+        if duration < settle * (1.0 - 1e-9) || s.n < 4 * opts.n_blocks {
+            let need = ((settle / s.ts).ceil() as usize + 1).max(4 * opts.n_blocks);
+            let advice = match &designed {
+                Some(c) if s.n >= 4 * opts.n_blocks => format!(
+                    "record at least {need} samples, or use filter corners that fit this \
+                     record (the lowest at least {:.4} rad/s), e.g. `--filter-corners {}`",
+                    design::min_corner(min_duration, bank.order),
+                    c.iter()
+                        .map(|v| format!("{v:.4}"))
+                        .collect::<Vec<_>>()
+                        .join(",")
+                ),
+                _ => format!(
+                    "record at least {} samples: with {} filter sections even the fastest \
+                     corners this sample rate allows ({:.4} rad/s) need {:.3} s",
+                    need.max(
+                        ((design::min_duration(&[design::max_corner(s.ts) / 2.0], bank.order)
+                            / s.ts)
+                            .ceil() as usize)
+                            + 1
+                    ),
+                    bank.order,
+                    design::max_corner(s.ts) / 2.0,
+                    design::min_duration(&[design::max_corner(s.ts) / 2.0], bank.order)
+                ),
+            };
             return Err(IdentifyError::TooShort {
                 origin: src.origin(),
                 n: s.n,
                 duration,
                 tau,
-                need: ((10.0 * tau / s.ts).ceil() as usize + 1).max(4 * opts.n_blocks),
+                need,
+                advice,
             });
         }
     }
@@ -343,7 +388,39 @@ pub fn measure<'m>(
         return Err(IdentifyError::TooFewRows { rows, cols });
     }
 
-    let results: Vec<(LevelMoments, PhaseTimes)> = levels
+    // Unmeasured velocities in nonlinear terms: estimated from the positions, per level.
+    let targets: Vec<(usize, usize)> = plan
+        .estimated
+        .iter()
+        .map(|(v, x)| (v.index(), x.index()))
+        .collect();
+    let estimators: Vec<velocity::EstimatedVelocity> = if targets.is_empty() {
+        Vec::new()
+    } else {
+        levels
+            .par_iter()
+            .map(|src| velocity::EstimatedVelocity::design(*src, &targets, opts.chunk_len))
+            .collect::<Result<_, _>>()?
+    };
+    let sources: Vec<&dyn LevelSource> = if estimators.is_empty() {
+        levels.to_vec()
+    } else {
+        estimators.iter().map(|e| e as &dyn LevelSource).collect()
+    };
+    let estimated = plan
+        .estimated
+        .iter()
+        .enumerate()
+        .map(|(k, (v, x))| VelocityEstimate {
+            signal: ir.signal(*v).name.clone(),
+            from: ir.signal(*x).name.clone(),
+            method: velocity::METHOD.into(),
+            cutoff: estimators.iter().map(|e| e.designs()[k].1).collect(),
+            half_width: estimators.iter().map(|e| e.designs()[k].2).collect(),
+        })
+        .collect();
+
+    let results: Vec<(LevelMoments, PhaseTimes)> = sources
         .par_iter()
         .zip(&stats)
         .map(|(src, st)| {
@@ -389,6 +466,7 @@ pub fn measure<'m>(
         plan,
         levels: lm,
         infos,
+        estimated,
         rcond: opts.rcond,
         times,
     })
@@ -847,6 +925,7 @@ impl<'m> Moments<'m> {
             residual,
             levels: which.iter().map(|&i| self.infos[i].clone()).collect(),
             filter: self.filter_summary(),
+            estimated: self.estimated.clone(),
             rows,
             times,
         }

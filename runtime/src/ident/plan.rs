@@ -62,6 +62,9 @@ pub(crate) struct Plan {
     pub min_degree: usize,
     pub corners: Vec<f64>,
     pub vhat_bodies: Vec<BodyId>,
+    /// `(velocity, position)`: unmeasured velocities used in static terms, estimated from
+    /// their measured positions.
+    pub estimated: Vec<(SignalId, SignalId)>,
     pub unknowns: Vec<usize>,
     pub equations: Vec<Vec<PlanTerm>>,
     pub instruments: Vec<Instrument>,
@@ -120,6 +123,7 @@ pub(crate) fn build_structure(
     let root_of = |e: ExprId| roots.iter().position(|r| *r == e).expect("root");
     let n_g = roots.len();
     let mut vhat_bodies = Vec::new();
+    let mut estimated = Vec::new();
     let mut equations = Vec::new();
     for (l, eq) in ir.equations.iter().enumerate() {
         let mut terms = Vec::new();
@@ -136,16 +140,32 @@ pub(crate) fn build_structure(
             };
             let basis = match t.basis {
                 Basis::Expr(e) => {
-                    if let Some(s) = ir
-                        .expr_signals(e)
-                        .into_iter()
-                        .find(|s| y_of[s.index()].is_none())
-                    {
-                        return Err(IdentifyError::UnmeasuredInTerm {
-                            equation: ir.bodies[l].name.clone(),
-                            term: dsl_parser::print::render_expr(ir, e),
-                            signal: ir.signal(s).name.clone(),
-                        });
+                    for s in ir.expr_signals(e) {
+                        if y_of[s.index()].is_some() {
+                            continue;
+                        }
+                        // An unmeasured velocity of a body whose position is measured is
+                        // estimated from the position (see [`super::velocity`]).
+                        let from = match ir.signal(s).kind {
+                            SignalKind::Velocity(b) => {
+                                Some(ir.position(b)).filter(|x| y_of[x.index()].is_some())
+                            }
+                            _ => None,
+                        };
+                        match from {
+                            Some(x) => {
+                                if !estimated.contains(&(s, x)) {
+                                    estimated.push((s, x));
+                                }
+                            }
+                            None => {
+                                return Err(IdentifyError::UnmeasuredInTerm {
+                                    equation: ir.bodies[l].name.clone(),
+                                    term: dsl_parser::print::render_expr(ir, e),
+                                    signal: ir.signal(s).name.clone(),
+                                })
+                            }
+                        }
                     }
                     BasisMoment::Static(root_of(e))
                 }
@@ -211,6 +231,7 @@ pub(crate) fn build_structure(
         min_degree: bank.min_degree,
         corners: vec![0.0; bank.n_corners],
         vhat_bodies,
+        estimated,
         unknowns: unknowns.iter().map(|p| p.index()).collect(),
         equations,
         instruments: Vec::new(),
@@ -268,7 +289,16 @@ impl Plan {
         let w_signals: Vec<Vec<SignalId>> = self
             .roots
             .iter()
-            .map(|&r| ir.expr_signals(r))
+            .map(|&r| {
+                // An estimated velocity depends on samples of its position.
+                let mut sig = ir.expr_signals(r);
+                for &(v, x) in &self.estimated {
+                    if sig.contains(&v) && !sig.contains(&x) {
+                        sig.push(x);
+                    }
+                }
+                sig
+            })
             .chain(self.y.iter().map(|&s| vec![s]))
             .collect();
         let mut rows = Vec::new();

@@ -1,0 +1,96 @@
+//! Filter corners that fit the record.
+//!
+//! The spectral design ([`super::filter::design_corners`]) spreads the corners over the band
+//! where the response has power. On a short record its slowest chain may not forget its
+//! start: a chain of `n` sections with corner `λ` has time constant `τ = n/λ`, and the record
+//! must span at least [`SETTLE`]` · τ`. So the lowest corner is lifted to
+//!
+//! ```text
+//! λ_min = SETTLE · n / T          (T: duration of the shortest level)
+//! ```
+//!
+//! and the highest kept at least eight times above it (the spectral span when the record is
+//! long enough), but never above a tenth of the Nyquist frequency, where the
+//! piecewise-linear input model stays accurate. A record is too short only when even
+//! `λ_min` leaves no room below that cap (`λ_min > cap / 2`).
+
+use std::f64::consts::PI;
+
+/// Record length in time constants of the slowest chain.
+pub const SETTLE: f64 = 10.0;
+
+/// Lowest corner (rad/s) that a record of `duration` seconds supports with `order` sections.
+pub fn min_corner(duration: f64, order: usize) -> f64 {
+    SETTLE * order as f64 / duration
+}
+
+/// Highest corner (rad/s) at sample interval `ts`: a tenth of the Nyquist frequency.
+pub fn max_corner(ts: f64) -> f64 {
+    PI / ts / 10.0
+}
+
+/// Log-spaced corners from `lo` to `hi`.
+fn spread(lo: f64, hi: f64, count: usize) -> Vec<f64> {
+    if count == 1 {
+        return vec![(lo * hi).sqrt()];
+    }
+    (0..count)
+        .map(|i| lo * (hi / lo).powf(i as f64 / (count - 1) as f64))
+        .collect()
+}
+
+/// Corners from the dominant frequencies `omegas` (see [`super::filter::design_corners`]),
+/// lifted where needed so that chains of `order` sections settle within `duration` seconds.
+/// `None` when the record is too short for any corner below the cap.
+pub fn fit_corners(
+    omegas: &[f64],
+    ts: f64,
+    duration: f64,
+    order: usize,
+    count: usize,
+) -> Option<Vec<f64>> {
+    let base = super::filter::design_corners(omegas, ts, count);
+    // A little above the bound, so that corners printed with four decimals still fit.
+    let lmin = min_corner(duration, order) * 1.001;
+    let cap = max_corner(ts);
+    if !(lmin.is_finite() && lmin <= cap / 2.0) {
+        return None;
+    }
+    let lo = base.iter().copied().fold(f64::INFINITY, f64::min);
+    if lo >= lmin {
+        return Some(base);
+    }
+    let hi = base.iter().copied().fold(0.0, f64::max);
+    let hi = hi.max(8.0 * lmin).min(cap);
+    Some(spread(lmin, hi, count))
+}
+
+/// Shortest record (seconds) on which `corners` settle with `order` sections.
+pub fn min_duration(corners: &[f64], order: usize) -> f64 {
+    let lo = corners.iter().copied().fold(f64::INFINITY, f64::min);
+    SETTLE * order as f64 / lo
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn long_records_keep_the_spectral_design() {
+        let w = [2.0, 9.0];
+        let base = super::super::filter::design_corners(&w, 0.01, 6);
+        assert_eq!(fit_corners(&w, 0.01, 2000.0, 4, 6), Some(base));
+    }
+
+    #[test]
+    fn short_records_lift_the_slowest_corner_and_keep_the_span() {
+        let w = [2.0, 9.0];
+        let c = fit_corners(&w, 0.001, 25.0, 4, 6).unwrap();
+        assert!((c[0] - 1.6 * 1.001).abs() < 1e-12, "{c:?}");
+        assert!(min_duration(&c, 4) <= 25.0 + 1e-9);
+        assert!(c[5] >= 8.0 * c[0] - 1e-9 && c[5] <= max_corner(0.001));
+        // 1 s at 1 kHz still fits (λ_min = 40 rad/s, cap 314 rad/s); 0.2 s does not.
+        assert!(fit_corners(&w, 0.001, 1.0, 4, 6).is_some());
+        assert!(fit_corners(&w, 0.001, 0.2, 4, 6).is_none());
+    }
+}
