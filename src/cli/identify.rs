@@ -15,7 +15,11 @@ levels are filtered (no numerical differentiation), their filter covariances poo
 one least-squares problem and solved by SVD. Each CSV file is one excitation level with a
 header naming the model's measured signals (`m1.x`, `m1.v`, `u`; extra columns are
 ignored) and a uniform time column `t` (or give `--sample`). Velocities may be left
-unmeasured (declare them so in the model); accelerations never need to be measured.
+unmeasured (declare them so in the model): terms linear in them move onto the filters, and
+nonlinear ones (`sign(v)`, `v*abs(v)`) use a zero-phase estimate from the position, named
+in the output. Accelerations never need to be measured. The default filter corners fit the
+band of the data and the record length; a record too short for given corners is refused
+with corners that fit it.
 
 Example:
   dynid simulate models/two_mass.dyn --out data/

@@ -358,19 +358,17 @@ pub fn measure<'m>(
                         .collect::<Vec<_>>()
                         .join(",")
                 ),
-                _ => format!(
-                    "record at least {} samples: with {} filter sections even the fastest \
-                     corners this sample rate allows ({:.4} rad/s) need {:.3} s",
-                    need.max(
-                        ((design::min_duration(&[design::max_corner(s.ts) / 2.0], bank.order)
-                            / s.ts)
-                            .ceil() as usize)
-                            + 1
-                    ),
-                    bank.order,
-                    design::max_corner(s.ts) / 2.0,
-                    design::min_duration(&[design::max_corner(s.ts) / 2.0], bank.order)
-                ),
+                _ => {
+                    // The fastest corner the design allows at this sample rate.
+                    let fast = design::max_corner(s.ts) / 2.0;
+                    let t_fast = design::min_duration(&[fast], bank.order);
+                    format!(
+                        "record at least {} samples: with {} filter sections even the fastest \
+                         corner this sample rate allows ({fast:.4} rad/s) needs {t_fast:.3} s",
+                        need.max((t_fast / s.ts).ceil() as usize + 1),
+                        bank.order,
+                    )
+                }
             };
             return Err(IdentifyError::TooShort {
                 origin: src.origin(),
