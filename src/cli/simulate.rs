@@ -20,6 +20,20 @@ seconds are recorded every --sample seconds. The columns are `t` and every measu
 (`m1.x`, `m1.v`, …, inputs). --noise adds white measurement noise with a standard deviation
 of that fraction of each signal's standard deviation. The same --seed gives the same data.
 
+--input-oversample N simulates the input processes N times per sample interval and
+drives the mechanics with that finer input, so the data carries input content between
+samples (the intensity keeps its meaning); samples are point values. --quantise Q rounds
+every recorded position to a multiple of Q (an encoder resolution, after any noise). To
+record positions without velocities, list the measured signals in the model
+(`measure m.x, u`).
+
+--pd KP,KD closes a position loop around the body of the model's first input:
+u = KP (r − x) + KD (ṙ − v̂), v̂ the backward difference of the (quantised) position
+(--tachometer: the true velocity), updated every Ts / N and held in between. The
+reference r is white noise through a Butterworth low-pass of natural frequency
+--reference-corner (rad/s) with RMS --reference-rms × level, written as the column
+`<body>.x_ref`; the recorded input is the controller's output.
+
 DIR/truth.json records the parameter values, levels and settings used, so identification
 results can be scored against it.
 
@@ -63,6 +77,24 @@ pub struct Args {
     /// Seconds simulated and discarded before recording, so the record is stationary.
     #[arg(long, default_value_t = 100.0, value_name = "SECONDS")]
     pub burn_in: f64,
+    /// Input-process steps per sample interval (1 = linear between samples).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub input_oversample: usize,
+    /// Round recorded positions to multiples of this encoder resolution.
+    #[arg(long, value_name = "RESOLUTION")]
+    pub quantise: Option<f64>,
+    /// Close a PD position loop on the first input's body with these gains.
+    #[arg(long, value_delimiter = ',', value_name = "KP,KD")]
+    pub pd: Option<Vec<f64>>,
+    /// RMS of the controller's reference position at level 1.
+    #[arg(long, default_value_t = 0.03, value_name = "X")]
+    pub reference_rms: f64,
+    /// Natural frequency of the reference's low-pass in rad/s.
+    #[arg(long, default_value_t = 5.0, value_name = "RAD_PER_S")]
+    pub reference_corner: f64,
+    /// The controller feeds back the true velocity instead of a position difference.
+    #[arg(long)]
+    pub tachometer: bool,
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
@@ -98,13 +130,16 @@ fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
         noise_on_inputs: !args.clean_inputs,
         substeps: args.substeps,
         burn_in: args.burn_in,
+        input_oversample: args.input_oversample,
+        quantise: args.quantise,
+        control: pd_control(ir, args)?,
     };
     let n_levels = args
         .levels
         .as_ref()
         .map(Vec::len)
         .or_else(|| ir.excitation.first().map(|e| e.levels.len()))
-        .unwrap_or(0);
+        .unwrap_or(usize::from(cfg.control.is_some()));
     let bar = progress_bar(sim::total_samples(&cfg, n_levels));
     let out = sim::simulate_with_progress(ir, &cfg, &|n| bar.inc(n));
     bar.finish_and_clear();
@@ -140,6 +175,43 @@ fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The controller of `--pd`: on the model's first input and the body it acts on.
+fn pd_control(ir: &ModelIr, args: &Args) -> miette::Result<Option<sim::PdControl>> {
+    let Some(gains) = &args.pd else {
+        return Ok(None);
+    };
+    let &[kp, kd] = gains.as_slice() else {
+        miette::bail!(
+            help = "give the position and velocity gains, e.g. `--pd 80000,2680`",
+            "`--pd` takes two gains, got {}",
+            gains.len()
+        );
+    };
+    let Some(input) = ir.inputs.first() else {
+        miette::bail!(
+            help = "declare an input (`input u on m`) for the controller to drive",
+            "`--pd` needs a model input, and `{}` has none",
+            ir.name
+        );
+    };
+    Ok(Some(sim::PdControl {
+        input: input.name.clone(),
+        body: ir.bodies[input.body.index()].name.clone(),
+        kp,
+        kd,
+        kf: 0.0,
+        velocity: if args.tachometer {
+            sim::VelocitySource::Tachometer
+        } else {
+            sim::VelocitySource::Difference
+        },
+        reference: sim::ReferenceSpec {
+            rms: args.reference_rms,
+            corner: args.reference_corner,
+        },
+    }))
 }
 
 fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
@@ -300,6 +372,12 @@ mod tests {
             clean_inputs: false,
             substeps: DEFAULT_SUBSTEPS,
             burn_in: 5.0,
+            input_oversample: 1,
+            quantise: None,
+            pd: None,
+            reference_rms: 0.03,
+            reference_corner: 5.0,
+            tachometer: false,
             out,
             input: None,
             format: Format::Json,

@@ -137,6 +137,17 @@ impl FormFilterSampler {
         self.state[0]
     }
 
+    /// The second state of a second-order filter: the derivative of its output (0 for
+    /// other filters).
+    #[inline]
+    pub(crate) fn derivative(&self) -> f64 {
+        if self.dim == 2 {
+            self.state[1]
+        } else {
+            0.0
+        }
+    }
+
     /// Stationary standard deviation of the output.
     pub(crate) fn output_std(&self) -> f64 {
         if self.dim == 0 {

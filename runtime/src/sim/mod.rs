@@ -41,6 +41,7 @@
 //! (dominant frequency above ≈ 1.5/Ts, fewer than about four samples per period) is
 //! [`SimError::UnderResolved`]: such a record aliases and cannot be trusted.
 
+pub mod control;
 mod error;
 pub(crate) mod excite;
 mod mech;
@@ -48,10 +49,12 @@ mod output;
 #[doc(hidden)]
 pub mod test_models;
 
+pub use control::{PdControl, ReferenceSpec, VelocitySource};
 pub use error::SimError;
 pub use output::{level_file_names, write_level_csv, write_outputs, Truth};
 
 use crate::record::Record;
+use control::{quantise, Controller};
 use dsl_parser::ir::{FormFilter, InputId, ModelIr, ParamKind, SignalKind};
 use excite::FormFilterSampler;
 use mech::{Mechanics, Rk4};
@@ -86,6 +89,14 @@ pub struct SimConfig {
     pub substeps: usize,
     /// Seconds simulated and discarded before recording starts.
     pub burn_in: f64,
+    /// Steps of the input processes per sample interval (see the module doc); 1 = the
+    /// inputs are simulated at the sample rate and interpolated linearly in between.
+    pub input_oversample: usize,
+    /// Encoder resolution: every recorded position is rounded to a multiple of it (after
+    /// the measurement noise), and a controller sees the rounded position.
+    pub quantise: Option<f64>,
+    /// A PD position controller producing one input (closed loop), see [`control`].
+    pub control: Option<PdControl>,
 }
 
 impl Default for SimConfig {
@@ -99,6 +110,9 @@ impl Default for SimConfig {
             noise_on_inputs: true,
             substeps: DEFAULT_SUBSTEPS,
             burn_in: 100.0,
+            input_oversample: 1,
+            quantise: None,
+            control: None,
         }
     }
 }
@@ -256,27 +270,47 @@ struct ExcitationPlan {
     n_levels: usize,
     /// Reported levels: the override, or the first excitation's intensities.
     levels: Vec<f64>,
-    /// `filters[input] = Some((filter, intensities per level))`.
+    /// `filters[input] = Some((filter, intensities per level))`; `None` for inputs without
+    /// an excitation and for the controlled input.
     filters: Vec<Option<(FormFilter, Vec<f64>)>>,
+    control: Option<ControlPlan>,
+}
+
+/// The resolved controller of a closed-loop run.
+struct ControlPlan {
+    spec: PdControl,
+    input: usize,
+    body: usize,
+    /// Scale of the reference RMS per level: the controlled input's levels (override or
+    /// `excite` line), else 1.
+    scales: Vec<f64>,
 }
 
 impl ExcitationPlan {
     fn new(ir: &ModelIr, cfg: &SimConfig) -> Result<Self, SimError> {
-        if ir.excitation.is_empty() {
+        let controlled = cfg
+            .control
+            .as_ref()
+            .map(|c| resolve_control(ir, c))
+            .transpose()?;
+        if ir.excitation.is_empty() && controlled.is_none() {
             return Err(SimError::NoExcitation {
                 model: ir.name.clone(),
             });
         }
+        let h = cfg.sample / cfg.input_oversample as f64;
         let mut filters: Vec<Option<(FormFilter, Vec<f64>)>> = vec![None; ir.inputs.len()];
-        let first = &ir.excitation[0];
+        let mut seen = vec![false; ir.inputs.len()];
+        let mut control_levels = None;
+        let first = ir.excitation.first();
         for ex in &ir.excitation {
             let name = || ir.inputs[ex.input.index()].name.clone();
-            if filters[ex.input.index()].is_some() {
+            if std::mem::replace(&mut seen[ex.input.index()], true) {
                 return Err(SimError::ExcitedTwice { input: name() });
             }
-            let levels = match &cfg.levels {
-                Some(l) => l.clone(),
-                None => {
+            let levels = match (&cfg.levels, first) {
+                (Some(l), _) => l.clone(),
+                (None, Some(first)) => {
                     if ex.levels.len() != first.levels.len() {
                         return Err(SimError::LevelCountMismatch {
                             first: ir.inputs[first.input.index()].name.clone(),
@@ -287,10 +321,15 @@ impl ExcitationPlan {
                     }
                     ex.levels.clone()
                 }
+                (None, None) => unreachable!("an excitation exists"),
             };
+            if controlled.map(|c| c.0) == Some(ex.input.index()) {
+                control_levels = Some(levels);
+                continue;
+            }
             // Discretise once up front so a bad filter fails before any work is done.
             for &l in &levels {
-                FormFilterSampler::new(&ex.filter, l, cfg.sample).map_err(|reason| {
+                FormFilterSampler::new(&ex.filter, l, h).map_err(|reason| {
                     SimError::BadFormFilter {
                         input: name(),
                         reason,
@@ -299,18 +338,44 @@ impl ExcitationPlan {
             }
             filters[ex.input.index()] = Some((ex.filter.clone(), levels));
         }
-        let levels = cfg.levels.clone().unwrap_or_else(|| first.levels.clone());
+        let levels = cfg
+            .levels
+            .clone()
+            .or_else(|| first.map(|f| f.levels.clone()))
+            .unwrap_or_else(|| vec![1.0]);
         if levels.is_empty() {
             return Err(SimError::NoLevels);
         }
+        let control = match (controlled, &cfg.control) {
+            (Some((input, body)), Some(spec)) => {
+                let scales = control_levels.unwrap_or_else(|| vec![1.0; levels.len()]);
+                for &s in &scales {
+                    let r = &spec.reference;
+                    FormFilterSampler::new(&r.filter(), r.intensity(s), h).map_err(|reason| {
+                        config_error(
+                            &format!("the reference of the controller: {reason}"),
+                            "give the reference a positive corner frequency and a finite, non-negative RMS",
+                        )
+                    })?;
+                }
+                Some(ControlPlan {
+                    spec: spec.clone(),
+                    input,
+                    body,
+                    scales,
+                })
+            }
+            _ => None,
+        };
         Ok(ExcitationPlan {
             n_levels: levels.len(),
             levels,
             filters,
+            control,
         })
     }
 
-    /// `(input name, filter, intensities)` of every excited input.
+    /// `(input name, filter, intensities)` of every input driven by its form filter.
     fn level_table(&self, ir: &ModelIr) -> Vec<(String, FormFilter, Vec<f64>)> {
         self.filters
             .iter()
@@ -323,6 +388,69 @@ impl ExcitationPlan {
     }
 }
 
+/// `(input index, body index)` of a controller, and a check of its gains and reference.
+fn resolve_control(ir: &ModelIr, c: &PdControl) -> Result<(usize, usize), SimError> {
+    let input = ir
+        .inputs
+        .iter()
+        .position(|i| i.name == c.input)
+        .ok_or_else(|| {
+            config_error(
+                &format!(
+                    "the controlled input `{}` is not an input of the model",
+                    c.input
+                ),
+                &format!(
+                    "name one of the model's inputs: {}",
+                    ir.inputs
+                        .iter()
+                        .map(|i| format!("`{}`", i.name))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            )
+        })?;
+    let body = ir
+        .bodies
+        .iter()
+        .position(|b| b.name == c.body)
+        .ok_or_else(|| {
+            config_error(
+                &format!(
+                    "the controlled body `{}` is not a body of the model",
+                    c.body
+                ),
+                &format!(
+                    "name one of the model's bodies: {}",
+                    ir.bodies
+                        .iter()
+                        .map(|b| format!("`{}`", b.name))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            )
+        })?;
+    if ![c.kp, c.kd, c.kf].iter().all(|g| g.is_finite()) {
+        return Err(config_error(
+            &format!("controller gains kp {}, kd {}, kf {}", c.kp, c.kd, c.kf),
+            "controller gains must be finite numbers",
+        ));
+    }
+    let r = &c.reference;
+    if !(r.rms.is_finite() && r.rms >= 0.0 && r.corner.is_finite() && r.corner > 0.0) {
+        return Err(config_error(
+            &format!("reference RMS {} and corner {}", r.rms, r.corner),
+            "the reference needs a finite, non-negative RMS and a positive corner frequency in rad/s",
+        ));
+    }
+    Ok((input, body))
+}
+
+/// Name of the reference column of a controlled body.
+pub fn reference_column(body: &str) -> String {
+    format!("{body}.x_ref")
+}
+
 fn simulate_level(
     ir: &ModelIr,
     mech: &Mechanics,
@@ -331,24 +459,45 @@ fn simulate_level(
     level: usize,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Record, SimError> {
+    let fine = cfg.input_oversample;
+    let h = cfg.sample / fine as f64;
+    let substeps = cfg.substeps.div_ceil(fine);
     let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Excitation));
     let mut samplers: Vec<Option<FormFilterSampler>> = plan
         .filters
         .iter()
         .map(|f| {
             f.as_ref().map(|(filter, levels)| {
-                FormFilterSampler::new(filter, levels[level], cfg.sample)
-                    .expect("checked when planning")
+                FormFilterSampler::new(filter, levels[level], h).expect("checked when planning")
             })
         })
         .collect();
     for s in samplers.iter_mut().flatten() {
         s.start(&mut rng);
     }
-    let limit = divergence_limit(samplers.iter().flatten().map(|s| s.output_std()));
+    let mut control = plan.control.as_ref().map(|c| {
+        let r = &c.spec.reference;
+        let mut reference = FormFilterSampler::new(&r.filter(), r.intensity(c.scales[level]), h)
+            .expect("checked when planning");
+        let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Reference));
+        reference.start(&mut rng);
+        let ctl = Controller::new(&c.spec, c.input, c.body, cfg.quantise, h, reference);
+        (ctl, rng)
+    });
+    let control_scale = plan.control.as_ref().map_or(0.0, |c| {
+        c.spec.kp.abs() * c.spec.reference.rms * c.scales[level].abs()
+    });
+    let limit = divergence_limit(
+        samplers
+            .iter()
+            .flatten()
+            .map(|s| s.output_std())
+            .chain([control_scale]),
+    );
     let (n_burn, n) = sample_counts(cfg);
     let measured = ir.measured_signals();
-    let mut columns: Vec<Vec<f64>> = measured.iter().map(|_| Vec::with_capacity(n)).collect();
+    let n_cols = measured.len() + usize::from(control.is_some());
+    let mut columns: Vec<Vec<f64>> = (0..n_cols).map(|_| Vec::with_capacity(n)).collect();
     let mut rk = Rk4::new(mech);
     let mut res = Resolution::new(mech.n_bodies);
     let read = |s: &[Option<FormFilterSampler>], u: &mut [f64]| {
@@ -362,23 +511,37 @@ fn simulate_level(
     let context = || format!("level {} (intensity {})", level + 1, plan.levels[level]);
     let mut pending = 0;
     for k in 0..n_burn + n {
-        if k >= n_burn {
-            for (col, &s) in columns.iter_mut().zip(&measured) {
-                col.push(signal_value(ir, s, &rk, &u0));
+        for j in 0..fine {
+            if let Some((ctl, _)) = &mut control {
+                let b = ctl.body;
+                u0[ctl.input] = ctl.output(rk.x[b], rk.v[b]);
             }
+            if j == 0 && k >= n_burn {
+                for (col, &s) in columns.iter_mut().zip(&measured) {
+                    col.push(signal_value(ir, s, &rk, &u0));
+                }
+                if let Some((ctl, _)) = &control {
+                    columns[n_cols - 1].push(ctl.reference.output());
+                }
+            }
+            for s in samplers.iter_mut().flatten() {
+                s.step(&mut rng);
+            }
+            read(&samplers, &mut u1);
+            if let Some((ctl, rng)) = &mut control {
+                // Zero-order hold of the controller output over the step.
+                u1[ctl.input] = u0[ctl.input];
+                ctl.reference.step(rng);
+            }
+            rk.advance(mech, &u0, &u1, h, substeps);
+            std::mem::swap(&mut u0, &mut u1);
         }
-        for s in samplers.iter_mut().flatten() {
-            s.step(&mut rng);
-        }
-        read(&samplers, &mut u1);
-        rk.advance(mech, &u0, &u1, cfg.sample, cfg.substeps);
         // Time relative to the start of the recording (negative during the burn-in).
         let t = (k as f64 + 1.0 - n_burn as f64) * cfg.sample;
         check_divergence(&rk, limit, context, t)?;
         if k >= n_burn {
             res.add(&rk.x);
         }
-        std::mem::swap(&mut u0, &mut u1);
         pending += 1;
         if pending == PROGRESS_CHUNK {
             progress(pending as u64);
@@ -400,11 +563,24 @@ fn simulate_level(
             }
         }
     }
+    if cfg.quantise.is_some() {
+        for (col, &s) in columns.iter_mut().zip(&measured) {
+            if matches!(ir.signal(s).kind, SignalKind::Position(_)) {
+                for x in col.iter_mut() {
+                    *x = quantise(*x, cfg.quantise);
+                }
+            }
+        }
+    }
+    let mut names: Vec<String> = measured
+        .iter()
+        .map(|&s| ir.signal(s).name.clone())
+        .collect();
+    if let Some(c) = &plan.control {
+        names.push(reference_column(&ir.bodies[c.body].name));
+    }
     Ok(Record {
-        names: measured
-            .iter()
-            .map(|&s| ir.signal(s).name.clone())
-            .collect(),
+        names,
         columns,
         ts: cfg.sample,
         t0: 0.0,
@@ -580,6 +756,20 @@ fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
             "use at least 1 sub-step per sample",
         ));
     }
+    if cfg.input_oversample == 0 {
+        return Err(config_error(
+            "input oversampling 0",
+            "simulate the inputs with at least 1 step per sample interval (`--input-oversample 1` is the default)",
+        ));
+    }
+    if let Some(q) = cfg.quantise {
+        if !positive(q) {
+            return Err(config_error(
+                &format!("position resolution {q}"),
+                "the quantisation step is a positive encoder resolution in position units, e.g. `--quantise 1e-6`",
+            ));
+        }
+    }
     if let Some(l) = &cfg.levels {
         if let Some(bad) = l.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
             return Err(config_error(
@@ -610,6 +800,7 @@ fn sample_counts(cfg: &SimConfig) -> (usize, usize) {
 enum Stream {
     Excitation = 0,
     Noise = 1,
+    Reference = 2,
 }
 
 /// Seed of one random stream of one level; a strong mix so nearby seeds and levels give

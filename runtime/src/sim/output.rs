@@ -1,6 +1,6 @@
 //! Writing simulated records: one CSV per level and `truth.json`, atomically.
 
-use super::{SimConfig, SimError, SimOutput};
+use super::{PdControl, SimConfig, SimError, SimOutput};
 use crate::record::Record;
 use dsl_parser::ir::{FormFilter, ModelIr};
 use serde::{Deserialize, Serialize};
@@ -26,6 +26,16 @@ pub struct Truth {
     pub sample: f64,
     pub substeps: usize,
     pub burn_in: f64,
+    /// Steps of the input processes per sample interval (1 = linear between samples).
+    #[serde(default = "one")]
+    pub input_oversample: usize,
+    /// Encoder resolution the recorded positions were rounded to.
+    #[serde(default)]
+    pub quantise: Option<f64>,
+    /// The position controller of a closed-loop run; its reference is the column
+    /// `<body>.x_ref`.
+    #[serde(default)]
+    pub control: Option<PdControl>,
     /// Data files written, in level order (filled in by [`write_outputs`]).
     #[serde(default)]
     pub files: Vec<String>,
@@ -75,9 +85,16 @@ impl Truth {
             sample: cfg.sample,
             substeps: cfg.substeps,
             burn_in: cfg.burn_in,
+            input_oversample: cfg.input_oversample,
+            quantise: cfg.quantise,
+            control: cfg.control.clone(),
             files: Vec::new(),
         }
     }
+}
+
+fn one() -> usize {
+    1
 }
 
 /// File names of `n` levels, so that lexical order is level order:

@@ -443,3 +443,228 @@ fn records_have_the_measured_signals_and_the_time_base() {
     assert_eq!(over.records.len(), 3);
     assert_eq!(over.truth.excitation[0].levels, [1.0, 2.0, 3.0]);
 }
+
+/// The benchmark driven through a low-pass form filter, no burn-in: sample interval `ts`,
+/// `fine` input steps per sample and `substeps` RK4 steps per sample.
+fn oversampled_run(ts: f64, fine: usize, substeps: usize, duration: f64) -> Record {
+    let ir = sdof(&SdofParams::benchmark(), lowpass(), vec![15.0]);
+    let out = simulate(
+        &ir,
+        &SimConfig {
+            sample: ts,
+            input_oversample: fine,
+            substeps,
+            burn_in: 0.0,
+            ..cfg(duration)
+        },
+    )
+    .unwrap();
+    out.records.into_iter().next().unwrap()
+}
+
+#[test]
+fn oversampled_input_drives_the_mechanics_between_samples() {
+    // A run at Ts with 10 input steps per sample is the run at Ts/10 (same random stream,
+    // same RK4 steps) read every 10th sample: the mechanics see the fine input, not a
+    // line between the coarse samples.
+    let (ts, n) = (0.01, 10);
+    let coarse = oversampled_run(ts, n, 2 * n, 20.0);
+    let fine = oversampled_run(ts / n as f64, 1, 2, 20.0);
+    assert_eq!(fine.len(), n * coarse.len());
+    for name in ["u", "m1.x", "m1.v"] {
+        let (c, f) = (col(&coarse, name), col(&fine, name));
+        assert!(
+            c.iter().zip(f.iter().step_by(n)).all(|(a, b)| a == b),
+            "{name} differs from the fine run's samples"
+        );
+    }
+}
+
+#[test]
+fn input_between_samples_has_the_variance_of_the_form_filter() {
+    // The fine input minus the line through the coarse samples. For the stationary
+    // Ornstein–Uhlenbeck input (corner a, covariance C(τ) = P e^{−a|τ|}, P = level²/2a),
+    // at fraction f of the interval: Var = C(0)(1 + (1−f)² + f²) − 2(1−f) C(fT) − 2f C((1−f)T)
+    // + 2 f(1−f) C(T). 200 000 intervals give the mean over f to well under 1 %.
+    let (ts, n, level, a) = (0.01, 10, 15.0, 10.0);
+    let fine = oversampled_run(ts / n as f64, 1, 1, 2000.0);
+    let u = col(&fine, "u");
+    let p = level * level / (2.0 * a);
+    let c = |tau: f64| p * (-a * tau).exp();
+    let (mut sum, mut theory, mut count) = (0.0, 0.0, 0);
+    for k in 0..(u.len() - 1) / n {
+        let (u0, u1) = (u[k * n], u[(k + 1) * n]);
+        for j in 1..n {
+            let f = j as f64 / n as f64;
+            let d = u[k * n + j] - ((1.0 - f) * u0 + f * u1);
+            sum += d * d;
+            theory += c(0.0) * (1.0 + (1.0 - f).powi(2) + f * f)
+                - 2.0 * (1.0 - f) * c(f * ts)
+                - 2.0 * f * c((1.0 - f) * ts)
+                + 2.0 * f * (1.0 - f) * c(ts);
+            count += 1;
+        }
+    }
+    let (var, theory) = (sum / count as f64, theory / count as f64);
+    assert!((var / theory - 1.0).abs() < 0.02, "{var} vs {theory}");
+    // Not negligible: 3.7 % of the input's variance, a fifth of its standard deviation.
+    assert!(var > 0.02 * std_dev(u).powi(2), "{var}");
+}
+
+#[test]
+fn oversampling_keeps_the_input_statistics_at_the_samples() {
+    // The intensity keeps its meaning: a low-pass input sampled at Ts has the same variance
+    // level²/2a whatever the oversampling (relative standard error ≈ 1 % per run here).
+    let theory = 15.0 * 15.0 / 20.0;
+    for n in [1, 20] {
+        let r = oversampled_run(0.01, n, 20, 4000.0);
+        let v = std_dev(col(&r, "u")).powi(2);
+        assert!(
+            (v / theory - 1.0).abs() < 0.04,
+            "oversample {n}: {v} vs {theory}"
+        );
+    }
+}
+
+#[test]
+fn quantised_positions_are_multiples_of_the_resolution() {
+    let ir = sdof(&SdofParams::benchmark(), lowpass(), vec![6.0, 40.0]);
+    let q = 1e-3;
+    let c = SimConfig {
+        noise: 0.02,
+        ..cfg(50.0)
+    };
+    let plain = simulate(&ir, &c).unwrap();
+    let quant = simulate(
+        &ir,
+        &SimConfig {
+            quantise: Some(q),
+            ..c.clone()
+        },
+    )
+    .unwrap();
+    for (rp, rq) in plain.records.iter().zip(&quant.records) {
+        let (x, xq) = (col(rp, "m1.x"), col(rq, "m1.x"));
+        assert!(xq.iter().all(|&x| q * (x / q).round() == x));
+        // Rounded after the noise: within half a step of the noisy value.
+        assert!(x
+            .iter()
+            .zip(xq)
+            .all(|(a, b)| (a - b).abs() <= 0.5 * q * (1.0 + 1e-9)));
+        // Several hundred distinct levels are used, so the test is not trivial.
+        let mut levels: Vec<i64> = xq.iter().map(|x| (x / q).round() as i64).collect();
+        levels.sort_unstable();
+        levels.dedup();
+        assert!(levels.len() > 100, "{} levels", levels.len());
+        // Velocities and inputs are not quantised.
+        assert_eq!(col(rp, "m1.v"), col(rq, "m1.v"));
+        assert_eq!(col(rp, "u"), col(rq, "u"));
+    }
+    let e = simulate(
+        &ir,
+        &SimConfig {
+            quantise: Some(-1.0),
+            ..c
+        },
+    )
+    .unwrap_err();
+    assert!(matches!(e, SimError::InvalidConfig { .. }), "{e}");
+}
+
+/// `(RMS of the tracking error / RMS of the reference, lag-1 autocorrelation of u)` of a
+/// servo-axis record.
+fn tracking(r: &Record) -> (f64, f64) {
+    let (x, xr, u) = (col(r, "m.x"), col(r, "m.x_ref"), col(r, "u"));
+    let e: Vec<f64> = x.iter().zip(xr).map(|(x, r)| x - r).collect();
+    let err = mean_prod(&e, &e).sqrt() / std_dev(xr);
+    let mu = mean(u);
+    let uc: Vec<f64> = u.iter().map(|u| u - mu).collect();
+    let rho = mean_prod(&uc[1..], &uc[..uc.len() - 1]) / mean_prod(&uc, &uc);
+    (err, rho)
+}
+
+#[test]
+fn servo_axis_tracks_its_reference_with_a_coloured_force() {
+    use super::test_models::ServoAxis;
+    let axis = ServoAxis::standard();
+    let ir = axis.model();
+    let out = simulate(&ir, &axis.config(5)).unwrap();
+    let r = &out.records[0];
+    assert_eq!(r.names, ["m.x", "u", "m.x_ref"]);
+    assert_eq!(r.len(), 25_000);
+    let (err, rho) = tracking(r);
+    assert!(err < 0.05, "relative tracking error {err}");
+    assert!(rho > 0.9, "lag-1 autocorrelation of the force {rho}");
+    // The reference moves centimetres at up to about half a metre per second.
+    let xr = col(r, "m.x_ref");
+    let peak_speed = xr
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs() / axis.sample)
+        .fold(0.0, f64::max);
+    assert!(std_dev(xr) > 0.01 && std_dev(xr) < 0.09, "{}", std_dev(xr));
+    assert!(peak_speed > 0.2 && peak_speed < 1.0, "{peak_speed}");
+    // Encoder positions.
+    let q = axis.resolution;
+    assert!(col(r, "m.x").iter().all(|&x| q * (x / q).round() == x));
+    // Same seed, same record; another seed, another one.
+    let again = simulate(&ir, &axis.config(5)).unwrap();
+    assert_eq!(again.records[0], *r);
+    let other = simulate(&ir, &axis.config(6)).unwrap();
+    assert_ne!(col(&other.records[0], "u"), col(r, "u"));
+    assert_eq!(out.truth.control, axis.config(5).control);
+}
+
+#[test]
+fn tachometer_feedback_tracks_like_the_position_difference() {
+    use super::test_models::ServoAxis;
+    let axis = ServoAxis {
+        duration: 10.0,
+        ..ServoAxis::standard()
+    };
+    let ir = axis.model();
+    let mut c = axis.config(7);
+    let diff = simulate(&ir, &c).unwrap();
+    c.control.as_mut().unwrap().velocity = VelocitySource::Tachometer;
+    let tacho = simulate(&ir, &c).unwrap();
+    let (e_diff, _) = tracking(&diff.records[0]);
+    let (e_tacho, _) = tracking(&tacho.records[0]);
+    assert!(
+        (e_diff / e_tacho - 1.0).abs() < 0.3,
+        "{e_diff} vs {e_tacho}"
+    );
+    assert_ne!(col(&diff.records[0], "u"), col(&tacho.records[0], "u"));
+}
+
+#[test]
+fn bad_control_and_oversampling_settings_are_reported() {
+    use super::test_models::ServoAxis;
+    let axis = ServoAxis::standard();
+    let ir = axis.model();
+    let mut c = axis.config(1);
+    c.control.as_mut().unwrap().input = "f".into();
+    let e = simulate(&ir, &c).unwrap_err();
+    assert!(e.to_string().contains("`f`"), "{e}");
+    let mut c = axis.config(1);
+    c.control.as_mut().unwrap().reference.corner = 0.0;
+    assert!(matches!(
+        simulate(&ir, &c),
+        Err(SimError::InvalidConfig { .. })
+    ));
+    let c = SimConfig {
+        input_oversample: 0,
+        ..axis.config(1)
+    };
+    assert!(matches!(
+        simulate(&ir, &c),
+        Err(SimError::InvalidConfig { .. })
+    ));
+    // Without the controller the model has nothing to drive it.
+    let c = SimConfig {
+        control: None,
+        ..axis.config(1)
+    };
+    assert!(matches!(
+        simulate(&ir, &c),
+        Err(SimError::NoExcitation { .. })
+    ));
+}

@@ -1,0 +1,152 @@
+//! Closed-loop simulation: a digital PD position controller produces one input's force.
+//!
+//! # The law
+//!
+//! `u = kp (r − x̂) + kd (ṙ − v̂) + kf ṙ`, with `r`, `ṙ` the reference position and velocity
+//! and `x̂`, `v̂` what the drive measures of the controlled body:
+//!
+//! - `x̂` is the position, rounded to the encoder resolution when
+//!   [`SimConfig::quantise`](super::SimConfig::quantise) is set (measurement noise is
+//!   added to the record afterwards and never enters the loop);
+//! - `v̂` is, by default, the backward difference `(x̂ₖ − x̂ₖ₋₁) / h` of that position, as
+//!   an encoder-based drive computes it ([`VelocitySource::Difference`]); with
+//!   [`VelocitySource::Tachometer`] it is the true velocity (an analog tachometer).
+//!
+//! The controller runs on the simulation's fine grid, `h = Ts / input_oversample`: it
+//! samples the state at the start of each step and holds its output over the step (zero-
+//! order hold), as a digital drive does. The recorded input is the controller's output at
+//! the sample instant.
+//!
+//! # The reference
+//!
+//! A smooth random trajectory: white noise through a second-order Butterworth low-pass
+//! (natural frequency `corner`, damping ratio `1/√2`), whose state is `(r, ṙ)` — position
+//! and velocity are continuous, the acceleration is not. It is advanced with the exact
+//! discretisation of the form filters on the fine grid, from its own random stream, and
+//! scaled so that the stationary RMS of `r` is `rms × level` for experiment `level`; the
+//! RMS of `ṙ` is then `corner` times that. The record carries `r` as the column
+//! `<body>.x_ref`, after the measured signals.
+
+use super::excite::FormFilterSampler;
+use dsl_parser::ir::FormFilter;
+use serde::{Deserialize, Serialize};
+
+/// Damping ratio of the reference's low-pass (Butterworth).
+const REFERENCE_DAMPING: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
+/// A PD position controller closing the loop around one body through one input.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PdControl {
+    /// The input the controller drives (its form filter, if any, is not used).
+    pub input: String,
+    /// The body whose position is controlled.
+    pub body: String,
+    /// Position gain (force per position unit).
+    pub kp: f64,
+    /// Velocity gain (force per velocity unit).
+    pub kd: f64,
+    /// Velocity feed-forward gain on `ṙ` (e.g. to compensate viscous friction); 0 for none.
+    #[serde(default)]
+    pub kf: f64,
+    /// Where the velocity the law uses comes from.
+    #[serde(default)]
+    pub velocity: VelocitySource,
+    pub reference: ReferenceSpec,
+}
+
+/// The velocity a controller feeds back.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VelocitySource {
+    /// Backward difference of the (quantised) position over one controller step.
+    #[default]
+    Difference,
+    /// The true velocity.
+    Tachometer,
+}
+
+/// A random reference trajectory: low-pass filtered white noise (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceSpec {
+    /// Stationary RMS of the reference position at level 1.
+    pub rms: f64,
+    /// Natural frequency of the Butterworth low-pass in rad/s.
+    pub corner: f64,
+}
+
+impl ReferenceSpec {
+    /// The form filter that generates the reference.
+    pub(crate) fn filter(&self) -> FormFilter {
+        FormFilter::SecondOrder {
+            freq: self.corner,
+            damping: REFERENCE_DAMPING,
+        }
+    }
+
+    /// White-noise intensity giving a stationary RMS of `rms × scale`:
+    /// `var(r) = level² / (4 ζ ω³)` for the second-order filter.
+    pub(crate) fn intensity(&self, scale: f64) -> f64 {
+        self.rms * scale * (4.0 * REFERENCE_DAMPING * self.corner.powi(3)).sqrt()
+    }
+}
+
+/// The controller of one run, with its reference generator and velocity memory.
+pub(crate) struct Controller {
+    pub(crate) input: usize,
+    pub(crate) body: usize,
+    kp: f64,
+    kd: f64,
+    kf: f64,
+    velocity: VelocitySource,
+    quantum: Option<f64>,
+    h: f64,
+    pub(crate) reference: FormFilterSampler,
+    prev_x: Option<f64>,
+}
+
+impl Controller {
+    /// `reference` must already be discretised for the step `h`.
+    pub(crate) fn new(
+        spec: &PdControl,
+        input: usize,
+        body: usize,
+        quantum: Option<f64>,
+        h: f64,
+        reference: FormFilterSampler,
+    ) -> Self {
+        Controller {
+            input,
+            body,
+            kp: spec.kp,
+            kd: spec.kd,
+            kf: spec.kf,
+            velocity: spec.velocity,
+            quantum,
+            h,
+            reference,
+            prev_x: None,
+        }
+    }
+
+    /// The controller output for true position `x` and velocity `v` at the current step.
+    #[inline]
+    pub(crate) fn output(&mut self, x: f64, v: f64) -> f64 {
+        let xm = quantise(x, self.quantum);
+        let vm = match self.velocity {
+            VelocitySource::Tachometer => v,
+            VelocitySource::Difference => (xm - self.prev_x.unwrap_or(xm)) / self.h,
+        };
+        self.prev_x = Some(xm);
+        let (r, rd) = (self.reference.output(), self.reference.derivative());
+        self.kp * (r - xm) + self.kd * (rd - vm) + self.kf * rd
+    }
+}
+
+/// `x` rounded to the nearest multiple of `q` (unchanged without a resolution).
+#[inline]
+pub(crate) fn quantise(x: f64, q: Option<f64>) -> f64 {
+    match q {
+        Some(q) => q * (x / q).round(),
+        None => x,
+    }
+}
