@@ -425,6 +425,39 @@ mod tests {
     }
 
     #[test]
+    fn closed_loop_quantised_oversampled_run_writes_the_reference() {
+        use dynid_runtime::sim::test_models::ServoAxis;
+        let dir = tempfile::tempdir().unwrap();
+        let model = write(
+            dir.path(),
+            "servo.json",
+            &serde_json::to_string(&ServoAxis::standard().model()).unwrap(),
+        );
+        let out = dir.path().join("out");
+        let mut a = args(model, out.clone());
+        a.levels = None;
+        a.duration = 2.0;
+        a.burn_in = 1.0;
+        a.sample = 1e-3;
+        a.input_oversample = 4;
+        a.quantise = Some(1e-6);
+        a.pd = Some(vec![80000.0, 2680.0]);
+        run(a).unwrap();
+        let level = read_input_csv(&out.join("level_1.csv")).unwrap();
+        assert_eq!(level.names, ["m.x", "u", "m.x_ref"]);
+        assert_eq!(level.len(), 2000);
+        let truth: sim::Truth =
+            serde_json::from_str(&std::fs::read_to_string(out.join("truth.json")).unwrap())
+                .unwrap();
+        assert_eq!(truth.input_oversample, 4);
+        assert_eq!(truth.control.unwrap().kd, 2680.0);
+        let mut bad = args(dir.path().join("servo.json"), dir.path().join("bad"));
+        bad.pd = Some(vec![1.0]);
+        let e = run(bad).unwrap_err();
+        assert!(format!("{e:?}").contains("two gains"), "{e:?}");
+    }
+
+    #[test]
     fn failures_leave_no_output() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("out");

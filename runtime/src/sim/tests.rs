@@ -593,7 +593,9 @@ fn servo_axis_tracks_its_reference_with_a_coloured_force() {
     assert_eq!(r.names, ["m.x", "u", "m.x_ref"]);
     assert_eq!(r.len(), 25_000);
     let (err, rho) = tracking(r);
-    assert!(err < 0.05, "relative tracking error {err}");
+    // Measured 0.038 to 0.046 over seeds 1 to 6 (`measure_servo_axis_tracking`), 0.96
+    // for the autocorrelation (white noise would give 0).
+    assert!(err < 0.07, "relative tracking error {err}");
     assert!(rho > 0.9, "lag-1 autocorrelation of the force {rho}");
     // The reference moves centimetres at up to about half a metre per second.
     let xr = col(r, "m.x_ref");
@@ -667,4 +669,27 @@ fn bad_control_and_oversampling_settings_are_reported() {
         simulate(&ir, &c),
         Err(SimError::NoExcitation { .. })
     ));
+}
+
+#[test]
+#[ignore = "measurement, prints the servo-axis figures the tracking test bounds"]
+fn measure_servo_axis_tracking() {
+    use super::test_models::ServoAxis;
+    let axis = ServoAxis::standard();
+    let ir = axis.model();
+    for seed in 1..=6 {
+        let out = simulate(&ir, &axis.config(seed)).unwrap();
+        let r = &out.records[0];
+        let (err, rho) = tracking(r);
+        let xr = col(r, "m.x_ref");
+        let peak = xr
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs() / axis.sample)
+            .fold(0.0, f64::max);
+        eprintln!(
+            "seed {seed}: tracking {err:.4}, rho(u) {rho:.4}, std(r) {:.4}, peak speed {peak:.3}, std(u) {:.1}",
+            std_dev(xr),
+            std_dev(col(r, "u"))
+        );
+    }
 }
