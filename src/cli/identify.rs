@@ -32,9 +32,11 @@ Example:
     ...
     condition 8.917e0, 108 rows, filter corners 0.5000, ... 16.00 rad/s
 
-Standard errors come from a delete-one-block jackknife; a parameter the data cannot
-resolve is named (never excited, or collinear with partners) and given no number. Columns
-with other names: `--map disp=m1.x`.";
+Standard errors come from a batch-means sandwich over time blocks. A value within two
+standard errors of zero is kept in the fit and marked `(n.s.)`: the data do not show
+that term. A parameter the data cannot resolve (never excited, or collinear with partners)
+is named and given no number. A negative mass, damping, friction coefficient or spring
+stiffness is reported on stderr. Columns with other names: `--map disp=m1.x`.";
 
 /// Arguments of `dynid identify`.
 #[derive(clap::Args, Debug)]
@@ -66,6 +68,9 @@ pub fn run(args: Args) -> miette::Result<()> {
     let ir = super::common::load_model(&args.model)?;
     let id = identify_files(&ir, &args)?;
     print!("{}", render(&ir, &id));
+    for w in &id.warnings {
+        eprintln!("warning: {w}");
+    }
     if let Some(out) = &args.json {
         let text = serde_json::to_string_pretty(&to_json(&id)).into_diagnostic()?;
         write_atomically(out, text.as_bytes())?;
@@ -99,12 +104,24 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
         "parameter", "value", "std. error", "rel."
     ));
     for p in &id.params {
+        let rel = if p.value != 0.0 {
+            format!("{:>8.2}%", 100.0 * p.stderr / p.value.abs())
+        } else {
+            format!("{:>9}", "-")
+        };
         s.push_str(&format!(
-            "{:<12} {:>14} {:>12} {:>8.2}%\n",
+            "{:<12} {:>14} {:>12} {rel}{}\n",
             p.name,
             print::fmt_num(p.value),
             print::fmt_num(p.stderr),
-            100.0 * p.stderr / p.value.abs()
+            if p.significant { "" } else { "  (n.s.)" }
+        ));
+    }
+    if id.params.iter().any(|p| !p.significant) {
+        s.push_str(&format!(
+            "(n.s.): not significant, |value| ≤ {} std. errors — kept in the fit; the data \
+             do not show the term\n",
+            dynid_runtime::ident::SIGNIFICANCE_T
         ));
     }
     for u in &id.unidentifiable {
@@ -137,7 +154,8 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
     s
 }
 
-/// `{"parameters": {name: {value, stderr}}, "condition", "residual", "levels", "unidentifiable"}`.
+/// `{"parameters": {name: {value, stderr, significant}}, "condition", "residual", "levels",
+/// "unidentifiable", "warnings"}`.
 pub fn to_json(id: &Identification) -> serde_json::Value {
     let params: serde_json::Map<String, serde_json::Value> = id
         .params
@@ -145,7 +163,11 @@ pub fn to_json(id: &Identification) -> serde_json::Value {
         .map(|p| {
             (
                 p.name.clone(),
-                serde_json::json!({"value": p.value, "stderr": p.stderr}),
+                serde_json::json!({
+                    "value": p.value,
+                    "stderr": p.stderr,
+                    "significant": p.significant,
+                }),
             )
         })
         .collect();
@@ -160,6 +182,7 @@ pub fn to_json(id: &Identification) -> serde_json::Value {
         "residual": residual,
         "levels": id.levels,
         "unidentifiable": id.unidentifiable,
+        "warnings": id.warnings,
         "filter": id.filter,
         "estimated": id.estimated,
     })
@@ -241,6 +264,8 @@ mod tests {
         assert!(v["condition"].as_f64().unwrap() >= 1.0);
         assert_eq!(v["levels"].as_array().unwrap().len(), 3);
         assert!(v["unidentifiable"].as_array().unwrap().is_empty());
+        assert_eq!(v["parameters"]["k3"]["significant"], true);
+        assert!(v["warnings"].as_array().unwrap().is_empty());
         // No temporary files are left next to the output.
         let n_files = std::fs::read_dir(dir.path()).unwrap().count();
         assert_eq!(n_files, 4);

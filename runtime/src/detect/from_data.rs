@@ -20,9 +20,9 @@
 //!   effects scale with σ_v, so their accuracy follows that of this estimate: within
 //!   ±2.5 % of the measured σ_v on a linear oscillator, up to −12 % where friction or a
 //!   hardening spring makes the motion non-Gaussian (tests/detect_models.rs).
-//! * **Errors.** Per-level standard errors are the identification's delete-one-block
-//!   jackknife over `n_blocks` time blocks, so [`DetectOptions::se_dof`] is set to
-//!   `n_blocks − 1` unless the caller chose a value.
+//! * **Errors.** Per-level standard errors are the identification's batch-means sandwich
+//!   over `n_blocks` time blocks, so [`DetectOptions::se_dof`] is set to `n_blocks − 1`
+//!   unless the caller chose a value.
 
 use dsl_parser::ir::{ElementKind, ModelIr, Node, ParamId};
 use serde::Serialize;
@@ -423,17 +423,11 @@ pub fn level_fits(
             let (values, stderrs) = fits
                 .iter()
                 .map(|f| {
-                    // A value too uncertain to report still counts, with its large standard
+                    // An insignificant estimate still counts, with its large standard
                     // error as its (small) weight; only a parameter without any estimate at
-                    // a level leaves a gap that the checks of `detect` report.
+                    // a level (rank loss) leaves a gap that the checks of `detect` report.
                     f.param(&name)
                         .map(|e| (e.value, e.stderr))
-                        .or_else(|| {
-                            f.unidentifiable
-                                .iter()
-                                .find(|u| u.name == name)
-                                .and_then(|u| u.unresolved)
-                        })
                         .unwrap_or((f64::NAN, f64::NAN))
                 })
                 .unzip();

@@ -645,7 +645,11 @@ fn measure_all<'m>(
     let srcs = sources(ir, data)?;
     let refs: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
     let tape = Tape::compile(ir, &ir.eval_roots());
-    Ok(measure(ir, &tape, &refs, &opts.ident)?)
+    let mut m = measure(ir, &tape, &refs, &opts.ident)?;
+    // The structure search treats a term whose estimate is within its standard error of
+    // zero as absent, and scores the variant without it.
+    m.prune_insignificant(true);
+    Ok(m)
 }
 
 fn training(n: usize, w: usize) -> Vec<usize> {
@@ -839,6 +843,7 @@ fn search_step(
                 name: p.clone(),
                 value: f64::NAN,
                 stderr: f64::NAN,
+                significant: false,
             });
             let (cv, fits) = cross_validate(&m, &cir, n);
             let t = if est.value.is_finite() {

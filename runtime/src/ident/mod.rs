@@ -17,7 +17,25 @@
 //! balance instruments `xₖ` (virial, `⟨x ẍ⟩ = −⟨v²⟩ + [x v]/T`) and `v_l` (power balance,
 //! `⟨v_l ẍ_l⟩ = [v_l²/2]/T`) can be added. Rows of all levels are stacked into one
 //! least-squares problem `C p = c`, solved by SVD after row normalisation and column
-//! scaling; standard errors come from a delete-one-block jackknife over time blocks.
+//! scaling.
+//!
+//! # Standard errors
+//!
+//! A batch-means sandwich (see [`stats`]): the weighted residual rows `W (C p̂ − c)` are
+//! exactly the sum of the contributions of overlapping hat-shaped time windows, each an
+//! exact estimating equation of its own (see the `moments` module), levels are
+//! independent, and `Cov p̂ = Σ_levels A⁺ Ŝ A⁺ᵀ` with `A = W C` and `Ŝ` the spread of the
+//! window contributions. It is linear in the per-level terms, so the same record given
+//! twice gives the same estimate and standard errors smaller by exactly √2. A
+//! delete-one-block jackknife, used before, is not: a deleted block leaves a gap whose two
+//! boundary terms (point values of a noisy velocity times an instrument) no longer cancel,
+//! so every replicate carries noise the estimate itself does not have, and the replicates
+//! re-solve a nonlinear problem in which that noise does not scale with the level count.
+//!
+//! Only rank loss removes a parameter (a zero column, or collinear columns by the condition
+//! number); an estimate within [`SIGNIFICANCE_T`] standard errors of zero stays in the fit
+//! and is flagged ([`ParamEstimate::significant`]). Estimates that are unphysical for the
+//! kind of term they multiply are reported in [`Identification::warnings`].
 
 pub mod design;
 pub mod filter;
@@ -25,11 +43,17 @@ mod moments;
 mod plan;
 pub mod print;
 mod solve;
+mod stats;
 pub mod velocity;
 
 pub use filter::Hold;
 pub use moments::PhaseTimes;
+pub use stats::{Quantity, Warning};
 pub use velocity::VelocityEstimate;
+
+/// An estimate counts as significant when `|value| > SIGNIFICANCE_T · stderr` (about 95 %
+/// two-sided for a normal estimate).
+pub const SIGNIFICANCE_T: f64 = 2.0;
 
 use crate::basis::BasisEval;
 use crate::data::{DataError, LevelSource};
@@ -58,7 +82,7 @@ pub struct IdentifyOptions {
     /// Add virial and power-balance rows where velocities are measured. `None`: off — they
     /// were measured not to improve the pooled estimate (see the crate tests).
     pub balance: Option<bool>,
-    /// Time blocks per level for the jackknife standard errors.
+    /// Time blocks per level for the standard errors (hat windows span two blocks).
     pub n_blocks: usize,
     /// Samples per chunk of streamed work (memory use is proportional to this, not to the
     /// record length).
@@ -148,20 +172,20 @@ pub enum IdentifyError {
 pub struct ParamEstimate {
     pub name: String,
     pub value: f64,
-    /// Jackknife standard error over time blocks.
+    /// Batch-means sandwich standard error (see the module doc).
     pub stderr: f64,
+    /// `|value| > SIGNIFICANCE_T · stderr`. An insignificant estimate stays in the fit: the
+    /// data do not show the term, but its column was not dropped and the others were not
+    /// refitted without it.
+    pub significant: bool,
 }
 
-/// A parameter the data cannot determine; no value is reported for it.
+/// A parameter the data cannot determine (a zero column, or collinear with others); no
+/// value is reported for it.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Unidentifiable {
     pub name: String,
     pub reason: String,
-    /// The estimate and its standard error where the data gave one that is too uncertain
-    /// to report (stderr ≥ |value|); none for a zero or collinear column. Detection uses
-    /// it as a point of little weight rather than a missing one.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub unresolved: Option<(f64, f64)>,
 }
 
 /// Relative residual `‖W (C p − c)‖ / ‖W c‖` over the rows of one equation, per level.
@@ -197,6 +221,9 @@ pub struct FilterSummary {
 pub struct Identification {
     pub params: Vec<ParamEstimate>,
     pub unidentifiable: Vec<Unidentifiable>,
+    /// Estimates that are unphysical for their kind of term (negative mass, damping,
+    /// friction coefficient or stiffness).
+    pub warnings: Vec<Warning>,
     /// Condition number of the row-normalised, column-scaled matrix.
     pub condition: f64,
     pub residual: Vec<EquationResidual>,
@@ -238,6 +265,7 @@ pub struct Moments<'m> {
     estimated: Vec<VelocityEstimate>,
     rcond: f64,
     times: PhaseTimes,
+    prune_insignificant: bool,
 }
 
 /// Identify the unknown parameters of `ir` from records at one or more excitation levels,
@@ -467,6 +495,7 @@ pub fn measure<'m>(
         estimated,
         rcond: opts.rcond,
         times,
+        prune_insignificant: false,
     })
 }
 
@@ -600,6 +629,14 @@ impl<'m> Moments<'m> {
         &self.infos
     }
 
+    /// Model selection: leave out, and refit without, any parameter whose standard error
+    /// is at least its own size (worst first, one at a time); it is then listed as
+    /// unidentifiable with that reason. Off by default: identification keeps such a
+    /// parameter and flags it. A structure search uses it to treat such a term as absent.
+    pub fn prune_insignificant(&mut self, on: bool) {
+        self.prune_insignificant = on;
+    }
+
     /// Time spent so far, by phase.
     pub fn times(&self) -> PhaseTimes {
         self.times
@@ -650,7 +687,7 @@ impl<'m> Moments<'m> {
             row_labels: vec![],
         };
         for (i, lm) in self.levels.iter().enumerate() {
-            let (c, r) = self.level_rows(&lm.view(None));
+            let (c, r) = self.level_rows(&lm.view());
             out.c_matrix.extend(c);
             out.rhs.extend(r);
             for &(k, l) in &self.plan.rows {
@@ -724,18 +761,14 @@ impl<'m> Moments<'m> {
         let nr = plan.rows.len();
         let full: Vec<(Vec<f64>, Vec<f64>)> = which
             .iter()
-            .map(|&i| self.level_rows_holding(&self.levels[i].view(None), held))
+            .map(|&i| self.level_rows_holding(&self.levels[i].view(), held))
             .collect();
-        let stack = |parts: &[&(Vec<f64>, Vec<f64>)]| {
-            let mut c = Vec::with_capacity(parts.len() * nr * ncol);
-            let mut r = Vec::with_capacity(parts.len() * nr);
-            for p in parts {
-                c.extend_from_slice(&p.0);
-                r.extend_from_slice(&p.1);
-            }
-            (c, r)
-        };
-        let (c_full, r_full) = stack(&full.iter().collect::<Vec<_>>());
+        let mut c_full = Vec::with_capacity(which.len() * nr * ncol);
+        let mut r_full = Vec::with_capacity(which.len() * nr);
+        for (c, r) in &full {
+            c_full.extend_from_slice(c);
+            r_full.extend_from_slice(r);
+        }
         let rows = r_full.len();
         // Row normalisation: every row (with its right-hand side) gets unit norm, so rows of
         // weak instruments and quiet levels count as much as loud ones.
@@ -754,21 +787,14 @@ impl<'m> Moments<'m> {
                 }
             })
             .collect();
-        // Jackknife replicates: every (level, block) deleted once.
-        let replicates: Vec<(Vec<f64>, Vec<f64>)> = which
-            .iter()
-            .enumerate()
-            .flat_map(|(pos, &i)| (0..self.levels[i].n_blocks()).map(move |b| (pos, i, b)))
-            .collect::<Vec<_>>()
-            .into_par_iter()
-            .map(|(pos, i, b)| {
-                let del = self.level_rows_holding(&self.levels[i].view(Some(b)), held);
-                let parts: Vec<&(Vec<f64>, Vec<f64>)> = full
-                    .iter()
-                    .enumerate()
-                    .map(|(q, f)| if q == pos { &del } else { f })
-                    .collect();
-                stack(&parts)
+        // Rows of the hat contributions of every level (for the standard errors).
+        let hats: Vec<Vec<(Vec<f64>, Vec<f64>)>> = which
+            .par_iter()
+            .map(|&i| {
+                let lm = &self.levels[i];
+                (0..=lm.n_blocks())
+                    .map(|j| self.level_rows_holding(&lm.hat(j), held))
+                    .collect()
             })
             .collect();
 
@@ -805,7 +831,6 @@ impl<'m> Moments<'m> {
                     reason: "never excited at these levels: its column of moments is zero \
                              (the term it multiplies vanishes on the data)"
                         .into(),
-                    unresolved: None,
                 });
                 active.remove(j);
                 continue;
@@ -832,42 +857,35 @@ impl<'m> Moments<'m> {
                         },
                         cond
                     ),
-                    unresolved: None,
                 });
                 active.remove(j);
                 continue;
             }
-            // Jackknife standard errors.
-            let reps: Vec<Vec<f64>> = replicates
-                .par_iter()
-                .map(|(c, r)| {
-                    let (a, b) = weighted(c, r, &active);
-                    solve::lstsq(&a, &b, rows, active.len(), self.rcond).x
-                })
-                .collect();
-            let g = reps.len() as f64;
-            let se: Vec<f64> = (0..active.len())
-                .map(|j| {
-                    let mean = reps.iter().map(|x| x[j]).sum::<f64>() / g;
-                    ((g - 1.0) / g * reps.iter().map(|x| (x[j] - mean).powi(2)).sum::<f64>()).sqrt()
-                })
-                .collect();
-            let worst = (0..active.len())
-                .filter(|&j| se[j] >= sol.x[j].abs())
-                .max_by(|&x, &y| (se[x] / sol.x[x].abs()).total_cmp(&(se[y] / sol.x[y].abs())));
-            if let Some(j) = worst {
-                unident.push(Unidentifiable {
-                    name: names[active[j]].clone(),
-                    reason: format!(
-                        "not resolved by the data: the estimate {:.3e} has a standard error \
-                         of {:.1e}, at least its own size — its effect is below the noise \
-                         at these levels",
-                        sol.x[j], se[j]
-                    ),
-                    unresolved: Some((sol.x[j], se[j])),
-                });
-                active.remove(j);
-                continue;
+            let se = stats::sandwich_stderr(
+                &sol,
+                &active,
+                ncol,
+                nr,
+                &weights,
+                &hats,
+                which.iter().map(|&i| &self.levels[i]),
+            );
+            if self.prune_insignificant {
+                let worst = (0..active.len())
+                    .filter(|&j| se[j] >= sol.x[j].abs())
+                    .max_by(|&x, &y| (se[x] / sol.x[x].abs()).total_cmp(&(se[y] / sol.x[y].abs())));
+                if let Some(j) = worst {
+                    unident.push(Unidentifiable {
+                        name: names[active[j]].clone(),
+                        reason: format!(
+                            "left out of the model: the estimate {:.3e} has a standard error \
+                             of {:.1e}, at least its own size",
+                            sol.x[j], se[j]
+                        ),
+                    });
+                    active.remove(j);
+                    continue;
+                }
             }
             break (sol, se);
         };
@@ -886,8 +904,9 @@ impl<'m> Moments<'m> {
                 name: names[j].clone(),
                 value: sol.x[k],
                 stderr: se[k],
+                significant: sol.x[k].abs() > SIGNIFICANCE_T * se[k],
             })
-            .collect();
+            .collect::<Vec<_>>();
         // Residuals per equation and level, on the weighted rows.
         let residual = (0..self.ir.equations.len())
             .map(|l| EquationResidual {
@@ -917,6 +936,7 @@ impl<'m> Moments<'m> {
         let mut times = self.times;
         times.solve = t0.elapsed();
         Identification {
+            warnings: stats::physical_warnings(self.ir, &params),
             params,
             unidentifiable: unident,
             condition: sol.condition(),
@@ -930,21 +950,26 @@ impl<'m> Moments<'m> {
     }
 }
 
+/// The moment `⟨φ ι basis⟩` of an instrument from a view (`φ ≡ 1` for the whole record;
+/// the `φ'` terms of a hat window vanish there, see the `moments` module).
 fn term_moment(ins: &Instrument, basis: &BasisMoment, v: &MomentView) -> f64 {
     let a = &ins.a;
     match *basis {
         BasisMoment::Static(w) => v.mean(a, w),
-        BasisMoment::D1Pos(x) => -v.mean(ins.a1.as_ref().unwrap(), x) + v.bnd(a, x),
+        BasisMoment::D1Pos(x) => {
+            -v.mean(ins.a1.as_ref().unwrap(), x) + v.bnd(a, x) - v.mean_d(a, x)
+        }
         BasisMoment::D2Vel(w, body) => {
             if ins.power == Some(body) {
-                0.5 * v.bnd(a, w)
+                0.5 * (v.bnd(a, w) - v.mean_d(a, w))
             } else {
-                -v.mean(ins.a1.as_ref().unwrap(), w) + v.bnd(a, w)
+                -v.mean(ins.a1.as_ref().unwrap(), w) + v.bnd(a, w) - v.mean_d(a, w)
             }
         }
         BasisMoment::D2Pos(x, q) => {
             let a1 = ins.a1.as_ref().unwrap();
-            v.mean(ins.a2.as_ref().unwrap(), x) - v.bnd(a1, x) + v.bnd(a, q)
+            v.mean(ins.a2.as_ref().unwrap(), x) - v.bnd(a1, x) + v.bnd(a, q) + 2.0 * v.mean_d(a1, x)
+                - v.bnd_d(a, x)
         }
     }
 }

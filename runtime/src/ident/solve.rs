@@ -13,6 +13,9 @@ pub(crate) struct LsSolution {
     pub v_min: Vec<f64>,
     /// Euclidean norms of the columns of `A` before scaling.
     pub col_norms: Vec<f64>,
+    /// The pseudo-inverse `A⁺` (row-major `cols × rows`, same truncation as `x`), so that
+    /// `x = A⁺ b` and a perturbation `δb` of the right-hand side moves `x` by `A⁺ δb`.
+    pub pinv: Vec<f64>,
 }
 
 impl LsSolution {
@@ -46,6 +49,7 @@ pub(crate) fn lstsq(a: &[f64], b: &[f64], rows: usize, cols: usize, rcond: f64) 
             sv: vec![],
             v_min: vec![],
             col_norms,
+            pinv: vec![],
         };
     }
     let m = Mat::<f64>::from_fn(rows, cols, |i, j| a[i * cols + j] * scale[j]);
@@ -55,6 +59,7 @@ pub(crate) fn lstsq(a: &[f64], b: &[f64], rows: usize, cols: usize, rcond: f64) 
     let sv: Vec<f64> = (0..k).map(|i| s[i]).collect();
     let smax = sv.first().copied().unwrap_or(0.0);
     let mut y = vec![0.0; cols];
+    let mut pinv = vec![0.0; cols * rows];
     for r in 0..k {
         if sv[r] <= rcond * smax || sv[r] == 0.0 {
             continue;
@@ -66,6 +71,10 @@ pub(crate) fn lstsq(a: &[f64], b: &[f64], rows: usize, cols: usize, rcond: f64) 
         let c = ub / sv[r];
         for (j, yj) in y.iter_mut().enumerate() {
             *yj += v[(j, r)] * c;
+            let vj = v[(j, r)] * scale[j] / sv[r];
+            for (i, pv) in pinv[j * rows..(j + 1) * rows].iter_mut().enumerate() {
+                *pv += vj * u[(i, r)];
+            }
         }
     }
     let x = y.iter().zip(&scale).map(|(y, s)| y * s).collect();
@@ -75,6 +84,7 @@ pub(crate) fn lstsq(a: &[f64], b: &[f64], rows: usize, cols: usize, rcond: f64) 
         sv,
         v_min,
         col_norms,
+        pinv,
     }
 }
 
