@@ -136,6 +136,12 @@ fn sdof_offset_noise_free() {
     assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
     let e = errors("sdof_offset, noise 0 %", &ir, &id);
     assert_within("sdof_offset noise-free", &e, &[("f0", 0.02)]);
+    // The identified equation writes the offset as its value alone.
+    let eq = dynid::runtime::ident::print::format_equations(&ir, &id);
+    assert!(
+        eq.contains("sign(m.v) - 0.5") && eq.trim_end().ends_with(") = u"),
+        "{eq}"
+    );
 }
 
 #[test]
