@@ -381,6 +381,11 @@ impl ModelIr {
         }
         out
     }
+    /// Whether `e` is a constant: the basis of a constant force is the number 1 (lowering
+    /// makes no other constant basis).
+    pub fn is_constant(&self, e: ExprId) -> bool {
+        matches!(self.expr(e), ExprNode::Const(_))
+    }
     /// The signals an expression depends on.
     pub fn expr_signals(&self, e: ExprId) -> Vec<SignalId> {
         let mut mark = vec![false; e.index() + 1];

@@ -855,16 +855,35 @@ impl Lowerer<'_> {
                 continue;
             }
             let (scale, basis) = tree.extract_scale();
-            let scale = sign * scale;
+            let mut scale = sign * scale;
+            let mut basis = basis;
             if !basis.has_signal() {
-                self.err(
-                    ErrorKind::ConstantTerm,
-                    "term does not depend on any signal".into(),
-                    term.span,
-                    "a constant force",
-                    "a constant force cannot be identified from zero-mean random data; remove the term or make it depend on `s`, `v` or an input".into(),
-                );
-                continue;
+                // A constant force `scale · param · 1`: the basis is the constant 1, so that
+                // every constant force of the model shares one column of moments.
+                let value = basis.as_const().unwrap_or(f64::NAN);
+                if coef.is_none() {
+                    self.err(
+                        ErrorKind::ConstantTerm,
+                        "term is a bare number: it has no parameter and depends on no signal"
+                            .into(),
+                        term.span,
+                        "a constant without a parameter",
+                        "a constant force needs a parameter: write `f0 ~ 0.5` to identify it, or declare `param f0 = 0.5` and write `f0` for a known one; otherwise make the term depend on `s`, `v` or an input".into(),
+                    );
+                    continue;
+                }
+                if value == 0.0 {
+                    self.err(
+                        ErrorKind::ConstantTerm,
+                        "term is identically zero".into(),
+                        term.span,
+                        "a zero constant",
+                        "remove the term, or make it depend on `s`, `v` or an input".into(),
+                    );
+                    continue;
+                }
+                scale *= value;
+                basis = LExpr::Const(1.0);
             }
             if !scale.is_finite() {
                 self.err(

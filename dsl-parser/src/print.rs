@@ -155,7 +155,11 @@ pub fn render_equation(ir: &ModelIr, eq: &EquationIr) -> String {
     let mut lhs = Vec::new();
     let mut rhs = Vec::new();
     for t in &eq.terms {
-        let text = format!("{} {}", coef_text(ir, &t.coef), render_basis(ir, t.basis));
+        let text = match t.basis {
+            // A constant force reads as its coefficient alone: `+ f0`, not `+ f0 1`.
+            Basis::Expr(e) if ir.is_constant(e) => coef_text(ir, &t.coef),
+            b => format!("{} {}", coef_text(ir, &t.coef), render_basis(ir, b)),
+        };
         match t.origin {
             TermOrigin::Input(_) if t.coef.param.is_none() => {
                 let basis = match t.basis {
@@ -258,6 +262,7 @@ pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
             }
             let mut pieces = Vec::new();
             let (mut is_static, mut velocities, mut derivative) = (false, Vec::new(), false);
+            let mut constant = false;
             for t in &terms {
                 let b = match (terms.len(), t.basis, t.coef.scale) {
                     // A lone positive term needs no parentheses.
@@ -267,11 +272,14 @@ pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
                 let a = t.coef.scale.abs();
                 let text = if a == 1.0 {
                     b
+                } else if matches!(t.basis, Basis::Expr(e) if ir.is_constant(e)) {
+                    fmt_num(a)
                 } else {
                     format!("{} {b}", fmt_num(a))
                 };
                 pieces.push((t.coef.scale < 0.0, text));
                 match t.basis {
+                    Basis::Expr(e) if ir.is_constant(e) => constant = true,
                     Basis::Expr(_) => is_static = true,
                     Basis::Deriv { body, order: 1 } if ir.signal(ir.velocity(body)).measured => {
                         velocities.push(ir.signal(ir.velocity(body)).name.clone());
@@ -280,6 +288,9 @@ pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
                 }
             }
             let mut kinds = Vec::new();
+            if constant {
+                kinds.push("constant (needs data with a mean)".to_string());
+            }
             if is_static || !velocities.is_empty() {
                 kinds.push(if velocities.is_empty() {
                     "static".to_string()
@@ -558,7 +569,10 @@ pub fn to_source(ir: &ModelIr) -> String {
                     factors.push(format!("{}{}", param.name, value_suffix(&param.kind)));
                 }
             }
-            factors.push(pr.at(t.basis, P_MUL + 1));
+            // A constant force is written as its coefficient alone (`f0 ~ -0.5`).
+            if !(ir.is_constant(t.basis) && t.coef.param.is_some()) {
+                factors.push(pr.at(t.basis, P_MUL + 1));
+            }
             pieces.push((t.coef.scale < 0.0, factors.join(" * ")));
         }
         let _ = writeln!(

@@ -1,10 +1,10 @@
-// A force that depends on no signal is a constant bias, which the method cannot separate.
+// A bare number as a force term: a constant force needs a parameter (`f0 ~ 1.0`).
 dynid::model! {
     model constant {
         body m = 1.0
         input u on m
         spring k (ground, m) ~ 4.0
-        force bias (ground, m) = f0 ~ 0.5 * 2
+        force bias (ground, m) = 0.5 * 2
     }
 }
 

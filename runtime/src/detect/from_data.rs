@@ -11,6 +11,9 @@
 //! * **Inertia held.** Unknown masses are held at one value for all levels, the weighted
 //!   mean of their free per-level estimates (see [`level_fits`]); a nonlinear force linearises to a stiffness or damping, never to
 //!   a mass, and a mass left free per level absorbs part of the stiffness drift.
+//! * **Constant forces held.** An unknown constant force (`= f0`) is held at its pooled
+//!   estimate in every per-level fit: an offset is no equivalent-linear parameter, and a
+//!   loud level may not resolve the mean it puts into the data.
 //! * **σ_s** is the standard deviation of the element's `s` expression evaluated on the
 //!   streamed data. **σ_v** likewise from `v` when the velocities it needs are measured.
 //!   Otherwise it comes from Rice's formula for a stationary Gaussian process: the mean
@@ -24,7 +27,7 @@
 //!   over `n_blocks` time blocks, so [`DetectOptions::se_dof`] is set to `n_blocks − 1`
 //!   unless the caller chose a value.
 
-use dsl_parser::ir::{ElementKind, ModelIr, Node, ParamId};
+use dsl_parser::ir::{Basis, ElementKind, ModelIr, Node, ParamId};
 use serde::Serialize;
 
 use super::{detect, Candidate, DetectError, DetectOptions, Detection, DetectionInput};
@@ -349,6 +352,43 @@ pub fn held_inertia(ir: &ModelIr, moments: &Moments) -> Vec<HeldParam> {
         .collect()
 }
 
+/// Unknown constant forces (terms `f0` with basis 1) and the value to hold each at in
+/// per-level fits: the pooled estimate. An offset is no equivalent-linear parameter, and
+/// at a loud level the mean it puts into the data can hide in the spread of the mean (the
+/// loudest level of `models/sdof_offset.dyn` over 1000 s cannot resolve it), so it gets
+/// no curve. A constant force that the pooled fit cannot estimate is not held.
+fn held_constant_forces(ir: &ModelIr, moments: &Moments) -> Vec<HeldParam> {
+    let constant: Vec<ParamId> = ir
+        .unknowns()
+        .into_iter()
+        .filter(|&p| {
+            let mut terms = ir
+                .equations
+                .iter()
+                .flat_map(|e| &e.terms)
+                .filter(|t| t.coef.param == Some(p))
+                .peekable();
+            terms.peek().is_some()
+                && terms.all(|t| matches!(t.basis, Basis::Expr(e) if ir.is_constant(e)))
+        })
+        .collect();
+    if constant.is_empty() {
+        return Vec::new();
+    }
+    let pooled = moments.identify_pooled();
+    constant
+        .into_iter()
+        .filter_map(|p| {
+            let e = pooled.param(&ir.params[p.index()].name)?;
+            Some(HeldParam {
+                param: e.name.clone(),
+                value: e.value,
+                stderr: e.stderr,
+            })
+        })
+        .collect()
+}
+
 /// Identify the linear model `ir` at each level separately and collect the curves and the
 /// element intensities. Each source is one level; at least two are needed.
 ///
@@ -376,11 +416,12 @@ pub fn level_fits(
     // true mass, while a pooled linear fit forces every stiffness to be constant as well —
     // the very hypothesis under test — and its mass absorbs the misfit (on two_mass with a
     // cubic coupling the pooled m2 came out 0.52 for a truth of 2).
-    let held = if hold_inertia {
+    let mut held = if hold_inertia {
         held_inertia(ir, &moments)
     } else {
         Vec::new()
     };
+    held.extend(held_constant_forces(ir, &moments));
     let held_values: Vec<(String, f64)> = held.iter().map(|h| (h.param.clone(), h.value)).collect();
     let fits: Vec<Identification> = (0..levels.len())
         .map(|i| moments.identify_level_holding(i, &held_values))

@@ -989,8 +989,9 @@ impl Detection {
                 .collect();
             let _ = writeln!(
                 out,
-                "Held at the weighted mean of the free per-level estimates (a mass is not a \
-                 force element;\n  linearisation never changes it): {}",
+                "Held at one value for all levels (a mass at the weighted mean of its free \
+                 per-level estimates, a constant\n  force at its pooled estimate; linearisation \
+                 changes neither): {}",
                 h.join(", ")
             );
         }

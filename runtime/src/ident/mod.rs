@@ -754,6 +754,27 @@ impl<'m> Moments<'m> {
         (c, rhs)
     }
 
+    /// Per unknown column: a constant-force column whose instrument means are zero within
+    /// their jackknife spread at every level in `which` (the data have no mean).
+    fn meanless_columns(&self, which: &[usize]) -> Vec<bool> {
+        let ncol = self.plan.unknowns.len();
+        (0..ncol)
+            .map(|j| {
+                self.plan.constant[j]
+                    && !which.iter().any(|&i| {
+                        let lm = &self.levels[i];
+                        let col = |view: &MomentView| -> Vec<f64> {
+                            let (c, _) = self.level_rows(view);
+                            c.iter().skip(j).step_by(ncol).copied().collect()
+                        };
+                        let deleted: Vec<Vec<f64>> =
+                            (0..lm.n_blocks()).map(|b| col(&lm.view(Some(b)))).collect();
+                        plan::has_mean(&col(&lm.view(None)), &deleted)
+                    })
+            })
+            .collect()
+    }
+
     fn solve_levels_holding(&self, which: &[usize], held: &[(usize, f64)]) -> Identification {
         let t0 = Instant::now();
         let plan = &self.plan;
@@ -807,6 +828,7 @@ impl<'m> Moments<'m> {
             .filter(|j| !held.iter().any(|(h, _)| h == j))
             .collect();
         let mut unident = Vec::new();
+        let meanless = self.meanless_columns(which);
         let weighted = |c: &[f64], r: &[f64], active: &[usize]| {
             let mut a = Vec::with_capacity(rows * active.len());
             let mut b = Vec::with_capacity(rows);
@@ -825,12 +847,12 @@ impl<'m> Moments<'m> {
                 break (sol, vec![]);
             }
             let cmax = sol.col_norms.iter().copied().fold(0.0, f64::max);
-            if let Some(j) = (0..active.len()).find(|&j| sol.col_norms[j] <= 1e-12 * cmax) {
+            if let Some(j) =
+                (0..active.len()).find(|&j| sol.col_norms[j] <= 1e-12 * cmax || meanless[active[j]])
+            {
                 unident.push(Unidentifiable {
                     name: names[active[j]].clone(),
-                    reason: "never excited at these levels: its column of moments is zero \
-                             (the term it multiplies vanishes on the data)"
-                        .into(),
+reason: plan.zero_column_reason(active[j]),
                 });
                 active.remove(j);
                 continue;

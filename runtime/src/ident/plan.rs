@@ -72,6 +72,9 @@ pub(crate) struct Plan {
     pub rows: Vec<(usize, usize)>,
     /// Use the virial and power-balance instruments where velocities are measured.
     pub balance: bool,
+    /// Per unknown column: every term it multiplies is a constant force (basis 1), so its
+    /// moments are the means of the instruments, `⟨ι⟩`.
+    pub constant: Vec<bool>,
 }
 
 /// Filter choices resolved from options, the model's filter block and the data.
@@ -208,6 +211,14 @@ pub(crate) fn build_structure(
         equations.push(terms);
     }
     let n_w = n_g + y.len();
+    let constant = (0..unknowns.len())
+        .map(|col| {
+            let mut terms = equations.iter().flatten().filter(
+                |t| matches!(t.coef, TermCoef::Unknown { col: c, .. } if c == col),
+            );
+            terms.all(|t| matches!(t.basis, BasisMoment::Static(w) if w < n_g && ir.is_constant(roots[w])))
+        })
+        .collect();
     for eq in &mut equations {
         for t in eq.iter_mut() {
             if let BasisMoment::D2Pos(x, q) = t.basis {
@@ -237,10 +248,48 @@ pub(crate) fn build_structure(
         instruments: Vec::new(),
         rows: Vec::new(),
         balance,
+        constant,
+    })
+}
+
+/// A column of instrument means counts as having a mean when, at some level, one of its
+/// entries is at least this many jackknife standard errors away from zero. Measured on
+/// `models/sdof_offset.dyn` (tests/constant_force.rs, largest ratio per level): with the
+/// offset, 49 at the quietest level over 2000 s and 23 / 15 / 3.2 at the three levels over
+/// 1000 s; the same system without offset 2.0 / 0.4 / 0.03; centred records below 0.05.
+pub(crate) const MEAN_T_MIN: f64 = 5.0;
+
+/// Whether the entries of a column of instrument means differ from zero by more than their
+/// sampling spread: `full[r]` is row `r` of one level, `deleted[b][r]` the same row with
+/// time block `b` left out (delete-one-block jackknife).
+pub(crate) fn has_mean(full: &[f64], deleted: &[Vec<f64>]) -> bool {
+    let g = deleted.len() as f64;
+    if deleted.len() < 2 {
+        return full.iter().any(|v| *v != 0.0);
+    }
+    full.iter().enumerate().any(|(r, &v)| {
+        let mean = deleted.iter().map(|d| d[r]).sum::<f64>() / g;
+        let var = (g - 1.0) / g * deleted.iter().map(|d| (d[r] - mean).powi(2)).sum::<f64>();
+        v.abs() >= MEAN_T_MIN * var.sqrt() && v != 0.0
     })
 }
 
 impl Plan {
+    /// Why an unknown column that is zero (or, for a constant force, has no mean) cannot be
+    /// identified.
+    pub fn zero_column_reason(&self, col: usize) -> String {
+        if self.constant.get(col).copied().unwrap_or(false) {
+            "a constant force needs data whose mean is not zero: the filter outputs have no \
+             mean, so its column (the mean of each filter output) is zero within its \
+             sampling spread — measure without removing the mean, or remove the term"
+                .into()
+        } else {
+            "never excited at these levels: its column of moments is zero \
+             (the term it multiplies vanishes on the data)"
+                .into()
+        }
+    }
+
     /// Fix the corners and derive the instruments and the computable rows.
     pub fn set_corners(&mut self, ir: &ModelIr, corners: &[f64]) {
         assert_eq!(corners.len(), self.corners.len());

@@ -2,7 +2,7 @@
 //! `m1: 1.000 m1.x'' + 0.4010(±0.0020) m1.x' + 3.990 m1.x + … = u`.
 
 use super::Identification;
-use dsl_parser::ir::{ModelIr, ParamKind, TermOrigin};
+use dsl_parser::ir::{Basis, ModelIr, ParamKind, TermOrigin};
 use dsl_parser::print::render_basis;
 
 /// A number with four significant digits, without trailing noise.
@@ -85,8 +85,14 @@ pub fn format_equations(ir: &ModelIr, id: &Identification) -> String {
             } else {
                 side.push_str(if neg { " - " } else { " + " });
             }
-            side.push_str(&coef);
-            side.push_str(&basis);
+            match t.basis {
+                // A constant force is its coefficient alone: `- 0.5000(±0.00013)`.
+                Basis::Expr(e) if ir.is_constant(e) => side.push_str(coef.trim_end()),
+                _ => {
+                    side.push_str(&coef);
+                    side.push_str(&basis);
+                }
+            }
         }
         if rhs.is_empty() {
             rhs.push('0');
