@@ -69,6 +69,13 @@ pub(crate) struct Plan {
     pub rows: Vec<(usize, usize)>,
     /// Use the virial and power-balance instruments where velocities are measured.
     pub balance: bool,
+    /// Columns of `w` after the measured signals, needed by the noise corrections
+    /// ([`super::noise`]); empty unless they are attached.
+    pub extra: Vec<super::noise::ExtraColumn>,
+    /// Noise corrections of static columns ([`super::noise::attach`]).
+    pub fixes: Vec<super::noise::ColumnFix>,
+    /// Static columns linear in measured signals: (column, [(index into `y`, coefficient)]).
+    pub linear_roots: Vec<(usize, Vec<(usize, f64)>)>,
 }
 
 /// Filter choices resolved from options, the model's filter block and the data.
@@ -88,7 +95,7 @@ impl Plan {
         self.n_z() + self.y.len()
     }
     pub fn n_w(&self) -> usize {
-        self.roots.len() + self.y.len()
+        self.roots.len() + self.y.len() + self.extra.len()
     }
     pub fn n_q(&self) -> usize {
         self.n_w() + self.vhat_bodies.len()
@@ -216,6 +223,9 @@ pub(crate) fn build_structure(
         instruments: Vec::new(),
         rows: Vec::new(),
         balance,
+        extra: Vec::new(),
+        fixes: Vec::new(),
+        linear_roots: Vec::new(),
     })
 }
 
