@@ -18,6 +18,10 @@
 //! `⟨v_l ẍ_l⟩ = [v_l²/2]/T`) can be added. Rows of all levels are stacked into one
 //! least-squares problem `C p = c`, solved by SVD after row normalisation and column
 //! scaling; standard errors come from a delete-one-block jackknife over time blocks.
+//!
+//! Noise in a measured signal inside a nonlinear static term (`s³`, `sign(v)`) biases its
+//! moments; the first pass estimates each signal's noise level and the moments of such
+//! terms are de-biased where it is significant (see [`noise`]).
 
 pub mod filter;
 mod moments;
