@@ -61,6 +61,10 @@ pub struct Args {
     /// Add virial / power-balance rows where velocities are measured.
     #[arg(long)]
     pub balance: bool,
+    /// Leave the moments of nonlinear terms uncorrected for measurement noise (by default
+    /// they are de-biased where the estimated noise is significant).
+    #[arg(long = "no-noise-correction")]
+    pub no_noise_correction: bool,
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
@@ -90,6 +94,7 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
     let opts = IdentifyOptions {
         corners: args.filter_corners.clone(),
         balance: Some(args.balance && !args.no_balance),
+        noise_correction: !args.no_noise_correction,
         ..Default::default()
     };
     Ok(identify(ir, &levels, &opts)?)
@@ -151,6 +156,42 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
             cut.join(" / ")
         ));
     }
+    s.push_str(&noise_line(&id.noise));
+    s
+}
+
+/// One line: the estimated noise per signal and what was done about it.
+fn noise_line(n: &dynid_runtime::ident::NoiseSummary) -> String {
+    let levels: Vec<String> = n
+        .fraction
+        .iter()
+        .map(|(sig, f)| format!("{sig} {:.1}%", 100.0 * f))
+        .collect();
+    let mut s = format!(
+        "measurement noise (estimated std / signal std, largest level): {}",
+        levels.join(", ")
+    );
+    if !n.uncertain.is_empty() {
+        s.push_str(&format!(
+            " (uncertain, floor dominated by the signal: {})",
+            n.uncertain.join(", ")
+        ));
+    }
+    if !n.corrected.is_empty() {
+        s.push_str(&format!("; de-biased: {}", n.corrected.join(", ")));
+    }
+    if !n.uncorrected.is_empty() {
+        s.push_str(&format!(
+            "; {}: {}",
+            if n.enabled {
+                "no correction for"
+            } else {
+                "correction off, biased"
+            },
+            n.uncorrected.join(", ")
+        ));
+    }
+    s.push('\n');
     s
 }
 
@@ -244,6 +285,7 @@ mod tests {
             filter_corners: None,
             no_balance: false,
             balance: false,
+            no_noise_correction: false,
         };
         let id = identify_files(&ir, &args).unwrap();
         for (n, t) in [("d", 0.4), ("k", 4.0), ("k3", 2.0), ("r", 0.3)] {
@@ -285,6 +327,7 @@ mod tests {
             filter_corners: None,
             no_balance: false,
             balance: false,
+            no_noise_correction: false,
         };
         let e = format!("{:?}", identify_files(&ir, &args).unwrap_err());
         assert!(e.contains("bad.csv") && e.contains("`m1.v`"), "{e}");

@@ -36,10 +36,15 @@
 //! number); an estimate within [`SIGNIFICANCE_T`] standard errors of zero stays in the fit
 //! and is flagged ([`ParamEstimate::significant`]). Estimates that are unphysical for the
 //! kind of term they multiply are reported in [`Identification::warnings`].
+//!
+//! Noise in a measured signal inside a nonlinear static term (`s³`, `sign(v)`) biases its
+//! moments; the first pass estimates each signal's noise level and the moments of such
+//! terms are de-biased where it is significant (see [`noise`]).
 
 pub mod design;
 pub mod filter;
 mod moments;
+pub mod noise;
 mod plan;
 pub mod print;
 mod solve;
@@ -54,6 +59,7 @@ pub use velocity::VelocityEstimate;
 /// An estimate counts as significant when `|value| > SIGNIFICANCE_T · stderr` (about 95 %
 /// two-sided for a normal estimate).
 pub const SIGNIFICANCE_T: f64 = 2.0;
+pub use noise::NoiseSummary;
 
 use crate::basis::BasisEval;
 use crate::data::{DataError, LevelSource};
@@ -91,6 +97,9 @@ pub struct IdentifyOptions {
     pub rcond: f64,
     /// Inter-sample model of the filter input (first-order hold; zero-order for comparison).
     pub hold: Hold,
+    /// De-bias the moments of nonlinear static terms in signals whose estimated measurement
+    /// noise is significant (see [`noise`]). The noise is estimated and reported either way.
+    pub noise_correction: bool,
 }
 
 impl Default for IdentifyOptions {
@@ -105,6 +114,7 @@ impl Default for IdentifyOptions {
             chunk_len: 8192,
             rcond: 1e-10,
             hold: Hold::FirstOrder,
+            noise_correction: true,
         }
     }
 }
@@ -203,6 +213,8 @@ pub struct LevelInfo {
     pub ts: f64,
     /// Standard deviation per measured signal.
     pub std: BTreeMap<String, f64>,
+    /// Estimated white measurement-noise standard deviation per measured signal.
+    pub noise: BTreeMap<String, f64>,
 }
 
 /// The filter bank that was used.
@@ -234,6 +246,8 @@ pub struct Identification {
     pub estimated: Vec<VelocityEstimate>,
     /// Rows of the stacked system.
     pub rows: usize,
+    /// Estimated measurement noise and the terms de-biased for it.
+    pub noise: NoiseSummary,
     #[serde(skip)]
     pub times: PhaseTimes,
 }
@@ -266,6 +280,7 @@ pub struct Moments<'m> {
     rcond: f64,
     times: PhaseTimes,
     prune_insignificant: bool,
+    noise: NoiseSummary,
 }
 
 /// Identify the unknown parameters of `ir` from records at one or more excitation levels,
@@ -338,6 +353,7 @@ pub fn measure<'m>(
         .map(|src| level_stats(&plan, *src, opts.chunk_len))
         .collect::<Result<_, _>>()?;
     let stats_time = t0.elapsed();
+    let (noise_var, noise) = noise_plan(ir, &mut plan, &stats, opts.noise_correction);
 
     // The shortest level bounds the slowest filter.
     let min_duration = stats
@@ -449,8 +465,10 @@ pub fn measure<'m>(
     let results: Vec<(LevelMoments, PhaseTimes)> = sources
         .par_iter()
         .zip(&stats)
-        .map(|(src, st)| {
+        .zip(&noise_var)
+        .map(|((src, st), var)| {
             let mut acc = LevelAccumulator::new(&plan, eval, st.ts, st.n, opts.n_blocks, opts.hold);
+            acc.set_extra_widths(noise::extra_widths(&plan, &st.noise_var, &st.std));
             let mut read = Duration::ZERO;
             let mut t_read = Instant::now();
             src.stream(opts.chunk_len, &mut |cols, len| {
@@ -458,7 +476,8 @@ pub fn measure<'m>(
                 acc.push(cols, len);
                 t_read = Instant::now();
             })?;
-            let (m, mut t) = acc.finish();
+            let (mut m, mut t) = acc.finish();
+            noise::debias(&plan, &mut m, var, opts.hold);
             t.read = read;
             Ok::<_, IdentifyError>((m, t))
         })
@@ -485,6 +504,12 @@ pub fn measure<'m>(
                 .zip(&s.std)
                 .map(|(sig, sd)| (ir.signal(*sig).name.clone(), *sd))
                 .collect(),
+            noise: plan
+                .y
+                .iter()
+                .zip(&s.noise_var)
+                .map(|(sig, v)| (ir.signal(*sig).name.clone(), v.sqrt()))
+                .collect(),
         })
         .collect();
     Ok(Moments {
@@ -496,7 +521,79 @@ pub fn measure<'m>(
         rcond: opts.rcond,
         times,
         prune_insignificant: false,
+        noise,
     })
+}
+
+/// Decide the noise corrections from the first-pass statistics: attach them to the plan
+/// where a signal in a nonlinear term carries significant noise, and return per level the
+/// noise variance of each measured signal to correct for (zero where it is not
+/// significant or the correction is off), with the summary for the report.
+fn noise_plan(
+    ir: &ModelIr,
+    plan: &mut Plan,
+    stats: &[LevelStats],
+    enabled: bool,
+) -> (Vec<Vec<f64>>, NoiseSummary) {
+    let significant = |st: &LevelStats, k: usize| {
+        st.noise_flat[k]
+            && st.std[k] > 0.0
+            && st.noise_var[k].sqrt() >= noise::SIGNIFICANT * st.std[k]
+    };
+    let noisy: Vec<SignalId> = (0..plan.y.len())
+        .filter(|&k| stats.iter().any(|st| significant(st, k)))
+        .map(|k| plan.y[k])
+        .collect();
+    let mut summary = NoiseSummary {
+        fraction: plan
+            .y
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let f = stats
+                    .iter()
+                    .map(|st| {
+                        if st.std[k] > 0.0 {
+                            st.noise_var[k].sqrt() / st.std[k]
+                        } else {
+                            0.0
+                        }
+                    })
+                    .fold(0.0, f64::max);
+                (ir.signal(*s).name.clone(), f)
+            })
+            .collect(),
+        enabled,
+        uncertain: (0..plan.y.len())
+            .filter(|&k| stats.iter().any(|st| !st.noise_flat[k]))
+            .map(|k| ir.signal(plan.y[k]).name.clone())
+            .collect(),
+        ..Default::default()
+    };
+    if enabled && !noisy.is_empty() {
+        noise::attach(plan, ir);
+    }
+    summary.uncorrected = noise::uncorrected(plan, ir, &noisy);
+    let var = stats
+        .iter()
+        .map(|st| {
+            (0..plan.y.len())
+                .map(|k| {
+                    if enabled && significant(st, k) {
+                        st.noise_var[k]
+                    } else {
+                        0.0
+                    }
+                })
+                .collect::<Vec<f64>>()
+        })
+        .collect::<Vec<_>>();
+    for f in &plan.fixes {
+        if var.iter().any(|v| noise::form_variance(&f.lin, v) > 0.0) {
+            summary.corrected.push(f.label.clone());
+        }
+    }
+    (var, summary)
 }
 
 fn choose_bank(ir: &ModelIr, opts: &IdentifyOptions) -> Result<BankChoice, IdentifyError> {
@@ -549,6 +646,10 @@ struct LevelStats {
     ts: f64,
     std: Vec<f64>,
     omegas: Vec<f64>,
+    /// Estimated white-noise variance per measured signal.
+    noise_var: Vec<f64>,
+    /// Whether that estimate comes from a flat floor ([`noise::NoiseFloor::flat`]).
+    noise_flat: Vec<bool>,
 }
 
 fn level_stats(
@@ -565,6 +666,7 @@ fn level_stats(
     let mut reference: Vec<(f64, f64)> = Vec::new();
     let mut side = vec![0i8; ny];
     let mut crossings = vec![0usize; ny];
+    let mut floors = vec![noise::NoiseFloor::default(); ny];
     src.stream(chunk, &mut |cols, len| {
         if n == 0 {
             for (k, s) in plan.y.iter().enumerate() {
@@ -585,6 +687,7 @@ fn level_stats(
             }
             s1[k] += a;
             s2[k] += b;
+            floors[k].push(c);
             let (mid, h) = reference[k];
             for &v in c {
                 let now = if v > mid + h {
@@ -620,7 +723,14 @@ fn level_stats(
         .filter(|(k, _)| crossings[*k] > 0)
         .map(|(k, _)| std::f64::consts::PI * crossings[k] as f64 / duration)
         .collect();
-    Ok(LevelStats { n, ts, std, omegas })
+    Ok(LevelStats {
+        n,
+        ts,
+        std,
+        omegas,
+        noise_var: floors.iter().map(|f| f.variance()).collect(),
+        noise_flat: floors.iter().map(|f| f.flat()).collect(),
+    })
 }
 
 impl<'m> Moments<'m> {
@@ -755,7 +865,7 @@ impl<'m> Moments<'m> {
     }
 
     /// Per unknown column: a constant-force column whose instrument means are zero within
-    /// their jackknife spread at every level in `which` (the data have no mean).
+    /// their batch-means spread at every level in `which` (the data have no mean).
     fn meanless_columns(&self, which: &[usize]) -> Vec<bool> {
         let ncol = self.plan.unknowns.len();
         (0..ncol)
@@ -767,9 +877,10 @@ impl<'m> Moments<'m> {
                             let (c, _) = self.level_rows(view);
                             c.iter().skip(j).step_by(ncol).copied().collect()
                         };
-                        let deleted: Vec<Vec<f64>> =
-                            (0..lm.n_blocks()).map(|b| col(&lm.view(Some(b)))).collect();
-                        plan::has_mean(&col(&lm.view(None)), &deleted)
+                        let hats: Vec<(f64, Vec<f64>)> = (0..=lm.n_blocks())
+                            .map(|h| (lm.hat_weight(h), col(&lm.hat(h))))
+                            .collect();
+                        plan::has_mean(&col(&lm.view()), &hats)
                     })
             })
             .collect()
@@ -967,6 +1078,7 @@ reason: plan.zero_column_reason(active[j]),
             filter: self.filter_summary(),
             estimated: self.estimated.clone(),
             rows,
+            noise: self.noise.clone(),
             times,
         }
     }

@@ -323,6 +323,8 @@ pub(crate) struct LevelAccumulator<'a> {
     qrow: Vec<f64>,
     /// [`central_velocity_weights`].
     vhat_weights: Vec<f64>,
+    /// Kernel widths of the plan's extra columns at this level ([`super::noise`]).
+    extra_width: Vec<f64>,
     pub times: PhaseTimes,
 }
 
@@ -365,8 +367,15 @@ impl<'a> LevelAccumulator<'a> {
             scratch: Vec::new(),
             qrow: vec![0.0; n_q],
             vhat_weights: central_velocity_weights(),
+            extra_width: vec![1.0; plan.extra.len()],
             times: PhaseTimes::default(),
         }
+    }
+
+    /// Set the kernel widths of the plan's extra columns for this level.
+    pub fn set_extra_widths(&mut self, widths: Vec<f64>) {
+        assert_eq!(widths.len(), self.plan.extra.len());
+        self.extra_width = widths;
     }
 
     /// Feed the next `len` samples; `cols[s]` is signal `s` (by `SignalId`).
@@ -404,6 +413,17 @@ impl<'a> LevelAccumulator<'a> {
         for (k, s) in plan.y.iter().enumerate() {
             iota_y[k * len..(k + 1) * len].copy_from_slice(view[s.index()]);
             w_y[k * len..(k + 1) * len].copy_from_slice(view[s.index()]);
+        }
+        if !plan.extra.is_empty() {
+            let ny = plan.y.len();
+            let ys: Vec<&[f64]> = plan.y.iter().map(|s| view[s.index()]).collect();
+            super::noise::fill_extra(
+                &plan.extra,
+                &self.extra_width,
+                &ys,
+                len,
+                &mut w_y[ny * len..],
+            );
         }
         let eval = self.eval;
         let scratch = &mut self.scratch;

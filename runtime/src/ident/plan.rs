@@ -75,6 +75,13 @@ pub(crate) struct Plan {
     /// Per unknown column: every term it multiplies is a constant force (basis 1), so its
     /// moments are the means of the instruments, `⟨ι⟩`.
     pub constant: Vec<bool>,
+    /// Columns of `w` after the measured signals, needed by the noise corrections
+    /// ([`super::noise`]); empty unless they are attached.
+    pub extra: Vec<super::noise::ExtraColumn>,
+    /// Noise corrections of static columns ([`super::noise::attach`]).
+    pub fixes: Vec<super::noise::ColumnFix>,
+    /// Static columns linear in measured signals: (column, [(index into `y`, coefficient)]).
+    pub linear_roots: Vec<(usize, Vec<(usize, f64)>)>,
 }
 
 /// Filter choices resolved from options, the model's filter block and the data.
@@ -94,7 +101,7 @@ impl Plan {
         self.n_z() + self.y.len()
     }
     pub fn n_w(&self) -> usize {
-        self.roots.len() + self.y.len()
+        self.roots.len() + self.y.len() + self.extra.len()
     }
     pub fn n_q(&self) -> usize {
         self.n_w() + self.vhat_bodies.len()
@@ -248,29 +255,31 @@ pub(crate) fn build_structure(
         instruments: Vec::new(),
         rows: Vec::new(),
         balance,
+        extra: Vec::new(),
+        fixes: Vec::new(),
+        linear_roots: Vec::new(),
         constant,
     })
 }
 
 /// A column of instrument means counts as having a mean when, at some level, one of its
-/// entries is at least this many jackknife standard errors away from zero. Measured on
-/// `models/sdof_offset.dyn` (tests/constant_force.rs, largest ratio per level): with the
-/// offset, 49 at the quietest level over 2000 s and 23 / 15 / 3.2 at the three levels over
-/// 1000 s; the same system without offset 2.0 / 0.4 / 0.03; centred records below 0.05.
+/// entries is at least this many batch-means standard errors away from zero (see
+/// `tests/constant_force.rs` for the ratios measured with and without an offset).
 pub(crate) const MEAN_T_MIN: f64 = 5.0;
 
 /// Whether the entries of a column of instrument means differ from zero by more than their
-/// sampling spread: `full[r]` is row `r` of one level, `deleted[b][r]` the same row with
-/// time block `b` left out (delete-one-block jackknife).
-pub(crate) fn has_mean(full: &[f64], deleted: &[Vec<f64>]) -> bool {
-    let g = deleted.len() as f64;
-    if deleted.len() < 2 {
+/// sampling spread: `full[r]` is row `r` of one level, `hats[j] = (w_j, h_j)` the weight and
+/// the contribution of time window `j` to it (`Σ_j h_j = full`, see the `moments` module).
+/// The spread is the batch-means standard error `√(B/(B−1) Σ_j (h_j − w_j full)²)`.
+pub(crate) fn has_mean(full: &[f64], hats: &[(f64, Vec<f64>)]) -> bool {
+    let b = hats.len() as f64;
+    if hats.len() < 2 {
         return full.iter().any(|v| *v != 0.0);
     }
     full.iter().enumerate().any(|(r, &v)| {
-        let mean = deleted.iter().map(|d| d[r]).sum::<f64>() / g;
-        let var = (g - 1.0) / g * deleted.iter().map(|d| (d[r] - mean).powi(2)).sum::<f64>();
-        v.abs() >= MEAN_T_MIN * var.sqrt() && v != 0.0
+        let ss: f64 = hats.iter().map(|(w, h)| (h[r] - w * v).powi(2)).sum();
+        let se = (b / (b - 1.0) * ss).sqrt();
+        v != 0.0 && v.abs() >= MEAN_T_MIN * se
     })
 }
 
