@@ -217,7 +217,8 @@ impl ExprNode {
 /// The thing a coefficient multiplies in an equation of motion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Basis {
-    /// A static function of signals (which may include velocities).
+    /// A static function of signals (which may include velocities), or the constant 1 of a
+    /// constant force.
     Expr(ExprId),
     /// The `order`-th time derivative (1 or 2) of a body's position. Terms linear in a
     /// velocity are lowered to `Deriv { order: 1 }` so that a back end can move the

@@ -854,9 +854,8 @@ impl Lowerer<'_> {
             if !ok {
                 continue;
             }
-            let (scale, basis) = tree.extract_scale();
+            let (scale, mut basis) = tree.extract_scale();
             let mut scale = sign * scale;
-            let mut basis = basis;
             if !basis.has_signal() {
                 // A constant force `scale · param · 1`: the basis is the constant 1, so that
                 // every constant force of the model shares one column of moments.

@@ -456,3 +456,25 @@ fn computable(ins: &Instrument, b: &BasisMoment) -> bool {
         BasisMoment::D2Pos(_, _) => ins.a2.is_some(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::has_mean;
+
+    #[test]
+    fn a_mean_counts_only_beyond_its_jackknife_spread() {
+        // 20 deleted-block replicates spread by ±0.01 about the full value.
+        let deleted = |centre: f64| -> Vec<Vec<f64>> {
+            (0..20)
+                .map(|b| vec![0.0, centre + if b % 2 == 0 { 0.01 } else { -0.01 }])
+                .collect()
+        };
+        // Jackknife standard error: sqrt(19/20 · 20 · 0.01²) ≈ 0.0436.
+        assert!(has_mean(&[0.0, 0.5], &deleted(0.5)));
+        assert!(!has_mean(&[0.0, 0.1], &deleted(0.1)));
+        assert!(!has_mean(&[0.0, 0.0], &deleted(0.0)));
+        // No spread at all: any non-zero entry is a mean, an all-zero column is not.
+        assert!(has_mean(&[0.0, 1e-9], &vec![vec![0.0, 1e-9]; 20]));
+        assert!(!has_mean(&[0.0, 0.0], &vec![vec![0.0, 0.0]; 20]));
+    }
+}
