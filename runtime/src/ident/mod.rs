@@ -56,6 +56,11 @@ pub use moments::PhaseTimes;
 pub use stats::{Quantity, Warning};
 pub use velocity::VelocityEstimate;
 
+/// A level counts as centred (its mean removed) when every signal driving the filters has
+/// `|mean| ≤ CENTRED_REL · std`: far below any sampling spread of a mean, far above the
+/// rounding left by subtracting one.
+pub const CENTRED_REL: f64 = 1e-9;
+
 /// An estimate counts as significant when `|value| > SIGNIFICANCE_T · stderr` (about 95 %
 /// two-sided for a normal estimate).
 pub const SIGNIFICANCE_T: f64 = 2.0;
@@ -276,6 +281,8 @@ pub struct Moments<'m> {
     plan: Plan,
     levels: Vec<LevelMoments>,
     infos: Vec<LevelInfo>,
+    /// Per level: every signal driving the filters has zero mean (see [`CENTRED_REL`]).
+    centred: Vec<bool>,
     estimated: Vec<VelocityEstimate>,
     rcond: f64,
     times: PhaseTimes,
@@ -512,11 +519,21 @@ pub fn measure<'m>(
                 .collect(),
         })
         .collect();
+    let centred = stats
+        .iter()
+        .map(|s| {
+            plan.drivers.iter().all(|d| {
+                plan.y_of[d.index()]
+                    .is_none_or(|k| s.mean[k].abs() <= CENTRED_REL * s.std[k].max(f64::MIN_POSITIVE))
+            })
+        })
+        .collect();
     Ok(Moments {
         ir,
         plan,
         levels: lm,
         infos,
+        centred,
         estimated,
         rcond: opts.rcond,
         times,
@@ -645,6 +662,8 @@ struct LevelStats {
     n: usize,
     ts: f64,
     std: Vec<f64>,
+    /// Mean per measured signal.
+    mean: Vec<f64>,
     omegas: Vec<f64>,
     /// Estimated white-noise variance per measured signal.
     noise_var: Vec<f64>,
@@ -714,6 +733,7 @@ fn level_stats(
             (s2[k] / n.max(1) as f64 - m * m).max(0.0).sqrt()
         })
         .collect();
+    let mean = (0..ny).map(|k| shift[k] + s1[k] / n.max(1) as f64).collect();
     let duration = (n.max(2) - 1) as f64 * ts;
     let omegas = plan
         .y
@@ -727,6 +747,7 @@ fn level_stats(
         n,
         ts,
         std,
+        mean,
         omegas,
         noise_var: floors.iter().map(|f| f.variance()).collect(),
         noise_flat: floors.iter().map(|f| f.flat()).collect(),
@@ -864,25 +885,15 @@ impl<'m> Moments<'m> {
         (c, rhs)
     }
 
-    /// Per unknown column: a constant-force column whose instrument means are zero within
-    /// their batch-means spread at every level in `which` (the data have no mean).
+    /// Per unknown column: a constant-force column at levels whose filter drivers all have
+    /// zero mean (centred records), where its column — the filter outputs' means — is zero
+    /// but for the filters' start-up: rank loss, not a weak estimate.
     fn meanless_columns(&self, which: &[usize]) -> Vec<bool> {
-        let ncol = self.plan.unknowns.len();
-        (0..ncol)
-            .map(|j| {
-                self.plan.constant[j]
-                    && !which.iter().any(|&i| {
-                        let lm = &self.levels[i];
-                        let col = |view: &MomentView| -> Vec<f64> {
-                            let (c, _) = self.level_rows(view);
-                            c.iter().skip(j).step_by(ncol).copied().collect()
-                        };
-                        let hats: Vec<(f64, Vec<f64>)> = (0..=lm.n_blocks())
-                            .map(|h| (lm.hat_weight(h), col(&lm.hat(h))))
-                            .collect();
-                        plan::has_mean(&col(&lm.view()), &hats)
-                    })
-            })
+        let all_centred = which.iter().all(|&i| self.centred[i]);
+        self.plan
+            .constant
+            .iter()
+            .map(|&c| c && all_centred)
             .collect()
     }
 

@@ -262,35 +262,16 @@ pub(crate) fn build_structure(
     })
 }
 
-/// A column of instrument means counts as having a mean when, at some level, one of its
-/// entries is at least this many batch-means standard errors away from zero (see
-/// `tests/constant_force.rs` for the ratios measured with and without an offset).
-pub(crate) const MEAN_T_MIN: f64 = 5.0;
-
-/// Whether the entries of a column of instrument means differ from zero by more than their
-/// sampling spread: `full[r]` is row `r` of one level, `hats[j] = (w_j, h_j)` the weight and
-/// the contribution of time window `j` to it (`Σ_j h_j = full`, see the `moments` module).
-/// The spread is the batch-means standard error `√(B/(B−1) Σ_j (h_j − w_j full)²)`.
-pub(crate) fn has_mean(full: &[f64], hats: &[(f64, Vec<f64>)]) -> bool {
-    let b = hats.len() as f64;
-    if hats.len() < 2 {
-        return full.iter().any(|v| *v != 0.0);
-    }
-    full.iter().enumerate().any(|(r, &v)| {
-        let ss: f64 = hats.iter().map(|(w, h)| (h[r] - w * v).powi(2)).sum();
-        let se = (b / (b - 1.0) * ss).sqrt();
-        v != 0.0 && v.abs() >= MEAN_T_MIN * se
-    })
-}
 
 impl Plan {
     /// Why an unknown column that is zero (or, for a constant force, has no mean) cannot be
     /// identified.
     pub fn zero_column_reason(&self, col: usize) -> String {
         if self.constant.get(col).copied().unwrap_or(false) {
-            "a constant force needs data whose mean is not zero: the filter outputs have no \
-             mean, so its column (the mean of each filter output) is zero within its \
-             sampling spread — measure without removing the mean, or remove the term"
+            "a constant force needs data whose mean is not zero: every signal driving the \
+             filters has zero mean (the records were centred), so its column (the mean of \
+             each filter output) is zero but for the filters' start — measure without \
+             removing the mean, or remove the term"
                 .into()
         } else {
             "never excited at these levels: its column of moments is zero \
@@ -454,27 +435,5 @@ fn computable(ins: &Instrument, b: &BasisMoment) -> bool {
         BasisMoment::D1Pos(_) => ins.a1.is_some(),
         BasisMoment::D2Vel(_, body) => ins.a1.is_some() || ins.power == Some(body),
         BasisMoment::D2Pos(_, _) => ins.a2.is_some(),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::has_mean;
-
-    #[test]
-    fn a_mean_counts_only_beyond_its_jackknife_spread() {
-        // 20 deleted-block replicates spread by ±0.01 about the full value.
-        let deleted = |centre: f64| -> Vec<Vec<f64>> {
-            (0..20)
-                .map(|b| vec![0.0, centre + if b % 2 == 0 { 0.01 } else { -0.01 }])
-                .collect()
-        };
-        // Jackknife standard error: sqrt(19/20 · 20 · 0.01²) ≈ 0.0436.
-        assert!(has_mean(&[0.0, 0.5], &deleted(0.5)));
-        assert!(!has_mean(&[0.0, 0.1], &deleted(0.1)));
-        assert!(!has_mean(&[0.0, 0.0], &deleted(0.0)));
-        // No spread at all: any non-zero entry is a mean, an all-zero column is not.
-        assert!(has_mean(&[0.0, 1e-9], &vec![vec![0.0, 1e-9]; 20]));
-        assert!(!has_mean(&[0.0, 0.0], &vec![vec![0.0, 0.0]; 20]));
     }
 }
