@@ -92,6 +92,11 @@ pub struct Args {
     /// Natural frequency of the reference's low-pass in rad/s.
     #[arg(long, default_value_t = 5.0, value_name = "RAD_PER_S")]
     pub reference_corner: f64,
+    /// Make the reference a third-order trajectory (continuous velocity and acceleration,
+    /// as a trajectory planner makes); without it the reference velocity is rough
+    /// between samples and so is the controller's force.
+    #[arg(long)]
+    pub smooth_reference: bool,
     /// The controller feeds back the true velocity instead of a position difference.
     #[arg(long)]
     pub tachometer: bool,
@@ -210,6 +215,7 @@ fn pd_control(ir: &ModelIr, args: &Args) -> miette::Result<Option<sim::PdControl
         reference: sim::ReferenceSpec {
             rms: args.reference_rms,
             corner: args.reference_corner,
+            smooth: args.smooth_reference,
         },
     }))
 }
@@ -377,6 +383,7 @@ mod tests {
             pd: None,
             reference_rms: 0.03,
             reference_corner: 5.0,
+            smooth_reference: false,
             tachometer: false,
             out,
             input: None,

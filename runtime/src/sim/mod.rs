@@ -536,7 +536,7 @@ fn simulate_level(
                     col.push(signal_value(ir, s, &rk, &u0));
                 }
                 if let Some((ctl, _)) = &control {
-                    columns[n_cols - 1].push(ctl.reference.output());
+                    columns[n_cols - 1].push(ctl.reference().0);
                 }
             }
             for s in samplers.iter_mut().flatten() {
@@ -546,7 +546,7 @@ fn simulate_level(
             if let Some((ctl, rng)) = &mut control {
                 // Zero-order hold of the controller output over the step.
                 u1[ctl.input] = u0[ctl.input];
-                ctl.reference.step(rng);
+                ctl.step_reference(rng);
             }
             rk.advance(mech, &u0, &u1, h, substeps);
             std::mem::swap(&mut u0, &mut u1);

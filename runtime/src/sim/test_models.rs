@@ -162,6 +162,7 @@ impl ServoAxis {
             reference: crate::sim::ReferenceSpec {
                 rms: 0.03,
                 corner: 5.0,
+                smooth: true,
             },
         }
     }
