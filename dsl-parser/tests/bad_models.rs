@@ -101,7 +101,11 @@ fn unmeasured_term_names_the_term_and_the_signal() {
     let src = "model no_position {\n body m = 1.0\n input u on m\n measure m.v, u\n \
                damper d (ground, m) ~ 0.4\n force h (ground, m) = k3 ~ 2.0 * s^3\n}\n";
     let errs = compile_str("u.dyn", src).unwrap_err();
-    assert_eq!(errs.errors.len(), 1, "the linear damper is accepted: {errs:?}");
+    assert_eq!(
+        errs.errors.len(),
+        1,
+        "the linear damper is accepted: {errs:?}"
+    );
     let msg = errs.errors[0].message();
     assert!(msg.contains("m.x^3") && msg.contains("`m.x`"), "{msg}");
 }

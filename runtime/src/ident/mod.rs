@@ -523,8 +523,9 @@ pub fn measure<'m>(
         .iter()
         .map(|s| {
             plan.drivers.iter().all(|d| {
-                plan.y_of[d.index()]
-                    .is_none_or(|k| s.mean[k].abs() <= CENTRED_REL * s.std[k].max(f64::MIN_POSITIVE))
+                plan.y_of[d.index()].is_none_or(|k| {
+                    s.mean[k].abs() <= CENTRED_REL * s.std[k].max(f64::MIN_POSITIVE)
+                })
             })
         })
         .collect();
@@ -733,7 +734,9 @@ fn level_stats(
             (s2[k] / n.max(1) as f64 - m * m).max(0.0).sqrt()
         })
         .collect();
-    let mean = (0..ny).map(|k| shift[k] + s1[k] / n.max(1) as f64).collect();
+    let mean = (0..ny)
+        .map(|k| shift[k] + s1[k] / n.max(1) as f64)
+        .collect();
     let duration = (n.max(2) - 1) as f64 * ts;
     let omegas = plan
         .y
@@ -974,7 +977,7 @@ impl<'m> Moments<'m> {
             {
                 unident.push(Unidentifiable {
                     name: names[active[j]].clone(),
-reason: plan.zero_column_reason(active[j]),
+                    reason: plan.zero_column_reason(active[j]),
                 });
                 active.remove(j);
                 continue;

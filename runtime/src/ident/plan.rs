@@ -262,7 +262,6 @@ pub(crate) fn build_structure(
     })
 }
 
-
 impl Plan {
     /// Why an unknown column that is zero (or, for a constant force, has no mean) cannot be
     /// identified.

@@ -579,6 +579,9 @@ fn standard_errors_cover_the_error() {
     for (k, v) in z2.iter().enumerate() {
         let rms = (v / seeds as f64).sqrt();
         assert!(rms < 2.5, "{}: rms z {rms}", truth[k].0);
+    }
+}
+
 /// Errors of (d, k, k3, r) with and without the noise correction, at 0 / 5 / 10 % noise on
 /// every channel, and the estimated noise levels.
 #[test]
