@@ -181,7 +181,8 @@ pub(crate) fn physical_warnings(ir: &ModelIr, params: &[ParamEstimate]) -> Vec<W
             let (quantity, scale) = quantity_of(ir, &p.name)?;
             let coefficient = scale * p.value;
             let stderr = scale.abs() * p.stderr;
-            if !(coefficient < 0.0) {
+            // Non-negative (or NaN, which is never printed as a result): nothing to say.
+            if coefficient >= 0.0 || coefficient.is_nan() {
                 return None;
             }
             let unphysical = coefficient < -SIGNIFICANCE_T * stderr;

@@ -501,7 +501,7 @@ mod tests {
         let (n, ts, om) = (20_000usize, 0.01, 3.0);
         let mut rng = rand::rngs::StdRng::seed_from_u64(5);
         let x: Vec<f64> = (0..n)
-            .map(|k| (om * k as f64 * ts).sin() + 1e-4 * (rng.gen::<f64>() - 0.5))
+            .map(|k| (om * k as f64 * ts).sin() + 1e-4 * (rng.random::<f64>() - 0.5))
             .collect();
         let rec = Record {
             names: vec!["x".into()],
