@@ -286,7 +286,9 @@ pub struct Moments<'m> {
     estimated: Vec<VelocityEstimate>,
     rcond: f64,
     times: PhaseTimes,
-    prune_insignificant: bool,
+    /// Structure search: leave out, one at a time, estimates with `|value| ≤ prune_t · stderr`
+    /// (0: off).
+    prune_t: f64,
     noise: NoiseSummary,
 }
 
@@ -538,7 +540,7 @@ pub fn measure<'m>(
         estimated,
         rcond: opts.rcond,
         times,
-        prune_insignificant: false,
+        prune_t: 0.0,
         noise,
     })
 }
@@ -768,7 +770,13 @@ impl<'m> Moments<'m> {
     /// unidentifiable with that reason. Off by default: identification keeps such a
     /// parameter and flags it. A structure search uses it to treat such a term as absent.
     pub fn prune_insignificant(&mut self, on: bool) {
-        self.prune_insignificant = on;
+        self.prune_t = if on { 1.0 } else { 0.0 };
+    }
+
+    /// As [`Self::prune_insignificant`] with the threshold `|value| ≤ t · stderr`; a
+    /// structure search that keeps only significant terms uses [`SIGNIFICANCE_T`].
+    pub fn prune_below(&mut self, t: f64) {
+        self.prune_t = t.max(0.0);
     }
 
     /// Time spent so far, by phase.
@@ -1017,9 +1025,9 @@ impl<'m> Moments<'m> {
                 &hats,
                 which.iter().map(|&i| &self.levels[i]),
             );
-            if self.prune_insignificant {
+            if self.prune_t > 0.0 {
                 let worst = (0..active.len())
-                    .filter(|&j| se[j] >= sol.x[j].abs())
+                    .filter(|&j| self.prune_t * se[j] >= sol.x[j].abs())
                     .max_by(|&x, &y| (se[x] / sol.x[x].abs()).total_cmp(&(se[y] / sol.x[y].abs())));
                 if let Some(j) = worst {
                     unident.push(Unidentifiable {
