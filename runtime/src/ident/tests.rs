@@ -533,14 +533,14 @@ fn unphysical_estimates_are_warned_about_by_kind() {
 
 /// Coverage of the standard errors: over 20 seeds (three levels of 200 s, 5 % noise on
 /// every channel) the error of each parameter should be within two standard errors in about
-/// 95 % of the cases. Measured (this test, `-- --nocapture`): 65 of 80 (81 %), per
-/// parameter (d, k, k3, r) 18, 16, 13, 18 of 20; rms z 1.30, 1.47, 1.77, 1.30, mean z
-/// +0.09, −0.58, −1.27, +0.37. Two known biases take their share: `k3` by the noise on `x`
-/// inside `x³` (`E[(x + n)³] = x³ + 3σ²x`, an errors-in-variables effect of any static
-/// nonlinear term), and a bias first order in `Tₛ` noise-free (d −0.10 %, r −0.09 %, k
-/// −0.02 %, k3 −0.03 % at Tₛ = 0.01 s; −0.06 %, −0.04 %, −0.007 %, −0.010 % at 0.005 s;
-/// unchanged with 80 instead of 20 simulator sub-steps). Without them the spread of z is
-/// still about 1.3: the sandwich runs about a quarter low at this record length.
+/// 95 % of the cases. Measured (this test, `-- --nocapture`, with the noise correction):
+/// 71 of 80 (89 %), per parameter (d, k, k3, r) 17, 18, 18, 18 of 20; rms z 1.31, 1.19,
+/// 1.22, 1.30. (Without the noise correction `k3` kept about one standard error of
+/// errors-in-variables bias: 65 of 80, k3 13 of 20, rms z 1.77.) A bias first order in `Tₛ`
+/// remains noise-free (d −0.10 %, r −0.09 %, k −0.02 %, k3 −0.03 % at Tₛ = 0.01 s; −0.06 %,
+/// −0.04 %, −0.007 %, −0.010 % at 0.005 s; unchanged with 80 instead of 20 simulator
+/// sub-steps), and the batch-means standard errors run about a fifth low at this record
+/// length (rms z ≈ 1.2–1.3). The bounds sit just below the measured figures.
 #[test]
 fn standard_errors_cover_the_error() {
     let ir = sdof_model("");
@@ -570,15 +570,15 @@ fn standard_errors_cover_the_error() {
             .map(|v| format!("{:.2}", (v / seeds as f64).sqrt()))
             .collect::<Vec<_>>()
     );
-    assert!(frac >= 0.75, "coverage {frac}");
+    assert!(frac >= 0.8, "coverage {frac}");
     for (k, n) in inside.iter().enumerate() {
-        assert!(*n >= 11, "{}: {n} of {seeds}", truth[k].0);
+        assert!(*n >= 15, "{}: {n} of {seeds}", truth[k].0);
     }
     // Standard errors of the right order: a jackknife that was erratic by a factor of up
-    // to ten would fail this.
+    // to ten, or an uncorrected noise bias, would fail this.
     for (k, v) in z2.iter().enumerate() {
         let rms = (v / seeds as f64).sqrt();
-        assert!(rms < 2.5, "{}: rms z {rms}", truth[k].0);
+        assert!(rms < 1.6, "{}: rms z {rms}", truth[k].0);
     }
 }
 
