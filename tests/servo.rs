@@ -7,21 +7,18 @@
 //! the filters are designed from the record, the velocity in the Coulomb term is estimated
 //! from the encoder positions.
 //!
-//! What the method reaches here (seeds 1–6, printed with `--nocapture`): the mass within
-//! 0.8 % (standard errors 0.2–0.9 %), the offset within 7 % (standard errors 2–12 %);
-//! viscous and Coulomb friction only to 3–25 % (errors up to 20 %), so the test asserts
-//! that each estimate lies within three of its standard errors, and the mass within 1 %.
-//! Where the error comes from (the same axis through `dynid simulate … --pd 80000,2680
-//! --smooth-reference --input-oversample 10 --quantise 1e-6`, seeds 1–3, then `identify`):
-//!
-//! - the controller's velocity, a difference of 1 µm positions over 0.1 ms, puts a force
-//!   jitter of ±27 N between samples that no record shows; with a tachometer instead and
-//!   no Coulomb friction, d comes out within 0.5 % and f0 within 0.1 %;
-//! - with Coulomb friction and a *measured* velocity, d within 1 %, r within 0.8 %, f0
-//!   within 3 %;
-//! - with the velocity *estimated* from the encoder, d is off by up to 14 % and r by 9 %:
-//!   the zero-phase estimate rounds off the velocity's kinks at every reversal of the
-//!   motion, exactly where `sign(v)` switches.
+//! What the method reaches here (seeds 1–6, printed with `--nocapture`): mass +0.19 to
+//! +0.38 % (a small bias beyond its standard errors of 0.1–0.4 %), offset within 3.6 %,
+//! viscous friction within 4.9 % and Coulomb friction within 3.9 % (standard errors
+//! 1.1–10 %). The issue-level goal of 2 % for the two frictions is not reached on 25 s;
+//! the test asserts mass < 0.8 %, d < 10 %, r < 8 %, f0 < 5 %, and d, r, f0 within three
+//! standard errors. Where the friction error comes from (the same axis through `dynid
+//! simulate … --pd 80000,2680 --smooth-reference --input-oversample 10 --quantise 1e-6`,
+//! seeds 1–3, then `identify`): with the velocity *measured* instead of estimated, d is
+//! within 1 % and r within 0.8 %; the zero-phase estimate rounds off the velocity's kinks
+//! at every reversal of the motion, exactly where `sign(v)` switches. A controller that
+//! differenced the encoder over one 0.1 ms step instead of one sample interval put ±27 N
+//! of force jitter between samples, and d, r off by up to 23 %.
 use dynid::runtime::data::{LevelSource, RecordSource};
 use dynid::runtime::ident::Identification;
 use dynid::runtime::sim::{self, test_models::ServoAxis};
@@ -55,8 +52,20 @@ fn servo_axis_from_encoder_and_force_alone() {
             let p = id.param(name).expect("estimated");
             let (e, s) = (p.value / t - 1.0, p.stderr / t.abs());
             row.push(format!("{name} {:+.2} % (±{:.2} %)", 100.0 * e, 100.0 * s));
+            let bound = match name {
+                "m" => 0.008,
+                "d" => 0.10,
+                "r" => 0.08,
+                _ => 0.05,
+            };
             assert!(
-                (p.value - t).abs() < 3.0 * p.stderr,
+                e.abs() < bound,
+                "seed {seed}: `{name}` off by {:+.2} % (bound {} %)",
+                100.0 * e,
+                100.0 * bound
+            );
+            assert!(
+                name == "m" || (p.value - t).abs() < 3.0 * p.stderr,
                 "seed {seed}: `{name}` = {} ± {}, truth {t}",
                 p.value,
                 p.stderr

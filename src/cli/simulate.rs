@@ -29,7 +29,8 @@ record positions without velocities, list the measured signals in the model
 
 --pd KP,KD closes a position loop around the body of the model's first input:
 u = KP (r − x) + KD (ṙ − v̂), v̂ the backward difference of the (quantised) position
-(--tachometer: the true velocity), updated every Ts / N and held in between. The
+over one sample interval Ts (--tachometer: the true velocity), updated every Ts / N and
+held in between. The
 reference r is white noise through a Butterworth low-pass of natural frequency
 --reference-corner (rad/s) with RMS --reference-rms × level, written as the column
 `<body>.x_ref`; the recorded input is the controller's output.

@@ -8,7 +8,8 @@
 //! - `x̂` is the position, rounded to the encoder resolution when
 //!   [`SimConfig::quantise`](super::SimConfig::quantise) is set (measurement noise is
 //!   added to the record afterwards and never enters the loop);
-//! - `v̂` is, by default, the backward difference `(x̂ₖ − x̂ₖ₋₁) / h` of that position, as
+//! - `v̂` is, by default, the backward difference of that position over one sample
+//!   interval `Tₛ` (the last `input_oversample` fine steps), as
 //!   an encoder-based drive computes it ([`VelocitySource::Difference`]); with
 //!   [`VelocitySource::Tachometer`] it is the true velocity (an analog tachometer).
 //!
@@ -67,7 +68,8 @@ pub struct PdControl {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum VelocitySource {
-    /// Backward difference of the (quantised) position over one controller step.
+    /// Backward difference of the (quantised) position over one sample interval (a
+    /// difference over one fine step of a 1 µm encoder at 10 kHz is ±0.01 m/s of noise).
     #[default]
     Difference,
     /// The true velocity.
@@ -117,7 +119,10 @@ pub(crate) struct Controller {
     quantum: Option<f64>,
     h: f64,
     pub(crate) reference: FormFilterSampler,
-    prev_x: Option<f64>,
+    /// Quantised positions of the last fine steps, for the difference over `Tₛ`.
+    history: std::collections::VecDeque<f64>,
+    /// Fine steps per sample interval.
+    window: usize,
     /// Lag of the smoothed trajectory: `(corner, e^{−corner h})` and its state.
     lag: Option<(f64, f64)>,
     lagged: f64,
@@ -131,6 +136,7 @@ impl Controller {
         body: usize,
         quantum: Option<f64>,
         h: f64,
+        window: usize,
         reference: FormFilterSampler,
     ) -> Self {
         Controller {
@@ -144,7 +150,8 @@ impl Controller {
             h,
             lagged: reference.output(),
             reference,
-            prev_x: None,
+            history: std::collections::VecDeque::with_capacity(window + 1),
+            window: window.max(1),
             lag: spec
                 .reference
                 .smooth
@@ -180,9 +187,15 @@ impl Controller {
         let xm = quantise(x, self.quantum);
         let vm = match self.velocity {
             VelocitySource::Tachometer => v,
-            VelocitySource::Difference => (xm - self.prev_x.unwrap_or(xm)) / self.h,
+            VelocitySource::Difference => match self.history.front() {
+                Some(&old) => (xm - old) / (self.history.len() as f64 * self.h),
+                None => 0.0,
+            },
         };
-        self.prev_x = Some(xm);
+        if self.history.len() == self.window {
+            self.history.pop_front();
+        }
+        self.history.push_back(xm);
         let (r, rd) = self.reference();
         self.kp * (r - xm) + self.kd * (rd - vm) + self.kf * rd
     }

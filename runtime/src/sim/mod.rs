@@ -496,7 +496,7 @@ fn simulate_level(
             .expect("checked when planning");
         let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Reference));
         reference.start(&mut rng);
-        let ctl = Controller::new(&c.spec, c.input, c.body, cfg.quantise, h, reference);
+        let ctl = Controller::new(&c.spec, c.input, c.body, cfg.quantise, h, fine, reference);
         (ctl, rng)
     });
     let control_scale = plan.control.as_ref().map_or(0.0, |c| {
