@@ -5,14 +5,16 @@
 //!
 //! The bounds are what the method achieves on these records (printed with `--nocapture`).
 
+mod common;
+
 use dynid::dsl_parser::{self, ir::ModelIr};
-use dynid::runtime::data::{LevelSource, RecordSource};
+use dynid::runtime::data::LevelSource;
 use dynid::runtime::detect::{self, DetectOptions, Verdict};
 use dynid::runtime::diagnose::{self, DiagnoseOptions};
 use dynid::runtime::ident::Identification;
 use dynid::runtime::record::Record;
 use dynid::runtime::sim::{self, SimConfig};
-use dynid::runtime::{identify, IdentifyOptions};
+use dynid::runtime::IdentifyOptions;
 use std::path::Path;
 
 fn model(name: &str) -> ModelIr {
@@ -45,34 +47,9 @@ fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
     sim::simulate(ir, &cfg).expect("simulation").records
 }
 
-fn sources<'r>(ir: &ModelIr, recs: &'r [Record]) -> Vec<RecordSource<'r>> {
-    recs.iter()
-        .enumerate()
-        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
-        .collect()
-}
-
-fn identify_records(ir: &ModelIr, recs: &[Record]) -> Identification {
-    let srcs = sources(ir, recs);
-    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
-    identify(ir, &levels, &IdentifyOptions::default()).expect("identification")
-}
-
 /// Relative error per unknown parameter against the simulated truth; prints one row.
 fn errors(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, f64)> {
-    let values = sim::parameter_values(ir).unwrap();
-    let errs: Vec<(String, f64)> = ir
-        .unknowns()
-        .iter()
-        .map(|&p| {
-            let name = ir.params[p.index()].name.clone();
-            let t = values[p.index()];
-            let est = id
-                .param(&name)
-                .unwrap_or_else(|| panic!("{case}: `{name}` not identified: {id:#?}"));
-            (name, (est.value - t) / t)
-        })
-        .collect();
+    let errs = common::relative_errors(case, ir, id);
     let row: Vec<String> = errs
         .iter()
         .map(|(n, e)| {
@@ -132,7 +109,7 @@ fn simulated_offset_shifts_the_mean_position() {
 fn sdof_offset_noise_free() {
     let ir = model("sdof_offset");
     let recs = simulate(&ir, 2000.0, 0.0, 22);
-    let id = identify_records(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
     let e = errors("sdof_offset, noise 0 %", &ir, &id);
     assert_within("sdof_offset noise-free", &e, &[("f0", 0.02)]);
@@ -148,7 +125,7 @@ fn sdof_offset_noise_free() {
 fn sdof_offset_five_percent_noise() {
     let ir = model("sdof_offset");
     let recs = simulate(&ir, 2000.0, 0.05, 23);
-    let id = identify_records(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     let e = errors("sdof_offset, noise 5 %", &ir, &id);
     assert_within("sdof_offset 5 % noise", &e, &[("f0", 0.02)]);
 }
@@ -157,7 +134,7 @@ fn sdof_offset_five_percent_noise() {
 fn data_without_a_mean_name_the_offset_unidentifiable() {
     let ir = model("sdof_offset");
     let recs = centred(&simulate(&ir, 2000.0, 0.0, 22));
-    let id = identify_records(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     assert!(id.param("f0").is_none(), "{:?}", id.params);
     let u = id
         .unidentifiable
@@ -184,7 +161,7 @@ fn zero_offset_in_the_data_is_estimated_near_zero_not_removed() {
     let ir = model("sdof_offset");
     let truth = ir.with_nominals(&[4.0, 0.4, 0.3, 0.0]);
     let recs = simulate(&truth, 2000.0, 0.0, 24);
-    let id = identify_records(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     println!("{:?}\n{:?}", id.params, id.unidentifiable);
     assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
     let f0 = id.param("f0").expect("f0 estimated");
@@ -200,7 +177,7 @@ fn zero_offset_in_the_data_is_estimated_near_zero_not_removed() {
 fn detection_takes_an_offset_for_linear() {
     let ir = linear_offset();
     let recs = simulate(&ir, 1000.0, 0.0, 25);
-    let srcs = sources(&ir, &recs);
+    let srcs = common::sources(&ir, &recs);
     let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
     let (d, _) = detect::detect_from_data(
         &ir,

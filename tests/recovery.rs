@@ -5,12 +5,12 @@
 //! the nominal values the simulation used. The bounds are what the covariance method achieves
 //! on these records (see the table printed with `--nocapture`), not aspirations.
 
+mod common;
+
 use dynid::dsl_parser::{self, ir::ModelIr};
-use dynid::runtime::data::{LevelSource, RecordSource};
 use dynid::runtime::ident::Identification;
 use dynid::runtime::record::Record;
 use dynid::runtime::sim::{self, SimConfig};
-use dynid::runtime::{identify, IdentifyOptions};
 use std::path::Path;
 
 fn model(name: &str) -> ModelIr {
@@ -34,36 +34,9 @@ fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
     sim::simulate(ir, &cfg).expect("simulation").records
 }
 
-fn identify_records(ir: &ModelIr, recs: &[Record]) -> Identification {
-    let srcs: Vec<RecordSource> = recs
-        .iter()
-        .enumerate()
-        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
-        .collect();
-    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
-    identify(ir, &levels, &IdentifyOptions::default()).expect("identification")
-}
-
-/// The simulated truth: the nominal value of every unknown parameter.
-fn truth(ir: &ModelIr) -> Vec<(String, f64)> {
-    let values = sim::parameter_values(ir).unwrap();
-    ir.unknowns()
-        .iter()
-        .map(|&p| (ir.params[p.index()].name.clone(), values[p.index()]))
-        .collect()
-}
-
 /// Relative error per unknown parameter; prints one table row per case.
 fn errors(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, f64)> {
-    let errs: Vec<(String, f64)> = truth(ir)
-        .into_iter()
-        .map(|(name, t)| {
-            let p = id
-                .param(&name)
-                .unwrap_or_else(|| panic!("{case}: `{name}` not identified: {id:#?}"));
-            (name, (p.value - t) / t)
-        })
-        .collect();
+    let errs = common::relative_errors(case, ir, id);
     let row: Vec<String> = errs
         .iter()
         .map(|(n, e)| {
@@ -94,7 +67,7 @@ fn assert_within(case: &str, errs: &[(String, f64)], tol: f64) {
 fn sdof_cubic_coulomb_noise_free_within_one_percent() {
     let ir = model("sdof_cubic_coulomb");
     let recs = simulate(&ir, 2000.0, 0.0, 11);
-    let id = identify_records(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
     let e = errors("sdof_cubic_coulomb, noise 0 %", &ir, &id);
     assert_within("sdof_cubic_coulomb noise-free", &e, 0.01);
@@ -105,7 +78,7 @@ fn sdof_cubic_coulomb_five_percent_noise_within_two_percent() {
     // Noise of 5 % of each signal's std on position, velocity and input alike.
     let ir = model("sdof_cubic_coulomb");
     let recs = simulate(&ir, 2000.0, 0.05, 12);
-    let id = identify_records(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     let e = errors("sdof_cubic_coulomb, noise 5 %", &ir, &id);
     assert_within("sdof_cubic_coulomb 5 % noise", &e, 0.02);
 }
@@ -114,7 +87,7 @@ fn sdof_cubic_coulomb_five_percent_noise_within_two_percent() {
 fn two_mass_within_two_percent() {
     let ir = model("two_mass");
     let recs = simulate(&ir, 2000.0, 0.0, 13);
-    let id = identify_records(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     let e = errors("two_mass, noise 0 %", &ir, &id);
     assert_within("two_mass", &e, 0.02);
 }
@@ -134,7 +107,7 @@ const CHAIN4_DURATION: f64 = 2000.0;
 fn chain4_within_two_percent() {
     let ir = model("chain4");
     let recs = simulate(&ir, CHAIN4_DURATION, 0.0, 14);
-    let id = identify_records(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     let e = errors("chain4, noise 0 %", &ir, &id);
     let (weak, strong): (Vec<_>, Vec<_>) = e
         .into_iter()
@@ -164,7 +137,7 @@ fn duffing_from_positions_and_input_only_within_one_percent() {
     let ir = model_str("sdof_duffing_positions", &src);
     let recs = simulate(&ir, 2000.0, 0.0, 15);
     assert!(recs.iter().all(|r| r.column("m.v").is_none()));
-    let id = identify_records(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     let e = errors("sdof_duffing, x and u only, noise 0 %", &ir, &id);
     assert_within("sdof_duffing from positions", &e, 0.01);
 }
@@ -184,7 +157,7 @@ fn unexcited_term_is_named_and_gets_no_value() {
         }",
     );
     let recs = simulate(&ir, 500.0, 0.0, 16);
-    let id = identify_records(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     assert!(id.param("kgap").is_none(), "{:?}", id.params);
     let u = id
         .unidentifiable

@@ -5,12 +5,13 @@
 //! Run with `--nocapture` for the errors and the corners chosen. Bounds are about 2–3 times
 //! the errors measured on these seeds.
 
+mod common;
+
 use dynid::dsl_parser::{self, ir::ModelIr};
-use dynid::runtime::data::{LevelSource, RecordSource};
 use dynid::runtime::ident::{Identification, IdentifyError};
 use dynid::runtime::record::Record;
 use dynid::runtime::sim::{self, SimConfig};
-use dynid::runtime::{identify, IdentifyOptions};
+use dynid::runtime::IdentifyOptions;
 use std::path::Path;
 
 fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
@@ -27,34 +28,14 @@ fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
     sim::simulate(ir, &cfg).expect("simulation").records
 }
 
-fn run(
-    ir: &ModelIr,
-    recs: &[Record],
-    opts: &IdentifyOptions,
-) -> Result<Identification, IdentifyError> {
-    let srcs: Vec<RecordSource> = recs
-        .iter()
-        .enumerate()
-        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
-        .collect();
-    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
-    identify(ir, &levels, opts)
-}
-
 /// Every unknown within `tol` of its nominal value; prints the errors and the corners.
 fn check(case: &str, ir: &ModelIr, id: &Identification, tol: f64) {
-    let values = sim::parameter_values(ir).unwrap();
     let mut row = Vec::new();
     let mut worst = (String::new(), 0.0f64);
-    for &p in &ir.unknowns() {
-        let name = &ir.params[p.index()].name;
-        let est = id
-            .param(name)
-            .unwrap_or_else(|| panic!("{case}: `{name}` not identified: {id:#?}"));
-        let e = (est.value - values[p.index()]) / values[p.index()];
+    for (name, e) in common::relative_errors(case, ir, id) {
         row.push(format!("{name} {:+.2}%", 100.0 * e));
         if e.abs() > worst.1.abs() {
-            worst = (name.clone(), e);
+            worst = (name, e);
         }
     }
     let corners: Vec<String> = id
@@ -83,7 +64,8 @@ fn cubic_coulomb_25_s_at_1_khz_within_five_percent() {
     let ir = dsl_parser::compile_file(&path).unwrap();
     let recs = simulate(&ir, 25.0, 0.0, 31);
     assert_eq!(recs[0].len(), 25_000);
-    let id = run(&ir, &recs, &IdentifyOptions::default()).expect("25 s records identify");
+    let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
+        .expect("25 s records identify");
     check("sdof_cubic_coulomb, 3 × 25 s at 1 kHz", &ir, &id, 0.05);
 }
 
@@ -103,7 +85,8 @@ const RIG: &str = "model rig {
 fn si_rig_25_s_at_1_khz_within_five_percent() {
     let ir = dsl_parser::compile_str("rig", RIG).unwrap();
     let recs = simulate(&ir, 25.0, 0.0, 32);
-    let id = run(&ir, &recs, &IdentifyOptions::default()).expect("25 s records identify");
+    let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
+        .expect("25 s records identify");
     check("SI rig with friction, 3 × 25 s at 1 kHz", &ir, &id, 0.05);
 }
 
@@ -128,7 +111,8 @@ fn free_mass_25_s_at_1_khz_within_five_percent() {
     let mut errs: Vec<Vec<f64>> = vec![Vec::new(); 2];
     for seed in [33, 34, 35] {
         let recs = simulate(&ir, 25.0, 0.0, seed);
-        let id = run(&ir, &recs, &IdentifyOptions::default()).expect("25 s records identify");
+        let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
+            .expect("25 s records identify");
         check(
             &format!("free mass, 3 × 25 s at 1 kHz, seed {seed}"),
             &ir,
@@ -163,7 +147,7 @@ fn too_short_for_the_given_corners_names_corners_that_fit() {
         corners: Some(vec![0.2, 0.5, 1.0, 2.0, 5.0, 10.0]),
         ..Default::default()
     };
-    let err = run(&ir, &recs, &slow).unwrap_err();
+    let err = common::identify_with(&ir, &recs, &slow).unwrap_err();
     let IdentifyError::TooShort { advice, .. } = &err else {
         panic!("expected TooShort, got {err:?}");
     };
@@ -174,7 +158,7 @@ fn too_short_for_the_given_corners_names_corners_that_fit() {
         .unwrap_or_else(|| panic!("no corners in: {advice}"))
         .trim_end_matches('`');
     let corners: Vec<f64> = list.split(',').map(|c| c.parse().unwrap()).collect();
-    let id = run(
+    let id = common::identify_with(
         &ir,
         &recs,
         &IdentifyOptions {
@@ -191,7 +175,7 @@ fn a_record_too_short_for_any_corner_says_how_long_it_must_be() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/sdof_cubic_coulomb.dyn");
     let ir = dsl_parser::compile_file(&path).unwrap();
     let recs = simulate(&ir, 0.15, 0.0, 35);
-    let err = run(&ir, &recs, &IdentifyOptions::default()).unwrap_err();
+    let err = common::identify_with(&ir, &recs, &IdentifyOptions::default()).unwrap_err();
     let IdentifyError::TooShort { advice, need, .. } = &err else {
         panic!("expected TooShort, got {err:?}");
     };

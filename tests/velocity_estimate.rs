@@ -7,12 +7,12 @@
 //! millimetre motion), and white position noise; the same data with the velocity measured
 //! for comparison. Every bound is about 2–3 times the error measured on these seeds.
 
+mod common;
+
 use dynid::dsl_parser::{self, ir::ModelIr};
-use dynid::runtime::data::{LevelSource, RecordSource};
 use dynid::runtime::ident::Identification;
 use dynid::runtime::record::Record;
 use dynid::runtime::sim::{self, SimConfig};
-use dynid::runtime::{identify, IdentifyOptions};
 use std::path::Path;
 
 fn model(name: &str, positions_only: bool) -> ModelIr {
@@ -48,31 +48,9 @@ fn quantise(recs: &mut [Record], q: f64) {
     }
 }
 
-fn run(ir: &ModelIr, recs: &[Record]) -> Identification {
-    let srcs: Vec<RecordSource> = recs
-        .iter()
-        .enumerate()
-        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
-        .collect();
-    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
-    identify(ir, &levels, &IdentifyOptions::default()).expect("identification")
-}
-
 /// Relative errors against the model's nominal values; prints one table row.
 fn errors(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, f64)> {
-    let values = sim::parameter_values(ir).unwrap();
-    let errs: Vec<(String, f64)> = ir
-        .unknowns()
-        .iter()
-        .map(|&p| {
-            let name = ir.params[p.index()].name.clone();
-            let t = values[p.index()];
-            let est = id
-                .param(&name)
-                .unwrap_or_else(|| panic!("{case}: `{name}` not identified: {id:#?}"));
-            (name, (est.value - t) / t)
-        })
-        .collect();
+    let errs = common::relative_errors(case, ir, id);
     let row: Vec<String> = errs
         .iter()
         .map(|(n, e)| format!("{n} {:+.2}%", 100.0 * e))
@@ -105,7 +83,7 @@ fn coulomb_from_clean_positions_within_three_percent() {
     let ir = model("sdof_cubic_coulomb", true);
     let recs = simulate(&ir, 0.0, 21);
     assert!(recs.iter().all(|r| r.column("m.v").is_none()));
-    let id = run(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     assert_eq!(id.estimated.len(), 1);
     let est = &id.estimated[0];
     assert_eq!((est.signal.as_str(), est.from.as_str()), ("m.v", "m.x"));
@@ -121,7 +99,7 @@ fn coulomb_from_quantised_positions_within_three_percent() {
     let ir = model("sdof_cubic_coulomb", true);
     let mut recs = simulate(&ir, 0.0, 22);
     quantise(&mut recs, 1e-3);
-    let id = run(&ir, &recs);
+    let id = common::identify_records(&ir, &recs);
     let e = errors("cubic+Coulomb, x quantised 1e-3, u", &ir, &id);
     for (n, tol) in [("d", 0.015), ("k", 0.01), ("k3", 0.01), ("r", 0.015)] {
         bound("quantised positions", &e, n, tol);
@@ -135,7 +113,7 @@ fn coulomb_from_noisy_positions_bias_is_bounded() {
     let full = model("sdof_coulomb", false);
     for (noise, tol_r) in [(0.01, 0.015), (0.05, 0.03)] {
         let recs = simulate(&ir, noise, 23);
-        let id = run(&ir, &recs);
+        let id = common::identify_records(&ir, &recs);
         let case = format!("Coulomb, x and u with {} % noise", 100.0 * noise);
         let e = errors(&case, &ir, &id);
         bound(&case, &e, "k", 0.01);
@@ -143,6 +121,6 @@ fn coulomb_from_noisy_positions_bias_is_bounded() {
         // The same data with the velocity measured (noisy too), for the table.
         let recs = simulate(&full, noise, 23);
         let case = format!("Coulomb, x, v and u with {} % noise", 100.0 * noise);
-        errors(&case, &full, &run(&full, &recs));
+        errors(&case, &full, &common::identify_records(&full, &recs));
     }
 }

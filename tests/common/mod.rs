@@ -1,0 +1,51 @@
+//! Helpers shared by the recovery tests: identify simulated records and compare the
+//! estimates with the values the simulation used.
+#![allow(dead_code)] // each test binary uses a subset
+
+use dynid::dsl_parser::ir::ModelIr;
+use dynid::runtime::data::{LevelSource, RecordSource};
+use dynid::runtime::ident::{Identification, IdentifyError};
+use dynid::runtime::record::Record;
+use dynid::runtime::sim;
+use dynid::runtime::{identify, IdentifyOptions};
+
+/// One source per record, named `level 1`, `level 2`, ….
+pub fn sources<'r>(ir: &ModelIr, recs: &'r [Record]) -> Vec<RecordSource<'r>> {
+    recs.iter()
+        .enumerate()
+        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
+        .collect()
+}
+
+/// Identify `ir` from one record per level.
+pub fn identify_with(
+    ir: &ModelIr,
+    recs: &[Record],
+    opts: &IdentifyOptions,
+) -> Result<Identification, IdentifyError> {
+    let srcs = sources(ir, recs);
+    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
+    identify(ir, &levels, opts)
+}
+
+/// [`identify_with`] with the default options; panics on an error.
+pub fn identify_records(ir: &ModelIr, recs: &[Record]) -> Identification {
+    identify_with(ir, recs, &IdentifyOptions::default()).expect("identification")
+}
+
+/// Relative error of every unknown parameter against the value the simulator used (its
+/// nominal value); panics, naming `case`, when one has no estimate.
+pub fn relative_errors(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, f64)> {
+    let values = sim::parameter_values(ir).unwrap();
+    ir.unknowns()
+        .iter()
+        .map(|&p| {
+            let name = ir.params[p.index()].name.clone();
+            let t = values[p.index()];
+            let est = id
+                .param(&name)
+                .unwrap_or_else(|| panic!("{case}: `{name}` not identified: {id:#?}"));
+            (name, (est.value - t) / t)
+        })
+        .collect()
+}
