@@ -15,6 +15,7 @@ pub mod basis;
 pub mod data;
 pub mod detect;
 pub mod diagnose;
+mod fft;
 pub mod ident;
 pub mod record;
 pub mod silverbox;

@@ -31,41 +31,6 @@ pub fn std_dev(x: &[f64]) -> f64 {
     (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n).sqrt()
 }
 
-/// In-place radix-2 FFT of (re, im); the length must be a power of two.
-fn fft(re: &mut [f64], im: &mut [f64]) {
-    let n = re.len();
-    let mut j = 0;
-    for i in 1..n {
-        let mut bit = n >> 1;
-        while j & bit != 0 {
-            j ^= bit;
-            bit >>= 1;
-        }
-        j |= bit;
-        if i < j {
-            re.swap(i, j);
-            im.swap(i, j);
-        }
-    }
-    let mut len = 2;
-    while len <= n {
-        let ang = -2.0 * std::f64::consts::PI / len as f64;
-        for start in (0..n).step_by(len) {
-            for k in 0..len / 2 {
-                let (s, c) = (ang * k as f64).sin_cos();
-                let (a, b) = (start + k, start + k + len / 2);
-                let tr = re[b] * c - im[b] * s;
-                let ti = re[b] * s + im[b] * c;
-                re[b] = re[a] - tr;
-                im[b] = im[a] - ti;
-                re[a] += tr;
-                im[a] += ti;
-            }
-        }
-        len <<= 1;
-    }
-}
-
 /// One-sided Welch power spectral density (Hann window, 50 % overlap) at bins
 /// `k / (nseg · ts)`, `k = 0 … nseg/2`. Returns (frequencies in Hz, PSD).
 pub fn welch(x: &[f64], ts: f64, nseg_max: usize) -> (Vec<f64>, Vec<f64>) {
@@ -88,7 +53,7 @@ pub fn welch(x: &[f64], ts: f64, nseg_max: usize) -> (Vec<f64>, Vec<f64>) {
             re[i] = (x[start + i] - mean) * win[i];
             im[i] = 0.0;
         }
-        fft(&mut re, &mut im);
+        crate::fft::fft(&mut re, &mut im);
         for k in 0..nb {
             let p = re[k] * re[k] + im[k] * im[k];
             psd[k] += if k == 0 || k == nseg / 2 { p } else { 2.0 * p };
