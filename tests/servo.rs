@@ -14,8 +14,8 @@
 //! the test asserts mass < 0.8 %, d < 10 %, r < 8 %, f0 < 5 %, and d, r, f0 within three
 //! standard errors. Where the friction error comes from (the same axis through `dynid
 //! simulate … --pd 80000,2680 --smooth-reference --input-oversample 10 --quantise 1e-6`,
-//! seeds 1–3, then `identify`): with the velocity *measured* instead of estimated, d is
-//! within 1 % and r within 0.8 %; the zero-phase estimate rounds off the velocity's kinks
+//! seeds 1–3, then `identify`): with a tachometer controller and the velocity *measured*
+//! instead of estimated, d is within 1 % and r within 0.8 %; the zero-phase estimate rounds off the velocity's kinks
 //! at every reversal of the motion, exactly where `sign(v)` switches. A controller that
 //! differenced the encoder over one 0.1 ms step instead of one sample interval put ±27 N
 //! of force jitter between samples, and d, r off by up to 23 %.
