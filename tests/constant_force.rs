@@ -201,12 +201,10 @@ fn detection_takes_an_offset_for_linear() {
 #[test]
 fn diagnosis_of_a_matching_offset_model_adds_nothing() {
     let ir = linear_offset();
-    let src = dsl_parser::print::to_source(&ir);
     let recs = simulate(&ir, 300.0, 0.0, 26);
     let origins: Vec<String> = (1..=recs.len()).map(|k| format!("level{k}")).collect();
     let d = diagnose::diagnose(
-        &src,
-        "sdof_linear_offset",
+        &ir,
         &recs,
         &origins,
         &DiagnoseOptions::default(),

@@ -62,8 +62,7 @@ fn run(case: &Case) -> Diagnosis {
         .map(|k| format!("level{k}"))
         .collect();
     let d = diagnose(
-        &model,
-        case.name,
+        &dynid::dsl_parser::compile_str(case.name, &model).expect("model compiles"),
         &out.records,
         &origins,
         &DiagnoseOptions::default(),

@@ -165,8 +165,6 @@ fn silverbox_arrow_levels_stiffen() {
 fn silverbox_diagnose_names_the_cubic_spring() {
     let Some(dir) = data_dir() else { return };
     let data = silverbox::load(&dir).expect("data loads");
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/silverbox_linear.dyn");
-    let source = std::fs::read_to_string(&path).expect("model reads");
     let lin = model("silverbox_linear.dyn");
     // The arrow as 4 levels, band-limited interpolated to 4x the rate (as
     // `dynid silverbox --export-levels DIR` writes them).
@@ -175,8 +173,7 @@ fn silverbox_diagnose_names_the_cubic_spring() {
             .expect("per-level fits");
     let origins: Vec<String> = (1..=4).map(|k| format!("arrow level {k}")).collect();
     let d = diagnose(
-        &source,
-        "silverbox_linear",
+        &lin,
         &records,
         &origins,
         &DiagnoseOptions::default(),

@@ -238,6 +238,7 @@ impl CompileErrors {
         self.errors.iter().map(|e| e.kind()).collect()
     }
     /// Render all diagnostics as plain text (no colours, fixed width): for logs and tests.
+    #[cfg(feature = "render")]
     pub fn render_plain(&self, width: usize) -> String {
         let handler =
             miette::GraphicalReportHandler::new_themed(miette::GraphicalTheme::unicode_nocolor())

@@ -26,9 +26,9 @@
 mod ast;
 pub mod codegen;
 pub mod error;
-pub mod ir;
 mod lower;
-pub mod print;
+
+pub use dynid_ir::{edit, ir, num, print};
 
 pub use error::{CompileError, CompileErrors, ErrorKind};
 

@@ -1,7 +1,7 @@
 //! Lowering: spanned AST → [`ModelIr`], with validation.
 //!
 //! The passes, in order: declare names (`declare`), resolve element nodes and force terms
-//! (`lower_element`), assemble the equations of motion (`assemble`), then check the model
+//! (`lower_element`), assemble the equations of motion (`edit::assemble_equations`), then check the model
 //! against the data it will meet (`validate`). Every pass records its errors and carries on,
 //! so one run reports all the problems of a file.
 //!
@@ -295,12 +295,12 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
             measured: true,
         });
     }
-    let input_exprs: Vec<ExprId> = (0..inputs.len())
-        .map(|j| l.arena.signal(SignalId((2 * nb + j) as u32)))
-        .collect();
+    // Input signals are interned: the input forces of the equations refer to them.
+    for j in 0..inputs.len() {
+        l.arena.signal(SignalId((2 * nb + j) as u32));
+    }
     let term_spans: Vec<Vec<Span>> = elements.iter().map(|e| e.term_spans.clone()).collect();
     let elements: Vec<ElementIr> = elements.into_iter().map(|e| e.ir).collect();
-    let equations = assemble(&l.bodies, &elements, &inputs, &input_exprs);
 
     let mut ir = ModelIr {
         name: ast.name.name.clone(),
@@ -310,7 +310,7 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
         signals,
         elements,
         exprs: std::mem::take(&mut l.arena).into_nodes(),
-        equations,
+        equations: Vec::new(),
         excitation: Vec::new(),
         filter: None,
         spans: SpanTable {
@@ -328,69 +328,10 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
             model: ast.span,
         },
     };
+    ir.equations = crate::edit::assemble_equations(&ir);
     l.statements(ast, &mut ir);
     l.validate(ast, &ir, &term_spans);
     ir
-}
-
-/// The equations of motion (see the rules in the IR documentation).
-fn assemble(
-    bodies: &[BodyIr],
-    elements: &[ElementIr],
-    inputs: &[InputIr],
-    input_exprs: &[ExprId],
-) -> Vec<EquationIr> {
-    let mut eqs: Vec<EquationIr> = (0..bodies.len())
-        .map(|i| {
-            let body = BodyId(i as u32);
-            EquationIr {
-                body,
-                terms: vec![TermIr {
-                    coef: bodies[i].mass,
-                    basis: Basis::Deriv { body, order: 2 },
-                    origin: TermOrigin::Inertia(body),
-                }],
-            }
-        })
-        .collect();
-    for (ei, e) in elements.iter().enumerate() {
-        let origin = TermOrigin::Element(ElementId(ei as u32));
-        let ends = [(e.nodes.1, 1.0), (e.nodes.0, -1.0)];
-        for t in &e.terms {
-            for &(node, sign) in &ends {
-                let Node::Body(eq) = node else { continue };
-                let terms = &mut eqs[eq.index()].terms;
-                if t.basis == e.v {
-                    // f = coef (v_b − v_a): the derivative can move onto the filter.
-                    for &(end, s2) in &ends {
-                        if let Node::Body(b) = end {
-                            terms.push(TermIr {
-                                coef: t.coef.scaled(sign * s2),
-                                basis: Basis::Deriv { body: b, order: 1 },
-                                origin,
-                            });
-                        }
-                    }
-                } else {
-                    terms.push(TermIr {
-                        coef: t.coef.scaled(sign),
-                        basis: Basis::Expr(t.basis),
-                        origin,
-                    });
-                }
-            }
-        }
-    }
-    for (j, i) in inputs.iter().enumerate() {
-        if let Some(eq) = eqs.get_mut(i.body.index()) {
-            eq.terms.push(TermIr {
-                coef: Coef::constant(-1.0),
-                basis: Basis::Expr(input_exprs[j]),
-                origin: TermOrigin::Input(InputId(j as u32)),
-            });
-        }
-    }
-    eqs
 }
 
 /// Levenshtein distance, for "did you mean" suggestions.
@@ -418,7 +359,7 @@ fn closest<'a>(name: &str, candidates: impl Iterator<Item = &'a str>) -> Option<
 }
 
 fn fmt_value(v: f64) -> String {
-    crate::print::fmt_num(v)
+    crate::num::exact(v)
 }
 
 impl Lowerer<'_> {

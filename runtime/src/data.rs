@@ -7,7 +7,7 @@
 //! must be present; unmeasured signals are never required and extra columns are ignored.
 
 use crate::record::Record;
-use dsl_parser::ir::ModelIr;
+use dynid_ir::ir::ModelIr;
 use std::io::{BufReader, BufWriter, Read, Seek, Write};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
@@ -742,7 +742,7 @@ impl LevelSource for RecordSource<'_> {
 mod tests {
     use super::*;
     use crate::sim::test_models::{sdof, SdofParams};
-    use dsl_parser::ir::FormFilter;
+    use dynid_ir::ir::FormFilter;
 
     /// The SDOF model (signals `m1.x`, `m1.v`, `u`), optionally without a measured velocity.
     fn sdof_ir(measured_v: bool) -> ModelIr {

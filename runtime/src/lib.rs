@@ -1,4 +1,4 @@
-//! Numerics of dynid: it runs a [`dsl_parser::ir::ModelIr`] directly.
+//! Numerics of dynid: it runs a [`dynid_ir::ir::ModelIr`] directly.
 //!
 //! Architecture invariant: no parsing and no terminal output here; every public function
 //! takes the IR (or a [`BasisEval`] compiled from it) and plain data, and returns typed

@@ -15,7 +15,7 @@ use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions, SIGN
 use crate::record::Record;
 use crate::sim::{simulate_driven, SimError};
 use crate::tape::Tape;
-use dsl_parser::ir::{ModelIr, ParamKind, SignalKind};
+use dynid_ir::ir::{ModelIr, ParamKind, SignalKind};
 use serde::Serialize;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -405,7 +405,7 @@ pub fn default_options(ir: &ModelIr) -> IdentifyOptions {
         order: Some(4),
         drivers: Some(
             (0..ir.inputs.len() as u32)
-                .map(|i| ir.input_signal(dsl_parser::ir::InputId(i)))
+                .map(|i| ir.input_signal(dynid_ir::ir::InputId(i)))
                 .collect(),
         ),
         ..Default::default()

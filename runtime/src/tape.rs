@@ -4,7 +4,7 @@
 //! instruction at a time across the whole block (so the inner loops are simple and
 //! vectorise), without walking trees per sample and without allocating per sample.
 
-use dsl_parser::ir::{
+use dynid_ir::ir::{
     deadzone, saturate, sign, BinaryOp, ExprId, ExprNode, ModelIr, SignalId, UnaryOp,
 };
 

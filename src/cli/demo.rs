@@ -72,13 +72,8 @@ pub fn run(args: Args) -> miette::Result<()> {
     }
     let origins: Vec<String> = (1..=n).map(|k| format!("level{k}")).collect();
     let t1 = Instant::now();
-    let d = super::diagnose::run_diagnosis(
-        MODEL,
-        "two_mass_linear.dyn",
-        &out.records,
-        &origins,
-        args.quiet,
-    )?;
+    let model = dsl_parser::compile_str("two_mass_linear.dyn", MODEL)?;
+    let d = super::diagnose::run_diagnosis(&model, &out.records, &origins, args.quiet)?;
     println!("Diagnosed in {:.1} s.", t1.elapsed().as_secs_f64());
     println!();
     print!("{}", d.summary());

@@ -2,11 +2,12 @@
 //! unmodelled effect explains the gap, and how far it shrinks once that effect is added.
 
 use super::common::{check_outputs, CsvArgs, Staged};
+use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::CsvSource;
 use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
 use dynid_runtime::record::Record;
 use indicatif::{ProgressBar, ProgressStyle};
-use miette::{miette, IntoDiagnostic, WrapErr};
+use miette::IntoDiagnostic;
 use std::path::{Path, PathBuf};
 
 const LONG_HELP: &str = "\
@@ -63,15 +64,6 @@ pub fn run(args: Args) -> miette::Result<()> {
         (args.json.as_deref(), "the JSON output"),
         (args.write_model.as_deref(), "the corrected model"),
     ])?;
-    if args.model.extension().is_some_and(|e| e == "json") {
-        return Err(miette!(
-            help = "pass the .dyn source: the corrected model is written as .dyn text",
-            "diagnose needs the model's .dyn source, not a compiled JSON model"
-        ));
-    }
-    let source = std::fs::read_to_string(&args.model)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot read the model `{}`", args.model.display()))?;
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
     let mut records = Vec::new();
@@ -80,8 +72,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         records.push(diagnose::read_record(&src, &ir)?);
     }
     let origins: Vec<String> = args.data.iter().map(|p| p.display().to_string()).collect();
-    let name = args.model.display().to_string();
-    let d = run_diagnosis(&source, &name, &records, &origins, args.quiet)?;
+    let d = run_diagnosis(&ir, &records, &origins, args.quiet)?;
     print!("{}", d.summary());
     write_outputs(
         &d,
@@ -93,8 +84,7 @@ pub fn run(args: Args) -> miette::Result<()> {
 
 /// Run the diagnosis with a progress bar on stderr.
 pub fn run_diagnosis(
-    source: &str,
-    name: &str,
+    ir: &ModelIr,
     records: &[Record],
     origins: &[String],
     quiet: bool,
@@ -115,14 +105,7 @@ pub fn run_diagnosis(
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     };
-    let d = diagnose::diagnose(
-        source,
-        name,
-        records,
-        origins,
-        &DiagnoseOptions::default(),
-        &progress,
-    );
+    let d = diagnose::diagnose(ir, records, origins, &DiagnoseOptions::default(), &progress);
     bar.finish_and_clear();
     Ok(d?)
 }

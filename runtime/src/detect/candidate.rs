@@ -204,7 +204,7 @@ impl Candidate {
             "r",
             "r·sign(v)",
             Dependence::V,
-            |_, v| dsl_parser::ir::sign(v),
+            |_, v| dynid_ir::ir::sign(v),
         )
         .positive()
     }
@@ -224,7 +224,7 @@ impl Candidate {
     /// Prestress / preload `f0·sign(s)`: k_eq = k + f0 √(2/π)/σ_s.
     pub fn prestress() -> Self {
         Self::custom("prestress", "f0", "f0·sign(s)", Dependence::S, |s, _| {
-            dsl_parser::ir::sign(s)
+            dynid_ir::ir::sign(s)
         })
         .positive()
     }
@@ -244,7 +244,7 @@ impl Candidate {
                 scale_by: Dependence::S,
                 kinks_at_pm_theta: true,
             },
-            |s, _, g| dsl_parser::ir::deadzone(s, g),
+            |s, _, g| dynid_ir::ir::deadzone(s, g),
         )
         .positive()
     }

@@ -27,7 +27,7 @@
 //!   over `n_blocks` time blocks, so [`DetectOptions::se_dof`] is set to `n_blocks − 1`
 //!   unless the caller chose a value.
 
-use dsl_parser::ir::{Basis, ElementKind, ModelIr, Node, ParamId};
+use dynid_ir::ir::{Basis, ElementKind, ModelIr, Node, ParamId};
 use serde::Serialize;
 
 use super::{detect, Candidate, DetectError, DetectOptions, Detection, DetectionInput};

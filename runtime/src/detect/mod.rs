@@ -39,7 +39,7 @@ pub use from_data::{
 pub use plot::plot_curves;
 pub use quad::NormalRule;
 
-use dsl_parser::print::aligned;
+use dynid_ir::print::aligned;
 use serde::{Deserialize, Serialize};
 
 use fit::{CurveData, ElementData};

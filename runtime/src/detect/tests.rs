@@ -49,7 +49,7 @@ fn two_dimensional_user_terms() {
         "r",
         "r|s|sign(v)",
         Dependence::SV,
-        |s, v| s.abs() * dsl_parser::ir::sign(v),
+        |s, v| s.abs() * dynid_ir::ir::sign(v),
     );
     let (hk, hd) = c.gains(ss, sv, 0.0);
     assert!(hk.abs() < 1e-12);

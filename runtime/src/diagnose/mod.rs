@@ -4,9 +4,9 @@
 //! The gap is measured by simulation (the model driven by the measured input from the
 //! measured initial state, free run, compared with the measured response) and by the
 //! covariance-equation residual.
-//! Candidate effects from a small library are added as new unknown force terms by editing
-//! the model's source text and recompiling it, so that names and spans stay those of the
-//! user's model and the corrected model is ordinary `.dyn` text. Every candidate is fitted
+//! Candidate effects from a small library are added as new unknown force elements by editing
+//! the model's IR (`dynid_ir::edit`), so that names stay those of the user's model; the
+//! corrected model is written as ordinary `.dyn` text by the IR's source printer. Every candidate is fitted
 //! on all levels but one and scored on the withheld level, rotating the withheld level, so
 //! that an extra term is never rewarded for fitting noise. Definitions and thresholds are
 //! documented in `docs/diagnosis.md`.
@@ -19,16 +19,17 @@ use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions, Mome
 use crate::record::Record;
 use crate::sim::{simulate_driven_from, SimError, Start, DEFAULT_SUBSTEPS};
 use crate::tape::Tape;
-use dsl_parser::ir::{ModelIr, Node, ParamKind, SignalKind};
+use dynid_ir::edit::NewTerm;
+use dynid_ir::ir::{
+    BinaryOp, ExprArena, ExprId, ExprNode, ModelIr, ParamKind, SignalKind, UnaryOp,
+};
+use dynid_ir::num;
 use rayon::prelude::*;
 use serde::Serialize;
 
 /// Errors of the diagnosis.
 #[derive(Debug, thiserror::Error, miette::Diagnostic)]
 pub enum DiagnoseError {
-    #[error("the model does not compile")]
-    #[diagnostic(code(dynid::diagnose::model), help("run `dynid compile` on the model"))]
-    Model(#[source] dsl_parser::CompileErrors),
     #[error("diagnosis needs at least 2 excitation levels, got {0}")]
     #[diagnostic(
         code(dynid::diagnose::levels),
@@ -114,7 +115,7 @@ impl Effect {
             Effect::QuadraticStiffness => "quadratic (asymmetric) stiffness s^2".into(),
             Effect::Coulomb => "Coulomb friction sign(v)".into(),
             Effect::QuadraticDamping => "quadratic damping v*abs(v)".into(),
-            Effect::Backlash { gap } => format!("backlash deadzone(s, {})", fmt_num(*gap)),
+            Effect::Backlash { gap } => format!("backlash deadzone(s, {})", num::exact(*gap)),
             Effect::Prestress => "prestress sign(s)".into(),
         }
     }
@@ -129,14 +130,19 @@ impl Effect {
             Effect::Prestress => "prestress",
         }
     }
-    fn basis(&self) -> String {
-        match self {
-            Effect::Cubic => "s^3".into(),
-            Effect::QuadraticStiffness => "s^2".into(),
-            Effect::Coulomb => "sign(v)".into(),
-            Effect::QuadraticDamping => "v * abs(v)".into(),
-            Effect::Backlash { gap } => format!("deadzone(s, {})", fmt_num(*gap)),
-            Effect::Prestress => "sign(s)".into(),
+    /// The effect's basis function of an element's relative displacement `s` and velocity
+    /// `v`, built into the model's expression DAG.
+    fn basis(&self, arena: &mut ExprArena, s: ExprId, v: ExprId) -> ExprId {
+        match *self {
+            Effect::Cubic => arena.intern(ExprNode::Powi(s, 3)),
+            Effect::QuadraticStiffness => arena.intern(ExprNode::Powi(s, 2)),
+            Effect::Coulomb => arena.unary(UnaryOp::Sign, v),
+            Effect::QuadraticDamping => {
+                let a = arena.unary(UnaryOp::Abs, v);
+                arena.binary(BinaryOp::Mul, v, a)
+            }
+            Effect::Backlash { gap } => arena.intern(ExprNode::Deadzone(s, gap.to_bits())),
+            Effect::Prestress => arena.unary(UnaryOp::Sign, s),
         }
     }
     fn param_stem(&self) -> &'static str {
@@ -325,25 +331,6 @@ pub struct Spectrum {
     pub models: Vec<(String, Vec<f64>)>,
 }
 
-pub(crate) fn fmt_num(v: f64) -> String {
-    if v == 0.0 {
-        return "0".into();
-    }
-    let s = format!("{:.4e}", v);
-    // Plain notation in the usual range keeps the written model readable.
-    if (1e-3..1e5).contains(&v.abs()) {
-        let digits = (4 - v.abs().log10().floor() as i32).max(0) as usize;
-        let t = format!("{:.*}", digits, v);
-        let t = if t.contains('.') {
-            t.trim_end_matches('0').trim_end_matches('.').to_string()
-        } else {
-            t
-        };
-        return t;
-    }
-    s
-}
-
 /// Read a level source into memory (the free-run comparison needs the whole record).
 pub fn read_record(src: &dyn LevelSource, ir: &ModelIr) -> Result<Record, DataError> {
     let measured = ir.measured_signals();
@@ -364,18 +351,19 @@ pub fn read_record(src: &dyn LevelSource, ir: &ModelIr) -> Result<Record, DataEr
     })
 }
 
-fn node_name(ir: &ModelIr, n: Node) -> String {
-    match n {
-        Node::Ground => "ground".into(),
-        Node::Body(b) => ir.bodies[b.index()].name.clone(),
-    }
+/// Values in the diagnosis' text: five significant digits.
+pub(crate) fn fmt_num(v: f64) -> String {
+    num::sig(v, 5, false)
 }
 
 /// The candidate sites: every node pair that carries an element, then every body to ground.
 fn locations(ir: &ModelIr) -> Vec<Location> {
     let mut out: Vec<Location> = Vec::new();
     for e in &ir.elements {
-        let (a, b) = (node_name(ir, e.nodes.0), node_name(ir, e.nodes.1));
+        let (a, b) = (
+            ir.node_name(e.nodes.0).to_string(),
+            ir.node_name(e.nodes.1).to_string(),
+        );
         match out
             .iter_mut()
             .find(|l| (l.a == a && l.b == b) || (l.a == b && l.b == a))
@@ -404,145 +392,27 @@ fn locations(ir: &ModelIr) -> Vec<Location> {
     out
 }
 
-/// Position of the closing brace of the model (the last `}` outside a line comment).
-fn closing_brace(src: &str) -> Option<usize> {
-    let mut pos = None;
-    let mut offset = 0;
-    for line in src.split_inclusive('\n') {
-        let code = line.split("//").next().unwrap_or("");
-        if let Some(k) = code.rfind('}') {
-            pos = Some(offset + k);
-        }
-        offset += line.len();
-    }
-    pos
-}
-
-fn is_ident_char(c: char) -> bool {
-    c.is_ascii_alphanumeric() || c == '_'
-}
-
-/// Replace the nominal value of unknown parameter `name` (`name ~ 4.0`, also
-/// `spring name (a, b) ~ 4.0`) in the source text.
-fn set_nominal(src: &str, name: &str, value: f64) -> Option<String> {
-    let bytes = src.as_bytes();
-    let mut from = 0;
-    while let Some(k) = src[from..].find(name) {
-        let start = from + k;
-        let end = start + name.len();
-        from = end;
-        let before_ok = start == 0 || !is_ident_char(bytes[start - 1] as char);
-        let after_ok = end >= src.len() || !is_ident_char(bytes[end] as char);
-        if !(before_ok && after_ok) {
-            continue;
-        }
-        // Skip a comment line.
-        let line_start = src[..start].rfind('\n').map_or(0, |p| p + 1);
-        if src[line_start..start].contains("//") {
-            continue;
-        }
-        let mut i = end;
-        let skip_ws = |i: &mut usize| {
-            while *i < src.len() && (bytes[*i] as char).is_whitespace() {
-                *i += 1;
-            }
-        };
-        skip_ws(&mut i);
-        if i < src.len() && bytes[i] == b'(' {
-            match src[i..].find(')') {
-                Some(p) => i += p + 1,
-                None => continue,
-            }
-            skip_ws(&mut i);
-        }
-        if i >= src.len() || bytes[i] != b'~' {
-            continue;
-        }
-        i += 1;
-        skip_ws(&mut i);
-        let num_start = i;
-        while i < src.len() && {
-            let c = bytes[i] as char;
-            c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '-' | '+')
-        } {
-            // A sign only at the start or after an exponent marker.
-            let c = bytes[i] as char;
-            if (c == '-' || c == '+')
-                && i != num_start
-                && !matches!(bytes[i - 1] as char, 'e' | 'E')
-            {
-                break;
-            }
-            i += 1;
-        }
-        if i == num_start {
-            continue;
-        }
-        return Some(format!(
-            "{}{}{}",
-            &src[..num_start],
-            fmt_num(value),
-            &src[i..]
-        ));
-    }
-    None
-}
-
-/// A model variant: the source with extra force lines, compiled.
+/// A model variant: the model with the added force elements.
 struct Variant {
-    source: String,
     ir: ModelIr,
     /// Parameter names of the added terms.
     added: Vec<String>,
 }
 
-fn fresh_name(ir: &ModelIr, stem: &str) -> String {
-    let taken = |n: &str| {
-        ir.params.iter().any(|p| p.name == n)
-            || ir.elements.iter().any(|e| e.name == n)
-            || ir.bodies.iter().any(|b| b.name == n)
-            || ir.inputs.iter().any(|i| i.name == n)
+/// `base` with `effect` added as a new force element at `loc`, its coefficient an unknown
+/// with nominal 0; returns the model and the new parameter's name.
+fn add_effect(base: &ModelIr, effect: Effect, loc: &Location) -> Option<(ModelIr, String)> {
+    let mut ir = base.clone();
+    let el = ir.fresh_name("gap_fix");
+    let p = ir.fresh_name(&format!("{}_fix", effect.param_stem()));
+    let basis = |arena: &mut ExprArena, s: ExprId, v: ExprId| effect.basis(arena, s, v);
+    let term = NewTerm {
+        param: &p,
+        nominal: Some(0.0),
+        basis: &basis,
     };
-    if !taken(stem) {
-        return stem.to_string();
-    }
-    (2..)
-        .map(|k| format!("{stem}_{k}"))
-        .find(|n| !taken(n))
-        .expect("unbounded")
-}
-
-fn add_term(
-    base_src: &str,
-    base_ir: &ModelIr,
-    name: &str,
-    effect: Effect,
-    loc: &Location,
-) -> Option<(String, String, String)> {
-    let el = fresh_name(base_ir, "gap_fix");
-    let p = fresh_name(base_ir, &format!("{}_fix", effect.param_stem()));
-    let line = format!(
-        "    force {el} ({}, {}) = {p} ~ 0 * {}\n",
-        loc.a,
-        loc.b,
-        effect.basis()
-    );
-    let brace = closing_brace(base_src)?;
-    let line_start = base_src[..brace].rfind('\n').map_or(0, |k| k + 1);
-    let insert_at = if base_src[line_start..brace].trim().is_empty() {
-        line_start
-    } else {
-        brace
-    };
-    let mut s = String::with_capacity(base_src.len() + line.len() + 1);
-    s.push_str(&base_src[..insert_at]);
-    if insert_at == brace {
-        s.push('\n');
-    }
-    s.push_str(&line);
-    s.push_str(&base_src[insert_at..]);
-    let _ = name;
-    Some((s, el, p))
+    ir.add_force(&el, (&loc.a, &loc.b), &[term]).ok()?;
+    Some((ir, p))
 }
 
 /// Parameter values to simulate with: identified values for identified unknowns.
@@ -817,7 +687,7 @@ fn search_step(
             for f in [0.1, 0.25, 0.5, 1.0] {
                 cands.push((
                     Effect::Backlash {
-                        gap: round_sig(f * sg),
+                        gap: num::round_sig(f * sg, 3),
                     },
                     loc.clone(),
                 ));
@@ -835,8 +705,7 @@ fn search_step(
     let done = std::sync::atomic::AtomicUsize::new(0);
     let evaluate = |(eff, loc): &(Effect, Location)| -> Option<(CandidateScore, Variant, Vec<Identification>, Identification)> {
         let out = (|| {
-            let (src, el, p) = add_term(&base.source, ir, "", *eff, loc)?;
-            let cir = dsl_parser::compile_str(&ir.name, &src).ok()?;
+            let (cir, p) = add_effect(ir, *eff, loc)?;
             let m = measure_all(&cir, data, opts).ok()?;
             let all = m.identify_pooled();
             let est = all.param(&p).cloned().unwrap_or(crate::ident::ParamEstimate {
@@ -865,8 +734,7 @@ fn search_step(
                 accepted: false,
                 note: String::new(),
             };
-            let _ = el;
-            Some((score, Variant { source: src, ir: cir, added }, fits, all))
+            Some((score, Variant { ir: cir, added }, fits, all))
         })();
         let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress(k, total);
@@ -885,7 +753,7 @@ fn search_step(
                 for f in [0.75, 1.35] {
                     refined.push((
                         Effect::Backlash {
-                            gap: round_sig(gap * f),
+                            gap: num::round_sig(gap * f, 3),
                         },
                         loc.clone(),
                     ));
@@ -956,7 +824,6 @@ fn search_step(
             out_best = Some((
                 r.0.clone(),
                 Variant {
-                    source: r.1.source.clone(),
                     ir: r.1.ir.clone(),
                     added: r.1.added.clone(),
                 },
@@ -976,26 +843,16 @@ fn search_step(
     }
 }
 
-fn round_sig(v: f64) -> f64 {
-    if v == 0.0 {
-        return 0.0;
-    }
-    let e = v.abs().log10().floor() - 2.0;
-    let f = 10f64.powf(e);
-    (v / f).round() * f
-}
-
 /// Diagnose the gap between the model in `source` and measured `levels` (one record per
 /// excitation level, at least 2). `progress(done, total)` reports the candidate search.
 pub fn diagnose(
-    source: &str,
-    name: &str,
+    model: &ModelIr,
     levels: &[Record],
     origins: &[String],
     opts: &DiagnoseOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Diagnosis, DiagnoseError> {
-    let ir = dsl_parser::compile_str(name, source).map_err(DiagnoseError::Model)?;
+    let ir = model.clone();
     let n = levels.len();
     if n < 2 {
         return Err(DiagnoseError::TooFewLevels(n));
@@ -1126,7 +983,6 @@ pub fn diagnose(
 
     // Which effect: greedy search.
     let mut current = Variant {
-        source: source.to_string(),
         ir: ir.clone(),
         added: vec![],
     };
@@ -1175,17 +1031,13 @@ pub fn diagnose(
     }
 
     // The corrected model: identified on all levels, values written as nominals.
-    let mut fixed = current.source.clone();
+    // Five significant digits: the standard errors are far larger than the rounding.
+    let mut fixed_ir = current.ir.clone();
     for e in &current_fit.params {
-        if let Some(s) = set_nominal(&fixed, &e.name, e.value) {
-            fixed = s;
-        }
+        // An unknown of the model by construction; a non-finite value keeps the nominal.
+        let _ = fixed_ir.set_nominal(&e.name, num::round_sig(e.value, 5));
     }
-    if dsl_parser::compile_str(name, &fixed).is_err() {
-        notes.push("the corrected model text did not compile; it was not rewritten".into());
-        fixed = current.source.clone();
-    }
-    let fixed_ir = dsl_parser::compile_str(name, &fixed).map_err(DiagnoseError::Model)?;
+    let fixed = dynid_ir::print::to_source(&fixed_ir);
     let corrected = ModelGap {
         label: "corrected".into(),
         ..current_gap.clone()
@@ -1484,27 +1336,43 @@ fn confidence(t: f64, shrink: f64) -> &'static str {
 mod tests {
     use super::*;
 
+    /// Every effect added on the IR gives the model that compiling the same element,
+    /// written in the language, gives: the same equations and the same printed source.
     #[test]
-    fn nominal_values_are_replaced_in_place() {
-        let src = "model a {\n body m = 1\n spring k1 (ground, m) ~ 4.0\n force f (ground, m) = r ~ 0.2 * sign(v) // r ~ 9\n}\n";
-        let s = set_nominal(src, "k1", 4.25).unwrap();
-        assert!(s.contains("spring k1 (ground, m) ~ 4.25"), "{s}");
-        let s = set_nominal(&s, "r", -1.5e-7).unwrap();
-        assert!(s.contains("r ~ -1.5000e-7 * sign(v)"), "{s}");
-        assert!(set_nominal(src, "m", 2.0).is_none());
-    }
-
-    #[test]
-    fn a_term_is_inserted_before_the_closing_brace() {
-        let src = "model a {\n    body m = 1\n    input u on m\n    spring k (ground, m) ~ 4\n}\n// end }\n";
+    fn an_effect_added_on_the_ir_is_the_written_element() {
+        let src = "model a {\n    body m = 1\n    body n = 2\n    input u on m\n    spring k (ground, m) ~ 4\n    spring k2 (m, n) ~ 1\n}\n";
         let ir = dsl_parser::compile_str("a", src).unwrap();
-        let loc = &locations(&ir)[0];
-        let (s, el, p) = add_term(src, &ir, "", Effect::Coulomb, loc).unwrap();
-        assert_eq!((el.as_str(), p.as_str()), ("gap_fix", "r_fix"));
-        assert!(
-            s.contains("    force gap_fix (ground, m) = r_fix ~ 0 * sign(v)\n}"),
-            "{s}"
-        );
-        dsl_parser::compile_str("a", &s).unwrap();
+        let cases = [
+            (Effect::Cubic, "r ~ 0 * s^3"),
+            (Effect::QuadraticStiffness, "r ~ 0 * s^2"),
+            (Effect::Coulomb, "r ~ 0 * sign(v)"),
+            (Effect::QuadraticDamping, "r ~ 0 * v * abs(v)"),
+            (Effect::Backlash { gap: 0.25 }, "r ~ 0 * deadzone(s, 0.25)"),
+            (Effect::Prestress, "r ~ 0 * sign(s)"),
+        ];
+        for loc in &locations(&ir) {
+            for (effect, text) in cases {
+                let (edited, p) = add_effect(&ir, effect, loc).unwrap();
+                let stem = effect.param_stem();
+                assert_eq!(p, format!("{stem}_fix"));
+                let line = format!(
+                    "    force gap_fix ({}, {}) = {}\n}}\n",
+                    loc.a,
+                    loc.b,
+                    text.replacen('r', &p, 1)
+                );
+                let written = src.replacen("}\n", &line, 1);
+                let compiled = dsl_parser::compile_str("a", &written).unwrap();
+                let printed = dynid_ir::print::to_source(&edited);
+                assert_eq!(printed, dynid_ir::print::to_source(&compiled), "{written}");
+                assert_eq!(
+                    dynid_ir::print::render_equations(&edited),
+                    dynid_ir::print::render_equations(&compiled)
+                );
+                // The printed model compiles back to the edited one.
+                let again = dsl_parser::compile_str("a", &printed).unwrap();
+                assert_eq!(dynid_ir::print::to_source(&again), printed);
+            }
+        }
     }
 }

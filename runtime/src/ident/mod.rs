@@ -69,7 +69,7 @@ pub use noise::NoiseSummary;
 use crate::basis::BasisEval;
 use crate::data::{DataError, LevelSource};
 use crate::tape::Tape;
-use dsl_parser::ir::{ModelIr, SignalId, SignalKind};
+use dynid_ir::ir::{ModelIr, SignalId, SignalKind};
 use moments::{LevelAccumulator, LevelMoments, MomentView};
 use plan::{BankChoice, BasisMoment, Instrument, Plan, TermCoef};
 use rayon::prelude::*;
@@ -630,9 +630,7 @@ fn choose_bank(ir: &ModelIr, opts: &IdentifyOptions) -> Result<BankChoice, Ident
     // Accelerations from positions alone need ι'' free of the driving signal: degree ≥ 3.
     let needs_second = ir.equations.iter().any(|eq| {
         eq.terms.iter().any(|t| match t.basis {
-            dsl_parser::ir::Basis::Deriv { body, order: 2 } => {
-                !ir.signal(ir.velocity(body)).measured
-            }
+            dynid_ir::ir::Basis::Deriv { body, order: 2 } => !ir.signal(ir.velocity(body)).measured,
             _ => false,
         })
     });

@@ -550,7 +550,7 @@ impl<'a> LevelAccumulator<'a> {
         self.pos += len;
     }
 
-    fn plan_position(&self, b: dsl_parser::ir::BodyId) -> usize {
+    fn plan_position(&self, b: dynid_ir::ir::BodyId) -> usize {
         2 * b.index()
     }
 

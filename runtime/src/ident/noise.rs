@@ -79,7 +79,7 @@
 use super::filter::{ChainDisc, Hold};
 use super::moments::LevelMoments;
 use super::plan::{BasisMoment, Comb, Plan};
-use dsl_parser::ir::{BinaryOp, ExprId, ExprNode, ModelIr, SignalId, UnaryOp};
+use dynid_ir::ir::{BinaryOp, ExprId, ExprNode, ModelIr, SignalId, UnaryOp};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -315,7 +315,7 @@ pub(crate) fn attach(plan: &mut Plan, ir: &ModelIr) {
         n_g + ny + k
     };
     for (j, &r) in plan.roots.iter().enumerate() {
-        let label = dsl_parser::print::render_expr(ir, r);
+        let label = dynid_ir::print::render_expr(ir, r);
         let (f, core) = split_factor(ir, r);
         match ir.exprs[core.index()] {
             ExprNode::Powi(_, p) if p >= 2 => {
@@ -403,7 +403,7 @@ pub(crate) fn uncorrected(plan: &Plan, ir: &ModelIr, noisy: &[SignalId]) -> Vec<
         .filter(|(j, _)| !plan.fixes.iter().any(|f| f.col == *j))
         .filter(|(_, &r)| linear_form(ir, split_factor(ir, r).1).is_none())
         .filter(|(_, &r)| ir.expr_signals(r).iter().any(|s| noisy.contains(s)))
-        .map(|(_, &r)| dsl_parser::print::render_expr(ir, r))
+        .map(|(_, &r)| dynid_ir::print::render_expr(ir, r))
         .collect()
 }
 

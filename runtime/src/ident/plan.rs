@@ -8,7 +8,7 @@
 //! estimates of bodies whose velocity is not measured.
 
 use super::IdentifyError;
-use dsl_parser::ir::{Basis, BodyId, ExprId, ModelIr, ParamKind, SignalId, SignalKind};
+use dynid_ir::ir::{Basis, BodyId, ExprId, ModelIr, ParamKind, SignalId, SignalKind};
 
 /// A sparse linear combination of the row signals `ι`.
 pub(crate) type Comb = Vec<(usize, f64)>;
@@ -129,7 +129,7 @@ pub(crate) fn build_structure(
         y_of[s.index()] = Some(k);
     }
     let unknowns = ir.unknowns();
-    let col_of = |p: dsl_parser::ir::ParamId| unknowns.iter().position(|u| *u == p);
+    let col_of = |p: dynid_ir::ir::ParamId| unknowns.iter().position(|u| *u == p);
     let root_of = |e: ExprId| roots.iter().position(|r| *r == e).expect("root");
     let n_g = roots.len();
     let mut vhat_bodies = Vec::new();
@@ -171,7 +171,7 @@ pub(crate) fn build_structure(
                             None => {
                                 return Err(IdentifyError::UnmeasuredInTerm {
                                     equation: ir.bodies[l].name.clone(),
-                                    term: dsl_parser::print::render_expr(ir, e),
+                                    term: dynid_ir::print::render_expr(ir, e),
                                     signal: ir.signal(s).name.clone(),
                                 })
                             }

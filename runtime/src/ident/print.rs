@@ -2,8 +2,8 @@
 //! `m1: 1.000 m1.x'' + 0.4010(±0.0020) m1.x' + 3.990 m1.x + … = u`.
 
 use super::Identification;
-use dsl_parser::ir::{Basis, ModelIr, ParamKind, TermOrigin};
-use dsl_parser::print::render_basis;
+use dynid_ir::ir::{Basis, ModelIr, ParamKind, TermOrigin};
+use dynid_ir::print::render_basis;
 
 /// A number with four significant digits, without trailing noise.
 pub fn fmt_num(v: f64) -> String {

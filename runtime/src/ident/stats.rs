@@ -35,7 +35,7 @@
 use super::moments::LevelMoments;
 use super::solve::LsSolution;
 use super::{ParamEstimate, SIGNIFICANCE_T};
-use dsl_parser::ir::{ElementKind, ExprNode, ModelIr, UnaryOp};
+use dynid_ir::ir::{ElementKind, ExprNode, ModelIr, UnaryOp};
 use serde::Serialize;
 
 /// Standard errors of the active columns of `sol` (see the module doc). `hats[pos]` holds
@@ -152,7 +152,7 @@ impl std::fmt::Display for Warning {
 /// The physical kind of parameter `name` and the scale it enters with, from the IR.
 pub(crate) fn quantity_of(ir: &ModelIr, name: &str) -> Option<(Quantity, f64)> {
     let p = ir.params.iter().position(|q| q.name == name)?;
-    let is_p = |c: &dsl_parser::ir::Coef| c.param.map(|q| q.index()) == Some(p);
+    let is_p = |c: &dynid_ir::ir::Coef| c.param.map(|q| q.index()) == Some(p);
     if let Some(b) = ir.bodies.iter().find(|b| is_p(&b.mass)) {
         return Some((Quantity::Mass, b.mass.scale));
     }

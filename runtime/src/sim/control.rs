@@ -38,7 +38,7 @@
 //! +20 % (`tests/servo.rs` with `smooth = false`).
 
 use super::excite::FormFilterSampler;
-use dsl_parser::ir::FormFilter;
+use dynid_ir::ir::FormFilter;
 use serde::{Deserialize, Serialize};
 
 /// Damping ratio of the reference's low-pass (Butterworth).

@@ -6,7 +6,7 @@
 //! exponential (Van Loan 1978); draws use the Cholesky factor of `Q`. The first state is
 //! drawn from the stationary distribution, so the record is stationary from sample 0.
 
-use dsl_parser::ir::FormFilter;
+use dynid_ir::ir::FormFilter;
 use nalgebra::DMatrix;
 use rand::Rng;
 use rand_distr::StandardNormal;

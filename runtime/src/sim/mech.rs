@@ -6,7 +6,7 @@
 
 use super::SimError;
 use crate::tape::Tape;
-use dsl_parser::ir::{Basis, ModelIr};
+use dynid_ir::ir::{Basis, ModelIr};
 
 /// Precomputed, allocation-free acceleration function of a model.
 #[derive(Clone, Debug)]
@@ -38,7 +38,7 @@ impl Mechanics {
         let nb = ir.bodies.len();
         let roots = ir.eval_roots();
         let root_index = |e| roots.iter().position(|&r| r == e).expect("root of a term");
-        let value = |c: dsl_parser::ir::Coef| c.scale * c.param.map_or(1.0, |p| params[p.index()]);
+        let value = |c: dynid_ir::ir::Coef| c.scale * c.param.map_or(1.0, |p| params[p.index()]);
         let mut mass = nalgebra::DMatrix::<f64>::zeros(nb, nb);
         let mut expr_terms = Vec::new();
         let mut vel_terms = Vec::new();

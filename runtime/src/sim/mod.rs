@@ -62,6 +62,7 @@ pub(crate) mod excite;
 mod mech;
 mod output;
 #[doc(hidden)]
+#[cfg(any(test, feature = "test-support"))]
 pub mod test_models;
 
 pub use control::{PdControl, ReferenceSpec, VelocitySource};
@@ -70,7 +71,7 @@ pub use output::{level_file_names, write_level_csv, write_outputs, Truth};
 
 use crate::record::Record;
 use control::{quantise, Controller};
-use dsl_parser::ir::{FormFilter, InputId, ModelIr, ParamKind, SignalKind};
+use dynid_ir::ir::{FormFilter, InputId, ModelIr, ParamKind, SignalKind};
 use excite::FormFilterSampler;
 use mech::{Mechanics, Rk4};
 use rand::rngs::StdRng;
@@ -619,7 +620,7 @@ fn set_measured_state(ir: &ModelIr, rec: &Record, rk: &mut Rk4) {
     }
 }
 
-fn signal_value(ir: &ModelIr, s: dsl_parser::ir::SignalId, rk: &Rk4, u: &[f64]) -> f64 {
+fn signal_value(ir: &ModelIr, s: dynid_ir::ir::SignalId, rk: &Rk4, u: &[f64]) -> f64 {
     match ir.signal(s).kind {
         SignalKind::Position(b) => rk.x[b.index()],
         SignalKind::Velocity(b) => rk.v[b.index()],

@@ -2,7 +2,7 @@
 
 use super::{PdControl, SimConfig, SimError, SimOutput};
 use crate::record::Record;
-use dsl_parser::ir::{FormFilter, ModelIr};
+use dynid_ir::ir::{FormFilter, ModelIr};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::io::Write;

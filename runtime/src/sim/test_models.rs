@@ -2,7 +2,7 @@
 //! by the front end; nominal values and form filters are then set on the IR directly.
 //! Not part of the stable API.
 
-use dsl_parser::ir::*;
+use dynid_ir::ir::*;
 
 /// Parameters of `m x'' + d x' + k x + k3 x³ + r sign(x') = u`; `m` is known, the others
 /// are unknown with these nominal values. A `None` term is left out of the model.

@@ -1,6 +1,6 @@
 use super::test_models::{sdof, two_mass_chain, SdofParams};
 use super::*;
-use dsl_parser::ir::FormFilter;
+use dynid_ir::ir::FormFilter;
 use nalgebra::DMatrix;
 
 fn lowpass() -> FormFilter {

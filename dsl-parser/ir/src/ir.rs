@@ -516,6 +516,15 @@ pub struct ExprArena {
 }
 
 impl ExprArena {
+    /// An arena holding `nodes` (a model's `exprs`), to extend it with hash-consing intact.
+    pub fn from_nodes(nodes: Vec<ExprNode>) -> Self {
+        let index = nodes
+            .iter()
+            .enumerate()
+            .map(|(i, &n)| (n, ExprId(i as u32)))
+            .collect();
+        ExprArena { nodes, index }
+    }
     pub fn intern(&mut self, node: ExprNode) -> ExprId {
         if let Some(&id) = self.index.get(&node) {
             return id;

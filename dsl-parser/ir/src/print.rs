@@ -9,21 +9,7 @@ use crate::ir::*;
 use serde::Serialize;
 use std::fmt::Write;
 
-/// A number as the language writes it; parsing the text gives the same `f64` back.
-pub fn fmt_num(v: f64) -> String {
-    if v == 0.0 {
-        return "0".into();
-    }
-    if v.fract() == 0.0 && v.abs() < 1e15 {
-        return format!("{}", v as i64);
-    }
-    let a = v.abs();
-    if (1e-4..1e15).contains(&a) {
-        format!("{v}")
-    } else {
-        format!("{v:e}")
-    }
-}
+use crate::num::exact as fmt_num;
 
 const P_ADD: u8 = 1;
 const P_MUL: u8 = 2;

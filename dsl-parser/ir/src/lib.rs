@@ -1,0 +1,13 @@
+//! `ModelIr`, the one contract between the `.dyn` language and every back end.
+//!
+//! This crate is plain data and plain functions over it: the IR ([`ir`]), its readable
+//! views and the inverse of compilation ([`print`]), the edits a back end may make to a
+//! model ([`edit`]: add a force element, set a nominal value) and the number formats
+//! ([`num`]). It depends on serde alone — no grammar, no code generator, no I/O — so the
+//! numerics (`dynid-runtime`) link it without the language front end (`dsl-parser`), which
+//! re-exports it as `dsl_parser::{ir, print, edit, num}`.
+
+pub mod edit;
+pub mod ir;
+pub mod num;
+pub mod print;
