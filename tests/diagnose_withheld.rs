@@ -3,6 +3,8 @@
 //! name the location and the effect and remove at least 80 % of the headline gap. A model
 //! that matches the data must report no significant unmodelled effect.
 
+mod common;
+
 use dynid::runtime::diagnose::{diagnose, DiagnoseOptions, Diagnosis, Verdict};
 use dynid::runtime::sim::{simulate, SimConfig};
 
@@ -53,7 +55,7 @@ fn run(case: &Case) -> Diagnosis {
     let cfg = SimConfig {
         duration: case.duration,
         burn_in: 50.0,
-        seed: 11,
+        seed: common::seed(11),
         noise: case.noise,
         ..Default::default()
     };
