@@ -12,7 +12,6 @@
 //! documented in `docs/diagnosis.md`.
 
 pub mod metrics;
-pub mod report;
 
 use crate::data::{DataError, LevelSource, RecordSource};
 use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions, Moments};
@@ -351,8 +350,8 @@ pub fn read_record(src: &dyn LevelSource, ir: &ModelIr) -> Result<Record, DataEr
     })
 }
 
-/// Values in the diagnosis' text: five significant digits.
-pub(crate) fn fmt_num(v: f64) -> String {
+/// Values in the diagnosis' text and report: five significant digits.
+pub fn fmt_num(v: f64) -> String {
     num::sig(v, 5, false)
 }
 

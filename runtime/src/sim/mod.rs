@@ -67,7 +67,7 @@ pub mod test_models;
 
 pub use control::{PdControl, ReferenceSpec, VelocitySource};
 pub use error::SimError;
-pub use output::{level_file_names, write_level_csv, write_outputs, Truth};
+pub use output::{level_file_names, write_csv, Truth};
 
 use crate::record::Record;
 use control::{quantise, Controller};
