@@ -13,6 +13,7 @@
 
 pub mod basis;
 pub mod data;
+pub mod describe;
 pub mod detect;
 pub mod diagnose;
 mod fft;

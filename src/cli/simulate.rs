@@ -329,11 +329,7 @@ fn print_summary(s: &serde_json::Value) {
     println!("  {} — {level}std {stds}", s["file"].as_str().unwrap_or(""));
 }
 
-fn std_dev(x: &[f64]) -> f64 {
-    let n = x.len().max(1) as f64;
-    let m = x.iter().sum::<f64>() / n;
-    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n).sqrt()
-}
+use dynid_runtime::describe::std_dev;
 
 #[cfg(test)]
 mod tests {

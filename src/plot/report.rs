@@ -297,8 +297,12 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
         "<h1>Sim-to-real gap of <code>{}</code></h1>",
         esc(&d.model)
     );
-    let headline = match (&d.effect, &d.location) {
-        (Some(e), Some(l)) => format!(
+    let first = d
+        .found
+        .first()
+        .map(|f| (f.effect.name(), f.location.label()));
+    let headline = match &first {
+        Some((e, l)) => format!(
             "Missing effect: <b>{}</b> at <b>{}</b>. Gap {:.1} % → {:.1} % on withheld levels (<b>{:.0} %</b> of the gap removed).",
             esc(e),
             esc(l),

@@ -111,7 +111,8 @@ fn estimate<'a>(f: &'a TemplateFit, name: &str) -> &'a Estimate {
     f.estimates.iter().find(|e| e.name == name).expect(name)
 }
 
-/// METHOD §4: with Coulomb friction only (d = 0.4, r = 0.3) the prototype's per-level
+/// Reference figures of an independent (Python) implementation of the method: with
+/// Coulomb friction only (d = 0.4, r = 0.3) its per-level
 /// fits gave d_eq = 0.995 / 0.585 / 0.456 where the template predicts 1.005 / 0.586 /
 /// 0.463; σ_v is set so that the template predicts exactly those values.
 #[test]
@@ -142,7 +143,8 @@ fn prototype_coulomb_figures() {
     assert!(rel(estimate(&e.ranking[0], "d (linear part)").value, d) < 0.03);
 }
 
-/// METHOD §4: with cubic stiffness only (k = 4, k3 = 2) k_eq rose 4.5 → 6.2 → 11.1.
+/// Reference figures of an independent (Python) implementation of the method: with cubic
+/// stiffness only (k = 4, k3 = 2) k_eq rose 4.5 → 6.2 → 11.1.
 #[test]
 fn prototype_cubic_figures() {
     let (k, k3): (f64, f64) = (4.0, 2.0);

@@ -22,14 +22,7 @@ pub fn nrmse(sim: &[f64], meas: &[f64]) -> f64 {
     }
 }
 
-pub fn std_dev(x: &[f64]) -> f64 {
-    if x.is_empty() {
-        return 0.0;
-    }
-    let n = x.len() as f64;
-    let m = x.iter().sum::<f64>() / n;
-    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n).sqrt()
-}
+pub use crate::describe::std_dev;
 
 /// One-sided Welch power spectral density (Hann window, 50 % overlap) at bins
 /// `k / (nseg · ts)`, `k = 0 … nseg/2`. Returns (frequencies in Hz, PSD).
