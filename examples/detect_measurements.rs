@@ -10,16 +10,13 @@
 //! - `cubic_coulomb_level_count`: sdof_cubic_coulomb with 3 to 7 levels spanning the same
 //!   range (6…40), for how many levels the pair of effects wins.
 
-use dynid::dsl_parser::{compile_file, ir::ModelIr};
-use dynid::runtime::data::{LevelSource, RecordSource};
-use dynid::runtime::detect::{
-    detect, detect_from_data, DetectOptions, Detection, ElementFinding, LevelFits, Linearisation,
-    Verdict,
-};
+#[path = "../tests/detect_common/mod.rs"]
+mod detect_common;
+
+use detect_common::{detect_levels, finding, model, simulate_levels};
+use dynid::dsl_parser::ir::ModelIr;
+use dynid::runtime::detect::{detect, DetectOptions, Detection, LevelFits, Linearisation, Verdict};
 use dynid::runtime::record::Record;
-use dynid::runtime::sim::{simulate, SimConfig};
-use dynid::runtime::IdentifyOptions;
-use std::path::Path;
 
 /// Seconds per level, as in tests/detect_models.rs.
 const DURATION: f64 = 400.0;
@@ -47,50 +44,16 @@ fn main() {
     }
 }
 
-fn model(name: &str) -> ModelIr {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("models")
-        .join(format!("{name}.dyn"));
-    compile_file(&p).unwrap_or_else(|e| panic!("{name}: {e:?}"))
-}
-
 fn sim(truth: &str, duration: f64, seed: u64) -> Vec<Record> {
-    sim_ir(&model(truth), duration, seed)
-}
-
-fn sim_ir(ir: &ModelIr, duration: f64, seed: u64) -> Vec<Record> {
-    let cfg = SimConfig {
-        duration,
-        seed,
-        burn_in: 20.0,
-        ..Default::default()
-    };
-    simulate(ir, &cfg).expect("simulate").records
+    simulate_levels(&model(truth), duration, seed)
 }
 
 fn run(linear: &str, records: &[Record]) -> (Detection, LevelFits) {
-    run_ir(&model(linear), records)
+    detect_levels(&model(linear), records, false)
 }
 
 fn run_ir(ir: &ModelIr, records: &[Record]) -> (Detection, LevelFits) {
-    let srcs: Vec<RecordSource> = records
-        .iter()
-        .enumerate()
-        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
-        .collect();
-    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
-    let opts = IdentifyOptions {
-        balance: Some(false),
-        ..Default::default()
-    };
-    detect_from_data(ir, &levels, &opts, &DetectOptions::default(), &[]).expect("detect")
-}
-
-fn finding<'a>(d: &'a Detection, element: &str) -> &'a ElementFinding {
-    d.elements
-        .iter()
-        .find(|e| e.element == element)
-        .unwrap_or_else(|| panic!("no element {element}"))
+    detect_levels(ir, records, false)
 }
 
 fn rel(a: f64, b: f64) -> f64 {
@@ -105,7 +68,7 @@ fn false_positive_rate() {
     let (mut alarms, mut total) = (0, 0);
     for seed in 0..25u64 {
         for ir in [&sdof, &two] {
-            let recs = sim_ir(ir, DURATION, 1000 + seed);
+            let recs = simulate_levels(ir, DURATION, 1000 + seed);
             let (d, _) = run_ir(ir, &recs);
             for e in &d.elements {
                 total += 1;
@@ -220,7 +183,7 @@ fn cubic_coulomb_level_count() {
     for n in 3..=7usize {
         for seed in [7u64, 8, 9] {
             let ir = cubic_coulomb_levels(n);
-            let recs = sim_ir(&ir, DURATION, seed);
+            let recs = simulate_levels(&ir, DURATION, seed);
             let (d, _) = run("sdof_linear", &recs);
             let f = finding(&d, "k/d (ground, m)");
             println!(

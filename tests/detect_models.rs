@@ -8,61 +8,28 @@
 //! bounds, fail on some of the other seeds: they hold on the seeds tried).
 
 mod common;
+mod detect_common;
 
-use dynid::dsl_parser::{compile_file, compile_str, ir::ModelIr};
-use dynid::runtime::data::{LevelSource, RecordSource};
-use dynid::runtime::detect::{
-    detect_from_data, DetectOptions, Detection, ElementFinding, LevelFits, Verdict,
-};
+use dynid::dsl_parser::{compile_str, ir::ModelIr};
+use dynid::runtime::detect::{Detection, LevelFits, Verdict};
 use dynid::runtime::record::Record;
-use dynid::runtime::sim::{simulate, SimConfig};
-use dynid::runtime::IdentifyOptions;
-use std::path::Path;
 
-fn model(name: &str) -> ModelIr {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("models")
-        .join(format!("{name}.dyn"));
-    compile_file(&p).unwrap_or_else(|e| panic!("{name}: {e:?}"))
-}
+use detect_common::{detect_levels, finding, model};
 
 fn sim(truth: &str, duration: f64, seed: u64) -> Vec<Record> {
     sim_ir(&model(truth), duration, seed)
 }
 
 fn sim_ir(ir: &ModelIr, duration: f64, seed: u64) -> Vec<Record> {
-    let cfg = SimConfig {
-        duration,
-        seed: common::seed(seed),
-        burn_in: 20.0,
-        ..Default::default()
-    };
-    simulate(ir, &cfg).expect("simulate").records
+    detect_common::simulate_levels(ir, duration, common::seed(seed))
 }
 
 fn run(linear: &str, records: &[Record], balance: bool) -> (Detection, LevelFits) {
-    run_ir(&model(linear), records, balance)
+    detect_levels(&model(linear), records, balance)
 }
 
 fn run_ir(ir: &ModelIr, records: &[Record], balance: bool) -> (Detection, LevelFits) {
-    let srcs: Vec<RecordSource> = records
-        .iter()
-        .enumerate()
-        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
-        .collect();
-    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
-    let opts = IdentifyOptions {
-        balance: Some(balance),
-        ..Default::default()
-    };
-    detect_from_data(ir, &levels, &opts, &DetectOptions::default(), &[]).expect("detect")
-}
-
-fn finding<'a>(d: &'a Detection, element: &str) -> &'a ElementFinding {
-    d.elements
-        .iter()
-        .find(|e| e.element == element)
-        .unwrap_or_else(|| panic!("no element {element}"))
+    detect_levels(ir, records, balance)
 }
 
 /// The verdict's template and its implied effect parameters by name.

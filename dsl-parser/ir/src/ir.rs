@@ -175,6 +175,34 @@ pub enum BinaryOp {
     Div,
 }
 
+impl UnaryOp {
+    /// The operation's value at `a` (the one definition every evaluator uses).
+    #[inline]
+    pub fn apply(self, a: f64) -> f64 {
+        match self {
+            UnaryOp::Neg => -a,
+            UnaryOp::Abs => a.abs(),
+            UnaryOp::Sign => sign(a),
+            UnaryOp::Tanh => a.tanh(),
+            UnaryOp::Sqrt => a.sqrt(),
+            UnaryOp::Exp => a.exp(),
+        }
+    }
+}
+
+impl BinaryOp {
+    /// The operation's value at `(a, b)`.
+    #[inline]
+    pub fn apply(self, a: f64, b: f64) -> f64 {
+        match self {
+            BinaryOp::Add => a + b,
+            BinaryOp::Sub => a - b,
+            BinaryOp::Mul => a * b,
+            BinaryOp::Div => a / b,
+        }
+    }
+}
+
 /// A node of the expression DAG. Constants are stored as bit patterns so nodes can be
 /// hash-consed; use [`ExprNode::constant`] and [`f64::from_bits`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -453,26 +481,8 @@ pub fn eval_node(node: ExprNode, vals: &[f64], signals: &[f64]) -> f64 {
     match node {
         ExprNode::Const(b) => f64::from_bits(b),
         ExprNode::Signal(s) => signals[s.index()],
-        ExprNode::Unary(op, a) => {
-            let a = vals[a.index()];
-            match op {
-                UnaryOp::Neg => -a,
-                UnaryOp::Abs => a.abs(),
-                UnaryOp::Sign => sign(a),
-                UnaryOp::Tanh => a.tanh(),
-                UnaryOp::Sqrt => a.sqrt(),
-                UnaryOp::Exp => a.exp(),
-            }
-        }
-        ExprNode::Binary(op, a, b) => {
-            let (a, b) = (vals[a.index()], vals[b.index()]);
-            match op {
-                BinaryOp::Add => a + b,
-                BinaryOp::Sub => a - b,
-                BinaryOp::Mul => a * b,
-                BinaryOp::Div => a / b,
-            }
-        }
+        ExprNode::Unary(op, a) => op.apply(vals[a.index()]),
+        ExprNode::Binary(op, a, b) => op.apply(vals[a.index()], vals[b.index()]),
         ExprNode::Powi(a, n) => vals[a.index()].powi(n),
         ExprNode::Deadzone(a, g) => deadzone(vals[a.index()], f64::from_bits(g)),
         ExprNode::Saturate(a, l) => saturate(vals[a.index()], f64::from_bits(l)),
