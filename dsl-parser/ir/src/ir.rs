@@ -122,6 +122,14 @@ impl Coef {
     }
 }
 
+/// Elements between the same two nodes (see [`ModelIr::element_groups`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElementGroup {
+    /// The nodes as the group's first element writes them.
+    pub nodes: (Node, Node),
+    pub members: Vec<ElementId>,
+}
+
 /// One end of an element.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Node {
@@ -386,6 +394,32 @@ impl ModelIr {
             ir.params[p.index()].kind = ParamKind::Unknown { nominal: Some(v) };
         }
         ir
+    }
+    /// The elements grouped by the pair of nodes they connect (in either order): one
+    /// group per pair, in order of first appearance, with the nodes of its first element.
+    /// Springs, dampers and forces between the same two nodes act as one connection.
+    pub fn element_groups(&self) -> Vec<ElementGroup> {
+        let key = |n: Node| match n {
+            Node::Ground => 0usize,
+            Node::Body(b) => b.index() + 1,
+        };
+        let mut out: Vec<((usize, usize), ElementGroup)> = Vec::new();
+        for (i, e) in self.elements.iter().enumerate() {
+            let (a, b) = (key(e.nodes.0), key(e.nodes.1));
+            let k = (a.min(b), a.max(b));
+            let id = ElementId(i as u32);
+            match out.iter_mut().find(|(x, _)| *x == k) {
+                Some((_, g)) => g.members.push(id),
+                None => out.push((
+                    k,
+                    ElementGroup {
+                        nodes: e.nodes,
+                        members: vec![id],
+                    },
+                )),
+            }
+        }
+        out.into_iter().map(|(_, g)| g).collect()
     }
     pub fn measured_signals(&self) -> Vec<SignalId> {
         (0..self.signals.len() as u32)

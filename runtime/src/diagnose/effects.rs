@@ -97,24 +97,19 @@ impl Location {
 
 /// The candidate sites: every node pair that carries an element, then every body to ground.
 pub(super) fn locations(ir: &ModelIr) -> Vec<Location> {
-    let mut out: Vec<Location> = Vec::new();
-    for e in &ir.elements {
-        let (a, b) = (
-            ir.node_name(e.nodes.0).to_string(),
-            ir.node_name(e.nodes.1).to_string(),
-        );
-        match out
-            .iter_mut()
-            .find(|l| (l.a == a && l.b == b) || (l.a == b && l.b == a))
-        {
-            Some(l) => l.elements.push(e.name.clone()),
-            None => out.push(Location {
-                a,
-                b,
-                elements: vec![e.name.clone()],
-            }),
-        }
-    }
+    let mut out: Vec<Location> = ir
+        .element_groups()
+        .into_iter()
+        .map(|g| Location {
+            a: ir.node_name(g.nodes.0).to_string(),
+            b: ir.node_name(g.nodes.1).to_string(),
+            elements: g
+                .members
+                .iter()
+                .map(|e| ir.elements[e.index()].name.clone())
+                .collect(),
+        })
+        .collect();
     for body in &ir.bodies {
         let b = body.name.clone();
         if !out
