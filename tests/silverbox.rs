@@ -269,7 +269,8 @@ fn implied_k3(det: &Detection) -> f64 {
 
 /// With the mass held at one value the spring's stiffness rises over the levels and is
 /// named a cubic (hardening) spring; the implied k3 agrees with the pooled identification
-/// of silverbox_cubic (b = 3.91 V⁻², docs/silverbox.md). Measured: k3 = 4.26 ± 0.36.
+/// of silverbox_cubic (b = 3.91 V⁻², docs/silverbox.md). Measured: k3 = 4.07 ± 0.24 (the
+/// bound is about three standard errors).
 #[test]
 fn silverbox_spring_is_cubic() {
     let Some(det) = detect_arrow(DetectOptions::default()) else {
@@ -288,7 +289,8 @@ fn silverbox_spring_is_cubic() {
     }
     assert_eq!(e.drifting, vec!["a".to_string()], "only the spring drifts");
     let k3 = implied_k3(&det);
-    assert!((3.0..5.5).contains(&k3), "k3 = {k3}");
+    println!("measured linearisation: k3 = {k3:.3}");
+    assert!((3.4..4.8).contains(&k3), "k3 = {k3}");
 }
 
 /// The Gaussian linearisation names the same effect with a k3 within the standard error.
@@ -302,7 +304,8 @@ fn silverbox_gaussian_linearisation() {
     };
     let k3 = implied_k3(&det);
     println!("Gaussian linearisation: k3 = {k3:.3}");
-    assert!((3.0..5.5).contains(&k3), "k3 = {k3}");
+    // Measured 3.875; the same ± 0.7 (about three standard errors) as the measured form.
+    assert!((3.2..4.6).contains(&k3), "k3 = {k3}");
 }
 
 /// With the mass fitted freely at each level, mass and stiffness trade off and the drift

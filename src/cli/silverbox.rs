@@ -152,7 +152,7 @@ fn print_params(r: &SilverboxReport) {
         );
     }
     for u in &r.unidentifiable {
-        println!("  {:<6} not identifiable: {}", u.name, u.reason);
+        println!("  {:<6} left out: {}", u.name, u.reason);
     }
     let sim: Vec<String> = r
         .simulated
