@@ -243,7 +243,7 @@ fn check_identity(corners: &[f64], n_blocks: usize) -> f64 {
         chunk_len: 777,
         ..Default::default()
     };
-    let bank = choose_bank(&ir, &opts).unwrap();
+    let bank = measure::choose_bank(&ir, &opts).unwrap();
     let mut plan = plan::build_structure(&ir, false, &bank).unwrap();
     plan.set_corners(&ir, corners);
     let tape = Tape::compile(&ir, &plan.roots);

@@ -56,7 +56,9 @@
 //! (dominant frequency above ≈ 1.5/Ts, fewer than about four samples per period) is
 //! [`SimError::UnderResolved`]: such a record aliases and cannot be trusted.
 
+mod config;
 pub mod control;
+mod driven;
 mod error;
 pub(crate) mod excite;
 mod mech;
@@ -65,7 +67,12 @@ mod output;
 #[cfg(any(test, feature = "test-support"))]
 pub mod test_models;
 
+pub use config::SimConfig;
 pub use control::{PdControl, ReferenceSpec, VelocitySource};
+pub use driven::{simulate_driven, simulate_driven_from, Start};
+
+use config::{check_config, config_error, sample_counts, stream_seed, Stream};
+use driven::signal_value;
 pub use error::SimError;
 pub use output::{level_file_names, write_csv, Truth};
 
@@ -85,54 +92,6 @@ pub const DEFAULT_SUBSTEPS: usize = 20;
 
 /// How many samples pass between two progress reports.
 const PROGRESS_CHUNK: usize = 8192;
-
-/// Settings of a simulation run.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SimConfig {
-    /// White-noise intensities, one per experiment, applied to every excited input;
-    /// `None` uses the levels of the model's `excite` lines.
-    pub levels: Option<Vec<f64>>,
-    /// Recorded duration per level in seconds (after the burn-in).
-    pub duration: f64,
-    /// Sample interval `Ts` in seconds.
-    pub sample: f64,
-    /// Base seed; every level derives its own streams from it.
-    pub seed: u64,
-    /// Measurement noise as a fraction of each signal's standard deviation.
-    pub noise: f64,
-    /// Whether measured inputs get measurement noise too (positions and velocities always do).
-    pub noise_on_inputs: bool,
-    /// RK4 steps per sample interval.
-    pub substeps: usize,
-    /// Seconds simulated and discarded before recording starts.
-    pub burn_in: f64,
-    /// Steps of the input processes per sample interval (see the module doc); 1 = the
-    /// inputs are simulated at the sample rate and interpolated linearly in between.
-    pub input_oversample: usize,
-    /// Encoder resolution: every recorded position is rounded to a multiple of it (after
-    /// the measurement noise), and a controller sees the rounded position.
-    pub quantise: Option<f64>,
-    /// A PD position controller producing one input (closed loop), see [`control`].
-    pub control: Option<PdControl>,
-}
-
-impl Default for SimConfig {
-    fn default() -> Self {
-        SimConfig {
-            levels: None,
-            duration: 2000.0,
-            sample: 0.01,
-            seed: 1,
-            noise: 0.0,
-            noise_on_inputs: true,
-            substeps: DEFAULT_SUBSTEPS,
-            burn_in: 100.0,
-            input_oversample: 1,
-            quantise: None,
-            control: None,
-        }
-    }
-}
 
 /// The simulated records, one per level, and what was simulated.
 #[derive(Clone, Debug)]
@@ -171,115 +130,6 @@ pub fn simulate_with_progress(
 pub fn total_samples(cfg: &SimConfig, n_levels: usize) -> u64 {
     let (n_burn, n) = sample_counts(cfg);
     ((n_burn + n) * n_levels) as u64
-}
-
-/// Drive `ir` with measured inputs and return its simulated response.
-///
-/// `input` must contain a column for every model input (matched by name; other columns
-/// are ignored). The inputs are interpolated linearly between samples. The model starts
-/// at rest at the origin at the first sample, so the beginning of the response contains
-/// the transient from rest. The returned record has the same time base (`t0`, `ts`,
-/// length) and one column per measured signal in IR order; input columns are copies of
-/// the driving data.
-pub fn simulate_driven(ir: &ModelIr, input: &Record, substeps: usize) -> Result<Record, SimError> {
-    simulate_driven_from(ir, input, substeps, Start::Rest)
-}
-
-/// Where a driven run starts.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Start {
-    /// At rest at the origin.
-    #[default]
-    Rest,
-    /// At the state of the record's first sample: a body's position from its `name.x`
-    /// column, its velocity from `name.v` or, without one, from the first three positions
-    /// (second-order one-sided difference); a body without a position column starts at rest.
-    /// Comparing a model with measured responses then starts without a transient from rest.
-    Measured,
-}
-
-/// [`simulate_driven`] from a chosen initial state.
-pub fn simulate_driven_from(
-    ir: &ModelIr,
-    input: &Record,
-    substeps: usize,
-    start: Start,
-) -> Result<Record, SimError> {
-    if substeps == 0 {
-        return Err(config_error("substeps is 0", "use at least 1 sub-step"));
-    }
-    if !(input.ts.is_finite() && input.ts > 0.0) {
-        return Err(SimError::BadInputData {
-            what: format!("sample interval {} is not positive", input.ts),
-        });
-    }
-    if input.len() < 2 {
-        return Err(SimError::BadInputData {
-            what: format!("{} samples (at least 2 needed)", input.len()),
-        });
-    }
-    let params = parameter_values(ir)?;
-    let mech = Mechanics::new(ir, &params)?;
-    let mut cols: Vec<&[f64]> = Vec::with_capacity(ir.inputs.len());
-    for inp in &ir.inputs {
-        let col = input
-            .column(&inp.name)
-            .ok_or_else(|| SimError::MissingInputColumn {
-                input: inp.name.clone(),
-                found: input.names.join(", "),
-            })?;
-        if let Some(i) = col.iter().position(|x| !x.is_finite()) {
-            return Err(SimError::BadInputData {
-                what: format!(
-                    "column `{}` has the non-finite value {} at sample {i}",
-                    inp.name, col[i]
-                ),
-            });
-        }
-        cols.push(col);
-    }
-    let n = input.len();
-    let limit = divergence_limit(cols.iter().map(|c| std_dev(c)));
-    let mut rk = Rk4::new(&mech);
-    if start == Start::Measured {
-        set_measured_state(ir, input, &mut rk);
-    }
-    let mut res = Resolution::new(mech.n_bodies);
-    let measured = ir.measured_signals();
-    let mut out: Vec<Vec<f64>> = measured.iter().map(|_| Vec::with_capacity(n)).collect();
-    let mut u0 = vec![0.0; cols.len()];
-    let mut u1 = vec![0.0; cols.len()];
-    for k in 0..n {
-        for (j, c) in cols.iter().enumerate() {
-            u0[j] = c[k];
-        }
-        for (col, &s) in out.iter_mut().zip(&measured) {
-            col.push(signal_value(ir, s, &rk, &u0));
-        }
-        if k + 1 == n {
-            break;
-        }
-        for (j, c) in cols.iter().enumerate() {
-            u1[j] = c[k + 1];
-        }
-        rk.advance(&mech, &u0, &u1, input.ts, substeps);
-        res.add(&rk.x);
-        check_divergence(
-            &rk,
-            limit,
-            || "the driven run".into(),
-            input.t0 + (k + 1) as f64 * input.ts,
-        )?;
-    }
-    Ok(Record {
-        names: measured
-            .iter()
-            .map(|&s| ir.signal(s).name.clone())
-            .collect(),
-        columns: out,
-        ts: input.ts,
-        t0: input.t0,
-    })
 }
 
 /// Per-input excitation: the form filter (if excited) and the intensity at every level.
@@ -604,31 +454,6 @@ fn simulate_level(
     })
 }
 
-#[inline]
-/// Initial positions and velocities from the first samples of `rec` (see [`Start::Measured`]).
-fn set_measured_state(ir: &ModelIr, rec: &Record, rk: &mut Rk4) {
-    let finite = |c: &[f64]| c.iter().take(3).all(|x| x.is_finite());
-    for b in 0..ir.bodies.len() {
-        let name = |k: usize| ir.signals[2 * b + k].name.as_str();
-        let Some(x) = rec.column(name(0)).filter(|c| c.len() >= 3 && finite(c)) else {
-            continue;
-        };
-        rk.x[b] = x[0];
-        rk.v[b] = match rec.column(name(1)).filter(|c| finite(c)) {
-            Some(v) => v[0],
-            None => (-3.0 * x[0] + 4.0 * x[1] - x[2]) / (2.0 * rec.ts),
-        };
-    }
-}
-
-fn signal_value(ir: &ModelIr, s: dynid_ir::ir::SignalId, rk: &Rk4, u: &[f64]) -> f64 {
-    match ir.signal(s).kind {
-        SignalKind::Position(b) => rk.x[b.index()],
-        SignalKind::Velocity(b) => rk.v[b.index()],
-        SignalKind::Input(InputId(i)) => u[i as usize],
-    }
-}
-
 /// Largest `ω·Ts` (ω = dominant angular frequency of a body's motion) accepted: about four
 /// samples per period. Beyond it the record aliases and the integration is untrustworthy.
 const MAX_OMEGA_TS: f64 = 1.5;
@@ -739,98 +564,6 @@ pub fn parameter_values(ir: &ModelIr) -> Result<Vec<f64>, SimError> {
             ParamKind::Unknown { nominal } => nominal.unwrap_or(f64::NAN),
         })
         .collect())
-}
-
-fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
-    let positive = |x: f64| x.is_finite() && x > 0.0;
-    if !positive(cfg.sample) {
-        return Err(config_error(
-            &format!("sample interval {} s", cfg.sample),
-            "give a positive sample interval, e.g. `--sample 0.01`",
-        ));
-    }
-    if !positive(cfg.duration) || cfg.duration < 2.0 * cfg.sample {
-        return Err(config_error(
-            &format!("duration {} s", cfg.duration),
-            "give a duration of at least two sample intervals, e.g. `--duration 2000`",
-        ));
-    }
-    if !(cfg.burn_in.is_finite() && cfg.burn_in >= 0.0) {
-        return Err(config_error(
-            &format!("burn-in {} s", cfg.burn_in),
-            "the burn-in must be zero or positive",
-        ));
-    }
-    if !(cfg.noise.is_finite() && cfg.noise >= 0.0) {
-        return Err(config_error(
-            &format!("noise fraction {}", cfg.noise),
-            "the noise is a fraction of each signal's std, e.g. `--noise 0.05` for 5 %",
-        ));
-    }
-    if cfg.substeps == 0 {
-        return Err(config_error(
-            "0 sub-steps",
-            "use at least 1 sub-step per sample",
-        ));
-    }
-    if cfg.input_oversample == 0 {
-        return Err(config_error(
-            "input oversampling 0",
-            "simulate the inputs with at least 1 step per sample interval (`--input-oversample 1` is the default)",
-        ));
-    }
-    if let Some(q) = cfg.quantise {
-        if !positive(q) {
-            return Err(config_error(
-                &format!("position resolution {q}"),
-                "the quantisation step is a positive encoder resolution in position units, e.g. `--quantise 1e-6`",
-            ));
-        }
-    }
-    if let Some(l) = &cfg.levels {
-        if let Some(bad) = l.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
-            return Err(config_error(
-                &format!("level {bad}"),
-                "levels are white-noise intensities: finite and non-negative",
-            ));
-        }
-    }
-    Ok(())
-}
-
-fn config_error(what: &str, help: &str) -> SimError {
-    SimError::InvalidConfig {
-        what: what.into(),
-        help: help.into(),
-    }
-}
-
-/// `(burn-in samples, recorded samples)`.
-fn sample_counts(cfg: &SimConfig) -> (usize, usize) {
-    (
-        (cfg.burn_in / cfg.sample).round() as usize,
-        (cfg.duration / cfg.sample).round() as usize,
-    )
-}
-
-#[derive(Clone, Copy)]
-enum Stream {
-    Excitation = 0,
-    Noise = 1,
-    Reference = 2,
-}
-
-/// Seed of one random stream of one level; a strong mix so nearby seeds and levels give
-/// unrelated streams.
-fn stream_seed(base: u64, level: usize, stream: Stream) -> u64 {
-    splitmix64(splitmix64(base) ^ splitmix64(((level as u64) << 8) | stream as u64))
-}
-
-fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 #[cfg(test)]

@@ -1,0 +1,440 @@
+//! CSV level files: streamed, validated (header, equal field counts, finite numbers,
+//! uniform time step), with an optional binary copy that later passes replay.
+
+use super::*;
+
+/// A CSV file bound to a model: validated header, known sample interval; the body is
+/// validated while streaming.
+///
+/// Identification streams every level twice (statistics, then filters). Parsing text
+/// dominates the cost of a pass, so the first complete pass also writes the selected columns
+/// as raw binary `f64` to an anonymous temporary file (deleted by the system when the source
+/// is dropped), and later passes replay that file. Memory use stays independent of the record
+/// length; if the temporary file cannot be written, every pass parses the text again.
+#[derive(Clone, Debug)]
+pub struct CsvSource {
+    path: PathBuf,
+    ts: f64,
+    /// Time of the first sample (0 without a `t` column).
+    t0: f64,
+    n_fields: usize,
+    header: Vec<String>,
+    /// `(slot, column)`: slot `s` of every streamed chunk is read from file column `c`.
+    wanted: Vec<(usize, usize)>,
+    /// Slots per chunk (`SignalId`s of the model; empty slots stay empty).
+    n_slots: usize,
+    t_col: Option<usize>,
+    min_samples: usize,
+    /// Whether the first pass writes a binary copy for later passes.
+    spill: bool,
+    /// The binary copy of a complete, validated pass: samples in order, each the `wanted`
+    /// columns as little-endian `f64`.
+    pub(super) replay: Arc<Mutex<Option<std::fs::File>>>,
+}
+
+fn io_err(path: &Path, e: impl std::fmt::Display) -> DataError {
+    DataError::Io {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
+}
+
+fn csv_err(path: &Path, e: csv::Error) -> DataError {
+    let line = e.position().map_or(0, |p| p.line());
+    match e.kind() {
+        csv::ErrorKind::Io(_) => io_err(path, e),
+        _ => DataError::Csv {
+            path: path.display().to_string(),
+            line,
+            message: e.to_string(),
+        },
+    }
+}
+
+fn parse_cell(path: &Path, line: u64, column: &str, raw: &[u8]) -> Result<f64, DataError> {
+    let s = std::str::from_utf8(raw).unwrap_or("").trim();
+    let v: f64 = s.parse().map_err(|_| DataError::NotANumber {
+        path: path.display().to_string(),
+        line,
+        column: column.to_string(),
+        value: String::from_utf8_lossy(raw).into_owned(),
+    })?;
+    if !v.is_finite() {
+        return Err(DataError::NonFinite {
+            path: path.display().to_string(),
+            line,
+            column: column.to_string(),
+            value: v,
+        });
+    }
+    Ok(v)
+}
+
+/// Relative tolerance on the time step (times printed with few digits jitter slightly).
+const TIME_TOL: f64 = 1e-3;
+
+impl CsvSource {
+    /// Open `path`, match its header to the measured signals of `ir` and fix the sample
+    /// interval (from `t`, else from `opts.ts`).
+    pub fn open(path: &Path, ir: &ModelIr, opts: &CsvOptions) -> Result<CsvSource, DataError> {
+        let select = |names: &[String], header: &[String]| {
+            let mut wanted = Vec::new();
+            for s in ir.measured_signals() {
+                let name = &ir.signal(s).name;
+                match names.iter().position(|n| n == name) {
+                    Some(k) => wanted.push((s.index(), k)),
+                    None => {
+                        return Err(DataError::MissingColumn {
+                            path: path.display().to_string(),
+                            signal: name.clone(),
+                            present: header.join(", "),
+                        })
+                    }
+                }
+            }
+            Ok((wanted, ir.signals.len()))
+        };
+        Self::open_with(path, opts, select, MIN_SAMPLES)
+    }
+
+    /// Open with a caller's choice of columns: `select(names, header)` returns the
+    /// `(slot, column)` pairs to stream and the number of slots; `names` is the header after
+    /// the `--map` renamings.
+    fn open_with(
+        path: &Path,
+        opts: &CsvOptions,
+        select: impl FnOnce(&[String], &[String]) -> Result<(Vec<(usize, usize)>, usize), DataError>,
+        min_samples: usize,
+    ) -> Result<CsvSource, DataError> {
+        let p = path.display().to_string();
+        if let Some(ts) = opts.ts {
+            if !(ts.is_finite() && ts > 0.0) {
+                return Err(DataError::BadSampleInterval { ts });
+            }
+        }
+        let mut rdr = Self::reader(path)?;
+        let header: Vec<String> = match rdr.headers() {
+            Ok(h) => h.iter().map(|s| s.trim().to_string()).collect(),
+            Err(e) => return Err(csv_err(path, e)),
+        };
+        if header.is_empty() || header.iter().all(|h| h.is_empty()) {
+            return Err(DataError::Empty { path: p });
+        }
+        let mut names = header.clone();
+        for (c, s) in &opts.map {
+            if let Some(k) = header.iter().position(|h| h == c) {
+                names[k] = s.clone();
+            } else {
+                return Err(DataError::MissingColumn {
+                    path: p,
+                    signal: c.clone(),
+                    present: header.join(", "),
+                });
+            }
+        }
+        for (k, n) in names.iter().enumerate() {
+            if names[..k].contains(n) {
+                return Err(DataError::DuplicateColumn {
+                    path: p,
+                    column: n.clone(),
+                });
+            }
+        }
+        let (wanted, n_slots) = select(&names, &header)?;
+        let t_col = names.iter().position(|n| n == "t");
+        // Read the first two samples for the sample interval (and to tell an empty body).
+        let mut rec = csv::ByteRecord::new();
+        let mut first_t = Vec::new();
+        for _ in 0..2 {
+            match rdr.read_byte_record(&mut rec) {
+                Ok(true) => {
+                    let line = rec.position().map_or(0, |p| p.line());
+                    if rec.len() != header.len() {
+                        return Err(DataError::Ragged {
+                            path: p,
+                            line,
+                            expected: header.len(),
+                            found: rec.len(),
+                        });
+                    }
+                    if let Some(tc) = t_col {
+                        first_t.push(parse_cell(path, line, "t", &rec[tc])?);
+                    }
+                }
+                Ok(false) => break,
+                Err(e) => return Err(csv_err(path, e)),
+            }
+        }
+        if rec.is_empty() && first_t.is_empty() && rdr.position().record() <= 1 {
+            return Err(DataError::HeaderOnly { path: p });
+        }
+        let ts = match (opts.ts, first_t.as_slice()) {
+            (Some(ts), _) => ts,
+            (None, [a, b]) => {
+                let ts = b - a;
+                if ts.is_nan() || ts <= 0.0 {
+                    return Err(DataError::NonUniformTime {
+                        path: p,
+                        line: 3,
+                        step: ts,
+                        ts: f64::NAN,
+                    });
+                }
+                ts
+            }
+            (None, _) if t_col.is_some() => {
+                return Err(DataError::TooFewSamples {
+                    path: p,
+                    n: first_t.len(),
+                    need: min_samples,
+                })
+            }
+            (None, _) => return Err(DataError::NoSampleInterval { path: p }),
+        };
+        Ok(CsvSource {
+            path: path.to_path_buf(),
+            ts,
+            t0: first_t.first().copied().unwrap_or(0.0),
+            n_fields: header.len(),
+            header,
+            wanted,
+            n_slots,
+            t_col,
+            min_samples,
+            spill: true,
+            replay: Arc::default(),
+        })
+    }
+
+    /// Parse the text on every pass instead of keeping a binary copy (for a source that is
+    /// streamed only once).
+    pub fn without_replay(mut self) -> Self {
+        self.spill = false;
+        self.replay = Arc::default();
+        self
+    }
+
+    /// Stream the binary copy written by an earlier complete pass.
+    fn stream_copy(
+        &self,
+        file: &mut std::fs::File,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+    ) -> Result<(), DataError> {
+        let path = self.path.as_path();
+        file.rewind().map_err(|e| io_err(path, e))?;
+        let width = self.wanted.len();
+        let row_bytes = 8 * width;
+        let mut reader = BufReader::with_capacity(1 << 20, &*file);
+        let mut bufs: Vec<Vec<f64>> = vec![Vec::new(); self.n_slots];
+        for &(s, _) in &self.wanted {
+            bufs[s].reserve(max_len);
+        }
+        let mut raw = vec![0u8; row_bytes * max_len];
+        loop {
+            let mut filled = 0;
+            while filled < raw.len() {
+                match reader.read(&mut raw[filled..]) {
+                    Ok(0) => break,
+                    Ok(k) => filled += k,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(e) => return Err(io_err(path, e)),
+                }
+            }
+            let len = filled / row_bytes.max(1);
+            if len == 0 {
+                return Ok(());
+            }
+            for (k, &(s, _)) in self.wanted.iter().enumerate() {
+                bufs[s].extend(raw[..len * row_bytes].chunks_exact(row_bytes).map(|row| {
+                    let b = &row[8 * k..8 * k + 8];
+                    f64::from_le_bytes(b.try_into().expect("8 bytes"))
+                }));
+            }
+            let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
+            sink(&cols, len);
+            bufs.iter_mut().for_each(Vec::clear);
+            if filled < raw.len() {
+                return Ok(());
+            }
+        }
+    }
+
+    fn reader(path: &Path) -> Result<csv::Reader<Box<dyn Read + Send>>, DataError> {
+        let f = std::fs::File::open(path).map_err(|e| io_err(path, e))?;
+        let buf: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 20, f));
+        Ok(csv::ReaderBuilder::new()
+            .has_headers(true)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .from_reader(buf))
+    }
+}
+
+impl LevelSource for CsvSource {
+    fn origin(&self) -> String {
+        self.path.display().to_string()
+    }
+    fn ts(&self) -> f64 {
+        self.ts
+    }
+    fn stream(
+        &self,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+    ) -> Result<(), DataError> {
+        // Passes of one source run one at a time; different sources do not share the lock.
+        let mut replay = self.replay.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(file) = replay.as_mut() {
+            return self.stream_copy(file, max_len, sink);
+        }
+        // (Nothing to copy without selected columns: every pass then parses.)
+        let mut copy = if self.spill && !self.wanted.is_empty() {
+            tempfile::tempfile()
+                .ok()
+                .map(|f| BufWriter::with_capacity(1 << 20, f))
+        } else {
+            None
+        };
+        self.parse(max_len, sink, &mut copy)?;
+        // Keep the copy only if it is complete.
+        *replay = copy.and_then(|w| w.into_inner().ok());
+        Ok(())
+    }
+}
+
+impl CsvSource {
+    /// Stream by parsing the text, validating every row; with `copy`, also write the binary
+    /// copy (dropped, and the text parsed next time, at the first write error).
+    fn parse(
+        &self,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+        copy: &mut Option<BufWriter<std::fs::File>>,
+    ) -> Result<(), DataError> {
+        let path = self.path.as_path();
+        let p = || path.display().to_string();
+        let mut rdr = Self::reader(path)?;
+        let mut bufs: Vec<Vec<f64>> = vec![Vec::new(); self.n_slots];
+        for &(s, _) in &self.wanted {
+            bufs[s].reserve(max_len);
+        }
+        let mut rec = csv::ByteRecord::new();
+        let mut n = 0usize;
+        let mut in_chunk = 0usize;
+        let mut t_prev = f64::NAN;
+        let flush =
+            |bufs: &mut Vec<Vec<f64>>, len: &mut usize, sink: &mut dyn FnMut(&[&[f64]], usize)| {
+                if *len > 0 {
+                    let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
+                    sink(&cols, *len);
+                    bufs.iter_mut().for_each(Vec::clear);
+                    *len = 0;
+                }
+            };
+        // Streaming means an error can surface after earlier chunks were handed on; callers
+        // discard their partial results on error.
+        loop {
+            match rdr.read_byte_record(&mut rec) {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => return Err(csv_err(path, e)),
+            }
+            let line = rec.position().map_or(0, |p| p.line());
+            if rec.len() != self.n_fields {
+                // A trailing blank line is not data.
+                if rec.len() == 1 && rec[0].is_empty() {
+                    continue;
+                }
+                return Err(DataError::Ragged {
+                    path: p(),
+                    line,
+                    expected: self.n_fields,
+                    found: rec.len(),
+                });
+            }
+            for &(s, c) in &self.wanted {
+                let v = parse_cell(path, line, &self.header[c], &rec[c])?;
+                bufs[s].push(v);
+                if let Some(w) = copy {
+                    if w.write_all(&v.to_le_bytes()).is_err() {
+                        *copy = None;
+                    }
+                }
+            }
+            if let Some(tc) = self.t_col {
+                let t = parse_cell(path, line, &self.header[tc], &rec[tc])?;
+                if n > 0 {
+                    let step = t - t_prev;
+                    if (step - self.ts).abs() > TIME_TOL * self.ts + 1e-12 * t.abs() {
+                        return Err(DataError::NonUniformTime {
+                            path: p(),
+                            line,
+                            step,
+                            ts: self.ts,
+                        });
+                    }
+                }
+                t_prev = t;
+            }
+            n += 1;
+            in_chunk += 1;
+            if in_chunk == max_len {
+                flush(&mut bufs, &mut in_chunk, sink);
+            }
+        }
+        if n == 0 {
+            return Err(DataError::HeaderOnly { path: p() });
+        }
+        if n < self.min_samples {
+            return Err(DataError::TooFewSamples {
+                path: p(),
+                n,
+                need: self.min_samples,
+            });
+        }
+        flush(&mut bufs, &mut in_chunk, sink);
+        Ok(())
+    }
+}
+
+/// Read a whole CSV file into a [`Record`] (every named column except `t`, renamed by
+/// `opts.map`), with the same validation as [`CsvSource`]: a header, equal field counts,
+/// finite numbers and a uniform time step (`t` column or `opts.ts`). At least two samples.
+/// For inputs that drive a simulation; identification streams with [`CsvSource`] instead.
+pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, DataError> {
+    let mut names = Vec::new();
+    let src = CsvSource::open_with(
+        path,
+        opts,
+        |renamed, _| {
+            let wanted: Vec<(usize, usize)> = renamed
+                .iter()
+                .enumerate()
+                // A column without a name (e.g. from a trailing comma on every line) is not data.
+                .filter(|(_, n)| *n != "t" && !n.is_empty())
+                .enumerate()
+                .map(|(slot, (k, n))| {
+                    names.push(n.clone());
+                    (slot, k)
+                })
+                .collect();
+            let n = wanted.len();
+            Ok((wanted, n))
+        },
+        2,
+    )?
+    .without_replay();
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+    src.stream(1 << 16, &mut |cols, len| {
+        for (c, chunk) in columns.iter_mut().zip(cols) {
+            c.extend_from_slice(&chunk[..len]);
+        }
+    })?;
+    Ok(Record {
+        names,
+        columns,
+        ts: src.ts,
+        t0: src.t0,
+    })
+}

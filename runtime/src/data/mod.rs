@@ -1,0 +1,214 @@
+//! Measured data for identification: one source per excitation level, streamed in chunks so
+//! that memory use does not grow with the record length.
+//!
+//! A CSV file must have a header naming its columns. Columns are matched to the model's
+//! signals by name (`m1.x`, `m1.v`, `u`; an optional `t` gives the sample times, which must
+//! be uniform) or through `col=signal` renamings. Every signal the model declares measured
+//! must be present; unmeasured signals are never required and extra columns are ignored.
+
+mod csv_file;
+mod record;
+#[cfg(test)]
+mod tests;
+
+pub use csv_file::{read_record, CsvSource};
+pub use record::RecordSource;
+
+use crate::record::Record;
+use dynid_ir::ir::ModelIr;
+use std::io::{BufReader, BufWriter, Read, Seek, Write};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+/// Fewest samples any record may have (the filters need far more; identification checks
+/// the actual need against the filter time constants).
+pub const MIN_SAMPLES: usize = 100;
+
+/// One excitation level's record, streamed in order.
+pub trait LevelSource: Sync {
+    /// Where the data comes from, for messages (a file path or a label).
+    fn origin(&self) -> String;
+    /// Sample interval in seconds.
+    fn ts(&self) -> f64;
+    /// Call `sink(cols, len)` for consecutive chunks of at most `max_len` samples, where
+    /// `cols[s]` is the column of signal `s` (by `SignalId`; empty for unmeasured signals).
+    /// Every call streams the whole record from the start.
+    fn stream(
+        &self,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+    ) -> Result<(), DataError>;
+}
+
+/// Problems with measured data. Every variant names the file (or record) and, where it
+/// applies, the line.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+pub enum DataError {
+    #[error("{path}: cannot read: {message}")]
+    #[diagnostic(
+        code(dynid::data::io),
+        help("check that the file exists and is readable")
+    )]
+    Io { path: String, message: String },
+    #[error("{path}: the file is empty")]
+    #[diagnostic(
+        code(dynid::data::empty),
+        help("a data file needs a header line naming the columns (e.g. `t,m1.x,m1.v,u`) and one line per sample")
+    )]
+    Empty { path: String },
+    #[error("{path}: the file has a header but no samples")]
+    #[diagnostic(
+        code(dynid::data::header_only),
+        help("add one line per sample below the header")
+    )]
+    HeaderOnly { path: String },
+    #[error("{path}: line {line}: malformed CSV: {message}")]
+    #[diagnostic(
+        code(dynid::data::csv),
+        help("the file must be comma-separated text with a header line")
+    )]
+    Csv {
+        path: String,
+        line: u64,
+        message: String,
+    },
+    #[error(
+        "{path}: the header has no column for the measured signal `{signal}` (columns: {present})"
+    )]
+    #[diagnostic(
+        code(dynid::data::missing_column),
+        help("name a column `{signal}`, map one with `--map COLUMN={signal}`, or declare `{signal}` unmeasured in the model")
+    )]
+    MissingColumn {
+        path: String,
+        signal: String,
+        present: String,
+    },
+    #[error("{path}: column `{column}` appears twice in the header")]
+    #[diagnostic(
+        code(dynid::data::duplicate_column),
+        help("rename or drop one of them")
+    )]
+    DuplicateColumn { path: String, column: String },
+    #[error("{path}: line {line}: expected {expected} fields as in the header, found {found}")]
+    #[diagnostic(
+        code(dynid::data::ragged),
+        help("every line needs one value per header column")
+    )]
+    Ragged {
+        path: String,
+        line: u64,
+        expected: usize,
+        found: usize,
+    },
+    #[error("{path}: line {line}, column `{column}`: `{value}` is not a number")]
+    #[diagnostic(
+        code(dynid::data::not_a_number),
+        help("use plain decimal numbers such as `-1.25e-3`")
+    )]
+    NotANumber {
+        path: String,
+        line: u64,
+        column: String,
+        value: String,
+    },
+    #[error("{path}: line {line}, column `{column}`: {value} is not a finite number")]
+    #[diagnostic(
+        code(dynid::data::non_finite),
+        help("remove or repair samples with NaN or infinite values (cut the record into clean pieces)")
+    )]
+    NonFinite {
+        path: String,
+        line: u64,
+        column: String,
+        value: f64,
+    },
+    #[error("{path}: only {n} samples; at least {need} are needed")]
+    #[diagnostic(
+        code(dynid::data::too_few_samples),
+        help("record a longer run (the slowest identification filter needs many time constants)")
+    )]
+    TooFewSamples { path: String, n: usize, need: usize },
+    #[error("{path}: line {line}: the time step is {step} s, but the sample interval is {ts} s")]
+    #[diagnostic(
+        code(dynid::data::non_uniform_time),
+        help("identification needs uniformly sampled data; resample the record, or drop the `t` column and give `--sample TS`")
+    )]
+    NonUniformTime {
+        path: String,
+        line: u64,
+        step: f64,
+        ts: f64,
+    },
+    #[error("{path}: no sample interval: the file has no `t` column")]
+    #[diagnostic(
+        code(dynid::data::no_sample_interval),
+        help("add a `t` column or give the interval with `--sample TS`")
+    )]
+    NoSampleInterval { path: String },
+    #[error("invalid sample interval {ts}")]
+    #[diagnostic(
+        code(dynid::data::bad_sample_interval),
+        help("the sample interval is a positive number of seconds")
+    )]
+    BadSampleInterval { ts: f64 },
+    #[error("`--map {spec}`: {message}")]
+    #[diagnostic(
+        code(dynid::data::bad_map),
+        help("write `--map COLUMN=SIGNAL`, e.g. `--map disp=m1.x`; signals: {signals}")
+    )]
+    BadMap {
+        spec: String,
+        message: String,
+        signals: String,
+    },
+    #[error("{path}: column `{column}` has {found} samples, expected {expected}")]
+    #[diagnostic(
+        code(dynid::data::ragged_record),
+        help("all columns of a record must have the same length")
+    )]
+    RaggedRecord {
+        path: String,
+        column: String,
+        expected: usize,
+        found: usize,
+    },
+}
+
+/// How to read CSV files.
+#[derive(Clone, Debug, Default)]
+pub struct CsvOptions {
+    /// `(column, signal)` renamings.
+    pub map: Vec<(String, String)>,
+    /// Sample interval; required when there is no `t` column. With a `t` column it is
+    /// checked against the time steps.
+    pub ts: Option<f64>,
+}
+
+impl CsvOptions {
+    /// Parse a `COLUMN=SIGNAL` renaming, checking the signal exists in `ir`.
+    pub fn parse_map(spec: &str, ir: &ModelIr) -> Result<(String, String), DataError> {
+        let signals = ir
+            .signals
+            .iter()
+            .map(|s| s.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ");
+        let Some((c, s)) = spec.split_once('=') else {
+            return Err(DataError::BadMap {
+                spec: spec.into(),
+                message: "expected COLUMN=SIGNAL".into(),
+                signals,
+            });
+        };
+        let (c, s) = (c.trim(), s.trim());
+        if c.is_empty() || (ir.signal_id(s).is_none() && s != "t") {
+            return Err(DataError::BadMap {
+                spec: spec.into(),
+                message: format!("`{s}` is not a signal of the model"),
+                signals,
+            });
+        }
+        Ok((c.to_string(), s.to_string()))
+    }
+}

@@ -1,0 +1,212 @@
+use super::*;
+use crate::sim::test_models::{sdof, SdofParams};
+use dynid_ir::ir::FormFilter;
+
+/// The SDOF model (signals `m1.x`, `m1.v`, `u`), optionally without a measured velocity.
+fn sdof_ir(measured_v: bool) -> ModelIr {
+    let mut ir = sdof(
+        &SdofParams::benchmark(),
+        FormFilter::Lowpass { corner: 10.0 },
+        vec![1.0],
+    );
+    ir.signals[1].measured = measured_v;
+    ir
+}
+use std::io::Write;
+
+fn file(body: &str) -> tempfile::NamedTempFile {
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    f.write_all(body.as_bytes()).unwrap();
+    f
+}
+
+fn rows(n: usize, ts: f64) -> String {
+    let mut s = String::from("t,m1.x,m1.v,u\n");
+    for k in 0..n {
+        let t = k as f64 * ts;
+        s.push_str(&format!("{t},{},{},{}\n", t.sin(), t.cos(), 0.5));
+    }
+    s
+}
+
+/// Open and stream; the error message of the first failure.
+fn read(body: &str, opts: &CsvOptions) -> Result<usize, String> {
+    let ir = sdof_ir(true);
+    let f = file(body);
+    let src = CsvSource::open(f.path(), &ir, opts).map_err(|e| e.to_string())?;
+    let mut n = 0;
+    src.stream(64, &mut |_, l| n += l)
+        .map_err(|e| e.to_string())?;
+    Ok(n)
+}
+
+#[test]
+fn reads_a_valid_file_in_chunks() {
+    assert_eq!(read(&rows(300, 0.01), &CsvOptions::default()), Ok(300));
+}
+
+/// One streamed chunk: its length and the chunk's columns.
+type Chunk = (usize, Vec<Vec<f64>>);
+
+/// Every chunk of one pass.
+fn pass(src: &CsvSource, max_len: usize) -> Result<Vec<Chunk>, DataError> {
+    let mut chunks = Vec::new();
+    src.stream(max_len, &mut |cols, len| {
+        chunks.push((len, cols.iter().map(|c| c.to_vec()).collect()));
+    })?;
+    Ok(chunks)
+}
+
+#[test]
+fn later_passes_replay_exactly_what_the_first_parsed() {
+    let ir = sdof_ir(true);
+    let f = file(&rows(1000, 0.01));
+    let src = CsvSource::open(f.path(), &ir, &CsvOptions::default()).unwrap();
+    let uncopied = src.clone().without_replay();
+    for max_len in [64, 1000, 4096, 7] {
+        let first = pass(&src, max_len).unwrap();
+        assert!(src.replay.lock().unwrap().is_some(), "no copy kept");
+        assert_eq!(pass(&src, max_len).unwrap(), first, "max_len {max_len}");
+        assert_eq!(pass(&uncopied, max_len).unwrap(), first);
+        assert_eq!(first.iter().map(|c| c.0).sum::<usize>(), 1000);
+    }
+    assert!(uncopied.replay.lock().unwrap().is_none());
+}
+
+#[test]
+fn a_failed_pass_keeps_no_copy_and_fails_again() {
+    let ir = sdof_ir(true);
+    let body = rows(300, 0.01) + "3.0,1,nan,0\n";
+    let f = file(&body);
+    let src = CsvSource::open(f.path(), &ir, &CsvOptions::default()).unwrap();
+    for _ in 0..2 {
+        let e = pass(&src, 64).unwrap_err().to_string();
+        assert!(e.contains("line 302"), "{e}");
+        assert!(src.replay.lock().unwrap().is_none());
+    }
+}
+
+#[test]
+fn missing_column_lists_what_is_there() {
+    let body = rows(300, 0.01).replace("m1.v", "vel");
+    let e = read(&body, &CsvOptions::default()).unwrap_err();
+    assert!(
+        e.contains("no column for the measured signal `m1.v` (columns: t, m1.x, vel, u)"),
+        "{e}"
+    );
+    // ... and a renaming fixes it.
+    let opts = CsvOptions {
+        map: vec![("vel".into(), "m1.v".into())],
+        ts: None,
+    };
+    assert_eq!(read(&body, &opts), Ok(300));
+}
+
+#[test]
+fn unmeasured_signals_are_not_required() {
+    let ir = sdof_ir(false);
+    let body = rows(300, 0.01).replace(",m1.v,", ",other,");
+    let f = file(&body);
+    assert!(CsvSource::open(f.path(), &ir, &CsvOptions::default()).is_ok());
+}
+
+#[test]
+fn nan_and_text_cells_name_line_and_column() {
+    // Sample 5 (file line 7, after the header) gets a NaN position.
+    let bad_line = 7;
+    let body: String = rows(300, 0.01)
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i + 1 == bad_line {
+                "0.05,NaN,1,0.5".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let e = read(&body, &CsvOptions::default()).unwrap_err();
+    assert!(
+        e.contains(&format!(
+            "line {bad_line}, column `m1.x`: NaN is not a finite number"
+        )),
+        "{e}"
+    );
+    let body2 = body.replace("0.05,NaN,", "0.05,abc,");
+    let e = read(&body2, &CsvOptions::default()).unwrap_err();
+    assert!(
+        e.contains(&format!(
+            "line {bad_line}, column `m1.x`: `abc` is not a number"
+        )),
+        "{e}"
+    );
+}
+
+#[test]
+fn ragged_row_is_reported() {
+    let mut body = rows(300, 0.01);
+    body.push_str("3.0,1,2\n");
+    let e = read(&body, &CsvOptions::default()).unwrap_err();
+    assert!(
+        e.contains("line 302: expected 4 fields as in the header, found 3"),
+        "{e}"
+    );
+}
+
+#[test]
+fn empty_and_header_only_files() {
+    let e = read("", &CsvOptions::default()).unwrap_err();
+    assert!(e.contains("the file is empty"), "{e}");
+    let e = read("t,m1.x,m1.v,u\n", &CsvOptions::default()).unwrap_err();
+    assert!(e.contains("has a header but no samples"), "{e}");
+}
+
+#[test]
+fn too_few_samples_says_how_many() {
+    let e = read(&rows(50, 0.01), &CsvOptions::default()).unwrap_err();
+    assert!(
+        e.contains("only 50 samples; at least 100 are needed"),
+        "{e}"
+    );
+}
+
+#[test]
+fn non_uniform_time_names_the_first_bad_line() {
+    let body: String = rows(300, 0.01)
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| *i != 120) // drop one sample: a gap of 2 Tₛ
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    let e = read(&body, &CsvOptions::default()).unwrap_err();
+    assert!(e.contains("line 121: the time step is"), "{e}");
+}
+
+#[test]
+fn sample_interval_is_required_without_t() {
+    let body: String = rows(300, 0.01)
+        .lines()
+        .map(|l| l.split_once(',').unwrap().1.to_string() + "\n")
+        .collect();
+    let e = read(&body, &CsvOptions::default()).unwrap_err();
+    assert!(e.contains("no sample interval"), "{e}");
+    let opts = CsvOptions {
+        map: vec![],
+        ts: Some(0.01),
+    };
+    assert_eq!(read(&body, &opts), Ok(300));
+}
+
+#[test]
+fn a_trailing_comma_is_not_a_column() {
+    // As written by some exporters (the Silverbox file): `"V1","V2",` and `a,b,`.
+    let f = file("\"V1\",\"V2\",\n0.5,1.5,\n-0.25,2,\n0,0,\n");
+    let opts = CsvOptions {
+        map: vec![],
+        ts: Some(0.1),
+    };
+    let rec = read_record(f.path(), &opts).unwrap();
+    assert_eq!(rec.names, ["V1", "V2"]);
+    assert_eq!(rec.column("V2").unwrap(), [1.5, 2.0, 0.0]);
+}

@@ -1,0 +1,430 @@
+//! The measuring pass: the first pass over every level (length, spectra, noise floors), the
+//! filter bank and velocity estimates it chooses, then one streamed pass of the filters that
+//! accumulates the moments of every level.
+
+use super::*;
+
+/// Stream every level once through the filters and accumulate the moments.
+pub fn measure<'m>(
+    ir: &'m ModelIr,
+    eval: &dyn BasisEval,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Result<Moments<'m>, IdentifyError> {
+    if levels.is_empty() {
+        return Err(IdentifyError::NoLevels);
+    }
+    if ir.unknowns().is_empty() {
+        return Err(IdentifyError::NoUnknowns);
+    }
+    if opts.chunk_len < 2 || opts.n_blocks < 2 {
+        return Err(IdentifyError::BadOption {
+            message: "chunk length and number of blocks must be at least 2".into(),
+            help: "use the defaults".into(),
+        });
+    }
+    let bank = choose_bank(ir, opts)?;
+    let mut plan = plan::build_structure(ir, opts.balance.unwrap_or(false), &bank)?;
+    let t0 = Instant::now();
+    let stats: Vec<LevelStats> = levels
+        .par_iter()
+        .map(|src| level_stats(&plan, *src, opts.chunk_len))
+        .collect::<Result<_, _>>()?;
+    let stats_time = t0.elapsed();
+    let (noise_var, noise) = noise_plan(ir, &mut plan, &stats, opts.noise_correction);
+
+    // The shortest level bounds the slowest filter.
+    let min_duration = stats
+        .iter()
+        .map(|s| s.n.saturating_sub(1) as f64 * s.ts)
+        .fold(f64::INFINITY, f64::min);
+    let ts_min = stats.iter().map(|s| s.ts).fold(f64::INFINITY, f64::min);
+    let omegas: Vec<f64> = stats.iter().flat_map(|s| s.omegas.clone()).collect();
+    let designed = design::fit_corners(&omegas, ts_min, min_duration, bank.order, bank.n_corners);
+    let corners = match (&opts.corners, ir.filter.as_ref().map(|f| &f.corners)) {
+        (Some(c), _) => c.clone(),
+        (None, Some(c)) if !c.is_empty() => c.clone(),
+        _ => match &designed {
+            Some(c) => c.clone(),
+            // Not even the fastest admissible corners settle: fall through to the check,
+            // which names the record length they need.
+            None => {
+                let cap = design::max_corner(ts_min);
+                vec![cap / 2.0; bank.n_corners]
+            }
+        },
+    };
+    if corners.is_empty() || corners.iter().any(|c| !(c.is_finite() && *c > 0.0)) {
+        return Err(IdentifyError::BadOption {
+            message: format!("filter corners {corners:?}"),
+            help: "corners are positive angular frequencies in rad/s".into(),
+        });
+    }
+    plan.corners = vec![0.0; corners.len()];
+    plan.set_corners(ir, &corners);
+    let lam_min = corners.iter().copied().fold(f64::INFINITY, f64::min);
+    // The slowest section must forget its start within a small part of the record.
+    let tau = bank.order as f64 / lam_min;
+    let settle = design::min_duration(&corners, bank.order);
+    for (s, src) in stats.iter().zip(levels) {
+        let duration = (s.n.saturating_sub(1)) as f64 * s.ts;
+        if duration < settle * (1.0 - 1e-9) || s.n < 4 * opts.n_blocks {
+            let need = ((settle / s.ts).ceil() as usize + 1).max(4 * opts.n_blocks);
+            let advice = match &designed {
+                Some(c) if s.n >= 4 * opts.n_blocks => format!(
+                    "record at least {need} samples, or use filter corners that fit this \
+                     record (the lowest at least {:.4} rad/s), e.g. `--filter-corners {}`",
+                    design::min_corner(min_duration, bank.order),
+                    c.iter()
+                        .map(|v| format!("{v:.4}"))
+                        .collect::<Vec<_>>()
+                        .join(",")
+                ),
+                _ => {
+                    // The fastest corner the design allows at this sample rate.
+                    let fast = design::max_corner(s.ts) / 2.0;
+                    let t_fast = design::min_duration(&[fast], bank.order);
+                    format!(
+                        "record at least {} samples: with {} filter sections even the fastest \
+                         corner this sample rate allows ({fast:.4} rad/s) needs {t_fast:.3} s",
+                        need.max((t_fast / s.ts).ceil() as usize + 1),
+                        bank.order,
+                    )
+                }
+            };
+            return Err(IdentifyError::TooShort {
+                origin: src.origin(),
+                n: s.n,
+                duration,
+                tau,
+                need,
+                advice,
+            });
+        }
+    }
+    let cols = plan.unknowns.len();
+    let rows = plan.rows.len() * levels.len();
+    if rows < cols {
+        return Err(IdentifyError::TooFewRows { rows, cols });
+    }
+
+    // Unmeasured velocities in nonlinear terms: estimated from the positions, per level.
+    let targets: Vec<(usize, usize)> = plan
+        .estimated
+        .iter()
+        .map(|(v, x)| (v.index(), x.index()))
+        .collect();
+    let estimators: Vec<velocity::EstimatedVelocity> = if targets.is_empty() {
+        Vec::new()
+    } else {
+        levels
+            .par_iter()
+            .map(|src| velocity::EstimatedVelocity::design(*src, &targets, opts.chunk_len))
+            .collect::<Result<_, _>>()?
+    };
+    let sources: Vec<&dyn LevelSource> = if estimators.is_empty() {
+        levels.to_vec()
+    } else {
+        estimators.iter().map(|e| e as &dyn LevelSource).collect()
+    };
+    let estimated = plan
+        .estimated
+        .iter()
+        .enumerate()
+        .map(|(k, (v, x))| VelocityEstimate {
+            signal: ir.signal(*v).name.clone(),
+            from: ir.signal(*x).name.clone(),
+            method: velocity::METHOD.into(),
+            cutoff: estimators.iter().map(|e| e.designs()[k].1).collect(),
+            half_width: estimators.iter().map(|e| e.designs()[k].2).collect(),
+        })
+        .collect();
+
+    let results: Vec<(LevelMoments, PhaseTimes)> = sources
+        .par_iter()
+        .zip(&stats)
+        .zip(&noise_var)
+        .map(|((src, st), var)| {
+            let mut acc = LevelAccumulator::new(&plan, eval, st.ts, st.n, opts.n_blocks, opts.hold);
+            acc.set_extra_widths(noise::extra_widths(&plan, &st.noise_var, &st.std));
+            let mut read = Duration::ZERO;
+            let mut t_read = Instant::now();
+            src.stream(opts.chunk_len, &mut |cols, len| {
+                read += t_read.elapsed();
+                acc.push(cols, len);
+                t_read = Instant::now();
+            })?;
+            let (mut m, mut t) = acc.finish();
+            noise::debias(&plan, &mut m, var, opts.hold);
+            t.read = read;
+            Ok::<_, IdentifyError>((m, t))
+        })
+        .collect::<Result<_, _>>()?;
+    let mut times = PhaseTimes {
+        read: stats_time,
+        ..Default::default()
+    };
+    let mut lm = Vec::new();
+    for (m, t) in results {
+        times += t;
+        lm.push(m);
+    }
+    let infos = stats
+        .iter()
+        .zip(levels)
+        .map(|(s, src)| LevelInfo {
+            origin: src.origin(),
+            samples: s.n,
+            ts: s.ts,
+            std: plan
+                .y
+                .iter()
+                .zip(&s.std)
+                .map(|(sig, sd)| (ir.signal(*sig).name.clone(), *sd))
+                .collect(),
+            noise: plan
+                .y
+                .iter()
+                .zip(&s.noise_var)
+                .map(|(sig, v)| (ir.signal(*sig).name.clone(), v.sqrt()))
+                .collect(),
+        })
+        .collect();
+    let centred = stats
+        .iter()
+        .map(|s| {
+            plan.drivers.iter().all(|d| {
+                plan.y_of[d.index()].is_none_or(|k| {
+                    s.mean[k].abs() <= CENTRED_REL * s.std[k].max(f64::MIN_POSITIVE)
+                })
+            })
+        })
+        .collect();
+    Ok(Moments {
+        ir,
+        plan,
+        levels: lm,
+        infos,
+        centred,
+        estimated,
+        rcond: opts.rcond,
+        times,
+        prune_t: 0.0,
+        noise,
+    })
+}
+
+/// Decide the noise corrections from the first-pass statistics: attach them to the plan
+/// where a signal in a nonlinear term carries significant noise, and return per level the
+/// noise variance of each measured signal to correct for (zero where it is not
+/// significant or the correction is off), with the summary for the report.
+fn noise_plan(
+    ir: &ModelIr,
+    plan: &mut Plan,
+    stats: &[LevelStats],
+    enabled: bool,
+) -> (Vec<Vec<f64>>, NoiseSummary) {
+    let significant = |st: &LevelStats, k: usize| {
+        st.noise_flat[k]
+            && st.std[k] > 0.0
+            && st.noise_var[k].sqrt() >= noise::SIGNIFICANT * st.std[k]
+    };
+    let noisy: Vec<SignalId> = (0..plan.y.len())
+        .filter(|&k| stats.iter().any(|st| significant(st, k)))
+        .map(|k| plan.y[k])
+        .collect();
+    let mut summary = NoiseSummary {
+        fraction: plan
+            .y
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let f = stats
+                    .iter()
+                    .map(|st| {
+                        if st.std[k] > 0.0 {
+                            st.noise_var[k].sqrt() / st.std[k]
+                        } else {
+                            0.0
+                        }
+                    })
+                    .fold(0.0, f64::max);
+                (ir.signal(*s).name.clone(), f)
+            })
+            .collect(),
+        enabled,
+        uncertain: (0..plan.y.len())
+            .filter(|&k| stats.iter().any(|st| !st.noise_flat[k]))
+            .map(|k| ir.signal(plan.y[k]).name.clone())
+            .collect(),
+        ..Default::default()
+    };
+    if enabled && !noisy.is_empty() {
+        noise::attach(plan, ir);
+    }
+    summary.uncorrected = noise::uncorrected(plan, ir, &noisy);
+    let var = stats
+        .iter()
+        .map(|st| {
+            (0..plan.y.len())
+                .map(|k| {
+                    if enabled && significant(st, k) {
+                        st.noise_var[k]
+                    } else {
+                        0.0
+                    }
+                })
+                .collect::<Vec<f64>>()
+        })
+        .collect::<Vec<_>>();
+    for f in &plan.fixes {
+        if var.iter().any(|v| noise::form_variance(&f.lin, v) > 0.0) {
+            summary.corrected.push(f.label.clone());
+        }
+    }
+    (var, summary)
+}
+
+pub(super) fn choose_bank(
+    ir: &ModelIr,
+    opts: &IdentifyOptions,
+) -> Result<BankChoice, IdentifyError> {
+    let spec = ir.filter.as_ref();
+    let drivers = match (&opts.drivers, spec.map(|f| &f.driven_by)) {
+        (Some(d), _) => d.clone(),
+        (None, Some(d)) if !d.is_empty() => d.clone(),
+        _ => ir
+            .measured_signals()
+            .into_iter()
+            .filter(|s| !matches!(ir.signal(*s).kind, SignalKind::Velocity(_)))
+            .collect(),
+    };
+    // Accelerations from positions alone need ι'' free of the driving signal: degree ≥ 3.
+    let needs_second = ir.equations.iter().any(|eq| {
+        eq.terms.iter().any(|t| match t.basis {
+            dynid_ir::ir::Basis::Deriv { body, order: 2 } => !ir.signal(ir.velocity(body)).measured,
+            _ => false,
+        })
+    });
+    let min_degree = if needs_second { 3 } else { 2 };
+    let order = opts
+        .order
+        .or(spec.map(|f| f.order as usize))
+        .unwrap_or(min_degree + 1);
+    if order < min_degree || order > 8 {
+        return Err(IdentifyError::BadOption {
+            message: format!("filter order {order}"),
+            help: format!("use an order between {min_degree} and 8 for this model"),
+        });
+    }
+    let n_corners = match (&opts.corners, spec.map(|f| &f.corners)) {
+        (Some(c), _) => c.len(),
+        (None, Some(c)) if !c.is_empty() => c.len(),
+        _ => opts.n_corners,
+    };
+    Ok(BankChoice {
+        drivers,
+        order,
+        min_degree,
+        n_corners,
+    })
+}
+
+/// First-pass statistics of a level: length, spread, dominant frequencies.
+struct LevelStats {
+    n: usize,
+    ts: f64,
+    std: Vec<f64>,
+    /// Mean per measured signal.
+    mean: Vec<f64>,
+    omegas: Vec<f64>,
+    /// Estimated white-noise variance per measured signal.
+    noise_var: Vec<f64>,
+    /// Whether that estimate comes from a flat floor ([`noise::NoiseFloor::flat`]).
+    noise_flat: Vec<bool>,
+}
+
+fn level_stats(
+    plan: &Plan,
+    src: &dyn LevelSource,
+    chunk: usize,
+) -> Result<LevelStats, IdentifyError> {
+    let ny = plan.y.len();
+    let mut n = 0usize;
+    let mut shift = vec![0.0; ny];
+    let mut s1 = vec![0.0; ny];
+    let mut s2 = vec![0.0; ny];
+    // Hysteresis zero-crossing counts about a reference from the first chunk.
+    let mut reference: Vec<(f64, f64)> = Vec::new();
+    let mut side = vec![0i8; ny];
+    let mut crossings = vec![0usize; ny];
+    let mut floors = vec![noise::NoiseFloor::default(); ny];
+    src.stream(chunk, &mut |cols, len| {
+        if n == 0 {
+            for (k, s) in plan.y.iter().enumerate() {
+                let c = &cols[s.index()][..len];
+                shift[k] = c[0];
+                let mean = c.iter().sum::<f64>() / len as f64;
+                let var = c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / len as f64;
+                reference.push((mean, 0.25 * var.sqrt()));
+            }
+        }
+        for (k, s) in plan.y.iter().enumerate() {
+            let c = &cols[s.index()][..len];
+            let (mut a, mut b) = (0.0, 0.0);
+            for &v in c {
+                let d = v - shift[k];
+                a += d;
+                b += d * d;
+            }
+            s1[k] += a;
+            s2[k] += b;
+            floors[k].push(c);
+            let (mid, h) = reference[k];
+            for &v in c {
+                let now = if v > mid + h {
+                    1
+                } else if v < mid - h {
+                    -1
+                } else {
+                    0
+                };
+                if now != 0 && now != side[k] {
+                    if side[k] != 0 {
+                        crossings[k] += 1;
+                    }
+                    side[k] = now;
+                }
+            }
+        }
+        n += len;
+    })?;
+    let ts = src.ts();
+    let std = (0..ny)
+        .map(|k| {
+            let m = s1[k] / n.max(1) as f64;
+            (s2[k] / n.max(1) as f64 - m * m).max(0.0).sqrt()
+        })
+        .collect();
+    let mean = (0..ny)
+        .map(|k| shift[k] + s1[k] / n.max(1) as f64)
+        .collect();
+    let duration = (n.max(2) - 1) as f64 * ts;
+    let omegas = plan
+        .y
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| plan.drivers.contains(s))
+        .filter(|(k, _)| crossings[*k] > 0)
+        .map(|(k, _)| std::f64::consts::PI * crossings[k] as f64 / duration)
+        .collect();
+    Ok(LevelStats {
+        n,
+        ts,
+        std,
+        mean,
+        omegas,
+        noise_var: floors.iter().map(|f| f.variance()).collect(),
+        noise_flat: floors.iter().map(|f| f.flat()).collect(),
+    })
+}

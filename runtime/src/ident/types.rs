@@ -1,0 +1,202 @@
+//! What identification is configured with and what it returns: options, errors and the
+//! result types.
+
+use super::*;
+
+/// Choices of the identification; `Default` gives the method's recommended settings.
+#[derive(Clone, Debug)]
+pub struct IdentifyOptions {
+    /// Filter corners in rad/s. `None`: the model's filter block, else designed from the data.
+    pub corners: Option<Vec<f64>>,
+    /// Number of corners when they are designed from the data.
+    pub n_corners: usize,
+    /// Sections per low-pass chain. `None`: 3, or 4 when accelerations must come from
+    /// positions alone (so the instruments keep relative degree ≥ 3).
+    pub order: Option<usize>,
+    /// Signals driving the filter bank. `None`: the model's filter block, else the measured
+    /// positions and inputs.
+    pub drivers: Option<Vec<SignalId>>,
+    /// Add virial and power-balance rows where velocities are measured. `None`: off — they
+    /// were measured not to improve the pooled estimate (see the crate tests).
+    pub balance: Option<bool>,
+    /// Time blocks per level for the standard errors (hat windows span two blocks).
+    pub n_blocks: usize,
+    /// Samples per chunk of streamed work (memory use is proportional to this, not to the
+    /// record length).
+    pub chunk_len: usize,
+    /// Singular values below `rcond · σ_max` count as rank loss.
+    pub rcond: f64,
+    /// Inter-sample model of the filter input (first-order hold; zero-order for comparison).
+    pub hold: Hold,
+    /// De-bias the moments of nonlinear static terms in signals whose estimated measurement
+    /// noise is significant (see [`noise`]). The noise is estimated and reported either way.
+    pub noise_correction: bool,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        IdentifyOptions {
+            corners: None,
+            n_corners: 6,
+            order: None,
+            drivers: None,
+            balance: None,
+            n_blocks: 20,
+            chunk_len: 8192,
+            rcond: 1e-10,
+            hold: Hold::FirstOrder,
+            noise_correction: true,
+        }
+    }
+}
+
+/// Errors of identification. Data errors pass through with their file and line.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+pub enum IdentifyError {
+    #[error(
+        "the term `{term}` of the equation of `{equation}` needs `{signal}`, which is not measured"
+    )]
+    #[diagnostic(
+        code(dynid::identify::unmeasured),
+        help("measure `{signal}`, or write the term so that it depends only on measured signals (terms linear in a velocity can be moved onto the filters)")
+    )]
+    UnmeasuredInTerm {
+        equation: String,
+        term: String,
+        signal: String,
+    },
+    #[error("the filter bank is driven by `{signal}`, which is not measured")]
+    #[diagnostic(
+        code(dynid::identify::driver),
+        help("drive the filters by measured positions and inputs")
+    )]
+    UnmeasuredDriver { signal: String },
+    #[error("the model has no unknown parameters")]
+    #[diagnostic(
+        code(dynid::identify::no_unknowns),
+        help("declare the parameters to identify without a value (e.g. `param k`)")
+    )]
+    NoUnknowns,
+    #[error("no data: identification needs at least one record")]
+    #[diagnostic(
+        code(dynid::identify::no_data),
+        help("pass one data file per excitation level")
+    )]
+    NoLevels,
+    #[error("{origin}: {n} samples span {duration:.3} s, too short for the slowest filter (time constant {tau:.3} s)")]
+    #[diagnostic(code(dynid::identify::too_short), help("{advice}"))]
+    TooShort {
+        origin: String,
+        n: usize,
+        duration: f64,
+        tau: f64,
+        need: usize,
+        /// What to do: the samples needed, and corners that fit this record where any do.
+        advice: String,
+    },
+    #[error("{rows} equations for {cols} unknown parameters")]
+    #[diagnostic(
+        code(dynid::identify::too_few_rows),
+        help("add filter corners or excitation levels")
+    )]
+    TooFewRows { rows: usize, cols: usize },
+    #[error("invalid option: {message}")]
+    #[diagnostic(code(dynid::identify::option), help("{help}"))]
+    BadOption { message: String, help: String },
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Data(#[from] DataError),
+}
+
+/// An identified parameter.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ParamEstimate {
+    pub name: String,
+    pub value: f64,
+    /// Batch-means sandwich standard error (see the module doc).
+    pub stderr: f64,
+    /// `|value| > SIGNIFICANCE_T · stderr`. An insignificant estimate stays in the fit: the
+    /// data do not show the term, but its column was not dropped and the others were not
+    /// refitted without it.
+    pub significant: bool,
+}
+
+/// A parameter the data cannot determine (a zero column, or collinear with others); no
+/// value is reported for it.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Unidentifiable {
+    pub name: String,
+    pub reason: String,
+}
+
+/// Relative residual `‖W (C p − c)‖ / ‖W c‖` over the rows of one equation, per level.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct EquationResidual {
+    pub equation: String,
+    pub per_level: Vec<f64>,
+}
+
+/// What was seen of one level.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct LevelInfo {
+    pub origin: String,
+    pub samples: usize,
+    pub ts: f64,
+    /// Standard deviation per measured signal.
+    pub std: BTreeMap<String, f64>,
+    /// Estimated white measurement-noise standard deviation per measured signal.
+    pub noise: BTreeMap<String, f64>,
+}
+
+/// The filter bank that was used.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct FilterSummary {
+    pub corners: Vec<f64>,
+    pub order: usize,
+    pub drivers: Vec<String>,
+    /// Relative degrees of the states used as instruments.
+    pub instrument_degrees: Vec<usize>,
+    pub balance_rows: bool,
+}
+
+/// Result of an identification.
+#[derive(Clone, Debug, Serialize)]
+pub struct Identification {
+    pub params: Vec<ParamEstimate>,
+    pub unidentifiable: Vec<Unidentifiable>,
+    /// Estimates that are unphysical for their kind of term (negative mass, damping,
+    /// friction coefficient or stiffness).
+    pub warnings: Vec<Warning>,
+    /// Condition number of the row-normalised, column-scaled matrix.
+    pub condition: f64,
+    pub residual: Vec<EquationResidual>,
+    pub levels: Vec<LevelInfo>,
+    pub filter: FilterSummary,
+    /// Unmeasured velocities estimated from measured positions for nonlinear terms.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub estimated: Vec<VelocityEstimate>,
+    /// Rows of the stacked system.
+    pub rows: usize,
+    /// Estimated measurement noise and the terms de-biased for it.
+    pub noise: NoiseSummary,
+    #[serde(skip)]
+    pub times: PhaseTimes,
+}
+
+impl Identification {
+    pub fn param(&self, name: &str) -> Option<&ParamEstimate> {
+        self.params.iter().find(|p| p.name == name)
+    }
+}
+
+/// The assembled system `C p = c` (before weighting), for parity checks between evaluators.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinearSystem {
+    /// Row-major `rows × cols`; columns are `ir.unknowns()` in order.
+    pub c_matrix: Vec<f64>,
+    pub rhs: Vec<f64>,
+    pub rows: usize,
+    pub cols: usize,
+    /// `level i: instrument → equation` per row.
+    pub row_labels: Vec<String>,
+}

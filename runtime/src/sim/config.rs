@@ -1,0 +1,143 @@
+//! The settings of a simulation run, their checks, and the seeds of its random streams.
+
+use super::*;
+
+/// Settings of a simulation run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimConfig {
+    /// White-noise intensities, one per experiment, applied to every excited input;
+    /// `None` uses the levels of the model's `excite` lines.
+    pub levels: Option<Vec<f64>>,
+    /// Recorded duration per level in seconds (after the burn-in).
+    pub duration: f64,
+    /// Sample interval `Ts` in seconds.
+    pub sample: f64,
+    /// Base seed; every level derives its own streams from it.
+    pub seed: u64,
+    /// Measurement noise as a fraction of each signal's standard deviation.
+    pub noise: f64,
+    /// Whether measured inputs get measurement noise too (positions and velocities always do).
+    pub noise_on_inputs: bool,
+    /// RK4 steps per sample interval.
+    pub substeps: usize,
+    /// Seconds simulated and discarded before recording starts.
+    pub burn_in: f64,
+    /// Steps of the input processes per sample interval (see the module doc); 1 = the
+    /// inputs are simulated at the sample rate and interpolated linearly in between.
+    pub input_oversample: usize,
+    /// Encoder resolution: every recorded position is rounded to a multiple of it (after
+    /// the measurement noise), and a controller sees the rounded position.
+    pub quantise: Option<f64>,
+    /// A PD position controller producing one input (closed loop), see [`control`].
+    pub control: Option<PdControl>,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        SimConfig {
+            levels: None,
+            duration: 2000.0,
+            sample: 0.01,
+            seed: 1,
+            noise: 0.0,
+            noise_on_inputs: true,
+            substeps: DEFAULT_SUBSTEPS,
+            burn_in: 100.0,
+            input_oversample: 1,
+            quantise: None,
+            control: None,
+        }
+    }
+}
+
+pub(super) fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
+    let positive = |x: f64| x.is_finite() && x > 0.0;
+    if !positive(cfg.sample) {
+        return Err(config_error(
+            &format!("sample interval {} s", cfg.sample),
+            "give a positive sample interval, e.g. `--sample 0.01`",
+        ));
+    }
+    if !positive(cfg.duration) || cfg.duration < 2.0 * cfg.sample {
+        return Err(config_error(
+            &format!("duration {} s", cfg.duration),
+            "give a duration of at least two sample intervals, e.g. `--duration 2000`",
+        ));
+    }
+    if !(cfg.burn_in.is_finite() && cfg.burn_in >= 0.0) {
+        return Err(config_error(
+            &format!("burn-in {} s", cfg.burn_in),
+            "the burn-in must be zero or positive",
+        ));
+    }
+    if !(cfg.noise.is_finite() && cfg.noise >= 0.0) {
+        return Err(config_error(
+            &format!("noise fraction {}", cfg.noise),
+            "the noise is a fraction of each signal's std, e.g. `--noise 0.05` for 5 %",
+        ));
+    }
+    if cfg.substeps == 0 {
+        return Err(config_error(
+            "0 sub-steps",
+            "use at least 1 sub-step per sample",
+        ));
+    }
+    if cfg.input_oversample == 0 {
+        return Err(config_error(
+            "input oversampling 0",
+            "simulate the inputs with at least 1 step per sample interval (`--input-oversample 1` is the default)",
+        ));
+    }
+    if let Some(q) = cfg.quantise {
+        if !positive(q) {
+            return Err(config_error(
+                &format!("position resolution {q}"),
+                "the quantisation step is a positive encoder resolution in position units, e.g. `--quantise 1e-6`",
+            ));
+        }
+    }
+    if let Some(l) = &cfg.levels {
+        if let Some(bad) = l.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+            return Err(config_error(
+                &format!("level {bad}"),
+                "levels are white-noise intensities: finite and non-negative",
+            ));
+        }
+    }
+    Ok(())
+}
+
+pub(super) fn config_error(what: &str, help: &str) -> SimError {
+    SimError::InvalidConfig {
+        what: what.into(),
+        help: help.into(),
+    }
+}
+
+/// `(burn-in samples, recorded samples)`.
+pub(super) fn sample_counts(cfg: &SimConfig) -> (usize, usize) {
+    (
+        (cfg.burn_in / cfg.sample).round() as usize,
+        (cfg.duration / cfg.sample).round() as usize,
+    )
+}
+
+#[derive(Clone, Copy)]
+pub(super) enum Stream {
+    Excitation = 0,
+    Noise = 1,
+    Reference = 2,
+}
+
+/// Seed of one random stream of one level; a strong mix so nearby seeds and levels give
+/// unrelated streams.
+pub(super) fn stream_seed(base: u64, level: usize, stream: Stream) -> u64 {
+    splitmix64(splitmix64(base) ^ splitmix64(((level as u64) << 8) | stream as u64))
+}
+
+pub(super) fn splitmix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
