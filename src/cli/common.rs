@@ -3,7 +3,7 @@
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::CsvOptions;
 use miette::{miette, IntoDiagnostic, WrapErr};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Load a model: `.dyn` source through the compiler (all diagnostics rendered against the
 /// file), or a `.json` file holding a compiled `ModelIr` (`dynid compile --emit json`).
@@ -69,14 +69,52 @@ pub fn check_output(path: &Path, what: &str) -> miette::Result<()> {
     Ok(())
 }
 
-/// [`check_output`] for every output a command was asked for.
+/// The file a path names, as far as it can be resolved: the canonical path of an existing
+/// file (symbolic links followed), else the canonical directory joined with the file name.
+fn resolved(path: &Path) -> Option<PathBuf> {
+    std::fs::canonicalize(path).ok().or_else(|| {
+        let dir = std::fs::canonicalize(parent_dir(path)).ok()?;
+        Some(dir.join(path.file_name()?))
+    })
+}
+
+/// A command's input files: its model and its data files.
+pub fn inputs<'a>(model: &'a Path, data: &'a [PathBuf]) -> impl Iterator<Item = &'a Path> {
+    std::iter::once(model).chain(data.iter().map(PathBuf::as_path))
+}
+
+/// [`check_output`] for every output a command was asked for, and that no output is one
+/// of the command's `inputs` or another output (after resolving links): an input is never
+/// overwritten, and two outputs never claim one file.
 pub fn check_outputs<'a>(
     outputs: impl IntoIterator<Item = (Option<&'a Path>, &'a str)>,
+    inputs: impl IntoIterator<Item = &'a Path>,
 ) -> miette::Result<()> {
+    let inputs: Vec<(&Path, Option<PathBuf>)> =
+        inputs.into_iter().map(|p| (p, resolved(p))).collect();
+    let mut seen: Vec<(&Path, &str, Option<PathBuf>)> = Vec::new();
     for (p, what) in outputs {
-        if let Some(p) = p {
-            check_output(p, what)?;
+        let Some(p) = p else { continue };
+        check_output(p, what)?;
+        let r = resolved(p);
+        let same = |other: &Option<PathBuf>| r.is_some() && r == *other;
+        if let Some((input, _)) = inputs.iter().find(|(_, ri)| same(ri)) {
+            return Err(miette!(
+                help = "choose another path for the output; inputs are never overwritten",
+                "{what} `{}` is the input file `{}`",
+                p.display(),
+                input.display()
+            ));
         }
+        if let Some((other, other_what, _)) = seen.iter().find(|(_, _, ro)| same(ro)) {
+            return Err(miette!(
+                help = "give each output its own path",
+                "{what} `{}` and {other_what} `{}` are the same file",
+                p.display(),
+                other.display()
+            ));
+        }
+        seen.push((p, what, r));
     }
     Ok(())
 }

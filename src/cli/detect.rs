@@ -1,7 +1,7 @@
 //! `dynid detect LINEAR_MODEL.dyn LEVEL1.csv LEVEL2.csv ...`: which force elements of a
 //! linear model hide a nonlinearity, which kind, and how sure.
 
-use super::common::{check_outputs, CsvArgs, Staged};
+use super::common::{check_outputs, inputs, CsvArgs, Staged};
 use dynid::plot::draw_curves;
 use dynid_runtime::data::{CsvSource, LevelSource};
 use dynid_runtime::detect::{detect_from_data, DetectOptions, SigmaVSource};
@@ -57,10 +57,13 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
-    check_outputs([
-        (args.json.as_deref(), "the JSON output"),
-        (args.plot.as_deref(), "the plot"),
-    ])?;
+    check_outputs(
+        [
+            (args.json.as_deref(), "the JSON output"),
+            (args.plot.as_deref(), "the plot"),
+        ],
+        inputs(&args.model, &args.data),
+    )?;
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
     let sources = args

@@ -1,7 +1,7 @@
 //! `dynid diagnose MODEL.dyn LEVEL.csv...`: where the model misses the data, which
 //! unmodelled effect explains the gap, and how far it shrinks once that effect is added.
 
-use super::common::{check_outputs, CsvArgs, Staged};
+use super::common::{check_outputs, inputs, CsvArgs, Staged};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::CsvSource;
 use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
@@ -59,11 +59,14 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
-    check_outputs([
-        (args.report.as_deref(), "the report"),
-        (args.json.as_deref(), "the JSON output"),
-        (args.write_model.as_deref(), "the corrected model"),
-    ])?;
+    check_outputs(
+        [
+            (args.report.as_deref(), "the report"),
+            (args.json.as_deref(), "the JSON output"),
+            (args.write_model.as_deref(), "the corrected model"),
+        ],
+        inputs(&args.model, &args.data),
+    )?;
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
     let mut records = Vec::new();

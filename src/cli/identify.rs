@@ -1,7 +1,7 @@
 //! `dynid identify MODEL.dyn DATA.csv...`: identify the unknown parameters from one CSV file
 //! per excitation level, print the identified equations and optionally write JSON.
 
-use super::common::{check_outputs, write_atomically, CsvArgs};
+use super::common::{check_outputs, inputs, write_atomically, CsvArgs};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::{CsvSource, LevelSource};
 use dynid_runtime::ident::{print, Identification};
@@ -68,7 +68,10 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
-    check_outputs([(args.json.as_deref(), "the JSON output")])?;
+    check_outputs(
+        [(args.json.as_deref(), "the JSON output")],
+        inputs(&args.model, &args.data),
+    )?;
     let ir = super::common::load_model(&args.model)?;
     let id = identify_files(&ir, &args)?;
     print!("{}", render(&ir, &id));

@@ -71,7 +71,14 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
-    super::common::check_outputs([(args.json.as_deref(), "the JSON output")])?;
+    let data_file = args.data.join(silverbox::FILE);
+    super::common::check_outputs(
+        [(args.json.as_deref(), "the JSON output")],
+        args.models
+            .iter()
+            .map(PathBuf::as_path)
+            .chain([data_file.as_path()]),
+    )?;
     let data = silverbox::load(&args.data)?;
     if let Some(dir) = &args.export_levels {
         return export_levels(&args, &data, dir);
