@@ -150,13 +150,14 @@ fn print_params(r: &SilverboxReport) {
         r.model, r.filter_corners, r.filter_order, r.condition
     );
     for p in &r.params {
-        println!(
-            "  {:<6} {:>13.6e} ± {:.2e} ({:.2} %)",
-            p.name,
-            p.value,
-            p.stderr,
-            100.0 * p.stderr / p.value.abs()
-        );
+        // A relative error only where it is a number (not for an estimate of exactly 0).
+        let rel = 100.0 * p.stderr / p.value.abs();
+        let rel = if rel.is_finite() {
+            format!(" ({rel:.2} %)")
+        } else {
+            String::new()
+        };
+        println!("  {:<6} {:>13.6e} ± {:.2e}{rel}", p.name, p.value, p.stderr);
     }
     for u in &r.unidentifiable {
         println!("  {:<6} left out: {}", u.name, u.reason);

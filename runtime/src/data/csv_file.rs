@@ -120,6 +120,20 @@ impl CsvSource {
         if header.is_empty() || header.iter().all(|h| h.is_empty()) {
             return Err(DataError::Empty { path: p });
         }
+        // One column whose name holds another usual separator: `;` or tab-separated data.
+        if let [only] = header.as_slice() {
+            if let Some(sep) = [";", "\t"].into_iter().find(|s| only.contains(s)) {
+                return Err(DataError::Separator {
+                    path: p,
+                    header: only.clone(),
+                    separator: if sep == "\t" {
+                        "\\t".into()
+                    } else {
+                        sep.into()
+                    },
+                });
+            }
+        }
         let mut names = header.clone();
         for (c, s) in &opts.map {
             if let Some(k) = header.iter().position(|h| h == c) {

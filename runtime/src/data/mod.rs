@@ -84,6 +84,16 @@ pub enum DataError {
         signal: String,
         present: String,
     },
+    #[error("{path}: the header `{header}` is one column: the file is not comma-separated (it uses `{separator}`)")]
+    #[diagnostic(
+        code(dynid::data::separator),
+        help("write the file with commas between the columns and `.` as the decimal point (e.g. export as CSV with those settings, or `tr '{separator}' ','` when no value has a decimal comma)")
+    )]
+    Separator {
+        path: String,
+        header: String,
+        separator: String,
+    },
     #[error("{path}: column `{column}` appears twice in the header")]
     #[diagnostic(
         code(dynid::data::duplicate_column),

@@ -210,3 +210,17 @@ fn a_trailing_comma_is_not_a_column() {
     assert_eq!(rec.names, ["V1", "V2"]);
     assert_eq!(rec.column("V2").unwrap(), [1.5, 2.0, 0.0]);
 }
+
+#[test]
+fn a_semicolon_or_tab_separated_file_is_named_as_such() {
+    let opts = CsvOptions {
+        map: vec![],
+        ts: Some(0.1),
+    };
+    for (sep, name) in [(";", ";"), ("\t", "\\t")] {
+        let f = file(&format!("t{sep}x\n0{sep}1,5\n0.1{sep}2,5\n"));
+        let e = read_record(f.path(), &opts).unwrap_err();
+        assert!(matches!(e, DataError::Separator { .. }), "{e:?}");
+        assert!(e.to_string().contains(&format!("uses `{name}`")), "{e}");
+    }
+}
