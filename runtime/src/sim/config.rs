@@ -50,6 +50,10 @@ impl Default for SimConfig {
     }
 }
 
+/// Most samples (burn-in included) of one simulated level: 2·10⁸ samples of a few columns
+/// are several GB of memory.
+pub const MAX_SAMPLES: f64 = 2e8;
+
 pub(super) fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
     let positive = |x: f64| x.is_finite() && x > 0.0;
     if !positive(cfg.sample) {
@@ -62,6 +66,21 @@ pub(super) fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
         return Err(config_error(
             &format!("duration {} s", cfg.duration),
             "give a duration of at least two sample intervals, e.g. `--duration 2000`",
+        ));
+    }
+    // The records are held in memory: refuse sizes that cannot be, before allocating.
+    let samples = (cfg.burn_in.max(0.0) + cfg.duration) / cfg.sample;
+    if samples.is_nan() || samples > MAX_SAMPLES {
+        return Err(config_error(
+            &format!(
+                "{:.3e} samples per level ({} s at {} s)",
+                samples,
+                dynid_ir::num::sig(cfg.duration, 4, false),
+                dynid_ir::num::sig(cfg.sample, 4, false)
+            ),
+            &format!(
+                "a level holds at most {MAX_SAMPLES:.0e} samples in memory; shorten `--duration` or lengthen `--sample`"
+            ),
         ));
     }
     if !(cfg.burn_in.is_finite() && cfg.burn_in >= 0.0) {

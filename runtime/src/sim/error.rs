@@ -73,7 +73,7 @@ pub enum SimError {
     )]
     UnsupportedTerm { body: String, what: String },
 
-    #[error("the simulation diverged at {context}, t = {time} s ({what})")]
+    #[error("the simulation diverged at {context}, t = {} s ({what})", dynid_ir::num::sig(*.time, 6, false))]
     #[diagnostic(
         code(dynid::sim::diverged),
         help("the model is unstable at this excitation (e.g. a negative stiffness or damping, or a softening spring driven past its limit); check parameter values and signs, lower the level, or raise `--substeps`")

@@ -129,7 +129,9 @@ pub fn simulate_with_progress(
 /// Total number of samples [`simulate_with_progress`] reports for `cfg` and `n_levels`.
 pub fn total_samples(cfg: &SimConfig, n_levels: usize) -> u64 {
     let (n_burn, n) = sample_counts(cfg);
-    ((n_burn + n) * n_levels) as u64
+    (n_burn as u64)
+        .saturating_add(n as u64)
+        .saturating_mul(n_levels as u64)
 }
 
 /// Per-input excitation: the form filter (if excited) and the intensity at every level.
@@ -375,7 +377,13 @@ fn simulate_level(
     let mut u0 = vec![0.0; samplers.len()];
     let mut u1 = vec![0.0; samplers.len()];
     read(&samplers, &mut u0);
-    let context = || format!("level {} (intensity {})", level + 1, plan.levels[level]);
+    let context = || {
+        format!(
+            "level {} (intensity {})",
+            level + 1,
+            dynid_ir::num::sig(plan.levels[level], 6, false)
+        )
+    };
     let mut pending = 0;
     for k in 0..n_burn + n {
         for j in 0..fine {
@@ -523,7 +531,8 @@ fn check_divergence(
     time: f64,
 ) -> Result<(), SimError> {
     let m = rk.magnitude();
-    if m <= limit {
+    // An infinite limit (an input of infinite intensity) must not let `inf <= inf` pass.
+    if m.is_finite() && m <= limit {
         return Ok(());
     }
     Err(SimError::Diverged {
