@@ -4,3 +4,6 @@
 pub use codegen_macros::{include_model, model};
 pub use dsl_parser;
 pub use dynid_runtime as runtime;
+
+pub mod output;
+pub mod plot;

@@ -1,5 +1,7 @@
 //! `dynid simulate` → `dynid identify` through the binary, and its refusals of bad data.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -18,8 +20,7 @@ fn model() -> String {
         .to_string()
 }
 
-/// Three simulated levels of the SDOF model (shorter than a real test run, enough to
-/// identify within a few percent).
+/// Three simulated levels of the SDOF model, 400 s each.
 fn simulated(dir: &Path) -> Vec<PathBuf> {
     let out = dir.join("data");
     let o = dynid(&[
@@ -28,7 +29,7 @@ fn simulated(dir: &Path) -> Vec<PathBuf> {
         "--duration",
         "400",
         "--seed",
-        "5",
+        &common::seed(5).to_string(),
         "--out",
         out.to_str().unwrap(),
     ]);
@@ -55,7 +56,10 @@ fn simulate_then_identify_writes_json() {
     for (name, truth) in [("d", 0.4), ("k", 4.0), ("k3", 2.0), ("r", 0.3)] {
         let p = &v["parameters"][name];
         let value = p["value"].as_f64().unwrap();
-        assert!((value / truth - 1.0).abs() < 0.03, "{name} = {value}");
+        println!("{name} = {value} ({:+.2} %)", 100.0 * (value / truth - 1.0));
+        // Seeds 5–9 (`for o in 0 1 2 3 4; do DYNID_SEED_OFFSET=$o cargo test --test
+        // cli_identify -- --nocapture; done`): largest errors r −0.19 %, d −0.15 %.
+        assert!((value / truth - 1.0).abs() < 0.005, "{name} = {value}");
         assert!(p["stderr"].as_f64().unwrap() > 0.0);
     }
     assert!(v["condition"].as_f64().unwrap() >= 1.0);

@@ -3,7 +3,9 @@
 //! puts into the data, data without a mean name it unidentifiable, and detection and
 //! diagnosis take an offset for what it is, not for a nonlinearity.
 //!
-//! The bounds are what the method achieves on these records (printed with `--nocapture`).
+//! The bounds are about 2–3 times what the method achieves over five seeds, the test's own
+//! and the four after it: `for o in 0 1 2 3 4; do DYNID_SEED_OFFSET=$o cargo test --test
+//! constant_force -- --nocapture; done` prints the errors.
 
 mod common;
 
@@ -39,7 +41,7 @@ fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
     let cfg = SimConfig {
         duration,
         sample: 0.01,
-        seed,
+        seed: common::seed(seed),
         noise,
         noise_on_inputs: true,
         ..Default::default()
@@ -65,9 +67,10 @@ fn errors(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, f64)> {
     errs
 }
 
-fn assert_within(case: &str, errs: &[(String, f64)], tol: &[(&str, f64)]) {
+/// Every error within `default`, or the bound `tol` names for the parameter.
+fn assert_within(case: &str, errs: &[(String, f64)], default: f64, tol: &[(&str, f64)]) {
     for (n, e) in errs {
-        let bound = tol.iter().find(|(m, _)| m == n).map_or(0.02, |t| t.1);
+        let bound = tol.iter().find(|(m, _)| m == n).map_or(default, |t| t.1);
         assert!(
             e.abs() < bound,
             "{case}: `{n}` off by {:+.3}% (bound {}%)",
@@ -98,10 +101,24 @@ fn simulated_offset_shifts_the_mean_position() {
     let ir = model("sdof_offset");
     let recs = simulate(&ir, 500.0, 0.0, 21);
     for (i, r) in recs.iter().enumerate() {
+        // The louder the level, the more the mean of 500 s wanders (seeds 21–25: 0.12–0.14
+        // at level 1, 0.04–0.13 at level 3), so the mean is compared with its own standard
+        // error from ten batches of 50 s, each far longer than the 5 s decay time 2m/d.
         let x = r.column("m.x").unwrap();
-        let mean = x.iter().sum::<f64>() / x.len() as f64;
-        println!("level {}: mean m.x = {mean:.4}", i + 1);
-        assert!((mean - 0.125).abs() < 0.03, "level {}: {mean}", i + 1);
+        let batch: Vec<f64> = x
+            .chunks(x.len() / 10)
+            .take(10)
+            .map(|c| c.iter().sum::<f64>() / c.len() as f64)
+            .collect();
+        let mean = batch.iter().sum::<f64>() / 10.0;
+        let se = (batch.iter().map(|b| (b - mean).powi(2)).sum::<f64>() / 90.0).sqrt();
+        let z = (mean - 0.125) / se;
+        println!(
+            "level {}: mean m.x = {mean:.4} ± {se:.4} ({z:+.2} errors)",
+            i + 1
+        );
+        // Seeds 21–25 (`DYNID_SEED_OFFSET=0…4`): |z| at most 2.4 (t with 9 degrees of freedom).
+        assert!(z.abs() < 4.0, "level {}: {mean} ± {se}", i + 1);
     }
 }
 
@@ -112,7 +129,13 @@ fn sdof_offset_noise_free() {
     let id = common::identify_records(&ir, &recs);
     assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
     let e = errors("sdof_offset, noise 0 %", &ir, &id);
-    assert_within("sdof_offset noise-free", &e, &[("f0", 0.02)]);
+    // Seeds 22–26 (`DYNID_SEED_OFFSET=0…4`): d, r up to −0.18, −0.21 %; k −0.03 %, f0 +0.03 %.
+    assert_within(
+        "sdof_offset noise-free",
+        &e,
+        0.005,
+        &[("k", 0.001), ("f0", 0.001)],
+    );
     // The identified equation writes the offset as its value alone.
     let eq = dynid::runtime::ident::print::format_equations(&ir, &id);
     assert!(
@@ -127,7 +150,8 @@ fn sdof_offset_five_percent_noise() {
     let recs = simulate(&ir, 2000.0, 0.05, 23);
     let id = common::identify_records(&ir, &recs);
     let e = errors("sdof_offset, noise 5 %", &ir, &id);
-    assert_within("sdof_offset 5 % noise", &e, &[("f0", 0.02)]);
+    // Seeds 23–27 (`DYNID_SEED_OFFSET=0…4`): r up to +0.76 %, d −0.40 %, f0 −0.14 %.
+    assert_within("sdof_offset 5 % noise", &e, 0.015, &[("f0", 0.004)]);
 }
 
 #[test]
@@ -195,7 +219,8 @@ fn detection_takes_an_offset_for_linear() {
     // The offset is held at its pooled estimate in the per-level fits, not given a curve.
     assert!(d.params.iter().all(|p| p.curve.param != "f0"));
     let f0 = d.held.iter().find(|h| h.param == "f0").expect("f0 held");
-    assert!((f0.value + 0.5).abs() < 0.01, "{f0:?}");
+    // Seeds 25–29 (`DYNID_SEED_OFFSET=0…4`): f0 = −0.50010 … −0.50040.
+    assert!((f0.value + 0.5).abs() < 0.001, "{f0:?}");
 }
 
 #[test]

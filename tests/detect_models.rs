@@ -1,62 +1,35 @@
 //! Detection end to end: each nonlinear model is simulated with the project simulator at
 //! its three excitation levels, its linear counterpart is identified per level, and the
 //! verdict and the implied nonlinear parameter are checked against the truth.
+//!
+//! Each bound is about 2–3 times the error measured over five seeds, the test's own and the
+//! four after it: `for o in 0 1 2 3 4; do DYNID_SEED_OFFSET=$o cargo test --test
+//! detect_models -- --nocapture; done` prints the implied parameters (the verdicts, not the
+//! bounds, fail on some of the other seeds: they hold on the seeds tried).
 
-use dynid::dsl_parser::{compile_file, compile_str, ir::ModelIr};
-use dynid::runtime::data::{LevelSource, RecordSource};
-use dynid::runtime::detect::{
-    detect, detect_from_data, DetectOptions, Detection, ElementFinding, LevelFits, Linearisation,
-    Verdict,
-};
+mod common;
+mod detect_common;
+
+use dynid::dsl_parser::{compile_str, ir::ModelIr};
+use dynid::runtime::detect::{Detection, LevelFits, Verdict};
 use dynid::runtime::record::Record;
-use dynid::runtime::sim::{simulate, SimConfig};
-use dynid::runtime::IdentifyOptions;
-use std::path::Path;
 
-fn model(name: &str) -> ModelIr {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("models")
-        .join(format!("{name}.dyn"));
-    compile_file(&p).unwrap_or_else(|e| panic!("{name}: {e:?}"))
-}
+use detect_common::{detect_levels, finding, model};
 
 fn sim(truth: &str, duration: f64, seed: u64) -> Vec<Record> {
     sim_ir(&model(truth), duration, seed)
 }
 
 fn sim_ir(ir: &ModelIr, duration: f64, seed: u64) -> Vec<Record> {
-    let cfg = SimConfig {
-        duration,
-        seed,
-        burn_in: 20.0,
-        ..Default::default()
-    };
-    simulate(ir, &cfg).expect("simulate").records
+    detect_common::simulate_levels(ir, duration, common::seed(seed))
 }
 
 fn run(linear: &str, records: &[Record], balance: bool) -> (Detection, LevelFits) {
-    run_ir(&model(linear), records, balance)
+    detect_levels(&model(linear), records, balance)
 }
 
 fn run_ir(ir: &ModelIr, records: &[Record], balance: bool) -> (Detection, LevelFits) {
-    let srcs: Vec<RecordSource> = records
-        .iter()
-        .enumerate()
-        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
-        .collect();
-    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
-    let opts = IdentifyOptions {
-        balance: Some(balance),
-        ..Default::default()
-    };
-    detect_from_data(ir, &levels, &opts, &DetectOptions::default(), &[]).expect("detect")
-}
-
-fn finding<'a>(d: &'a Detection, element: &str) -> &'a ElementFinding {
-    d.elements
-        .iter()
-        .find(|e| e.element == element)
-        .unwrap_or_else(|| panic!("no element {element}"))
+    detect_levels(ir, records, balance)
 }
 
 /// The verdict's template and its implied effect parameters by name.
@@ -127,6 +100,7 @@ fn duffing_is_cubic_at_the_spring() {
         "k/d (ground, m)",
         "cubic stiffness",
         &[("k3", 2.0)],
+        // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): k3 +4.3, −6.8, −0.4, −1.1, −1.0 %.
         0.10,
     );
 }
@@ -139,7 +113,8 @@ fn coulomb_is_friction_at_the_damper() {
         "k/d (ground, m)",
         "Coulomb friction",
         &[("r", 0.3)],
-        0.10,
+        // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): r +2.2, −1.5, −0.1, +2.9, +0.9 %.
+        0.06,
     );
 }
 
@@ -151,7 +126,8 @@ fn quadratic_damping_is_found() {
         "k/d (ground, m)",
         "quadratic damping",
         &[("c", 0.2)],
-        0.25,
+        // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): c −0.2, −4.4, −4.3, −2.2, −6.2 %.
+        0.12,
     );
 }
 
@@ -163,28 +139,45 @@ fn prestress_is_found() {
         "d/k (ground, m)",
         "prestress",
         &[("f0", 0.5)],
-        0.25,
+        // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): f0 −0.9, −0.2, −2.3, −3.4, −1.1 %.
+        0.07,
     );
 }
 
+/// The gap and the stiffness trade off along three points, so the two are not resolved
+/// separately: over seeds 7–10 (`DYNID_SEED_OFFSET=0…3`) kb is off by −17, −36, −7, −54 %
+/// and g by +20, +56, +6, +129 % (on seed 11 the verdict is not backlash). A bound on the
+/// values would have to pass almost anything; what the test checks is that the stated
+/// errors (from the joint covariance of the coefficient and the log gap) say so, i.e.
+/// that the truth lies within three of them (seeds 7–10: kb −0.04, −0.37, −0.02, −1.74
+/// errors, g +0.03, +0.23, +0.01, +0.71).
 #[test]
 fn backlash_is_found() {
-    // The gap and the stiffness trade off along three points: the template is named
-    // reliably, its two parameters only roughly (measured: kb −17 %, g +20 %).
-    check(
-        "backlash",
-        "backlash_linear",
-        "k/d (ground, m)",
-        "backlash",
-        &[("kb", 4.0), ("g", 0.1)],
-        0.7,
-    );
+    let recs = sim("backlash", DURATION, 7);
+    let (d, _) = run("backlash_linear", &recs, false);
+    println!("backlash:\n{}", d.render_table());
+    let (name, _) = best(&d, "k/d (ground, m)");
+    assert_eq!(name, "backlash", "{}", d.render_table());
+    let top = &finding(&d, "k/d (ground, m)").ranking[0];
+    for (p, t) in [("kb", 4.0), ("g", 0.1)] {
+        let e = top
+            .effect_estimates()
+            .iter()
+            .find(|e| e.name == p)
+            .unwrap_or_else(|| panic!("no estimate {p}"));
+        let z = (e.value - t) / e.stderr;
+        println!(
+            "backlash: {e} (truth {t}, {:+.1} %, {z:+.2} errors)",
+            100.0 * rel(e.value, t)
+        );
+        assert!(z.abs() < 3.0, "backlash: {e}, truth {t}");
+    }
 }
 
 /// Both effects in one element at three levels: the cubic spring is the verdict, the
 /// friction is reported as suspected (the damping curve drifts too, and the pair ranks
 /// second with r ≈ 0.2 of 0.3). Over seeds 7, 8, 9 the pair won once at three levels
-/// (`cubic_coulomb_level_count`).
+/// (`cargo run --release --example detect_measurements -- cubic_coulomb_level_count`).
 #[test]
 fn cubic_and_coulomb_in_one_element() {
     let recs = sim("sdof_cubic_coulomb", DURATION, 7);
@@ -192,7 +185,9 @@ fn cubic_and_coulomb_in_one_element() {
     println!("{}", d.render_table());
     let (name, est) = best(&d, "k/d (ground, m)");
     assert_eq!(name, "cubic stiffness");
-    assert!(rel(implied(&est, "k3"), 2.0).abs() < 0.15, "{est:?}");
+    println!("k3 = {:.4} (truth 2.0)", implied(&est, "k3"));
+    // Seeds 7 and 9, where this verdict holds (`DYNID_SEED_OFFSET=0, 2`): k3 +2.4, −1.8 %.
+    assert!(rel(implied(&est, "k3"), 2.0).abs() < 0.06, "{est:?}");
     let f = finding(&d, "k/d (ground, m)");
     let sus = f.suspected.as_ref().expect("the friction is suspected");
     assert_eq!(sus.effect, "Coulomb friction");
@@ -209,7 +204,8 @@ fn cubic_and_coulomb_in_one_element() {
         .unwrap()
         .value;
     println!("pair: r = {r:.3} (truth 0.3)");
-    assert!(r > 0.1, "the friction shows in the pair fit");
+    // The friction shows in the pair fit, low (seeds 7, 9: r −29, −22 %).
+    assert!(rel(r, 0.3).abs() < 0.6, "r = {r}");
 }
 
 /// With four levels over the same range the pair is the verdict (seeds 7, 8, 9 all, and
@@ -222,8 +218,16 @@ fn cubic_and_coulomb_separate_at_four_levels() {
     println!("{}", d.render_table());
     let (name, est) = best(&d, "k/d (ground, m)");
     assert_eq!(name, "cubic stiffness + Coulomb friction");
+    println!(
+        "four levels: k3 = {:.4} (truth 2.0), r = {:.4} (truth 0.3)",
+        implied(&est, "k3"),
+        implied(&est, "r")
+    );
+    // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): k3 −4.6, −2.7, −3.4, −1.1, +2.3 %; r −23, −15,
+    // −30, −4, −15 %: low throughout (mean −18 %, sd 10 %), so its bound is one-sided.
     assert!(rel(implied(&est, "k3"), 2.0).abs() < 0.1, "{est:?}");
-    assert!(rel(implied(&est, "r"), 0.3).abs() < 0.35, "{est:?}");
+    let r = rel(implied(&est, "r"), 0.3);
+    assert!(r > -0.45 && r < 0.1, "{est:?}");
 }
 
 /// two_mass hides cubic stiffness and Coulomb friction in the coupling: at three levels
@@ -237,7 +241,12 @@ fn two_mass_nonlinear_coupling_linear_ground() {
     assert_eq!(finding(&d, "k1/d1 (ground, m1)").verdict, Verdict::Linear);
     let (name, est) = best(&d, "k2/d2 (m1, m2)");
     assert_eq!(name, "cubic stiffness");
-    assert!(rel(implied(&est, "k3"), 1.5).abs() < 0.15, "{est:?}");
+    println!(
+        "two_mass coupling: k3 = {:.4} (truth 1.5)",
+        implied(&est, "k3")
+    );
+    // Seeds 7–10 (`DYNID_SEED_OFFSET=0…3`): k3 −1.6, +0.3, +0.1, −0.4 %.
+    assert!(rel(implied(&est, "k3"), 1.5).abs() < 0.04, "{est:?}");
     let f = finding(&d, "k2/d2 (m1, m2)");
     assert_eq!(
         f.suspected.as_ref().map(|s| s.effect.as_str()),
@@ -255,6 +264,7 @@ fn two_mass_friction_in_the_coupling() {
         "k2/d2 (m1, m2)",
         "Coulomb friction",
         &[("r", 0.3)],
+        // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): r +0.1, +4.2, +3.7, +0.5, +5.4 %.
         0.10,
     );
     let (d, _) = run(
@@ -270,8 +280,7 @@ fn two_mass_friction_in_the_coupling() {
 /// the weaker terms are not resolved at 400 s per level and must not be misnamed: the
 /// quadratic damper of (m1, m2) moves d2 within its error, and at (m3, m4) the backlash
 /// (gap 0.05, far below σ_s ≈ 1) and the preload pull the stiffness in opposite directions
-/// by about 1 %. Measured (seed 7): k3 = 2.03 ± 0.22 and 1.002 ± 0.099; (m1, m2) and
-/// (m3, m4) linear.
+/// by about 1 %. Measured (seed 7): k3 +3.9 % and +1.4 %; (m1, m2) and (m3, m4) linear.
 #[test]
 fn chain4_hardening_springs_are_found() {
     let recs = sim("chain4", DURATION, 7);
@@ -281,7 +290,10 @@ fn chain4_hardening_springs_are_found() {
         let (name, est) = best(&d, element);
         assert_eq!(name, "cubic stiffness", "{element}");
         let e = rel(implied(&est, "k3"), k3);
-        assert!(e.abs() < 0.15, "{element}: k3 off by {:.1} %", 100.0 * e);
+        println!("chain4 {element}: k3 {:+.1} %", 100.0 * e);
+        // Seeds 7, 10, 11 (`DYNID_SEED_OFFSET=0, 3, 4`; the others fail the verdicts):
+        // k3 +3.9, +2.0, +3.0 % at (ground, m1) and +1.4, +1.8, +2.9 % at (m2, m3).
+        assert!(e.abs() < 0.08, "{element}: k3 off by {:.1} %", 100.0 * e);
     }
     for element in ["k2/d2 (m1, m2)", "k4/d4 (m3, m4)"] {
         match &finding(&d, element).verdict {
@@ -334,10 +346,11 @@ fn two_mass_friction_at_ground_only() {
     assert_eq!(name, "Coulomb friction");
     let r = implied(&est, "r");
     println!(
-        "two_mass_friction: r = {r:.4} (truth 0.3, {:+.1} %)",
+        "two_mass_friction at ground: r = {r:.4} (truth 0.3, {:+.1} %)",
         100.0 * rel(r, 0.3)
     );
-    assert!(rel(r, 0.3).abs() < 0.15);
+    // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): r −0.9, +0.9, −4.4, +9.2, −1.2 % (sd 5 %).
+    assert!(rel(r, 0.3).abs() < 0.15, "r = {r}");
 }
 
 fn linear_detections(seeds: std::ops::Range<u64>) -> (usize, usize) {
@@ -360,19 +373,12 @@ fn linear_detections(seeds: std::ops::Range<u64>) -> (usize, usize) {
     (alarms, total)
 }
 
+/// Three seeds here; 25 seeds with `cargo run --release --example detect_measurements --
+/// false_positive_rate`.
 #[test]
 fn linear_systems_give_no_detection() {
     let (alarms, total) = linear_detections(0..3);
     assert_eq!(alarms, 0, "{alarms} of {total} linear elements flagged");
-}
-
-/// `cargo test --test detect_models -- --ignored --nocapture false_positive_rate`
-#[test]
-#[ignore = "measurement: false-positive rate over 25 seeds"]
-fn false_positive_rate() {
-    let (alarms, total) = linear_detections(0..25);
-    println!("false positives: {alarms} of {total} linear elements");
-    assert!(alarms * 20 <= total, "more than 5 % false positives");
 }
 
 const SDOF_POSITIONS_ONLY: &str = "
@@ -402,134 +408,20 @@ fn sigma_v_from_zero_crossings() {
             .map(|(m, z)| rel(*z, *m))
             .collect();
         println!("{truth}: σ_v zero-crossing error per level {errs:+.4?}");
+        // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`), worst level: sdof_linear up to −6.4 %;
+        // sdof_coulomb up to −12.5 % and sdof_duffing −12…−16 % at the loudest level (not
+        // Gaussian, Rice's formula is biased there).
+        let tol = if truth == "sdof_linear" { 0.12 } else { 0.2 };
         for e in &errs {
-            assert!(e.abs() < 0.2, "{truth}: {errs:?}");
+            assert!(e.abs() < tol, "{truth}: {errs:?}");
         }
         if truth == "sdof_coulomb" {
             let (name, est) = best(&d, "k/d (ground, m)");
             assert_eq!(name, "Coulomb friction");
-            println!("positions only: r = {:.4} (truth 0.3)", implied(&est, "r"));
-        }
-    }
-}
-
-/// Truth model, linear model, element, truth of the implied parameters.
-type Case = (
-    &'static str,
-    &'static str,
-    &'static str,
-    &'static [(&'static str, f64)],
-);
-
-/// Implied parameters with Gaussian and with measured linearisation on the same per-level
-/// fits, mean over seeds:
-/// `cargo test --release --test detect_models -- --ignored --nocapture linearisation_bias`
-#[test]
-#[ignore = "measurement: implied-parameter bias of the two linearisations"]
-fn linearisation_bias() {
-    let cases: [Case; 6] = [
-        (
-            "sdof_duffing",
-            "sdof_linear",
-            "k/d (ground, m)",
-            &[("k3", 2.0)],
-        ),
-        (
-            "sdof_coulomb",
-            "sdof_linear",
-            "k/d (ground, m)",
-            &[("r", 0.3)],
-        ),
-        (
-            "quadratic_damping",
-            "quadratic_damping_linear",
-            "k/d (ground, m)",
-            &[("c", 0.2)],
-        ),
-        (
-            "prestress",
-            "prestress_linear",
-            "d/k (ground, m)",
-            &[("f0", 0.5)],
-        ),
-        (
-            "backlash",
-            "backlash_linear",
-            "k/d (ground, m)",
-            &[("kb", 4.0), ("g", 0.1)],
-        ),
-        (
-            "sdof_cubic_coulomb",
-            "sdof_linear",
-            "k/d (ground, m)",
-            &[("k3", 2.0)],
-        ),
-    ];
-    let seeds = 7..11u64;
-    for (truth, linear, element, expect) in cases {
-        let ir = model(linear);
-        let mut sums = vec![[0.0f64; 2]; expect.len()];
-        for seed in seeds.clone() {
-            let recs = sim(truth, DURATION, seed);
-            let (_, fits) = run_ir(&ir, &recs, false);
-            for (k, lin) in [Linearisation::Gaussian, Linearisation::Measured]
-                .into_iter()
-                .enumerate()
-            {
-                let opts = DetectOptions {
-                    linearisation: lin,
-                    se_dof: Some(fits.n_blocks as f64 - 1.0),
-                    ..Default::default()
-                };
-                let d = detect(&fits.input, &[], &opts).unwrap();
-                let f = finding(&d, element);
-                let top = &f.ranking[0];
-                for (j, (p, _)) in expect.iter().enumerate() {
-                    let v = top
-                        .effect_estimates()
-                        .iter()
-                        .find(|e| e.name == *p)
-                        .map_or(f64::NAN, |e| e.value);
-                    sums[j][k] += v;
-                }
-                println!(
-                    "{truth} seed {seed} {}: {} ({})",
-                    if k == 1 { "measured" } else { "gaussian" },
-                    f.verdict,
-                    top.summary()
-                );
-            }
-        }
-        let n = seeds.clone().count() as f64;
-        for (j, (p, t)) in expect.iter().enumerate() {
-            let (g, m) = (sums[j][0] / n, sums[j][1] / n);
-            println!(
-                "SUMMARY {truth}: {p} truth {t}: gaussian {g:.4} ({:+.1} %), measured {m:.4} ({:+.1} %)",
-                100.0 * rel(g, *t),
-                100.0 * rel(m, *t)
-            );
-        }
-    }
-}
-
-/// sdof_cubic_coulomb with 3 to 7 levels spanning the same range (6…40), for how many
-/// levels the pair wins: `cargo test --release --test detect_models -- --ignored
-/// --nocapture cubic_coulomb_level_count`
-#[test]
-#[ignore = "measurement: levels needed to separate two effects in one element"]
-fn cubic_coulomb_level_count() {
-    for n in 3..=7usize {
-        for seed in [7u64, 8, 9] {
-            let ir = cubic_coulomb_levels(n);
-            let recs = sim_ir(&ir, DURATION, seed);
-            let (d, _) = run("sdof_linear", &recs, false);
-            let f = finding(&d, "k/d (ground, m)");
-            println!(
-                "LEVELS {n} seed {seed}: {} | top: {} | suspected: {:?}",
-                f.verdict,
-                f.ranking[0].summary(),
-                f.suspected.as_ref().map(|s| (&s.effect, s.pair_delta_aicc))
-            );
+            let r = implied(&est, "r");
+            println!("positions only: r = {r:.4} (truth 0.3)");
+            // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): r −2.4, −4.1, −8.5, −3.8, −5.3 %.
+            assert!(rel(r, 0.3).abs() < 0.17, "positions only: r = {r}");
         }
     }
 }

@@ -3,7 +3,9 @@
 //! Each case parses a model from `models/`, simulates its excitation levels in memory with
 //! `runtime::sim`, identifies the unknown parameters from the records and compares them with
 //! the nominal values the simulation used. The bounds are what the covariance method achieves
-//! on these records (see the table printed with `--nocapture`), not aspirations.
+//! on these records, not aspirations: about 2–3 times the largest error over five seeds, the
+//! test's own and the four after it (`for o in 0 1 2 3 4; do DYNID_SEED_OFFSET=$o cargo test
+//! --test recovery -- --nocapture; done` prints the table).
 
 mod common;
 
@@ -26,7 +28,7 @@ fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
     let cfg = SimConfig {
         duration,
         sample: 0.01,
-        seed,
+        seed: common::seed(seed),
         noise,
         noise_on_inputs: true,
         ..Default::default()
@@ -70,7 +72,8 @@ fn sdof_cubic_coulomb_noise_free_within_one_percent() {
     let id = common::identify_records(&ir, &recs);
     assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
     let e = errors("sdof_cubic_coulomb, noise 0 %", &ir, &id);
-    assert_within("sdof_cubic_coulomb noise-free", &e, 0.01);
+    // Seeds 11–15 (`DYNID_SEED_OFFSET=0…4`): largest errors d −0.13 %, r −0.14 %.
+    assert_within("sdof_cubic_coulomb noise-free", &e, 0.004);
 }
 
 #[test]
@@ -80,6 +83,7 @@ fn sdof_cubic_coulomb_five_percent_noise_within_two_percent() {
     let recs = simulate(&ir, 2000.0, 0.05, 12);
     let id = common::identify_records(&ir, &recs);
     let e = errors("sdof_cubic_coulomb, noise 5 %", &ir, &id);
+    // Seeds 12–16 (`DYNID_SEED_OFFSET=0…4`): largest errors r +0.77 %, d −0.46 %.
     assert_within("sdof_cubic_coulomb 5 % noise", &e, 0.02);
 }
 
@@ -89,22 +93,29 @@ fn two_mass_within_two_percent() {
     let recs = simulate(&ir, 2000.0, 0.0, 13);
     let id = common::identify_records(&ir, &recs);
     let e = errors("two_mass, noise 0 %", &ir, &id);
-    assert_within("two_mass", &e, 0.02);
+    // Seeds 13–17 (`DYNID_SEED_OFFSET=0…4`): largest error r −0.11 %.
+    assert_within("two_mass", &e, 0.003);
 }
 
 /// Parameters of the backlash-with-preload element `n4` of chain4: `k4 s + b4 dz(s, g) +
 /// f4 sign(s)` is nearly collinear (beyond the gap `dz(s, g) = s − g sign(s)`), so the three
 /// are determined only as well as the displacement spends time inside the 0.05 gap. The
-/// identification reports this through large standard errors (measured at 2000 s per level:
-/// errors +2.1 / −3.2 / −3.2 % with standard errors 7 / 12 / 11 %; 6000 s per level did not
-/// tighten them), so their errors are bounded by the reported standard errors.
+/// identification reports this through large standard errors (2000 s per level, seeds 14–18,
+/// `DYNID_SEED_OFFSET=0…4`: errors up to +8.2 / −12.4 / −12.1 % with standard errors of
+/// 2.5–10 / 4–16 / 4–15 %; 6000 s per level did not tighten them), so their errors are
+/// bounded by the reported standard errors.
 const CHAIN4_WEAK: [&str; 3] = ["k4", "b4", "f4"];
+
+/// The dampers and frictions of chain4: over seeds 14–18 errors up to 2.1 % (r1), 2.0 %
+/// (d1), 1.8 % (d2, q2), 1.3 % (r3); the other dampers (d3, d4), the springs and the cubic
+/// terms stay within 0.25 %.
+const CHAIN4_DISSIPATIVE: [&str; 5] = ["d1", "d2", "r1", "q2", "r3"];
 
 /// Seconds per level for chain4.
 const CHAIN4_DURATION: f64 = 2000.0;
 
 #[test]
-fn chain4_within_two_percent() {
+fn chain4_within_measured_bounds() {
     let ir = model("chain4");
     let recs = simulate(&ir, CHAIN4_DURATION, 0.0, 14);
     let id = common::identify_records(&ir, &recs);
@@ -112,12 +123,16 @@ fn chain4_within_two_percent() {
     let (weak, strong): (Vec<_>, Vec<_>) = e
         .into_iter()
         .partition(|(n, _)| CHAIN4_WEAK.contains(&n.as_str()));
-    assert_within("chain4", &strong, 0.02);
+    let (dissipative, stiff): (Vec<_>, Vec<_>) = strong
+        .into_iter()
+        .partition(|(n, _)| CHAIN4_DISSIPATIVE.contains(&n.as_str()));
+    assert_within("chain4", &dissipative, 0.05);
+    assert_within("chain4", &stiff, 0.005);
     for (n, err) in weak {
         let p = id.param(&n).unwrap();
         let rel_se = p.stderr / p.value.abs();
         assert!(
-            err.abs() < 3.0 * rel_se && err.abs() < 0.1,
+            err.abs() < 3.0 * rel_se && err.abs() < 0.25,
             "chain4: `{n}` off by {:+.2}% with a standard error of {:.2}%",
             100.0 * err,
             100.0 * rel_se
@@ -139,7 +154,8 @@ fn duffing_from_positions_and_input_only_within_one_percent() {
     assert!(recs.iter().all(|r| r.column("m.v").is_none()));
     let id = common::identify_records(&ir, &recs);
     let e = errors("sdof_duffing, x and u only, noise 0 %", &ir, &id);
-    assert_within("sdof_duffing from positions", &e, 0.01);
+    // Seeds 15–19 (`DYNID_SEED_OFFSET=0…4`): largest errors k3 −0.11 %, d −0.10 %.
+    assert_within("sdof_duffing from positions", &e, 0.003);
 }
 
 #[test]

@@ -19,6 +19,8 @@
 //! at every reversal of the motion, exactly where `sign(v)` switches. A controller that
 //! differenced the encoder over one 0.1 ms step instead of one sample interval put ±27 N
 //! of force jitter between samples, and d, r off by up to 23 %.
+mod common;
+
 use dynid::runtime::data::{LevelSource, RecordSource};
 use dynid::runtime::ident::Identification;
 use dynid::runtime::sim::{self, test_models::ServoAxis};
@@ -30,7 +32,7 @@ fn servo(seed: u64) -> Identification {
     let mut axis = ServoAxis::standard();
     axis.extra_forces = vec![("offset".into(), "f0 ~ -2.0".into())];
     let ir = axis.model();
-    let mut cfg = axis.config(seed);
+    let mut cfg = axis.config(common::seed(seed));
     cfg.input_oversample = 10;
     let out = sim::simulate(&ir, &cfg).expect("closed-loop simulation");
     assert_eq!(out.records.len(), 1, "one record");
@@ -52,6 +54,8 @@ fn servo_axis_from_encoder_and_force_alone() {
             let p = id.param(name).expect("estimated");
             let (e, s) = (p.value / t - 1.0, p.stderr / t.abs());
             row.push(format!("{name} {:+.2} % (±{:.2} %)", 100.0 * e, 100.0 * s));
+            // Seeds 1–6 (`cargo test --test servo -- --nocapture`): m +0.19…+0.38 %, d up to
+            // 4.9 %, r 3.9 %, f0 3.6 % (module documentation).
             let bound = match name {
                 "m" => 0.008,
                 "d" => 0.10,
@@ -70,13 +74,6 @@ fn servo_axis_from_encoder_and_force_alone() {
                 p.value,
                 p.stderr
             );
-            if name == "m" {
-                assert!(
-                    e.abs() < 0.01,
-                    "seed {seed}: mass off by {:+.2} %",
-                    100.0 * e
-                );
-            }
         }
         println!("seed {seed}: {}", row.join(", "));
     }

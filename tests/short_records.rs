@@ -3,7 +3,8 @@
 //! short for given corners is refused with corners that fit it.
 //!
 //! Run with `--nocapture` for the errors and the corners chosen. Bounds are about 2–3 times
-//! the errors measured on these seeds.
+//! the largest error over five seeds, the test's own and the four after it: `for o in 0 1 2
+//! 3 4; do DYNID_SEED_OFFSET=$o cargo test --test short_records -- --nocapture; done`.
 
 mod common;
 
@@ -18,7 +19,7 @@ fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
     let cfg = SimConfig {
         duration,
         sample: 0.001,
-        seed,
+        seed: common::seed(seed),
         noise,
         noise_on_inputs: true,
         substeps: 1,
@@ -66,7 +67,8 @@ fn cubic_coulomb_25_s_at_1_khz_within_five_percent() {
     assert_eq!(recs[0].len(), 25_000);
     let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
         .expect("25 s records identify");
-    check("sdof_cubic_coulomb, 3 × 25 s at 1 kHz", &ir, &id, 0.05);
+    // Seeds 31–35 (`DYNID_SEED_OFFSET=0…4`): largest error r +0.08 %.
+    check("sdof_cubic_coulomb, 3 × 25 s at 1 kHz", &ir, &id, 0.002);
 }
 
 /// A rig in SI units: 50 kg, 120 N s/m, a 20 kN/m spring and 30 N of dry friction, position
@@ -87,7 +89,10 @@ fn si_rig_25_s_at_1_khz_within_five_percent() {
     let recs = simulate(&ir, 25.0, 0.0, 32);
     let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
         .expect("25 s records identify");
-    check("SI rig with friction, 3 × 25 s at 1 kHz", &ir, &id, 0.05);
+    // Seeds 32, 34, 35, 36 (`DYNID_SEED_OFFSET=0, 2, 3, 4`): largest error d −0.89 %. Seed
+    // 33 is off by −12 % in all four parameters alike (m, k, d, r): a failure of the method
+    // on that record, not spread, and not covered by this bound.
+    check("SI rig with friction, 3 × 25 s at 1 kHz", &ir, &id, 0.02);
 }
 
 #[test]
@@ -114,7 +119,7 @@ fn free_mass_25_s_at_1_khz_within_five_percent() {
         let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
             .expect("25 s records identify");
         check(
-            &format!("free mass, 3 × 25 s at 1 kHz, seed {seed}"),
+            &format!("free mass, 3 × 25 s at 1 kHz, seed {}", common::seed(seed)),
             &ir,
             &id,
             1.0,
@@ -134,7 +139,9 @@ fn free_mass_25_s_at_1_khz_within_five_percent() {
     }
     for e in &mut errs {
         e.sort_by(f64::total_cmp);
-        assert!(e[1] < 0.05, "median error {:.2}%", 100.0 * e[1]);
+        // Seeds 33–39 (`DYNID_SEED_OFFSET=0…4`): m −5.4, −0.8, +0.2, −1.8, +0.3, −1.5, −0.3 %
+        // (d alike); the median of each three consecutive seeds at most 1.5 %.
+        assert!(e[1] < 0.04, "median error {:.2}%", 100.0 * e[1]);
     }
 }
 

@@ -1,7 +1,9 @@
 //! The Silverbox benchmark on the real measurement. Runs when `../shared/data/silverbox`
-//! (relative to the repository root) holds SNLS80mV.csv, and is skipped with a note
-//! otherwise (`DYNID_SILVERBOX_DATA=DIR` points elsewhere, e.g. from a git worktree); the
-//! data is never copied into the repository.
+//! (relative to the repository root) holds SNLS80mV.csv (`DYNID_SILVERBOX_DATA=DIR` points
+//! elsewhere, e.g. from a git worktree); the data is never copied into the repository.
+//! Without the data each test fails when the environment variable `CI` is set (CI has the
+//! data, so its absence there is a broken setup, not a reason to pass) and is otherwise
+//! skipped with a printed `SKIPPED` line.
 
 use dynid_runtime::data::{LevelSource, RecordSource};
 use dynid_runtime::detect::{
@@ -17,15 +19,27 @@ fn data_dir() -> Option<PathBuf> {
         || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/silverbox"),
         PathBuf::from,
     );
-    if dir.join(silverbox::FILE).exists() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "note: {} not found, Silverbox test skipped",
-            dir.join(silverbox::FILE).display()
-        );
-        None
+    let file = dir.join(silverbox::FILE);
+    if file.exists() {
+        return Some(dir);
     }
+    assert!(
+        !in_ci(),
+        "{} not found: CI runs the Silverbox tests on the real data; set \
+         DYNID_SILVERBOX_DATA to the folder that holds {}",
+        file.display(),
+        silverbox::FILE
+    );
+    eprintln!(
+        "SKIPPED: {} not found (set DYNID_SILVERBOX_DATA=DIR to run the Silverbox tests)",
+        file.display()
+    );
+    None
+}
+
+/// Whether the tests run in CI (`CI` set to anything but empty, `0` or `false`).
+fn in_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| !v.is_empty() && v != "0" && v != "false")
 }
 
 fn model(name: &str) -> dsl_parser::ir::ModelIr {
@@ -255,7 +269,8 @@ fn implied_k3(det: &Detection) -> f64 {
 
 /// With the mass held at one value the spring's stiffness rises over the levels and is
 /// named a cubic (hardening) spring; the implied k3 agrees with the pooled identification
-/// of silverbox_cubic (b = 3.91 V⁻², docs/silverbox.md). Measured: k3 = 4.26 ± 0.36.
+/// of silverbox_cubic (b = 3.91 V⁻², docs/silverbox.md). Measured: k3 = 4.07 ± 0.24 (the
+/// bound is about three standard errors).
 #[test]
 fn silverbox_spring_is_cubic() {
     let Some(det) = detect_arrow(DetectOptions::default()) else {
@@ -274,7 +289,8 @@ fn silverbox_spring_is_cubic() {
     }
     assert_eq!(e.drifting, vec!["a".to_string()], "only the spring drifts");
     let k3 = implied_k3(&det);
-    assert!((3.0..5.5).contains(&k3), "k3 = {k3}");
+    println!("measured linearisation: k3 = {k3:.3}");
+    assert!((3.4..4.8).contains(&k3), "k3 = {k3}");
 }
 
 /// The Gaussian linearisation names the same effect with a k3 within the standard error.
@@ -288,7 +304,8 @@ fn silverbox_gaussian_linearisation() {
     };
     let k3 = implied_k3(&det);
     println!("Gaussian linearisation: k3 = {k3:.3}");
-    assert!((3.0..5.5).contains(&k3), "k3 = {k3}");
+    // Measured 3.875; the same ± 0.7 (about three standard errors) as the measured form.
+    assert!((3.2..4.6).contains(&k3), "k3 = {k3}");
 }
 
 /// With the mass fitted freely at each level, mass and stiffness trade off and the drift

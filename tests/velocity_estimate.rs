@@ -5,7 +5,9 @@
 //! Run with `--nocapture` for the table of errors: clean positions, positions quantised to
 //! 1e-3 (about 1/1000 of the smallest level's position spread, a 1 µm encoder on a
 //! millimetre motion), and white position noise; the same data with the velocity measured
-//! for comparison. Every bound is about 2–3 times the error measured on these seeds.
+//! for comparison. Every bound is about 2–3 times the largest error over five seeds, the
+//! test's own and the four after it: `for o in 0 1 2 3 4; do DYNID_SEED_OFFSET=$o cargo test
+//! --test velocity_estimate -- --nocapture; done`.
 
 mod common;
 
@@ -30,7 +32,7 @@ fn simulate(ir: &ModelIr, noise: f64, seed: u64) -> Vec<Record> {
     let cfg = SimConfig {
         duration: 2000.0,
         sample: 0.01,
-        seed,
+        seed: common::seed(seed),
         noise,
         noise_on_inputs: true,
         ..Default::default()
@@ -89,7 +91,9 @@ fn coulomb_from_clean_positions_within_three_percent() {
     assert_eq!((est.signal.as_str(), est.from.as_str()), ("m.v", "m.x"));
     assert_eq!(est.cutoff.len(), 3);
     let e = errors("cubic+Coulomb, x and u, clean", &ir, &id);
-    for (n, tol) in [("d", 0.005), ("k", 0.005), ("k3", 0.005), ("r", 0.005)] {
+    // Seeds 21–25 (`DYNID_SEED_OFFSET=0…4`): largest errors d +0.39 %, k −0.16 %, k3 +0.11 %,
+    // r −0.79 % (the test's seed: r −0.13 %).
+    for (n, tol) in [("d", 0.01), ("k", 0.004), ("k3", 0.003), ("r", 0.02)] {
         bound("clean positions", &e, n, tol);
     }
 }
@@ -101,7 +105,9 @@ fn coulomb_from_quantised_positions_within_three_percent() {
     quantise(&mut recs, 1e-3);
     let id = common::identify_records(&ir, &recs);
     let e = errors("cubic+Coulomb, x quantised 1e-3, u", &ir, &id);
-    for (n, tol) in [("d", 0.015), ("k", 0.01), ("k3", 0.01), ("r", 0.015)] {
+    // Seeds 22–26 (`DYNID_SEED_OFFSET=0…4`): largest errors d +0.24 %, k −0.25 %, k3 +0.18 %,
+    // r −0.52 %.
+    for (n, tol) in [("d", 0.006), ("k", 0.006), ("k3", 0.005), ("r", 0.012)] {
         bound("quantised positions", &e, n, tol);
     }
 }
@@ -111,12 +117,15 @@ fn coulomb_from_noisy_positions_bias_is_bounded() {
     // White noise of 1 % and 5 % of the signal's spread on position and force.
     let ir = model("sdof_coulomb", true);
     let full = model("sdof_coulomb", false);
-    for (noise, tol_r) in [(0.01, 0.015), (0.05, 0.03)] {
+    // Seeds 23–27 (`DYNID_SEED_OFFSET=0…4`), largest errors: k ±0.11 % at either noise; at 1 %
+    // d +0.33 %, r −0.62 %; at 5 % d +2.5 %, r −2.7 % (the test's seed: +1.0 %, −1.2 %).
+    for (noise, tol_d, tol_r) in [(0.01, 0.008, 0.015), (0.05, 0.06, 0.06)] {
         let recs = simulate(&ir, noise, 23);
         let id = common::identify_records(&ir, &recs);
         let case = format!("Coulomb, x and u with {} % noise", 100.0 * noise);
         let e = errors(&case, &ir, &id);
-        bound(&case, &e, "k", 0.01);
+        bound(&case, &e, "k", 0.003);
+        bound(&case, &e, "d", tol_d);
         bound(&case, &e, "r", tol_r);
         // The same data with the velocity measured (noisy too), for the table.
         let recs = simulate(&full, noise, 23);

@@ -4,9 +4,11 @@
 //! the only thing that leaves this crate for the back ends is [`ir::ModelIr`], which is
 //! plain data (no pest or syn types, no I/O).
 //!
-//! API boundary: [`ir`] (the IR), [`compile_str`] and [`compile_file`] (source → IR or all
-//! diagnostics of the file), [`error`] (the diagnostics) and [`print`] (readable views of
-//! an IR and the inverse of compilation, [`print::to_source`]).
+//! API boundary: [`compile_str`] and [`compile_file`] (source → IR or all diagnostics of
+//! the file), [`error`] (the diagnostics), [`codegen`] (the Rust code generator of the
+//! macros), and, re-exported from the IR crate `dynid-ir`, [`ir`] (the IR), [`print`]
+//! (readable views of an IR and the inverse of compilation, [`print::to_source`]),
+//! [`edit`] (model edits on the IR) and [`num`] (number formats).
 //!
 //! ```
 //! let ir = dsl_parser::compile_str("sdof.dyn", "

@@ -71,7 +71,8 @@ fn write_csvs(recs: &[Record], dir: &Path) -> Vec<PathBuf> {
         .enumerate()
         .map(|(i, r)| {
             let p = dir.join(format!("level_{}.csv", i + 1));
-            sim::write_level_csv(&p, r).unwrap();
+            let mut w = std::io::BufWriter::new(std::fs::File::create(&p).unwrap());
+            sim::write_csv(&mut w, r).unwrap();
             p
         })
         .collect()

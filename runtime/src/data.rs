@@ -600,7 +600,7 @@ impl CsvSource {
     }
 }
 
-/// Read a whole CSV file into a [`Record`] (every column except `t`, renamed by
+/// Read a whole CSV file into a [`Record`] (every named column except `t`, renamed by
 /// `opts.map`), with the same validation as [`CsvSource`]: a header, equal field counts,
 /// finite numbers and a uniform time step (`t` column or `opts.ts`). At least two samples.
 /// For inputs that drive a simulation; identification streams with [`CsvSource`] instead.
@@ -613,7 +613,8 @@ pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, DataError> 
             let wanted: Vec<(usize, usize)> = renamed
                 .iter()
                 .enumerate()
-                .filter(|(_, n)| *n != "t")
+                // A column without a name (e.g. from a trailing comma on every line) is not data.
+                .filter(|(_, n)| *n != "t" && !n.is_empty())
                 .enumerate()
                 .map(|(slot, (k, n))| {
                     names.push(n.clone());
@@ -938,5 +939,18 @@ mod tests {
             ts: Some(0.01),
         };
         assert_eq!(read(&body, &opts), Ok(300));
+    }
+
+    #[test]
+    fn a_trailing_comma_is_not_a_column() {
+        // As written by some exporters (the Silverbox file): `"V1","V2",` and `a,b,`.
+        let f = file("\"V1\",\"V2\",\n0.5,1.5,\n-0.25,2,\n0,0,\n");
+        let opts = CsvOptions {
+            map: vec![],
+            ts: Some(0.1),
+        };
+        let rec = read_record(f.path(), &opts).unwrap();
+        assert_eq!(rec.names, ["V1", "V2"]);
+        assert_eq!(rec.column("V2").unwrap(), [1.5, 2.0, 0.0]);
     }
 }

@@ -1,61 +1,70 @@
-//! The discrete Fourier transform used for spectra (diagnosis' spectral distance, the
-//! position spectrum that sets a velocity estimate's bandwidth).
+//! Power spectra of real segments (diagnosis' spectral distance, the position spectrum that
+//! sets a velocity estimate's bandwidth), with the real-input FFT of `realfft`.
 
-use std::f64::consts::PI;
+use realfft::num_complex::Complex;
+use realfft::{RealFftPlanner, RealToComplex};
+use std::sync::Arc;
 
-/// In-place radix-2 FFT of (re, im); the length must be a power of two.
-pub(crate) fn fft(re: &mut [f64], im: &mut [f64]) {
-    let n = re.len();
-    let mut j = 0;
-    for i in 1..n {
-        let mut bit = n >> 1;
-        while j & bit != 0 {
-            j ^= bit;
-            bit >>= 1;
-        }
-        j |= bit;
-        if i < j {
-            re.swap(i, j);
-            im.swap(i, j);
+/// `|X_k|²`, `k = 0 … n/2`, of real segments of one length `n`, with the plan and buffers
+/// allocated once.
+pub(crate) struct SegmentPower {
+    fft: Arc<dyn RealToComplex<f64>>,
+    input: Vec<f64>,
+    output: Vec<Complex<f64>>,
+    scratch: Vec<Complex<f64>>,
+}
+
+impl SegmentPower {
+    pub fn new(n: usize) -> SegmentPower {
+        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+        SegmentPower {
+            input: fft.make_input_vec(),
+            output: fft.make_output_vec(),
+            scratch: fft.make_scratch_vec(),
+            fft,
         }
     }
-    let mut len = 2;
-    while len <= n {
-        let ang = -2.0 * PI / len as f64;
-        for start in (0..n).step_by(len) {
-            for k in 0..len / 2 {
-                let (s, c) = (ang * k as f64).sin_cos();
-                let (a, b) = (start + k, start + k + len / 2);
-                let tr = re[b] * c - im[b] * s;
-                let ti = re[b] * s + im[b] * c;
-                re[b] = re[a] - tr;
-                im[b] = im[a] - ti;
-                re[a] += tr;
-                im[a] += ti;
-            }
+
+    /// The segment to transform; fill it before [`Self::add_power`].
+    pub fn input_mut(&mut self) -> &mut [f64] {
+        &mut self.input
+    }
+
+    /// Transform the segment (the transform overwrites it) and add `weight(k) · |X_k|²` to
+    /// `acc[k]` for every bin `k = 0 … n/2` that `acc` holds.
+    pub fn add_power(&mut self, acc: &mut [f64], weight: impl Fn(usize) -> f64) {
+        // Lengths come from the plan itself, so the transform cannot refuse them.
+        self.fft
+            .process_with_scratch(&mut self.input, &mut self.output, &mut self.scratch)
+            .expect("buffers made by the plan");
+        for (k, (a, x)) in acc.iter_mut().zip(&self.output).enumerate() {
+            *a += weight(k) * x.norm_sqr();
         }
-        len <<= 1;
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::PI;
 
     #[test]
-    fn fft_matches_a_direct_transform() {
-        let n = 16;
-        let x: Vec<f64> = (0..n).map(|k| ((k * k) as f64 * 0.37).sin()).collect();
-        let (mut re, mut im) = (x.clone(), vec![0.0; n]);
-        fft(&mut re, &mut im);
-        for f in 0..n {
-            let (mut a, mut b) = (0.0, 0.0);
-            for (k, v) in x.iter().enumerate() {
-                let ang = -2.0 * PI * (f * k) as f64 / n as f64;
-                a += v * ang.cos();
-                b += v * ang.sin();
+    fn power_matches_a_direct_transform() {
+        for n in [16, 24] {
+            let x: Vec<f64> = (0..n).map(|k| ((k * k) as f64 * 0.37).sin()).collect();
+            let mut sp = SegmentPower::new(n);
+            sp.input_mut().copy_from_slice(&x);
+            let mut acc = vec![0.0; n / 2 + 1];
+            sp.add_power(&mut acc, |_| 1.0);
+            for (f, a) in acc.iter().enumerate() {
+                let (mut re, mut im) = (0.0, 0.0);
+                for (k, v) in x.iter().enumerate() {
+                    let ang = -2.0 * PI * (f * k) as f64 / n as f64;
+                    re += v * ang.cos();
+                    im += v * ang.sin();
+                }
+                assert!((re * re + im * im - a).abs() < 1e-11, "{n} {f}");
             }
-            assert!((a - re[f]).abs() < 1e-12 && (b - im[f]).abs() < 1e-12);
         }
     }
 }

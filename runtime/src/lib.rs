@@ -1,18 +1,23 @@
 //! Numerics of dynid: it runs a [`dynid_ir::ir::ModelIr`] directly.
 //!
-//! Architecture invariant: no parsing and no terminal output here; every public function
+//! Architecture invariant: no parsing, no terminal output and no output files here (this
+//! crate depends on the IR crate, not on the language front end); every public function
 //! takes the IR (or a [`BasisEval`] compiled from it) and plain data, and returns typed
 //! results or typed errors. Long records are streamed in chunks: memory use of
-//! identification does not grow with the record length.
+//! identification and detection does not grow with the record length (diagnosis and the
+//! Silverbox procedure hold whole records for their free-run simulations).
 //!
 //! API boundary: [`ident`] (identification: [`identify`], [`identify_per_level`],
 //! [`ident::measure`] for repeated solves), [`data`] (level sources: CSV files and in-memory
 //! [`record::Record`]s), [`basis::BasisEval`] (the evaluator plug-in shared by the tape
 //! interpreter and macro-generated code), [`sim`] (simulation), [`detect`] (nonlinearity
-//! detection from per-level linear fits), [`silverbox`] (the Silverbox benchmark on real data).
+//! detection from per-level linear fits), [`diagnose`] (the sim-to-real gap and the
+//! unmodelled effect behind it), [`silverbox`] (the Silverbox benchmark on real data),
+//! [`describe`] (mean and standard deviation of a column).
 
 pub mod basis;
 pub mod data;
+pub mod describe;
 pub mod detect;
 pub mod diagnose;
 mod fft;

@@ -10,14 +10,14 @@
 //! free-run simulation driven by the measured input: on the arrow (the first 40 000
 //! samples, from rest) and on the last 25 % of the multisine samples.
 
-use crate::data::{DataError, LevelSource, RecordSource};
+use crate::data::{CsvOptions, DataError, LevelSource, RecordSource};
+use crate::describe::{mean, std_dev};
 use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions, SIGNIFICANCE_T};
 use crate::record::Record;
 use crate::sim::{simulate_driven, SimError};
 use crate::tape::Tape;
 use dynid_ir::ir::{ModelIr, ParamKind, SignalKind};
 use serde::Serialize;
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
 /// Sample interval: the clock 10 MHz divided by 2¹⁴.
@@ -118,65 +118,34 @@ impl Segment {
 /// Read `DIR/SNLS80mV.csv` and remove the means of both columns.
 pub fn load(dir: &Path) -> Result<SilverboxData, SilverboxError> {
     let path = dir.join(FILE);
-    let file = std::fs::File::open(&path).map_err(|source| SilverboxError::Io {
-        path: path.clone(),
-        source,
-    })?;
-    let mut u = Vec::with_capacity(131_072);
-    let mut y = Vec::with_capacity(131_072);
-    let malformed = |line: u64, what: String| SilverboxError::Malformed {
-        path: path.clone(),
-        line,
-        what,
+    if let Err(source) = std::fs::metadata(&path) {
+        return Err(SilverboxError::Io { path, source });
+    }
+    // The project's one CSV reader: header, equal field counts, finite numbers.
+    let opts = CsvOptions {
+        map: Vec::new(),
+        ts: Some(TS),
     };
-    for (i, line) in BufReader::new(file).lines().enumerate() {
-        let line_no = i as u64 + 1;
-        let line = line.map_err(|source| SilverboxError::Io {
+    let rec = crate::data::read_record(&path, &opts)?;
+    let column = |name: &str| {
+        rec.column(name).ok_or_else(|| SilverboxError::Malformed {
             path: path.clone(),
-            source,
-        })?;
-        let text = line.trim();
-        if i == 0 {
-            let header: Vec<&str> = text
-                .split(',')
-                .map(|f| f.trim().trim_matches('"'))
-                .collect();
-            if header.len() < 2 || header[0] != "V1" || header[1] != "V2" {
-                return Err(malformed(
-                    line_no,
-                    format!("header `{text}`, expected \"V1\",\"V2\""),
-                ));
-            }
-            continue;
-        }
-        if text.is_empty() {
-            continue;
-        }
-        let mut fields = text.split(',').map(str::trim);
-        let mut num = |name: &str| -> Result<f64, SilverboxError> {
-            let f = fields
-                .next()
-                .filter(|f| !f.is_empty())
-                .ok_or_else(|| malformed(line_no, format!("no value for {name}")))?;
-            let v: f64 = f
-                .parse()
-                .map_err(|_| malformed(line_no, format!("`{f}` ({name}) is not a number")))?;
-            if !v.is_finite() {
-                return Err(malformed(line_no, format!("{name} = {v} is not finite")));
-            }
-            Ok(v)
-        };
-        u.push(num("V1")?);
-        y.push(num("V2")?);
-    }
+            line: 1,
+            what: format!(
+                "no column {name} (found {}), expected \"V1\",\"V2\"",
+                rec.names.join(", ")
+            ),
+        })
+    };
+    let (mut u, mut y) = (column("V1")?.to_vec(), column("V2")?.to_vec());
     if u.len() <= ARROW_LEN {
-        return Err(malformed(
-            u.len() as u64 + 1,
-            format!("only {} samples, the benchmark has 131 072", u.len()),
-        ));
+        return Err(SilverboxError::Malformed {
+            path,
+            line: u.len() as u64 + 1,
+            what: format!("only {} samples, the benchmark has 131 072", u.len()),
+        });
     }
-    let mu = mean(&u);
-    let my = mean(&y);
+    let (mu, my) = (mean(&u), mean(&y));
     u.iter_mut().for_each(|v| *v -= mu);
     y.iter_mut().for_each(|v| *v -= my);
     Ok(SilverboxData {
@@ -185,10 +154,6 @@ pub fn load(dir: &Path) -> Result<SilverboxData, SilverboxError> {
         y,
         means: (mu, my),
     })
-}
-
-fn mean(x: &[f64]) -> f64 {
-    x.iter().sum::<f64>() / x.len() as f64
 }
 
 /// The multisine realisations after `from`: maximal stretches between pauses (runs of at
@@ -625,8 +590,7 @@ pub fn arrow_levels(n: usize) -> Vec<Segment> {
 }
 
 fn std_mv(x: &[f64]) -> f64 {
-    let m = mean(x);
-    1e3 * (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / x.len() as f64).sqrt()
+    1e3 * std_dev(x)
 }
 
 /// Records of the arrow levels (band-limited interpolated by `upsample_factor`, see

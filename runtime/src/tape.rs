@@ -194,26 +194,8 @@ impl Tape {
         };
         for (i, op) in self.ops.iter().enumerate() {
             regs[i] = match *op {
-                Op::Unary(u, a) => {
-                    let a = get(regs, a);
-                    match u {
-                        UnaryOp::Neg => -a,
-                        UnaryOp::Abs => a.abs(),
-                        UnaryOp::Sign => sign(a),
-                        UnaryOp::Tanh => a.tanh(),
-                        UnaryOp::Sqrt => a.sqrt(),
-                        UnaryOp::Exp => a.exp(),
-                    }
-                }
-                Op::Binary(b, x, y) => {
-                    let (x, y) = (get(regs, x), get(regs, y));
-                    match b {
-                        BinaryOp::Add => x + y,
-                        BinaryOp::Sub => x - y,
-                        BinaryOp::Mul => x * y,
-                        BinaryOp::Div => x / y,
-                    }
-                }
+                Op::Unary(u, a) => u.apply(get(regs, a)),
+                Op::Binary(b, x, y) => b.apply(get(regs, x), get(regs, y)),
                 Op::Powi(a, k) => get(regs, a).powi(k),
                 Op::Deadzone(a, g) => deadzone(get(regs, a), g),
                 Op::Saturate(a, l) => saturate(get(regs, a), l),

@@ -1,7 +1,8 @@
 //! `dynid demo`: simulate a two-mass system with Coulomb friction in its coupling (the
 //! "real" system), then diagnose the friction-free model against that data.
 
-use dynid_runtime::sim::{simulate, write_outputs as write_levels, SimConfig};
+use dynid::output::write_simulation;
+use dynid_runtime::sim::{simulate, SimConfig};
 use miette::{IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -65,7 +66,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         std::fs::create_dir_all(dir)
             .into_diagnostic()
             .wrap_err_with(|| format!("cannot create `{}`", dir.display()))?;
-        write_levels(dir, &out)?;
+        write_simulation(dir, &out)?;
         std::fs::write(dir.join("two_mass_linear.dyn"), MODEL).into_diagnostic()?;
         std::fs::write(dir.join("two_mass_friction.dyn"), TRUTH).into_diagnostic()?;
         println!("Data and models kept in {}", dir.display());

@@ -2,8 +2,9 @@
 //! linear model hide a nonlinearity, which kind, and how sure.
 
 use super::common::{check_outputs, CsvArgs, Staged};
+use dynid::plot::draw_curves;
 use dynid_runtime::data::{CsvSource, LevelSource};
-use dynid_runtime::detect::{detect_from_data, plot_curves, DetectOptions, SigmaVSource};
+use dynid_runtime::detect::{detect_from_data, DetectOptions, SigmaVSource};
 use dynid_runtime::IdentifyOptions;
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
@@ -97,7 +98,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         }
         if let Some(out) = &args.plot {
             let tmp = staged.temp_for(out)?;
-            plot_curves(&det, &tmp).wrap_err_with(|| format!("cannot write {}", out.display()))?;
+            draw_curves(&det, &tmp).wrap_err_with(|| format!("cannot write {}", out.display()))?;
         }
         staged.commit()
     })();

@@ -118,7 +118,7 @@ pub fn write_outputs(
     json: Option<&Path>,
     model: Option<&Path>,
 ) -> miette::Result<()> {
-    let html = report.map(|_| diagnose::report::render_html(d));
+    let html = report.map(|_| dynid::plot::render_html(d));
     let js = match json {
         Some(_) => Some(serde_json::to_string_pretty(d).into_diagnostic()?),
         None => None,

@@ -2,9 +2,10 @@
 //! multisines, free-run simulate the arrow and the multisine test, compare with the
 //! published results; optionally export the arrow as excitation levels for detection.
 
+use dynid::output::{stage_csv, Staged};
 use dynid_runtime::record::Record;
 use dynid_runtime::silverbox::{self, RunOptions, SilverboxReport, PUBLISHED};
-use dynid_runtime::sim::{level_file_names, write_level_csv};
+use dynid_runtime::sim::level_file_names;
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
 
@@ -151,7 +152,7 @@ fn print_params(r: &SilverboxReport) {
         );
     }
     for u in &r.unidentifiable {
-        println!("  {:<6} not identifiable: {}", u.name, u.reason);
+        println!("  {:<6} left out: {}", u.name, u.reason);
     }
     let sim: Vec<String> = r
         .simulated
@@ -184,15 +185,16 @@ pub fn table(reports: &[SilverboxReport]) -> String {
     s
 }
 
-/// Write `records` as DIR/level_k.csv (each file atomically).
+/// Write `records` as DIR/level_k.csv, all or nothing.
 fn write_levels(dir: &std::path::Path, records: &[Record]) -> miette::Result<()> {
     std::fs::create_dir_all(dir)
         .into_diagnostic()
         .wrap_err_with(|| format!("cannot create `{}`", dir.display()))?;
+    let mut staged = Staged::new();
     for (name, rec) in level_file_names(records.len()).iter().zip(records) {
-        write_level_csv(&dir.join(name), rec)?;
+        stage_csv(&mut staged, &dir.join(name), rec)?;
     }
-    Ok(())
+    staged.commit()
 }
 
 fn export_estimation(

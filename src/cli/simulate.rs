@@ -1,8 +1,9 @@
 //! `dynid simulate`: synthetic test data from a model, or the model's response to
 //! measured inputs.
 
-use super::common::{load_model, write_atomically};
+use super::common::{load_model, Staged};
 use dsl_parser::ir::ModelIr;
+use dynid::output::stage_csv;
 use dynid_runtime::data;
 use dynid_runtime::record::Record;
 use dynid_runtime::sim::{self, SimConfig, DEFAULT_SUBSTEPS};
@@ -151,7 +152,7 @@ fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
     bar.finish_and_clear();
     let out = out.map_err(miette::Report::new)?;
     create_dir(&args.out)?;
-    let paths = sim::write_outputs(&args.out, &out).map_err(miette::Report::new)?;
+    let paths = dynid::output::write_simulation(&args.out, &out)?;
     let stats: Vec<serde_json::Value> = out
         .records
         .iter()
@@ -229,7 +230,6 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
     let params = sim::parameter_values(ir).map_err(miette::Report::new)?;
     create_dir(&args.out)?;
     let csv = args.out.join("driven.csv");
-    sim::write_level_csv(&csv, &response).map_err(miette::Report::new)?;
     let truth = serde_json::json!({
         "model": ir.name,
         "mode": "driven",
@@ -242,10 +242,13 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
         "files": ["driven.csv"],
     });
     let json_path = args.out.join("truth.json");
-    write_atomically(
+    let mut staged = Staged::new();
+    stage_csv(&mut staged, &csv, &response)?;
+    staged.write(
         &json_path,
         (serde_json::to_string_pretty(&truth).into_diagnostic()? + "\n").as_bytes(),
     )?;
+    staged.commit()?;
     let summary = level_summary(&response, &csv, None);
     match args.format {
         Format::Json => println!(
@@ -326,11 +329,7 @@ fn print_summary(s: &serde_json::Value) {
     println!("  {} — {level}std {stds}", s["file"].as_str().unwrap_or(""));
 }
 
-fn std_dev(x: &[f64]) -> f64 {
-    let n = x.len().max(1) as f64;
-    let m = x.iter().sum::<f64>() / n;
-    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n).sqrt()
-}
+use dynid_runtime::describe::std_dev;
 
 #[cfg(test)]
 mod tests {

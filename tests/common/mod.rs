@@ -49,3 +49,17 @@ pub fn relative_errors(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(St
         })
         .collect()
 }
+
+/// `seed` shifted by the environment variable `DYNID_SEED_OFFSET` (default 0). The tests
+/// run on fixed seeds; `DYNID_SEED_OFFSET=1 cargo test --test NAME -- --nocapture` reruns
+/// them on other seeds to measure the spread their bounds are set from.
+pub fn seed(seed: u64) -> u64 {
+    match std::env::var("DYNID_SEED_OFFSET") {
+        Ok(o) => {
+            seed + o
+                .parse::<u64>()
+                .expect("DYNID_SEED_OFFSET is a whole number")
+        }
+        Err(_) => seed,
+    }
+}

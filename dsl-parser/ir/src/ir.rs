@@ -122,6 +122,14 @@ impl Coef {
     }
 }
 
+/// Elements between the same two nodes (see [`ModelIr::element_groups`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElementGroup {
+    /// The nodes as the group's first element writes them.
+    pub nodes: (Node, Node),
+    pub members: Vec<ElementId>,
+}
+
 /// One end of an element.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Node {
@@ -173,6 +181,34 @@ pub enum BinaryOp {
     Sub,
     Mul,
     Div,
+}
+
+impl UnaryOp {
+    /// The operation's value at `a` (the one definition every evaluator uses).
+    #[inline]
+    pub fn apply(self, a: f64) -> f64 {
+        match self {
+            UnaryOp::Neg => -a,
+            UnaryOp::Abs => a.abs(),
+            UnaryOp::Sign => sign(a),
+            UnaryOp::Tanh => a.tanh(),
+            UnaryOp::Sqrt => a.sqrt(),
+            UnaryOp::Exp => a.exp(),
+        }
+    }
+}
+
+impl BinaryOp {
+    /// The operation's value at `(a, b)`.
+    #[inline]
+    pub fn apply(self, a: f64, b: f64) -> f64 {
+        match self {
+            BinaryOp::Add => a + b,
+            BinaryOp::Sub => a - b,
+            BinaryOp::Mul => a * b,
+            BinaryOp::Div => a / b,
+        }
+    }
 }
 
 /// A node of the expression DAG. Constants are stored as bit patterns so nodes can be
@@ -359,6 +395,32 @@ impl ModelIr {
         }
         ir
     }
+    /// The elements grouped by the pair of nodes they connect (in either order): one
+    /// group per pair, in order of first appearance, with the nodes of its first element.
+    /// Springs, dampers and forces between the same two nodes act as one connection.
+    pub fn element_groups(&self) -> Vec<ElementGroup> {
+        let key = |n: Node| match n {
+            Node::Ground => 0usize,
+            Node::Body(b) => b.index() + 1,
+        };
+        let mut out: Vec<((usize, usize), ElementGroup)> = Vec::new();
+        for (i, e) in self.elements.iter().enumerate() {
+            let (a, b) = (key(e.nodes.0), key(e.nodes.1));
+            let k = (a.min(b), a.max(b));
+            let id = ElementId(i as u32);
+            match out.iter_mut().find(|(x, _)| *x == k) {
+                Some((_, g)) => g.members.push(id),
+                None => out.push((
+                    k,
+                    ElementGroup {
+                        nodes: e.nodes,
+                        members: vec![id],
+                    },
+                )),
+            }
+        }
+        out.into_iter().map(|(_, g)| g).collect()
+    }
     pub fn measured_signals(&self) -> Vec<SignalId> {
         (0..self.signals.len() as u32)
             .map(SignalId)
@@ -453,26 +515,8 @@ pub fn eval_node(node: ExprNode, vals: &[f64], signals: &[f64]) -> f64 {
     match node {
         ExprNode::Const(b) => f64::from_bits(b),
         ExprNode::Signal(s) => signals[s.index()],
-        ExprNode::Unary(op, a) => {
-            let a = vals[a.index()];
-            match op {
-                UnaryOp::Neg => -a,
-                UnaryOp::Abs => a.abs(),
-                UnaryOp::Sign => sign(a),
-                UnaryOp::Tanh => a.tanh(),
-                UnaryOp::Sqrt => a.sqrt(),
-                UnaryOp::Exp => a.exp(),
-            }
-        }
-        ExprNode::Binary(op, a, b) => {
-            let (a, b) = (vals[a.index()], vals[b.index()]);
-            match op {
-                BinaryOp::Add => a + b,
-                BinaryOp::Sub => a - b,
-                BinaryOp::Mul => a * b,
-                BinaryOp::Div => a / b,
-            }
-        }
+        ExprNode::Unary(op, a) => op.apply(vals[a.index()]),
+        ExprNode::Binary(op, a, b) => op.apply(vals[a.index()], vals[b.index()]),
         ExprNode::Powi(a, n) => vals[a.index()].powi(n),
         ExprNode::Deadzone(a, g) => deadzone(vals[a.index()], f64::from_bits(g)),
         ExprNode::Saturate(a, l) => saturate(vals[a.index()], f64::from_bits(l)),

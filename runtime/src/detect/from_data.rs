@@ -27,7 +27,7 @@
 //!   over `n_blocks` time blocks, so [`DetectOptions::se_dof`] is set to `n_blocks − 1`
 //!   unless the caller chose a value.
 
-use dynid_ir::ir::{Basis, ElementKind, ModelIr, Node, ParamId};
+use dynid_ir::ir::{Basis, ElementKind, ModelIr, ParamId};
 use serde::Serialize;
 
 use super::{detect, Candidate, DetectError, DetectOptions, Detection, DetectionInput};
@@ -85,49 +85,24 @@ struct Group {
     members: Vec<usize>,
 }
 
-fn node_name(ir: &ModelIr, n: Node) -> String {
-    match n {
-        Node::Ground => "ground".into(),
-        Node::Body(b) => ir.bodies[b.index()].name.clone(),
-    }
-}
-
 fn groups(ir: &ModelIr) -> Vec<Group> {
-    let key = |n: Node| match n {
-        Node::Ground => 0usize,
-        Node::Body(b) => b.index() + 1,
-    };
-    let mut out: Vec<(usize, usize, Group)> = Vec::new();
-    for (i, e) in ir.elements.iter().enumerate() {
-        let (a, b) = (key(e.nodes.0), key(e.nodes.1));
-        let k = (a.min(b), a.max(b));
-        match out.iter_mut().find(|(x, y, _)| (*x, *y) == k) {
-            Some((_, _, g)) => g.members.push(i),
-            None => out.push((
-                k.0,
-                k.1,
-                Group {
-                    name: String::new(),
-                    members: vec![i],
-                },
-            )),
-        }
-    }
-    out.into_iter()
-        .map(|(_, _, mut g)| {
-            let e0 = &ir.elements[g.members[0]];
+    ir.element_groups()
+        .into_iter()
+        .map(|g| {
             let names: Vec<&str> = g
                 .members
                 .iter()
-                .map(|&i| ir.elements[i].name.as_str())
+                .map(|e| ir.elements[e.index()].name.as_str())
                 .collect();
-            g.name = format!(
-                "{} ({}, {})",
-                names.join("/"),
-                node_name(ir, e0.nodes.0),
-                node_name(ir, e0.nodes.1)
-            );
-            g
+            Group {
+                name: format!(
+                    "{} ({}, {})",
+                    names.join("/"),
+                    ir.node_name(g.nodes.0),
+                    ir.node_name(g.nodes.1)
+                ),
+                members: g.members.iter().map(|e| e.index()).collect(),
+            }
         })
         .collect()
 }

@@ -25,7 +25,6 @@
 mod candidate;
 mod fit;
 pub mod from_data;
-pub mod plot;
 mod quad;
 pub mod stats;
 
@@ -36,9 +35,9 @@ pub use candidate::{Candidate, Dependence, Distribution, ShapeParam};
 pub use from_data::{
     detect_from_data, held_inertia, level_fits, FromDataError, LevelFits, SigmaVSource,
 };
-pub use plot::plot_curves;
 pub use quad::NormalRule;
 
+use dynid_ir::num;
 use dynid_ir::print::aligned;
 use serde::{Deserialize, Serialize};
 
@@ -456,12 +455,6 @@ pub enum DetectError {
         first: String,
         second: String,
     },
-    #[error("cannot write the plot `{path}`: {message}")]
-    #[diagnostic(
-        code(dynid::detect::plot),
-        help("check that the directory exists and is writable; use a .svg or .png file name")
-    )]
-    Plot { path: String, message: String },
 }
 
 fn check_len(what: &str, got: usize, expected: usize) -> Result<(), DetectError> {
@@ -902,29 +895,12 @@ fn trend(c: &Candidate, el: &ElementData) -> f64 {
 
 /// `value ± stderr` with the value rounded to the stderr's second significant digit.
 pub fn fmt_pm(value: f64, stderr: f64) -> String {
-    if !stderr.is_finite() || stderr <= 0.0 {
-        return format!("{} (± ?)", fmt_g(value));
-    }
-    let digits = (1 - stderr.log10().floor() as i32).clamp(0, 12) as usize;
-    format!("{value:.digits$} ± {stderr:.digits$}")
+    num::pm(value, stderr)
 }
 
 /// Four significant digits, plain notation where readable.
 pub fn fmt_g(x: f64) -> String {
-    if !x.is_finite() {
-        return format!("{x}");
-    }
-    let a = x.abs();
-    if a != 0.0 && !(1e-3..1e5).contains(&a) {
-        format!("{x:.3e}")
-    } else {
-        let digits = if a == 0.0 {
-            3
-        } else {
-            (3 - a.log10().floor() as i32).clamp(0, 6) as usize
-        };
-        format!("{x:.digits$}")
-    }
+    num::sig(x, 4, true)
 }
 
 impl Detection {

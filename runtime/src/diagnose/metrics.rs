@@ -22,14 +22,7 @@ pub fn nrmse(sim: &[f64], meas: &[f64]) -> f64 {
     }
 }
 
-pub fn std_dev(x: &[f64]) -> f64 {
-    if x.is_empty() {
-        return 0.0;
-    }
-    let n = x.len() as f64;
-    let m = x.iter().sum::<f64>() / n;
-    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n).sqrt()
-}
+pub use crate::describe::std_dev;
 
 /// One-sided Welch power spectral density (Hann window, 50 % overlap) at bins
 /// `k / (nseg · ts)`, `k = 0 … nseg/2`. Returns (frequencies in Hz, PSD).
@@ -45,19 +38,18 @@ pub fn welch(x: &[f64], ts: f64, nseg_max: usize) -> (Vec<f64>, Vec<f64>) {
         .collect();
     let wsum: f64 = win.iter().map(|w| w * w).sum();
     let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
-    let (mut re, mut im) = (vec![0.0; nseg], vec![0.0; nseg]);
+    let mut power = crate::fft::SegmentPower::new(nseg);
     let mut count = 0;
     let mut start = 0;
     while start + nseg <= x.len() {
-        for i in 0..nseg {
-            re[i] = (x[start + i] - mean) * win[i];
-            im[i] = 0.0;
+        for (i, v) in power.input_mut().iter_mut().enumerate() {
+            *v = (x[start + i] - mean) * win[i];
         }
-        crate::fft::fft(&mut re, &mut im);
-        for k in 0..nb {
-            let p = re[k] * re[k] + im[k] * im[k];
-            psd[k] += if k == 0 || k == nseg / 2 { p } else { 2.0 * p };
-        }
+        // One-sided: the bins between DC and Nyquist stand for two.
+        power.add_power(
+            &mut psd,
+            |k| if k == 0 || k == nseg / 2 { 1.0 } else { 2.0 },
+        );
         count += 1;
         start += nseg / 2;
     }

@@ -764,8 +764,9 @@ impl<'m> Moments<'m> {
     }
 
     /// Model selection: leave out, and refit without, any parameter whose standard error
-    /// is at least its own size (worst first, one at a time); it is then listed as
-    /// unidentifiable with that reason. Off by default: identification keeps such a
+    /// is at least its own size (worst first, one at a time); it is then listed among the
+    /// parameters left out, with that reason (not significant, which is not rank
+    /// deficiency). Off by default: identification keeps such a
     /// parameter and flags it. A structure search uses it to treat such a term as absent.
     pub fn prune_insignificant(&mut self, on: bool) {
         self.prune_t = if on { 1.0 } else { 0.0 };
@@ -1031,9 +1032,9 @@ impl<'m> Moments<'m> {
                     unident.push(Unidentifiable {
                         name: names[active[j]].clone(),
                         reason: format!(
-                            "left out of the model: the estimate {:.3e} has a standard error \
-                             of {:.1e}, at least its own size",
-                            sol.x[j], se[j]
+                            "not significant, left out by model selection: the estimate \
+                             {:.3e} is within {} standard errors ({:.1e}) of zero",
+                            sol.x[j], self.prune_t, se[j]
                         ),
                     });
                     active.remove(j);

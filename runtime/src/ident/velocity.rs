@@ -170,8 +170,7 @@ pub(crate) struct Welch {
     seg: usize,
     buf: Vec<f64>,
     window: Vec<f64>,
-    re: Vec<f64>,
-    im: Vec<f64>,
+    power: crate::fft::SegmentPower,
     psd: Vec<f64>,
     count: usize,
 }
@@ -185,8 +184,7 @@ impl Welch {
             seg,
             buf: Vec::with_capacity(seg),
             window,
-            re: vec![0.0; seg],
-            im: vec![0.0; seg],
+            power: crate::fft::SegmentPower::new(seg),
             psd: vec![0.0; seg / 2 + 1],
             count: 0,
         }
@@ -225,15 +223,12 @@ impl Welch {
             sxx += t * t;
         }
         let slope = sxy / sxx;
-        for k in 0..self.seg {
+        let input = self.power.input_mut();
+        for (k, v) in input.iter_mut().enumerate() {
             let t = k as f64 - tm;
-            self.re[k] = (self.buf[k] - mean - slope * t) * self.window[k];
-            self.im[k] = 0.0;
+            *v = (self.buf[k] - mean - slope * t) * self.window[k];
         }
-        crate::fft::fft(&mut self.re, &mut self.im);
-        for (k, p) in self.psd.iter_mut().enumerate() {
-            *p += self.re[k] * self.re[k] + self.im[k] * self.im[k];
-        }
+        self.power.add_power(&mut self.psd, |_| 1.0);
         self.count += 1;
     }
 

@@ -67,8 +67,9 @@ pub mod test_models;
 
 pub use control::{PdControl, ReferenceSpec, VelocitySource};
 pub use error::SimError;
-pub use output::{level_file_names, write_level_csv, write_outputs, Truth};
+pub use output::{level_file_names, write_csv, Truth};
 
+use crate::describe::std_dev;
 use crate::record::Record;
 use control::{quantise, Controller};
 use dynid_ir::ir::{FormFilter, InputId, ModelIr, ParamKind, SignalKind};
@@ -830,16 +831,6 @@ fn splitmix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
-}
-
-/// Population standard deviation.
-pub(crate) fn std_dev(x: &[f64]) -> f64 {
-    if x.is_empty() {
-        return 0.0;
-    }
-    let n = x.len() as f64;
-    let mean = x.iter().sum::<f64>() / n;
-    (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt()
 }
 
 #[cfg(test)]

@@ -1,12 +1,12 @@
-//! Writing simulated records: one CSV per level and `truth.json`, atomically.
+//! Simulated records as text: the CSV format of a level and the `truth.json` record of
+//! what a simulation used. Formatting only, into any `io::Write`; the caller opens files.
 
-use super::{PdControl, SimConfig, SimError, SimOutput};
+use super::{PdControl, SimConfig};
 use crate::record::Record;
 use dynid_ir::ir::{FormFilter, ModelIr};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::io::Write;
-use std::path::{Path, PathBuf};
 
 /// What a simulation used: enough to reproduce it and to score an identification.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -36,7 +36,7 @@ pub struct Truth {
     /// `<body>.x_ref`.
     #[serde(default)]
     pub control: Option<PdControl>,
-    /// Data files written, in level order (filled in by [`write_outputs`]).
+    /// Data files written, in level order (filled in by the writer of the files).
     #[serde(default)]
     pub files: Vec<String>,
 }
@@ -105,77 +105,8 @@ pub fn level_file_names(n: usize) -> Vec<String> {
 }
 
 /// Write `record` as CSV with header `t,<signals>` (t = t0 + i·ts) and numbers in their
-/// shortest round-trip form. Written to a temporary file in the same directory and renamed,
-/// so a failed write leaves no partial file behind.
-pub fn write_level_csv(path: &Path, record: &Record) -> Result<(), SimError> {
-    let tmp = temp_path(path);
-    write_csv_to(&tmp, record)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|source| {
-            let _ = std::fs::remove_file(&tmp);
-            SimError::Write {
-                path: path.to_path_buf(),
-                source,
-            }
-        })
-}
-
-/// Write `DIR/level_k.csv` for every level and `DIR/truth.json`. All files are first
-/// written under temporary names and only renamed once every write succeeded; on error
-/// the temporaries are removed. Returns the paths written (truth.json last).
-pub fn write_outputs(dir: &Path, out: &SimOutput) -> Result<Vec<PathBuf>, SimError> {
-    let names = level_file_names(out.records.len());
-    let mut truth = out.truth.clone();
-    truth.files = names.clone();
-    let mut finals: Vec<PathBuf> = names.iter().map(|n| dir.join(n)).collect();
-    finals.push(dir.join("truth.json"));
-    let temps: Vec<PathBuf> = finals.iter().map(|p| temp_path(p)).collect();
-    let cleanup = |temps: &[PathBuf]| {
-        for t in temps {
-            let _ = std::fs::remove_file(t);
-        }
-    };
-    for ((rec, tmp), fin) in out.records.iter().zip(&temps).zip(&finals) {
-        if let Err(source) = write_csv_to(tmp, rec) {
-            cleanup(&temps);
-            return Err(SimError::Write {
-                path: fin.clone(),
-                source,
-            });
-        }
-    }
-    let json_tmp = temps.last().expect("truth.json");
-    let json = serde_json::to_string_pretty(&truth).expect("truth serialises");
-    if let Err(source) = std::fs::write(json_tmp, json + "\n") {
-        cleanup(&temps);
-        return Err(SimError::Write {
-            path: finals.last().expect("truth.json").clone(),
-            source,
-        });
-    }
-    for (tmp, fin) in temps.iter().zip(&finals) {
-        if let Err(source) = std::fs::rename(tmp, fin) {
-            cleanup(&temps);
-            return Err(SimError::Write {
-                path: fin.clone(),
-                source,
-            });
-        }
-    }
-    Ok(finals)
-}
-
-fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
-}
-
-fn write_csv_to(path: &Path, record: &Record) -> std::io::Result<()> {
-    let file = std::fs::File::create(path)?;
-    let mut w = std::io::BufWriter::with_capacity(1 << 16, file);
+/// shortest round-trip form (buffer `w`: this writes field by field).
+pub fn write_csv(mut w: &mut dyn Write, record: &Record) -> std::io::Result<()> {
     write!(w, "t")?;
     for n in &record.names {
         write!(w, ",{n}")?;
@@ -195,7 +126,7 @@ fn write_csv_to(path: &Path, record: &Record) -> std::io::Result<()> {
         }
         w.write_all(b"\n")?;
     }
-    w.into_inner().map_err(|e| e.into_error())?.sync_all()
+    Ok(())
 }
 
 /// Number of decimals of `x` if it is a short decimal (≤ 9 decimals), e.g. 2 for 0.01.
@@ -209,7 +140,7 @@ fn time_decimals(x: f64) -> Option<usize> {
 /// Shortest round-trip representation; exponent form outside [1e-4, 1e15) so tiny and
 /// huge values stay short.
 #[inline]
-fn write_number(w: &mut impl Write, x: f64) -> std::io::Result<()> {
+fn write_number(w: &mut (impl Write + ?Sized), x: f64) -> std::io::Result<()> {
     let a = x.abs();
     if x == 0.0 || (1e-4..1e15).contains(&a) || !x.is_finite() {
         write!(w, "{x}")
@@ -258,16 +189,15 @@ mod tests {
 
     #[test]
     fn csv_has_header_time_and_exact_values() {
-        let dir = tempfile_dir();
-        let path = dir.join("a.csv");
         let rec = Record {
             names: vec!["m1.x".into(), "u".into()],
             columns: vec![vec![0.1, 1.0 / 3.0], vec![-2.0, 1e-9]],
             ts: 0.01,
             t0: 0.0,
         };
-        write_level_csv(&path, &rec).unwrap();
-        let text = std::fs::read_to_string(&path).unwrap();
+        let mut buf = Vec::new();
+        write_csv(&mut buf, &rec).unwrap();
+        let text = String::from_utf8(buf).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines[0], "t,m1.x,u");
         assert_eq!(lines[1], "0.00,0.1,-2");
@@ -275,38 +205,5 @@ mod tests {
         assert_eq!(row, [0.01, 1.0 / 3.0, 1e-9]);
         assert_eq!(time_decimals(0.01), Some(2));
         assert_eq!(time_decimals(1.0 / 3.0), None);
-        // No temporary left behind.
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
-        std::fs::remove_dir_all(dir).unwrap();
-    }
-
-    #[test]
-    fn failed_write_leaves_nothing() {
-        let dir = tempfile_dir();
-        let path = dir.join("missing-subdir").join("a.csv");
-        let rec = Record {
-            names: vec!["x".into()],
-            columns: vec![vec![1.0]],
-            ts: 1.0,
-            t0: 0.0,
-        };
-        assert!(matches!(
-            write_level_csv(&path, &rec),
-            Err(SimError::Write { .. })
-        ));
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
-        std::fs::remove_dir_all(dir).unwrap();
-    }
-
-    fn tempfile_dir() -> PathBuf {
-        use std::sync::atomic::{AtomicUsize, Ordering};
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let d = std::env::temp_dir().join(format!(
-            "dynid-sim-out-{}-{}",
-            std::process::id(),
-            N.fetch_add(1, Ordering::Relaxed)
-        ));
-        std::fs::create_dir_all(&d).unwrap();
-        d
     }
 }

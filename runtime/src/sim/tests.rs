@@ -1,5 +1,6 @@
 use super::test_models::{sdof, two_mass_chain, SdofParams};
 use super::*;
+use crate::describe::mean;
 use dynid_ir::ir::FormFilter;
 use nalgebra::DMatrix;
 
@@ -17,10 +18,6 @@ fn cfg(duration: f64) -> SimConfig {
 
 fn col<'a>(r: &'a Record, name: &str) -> &'a [f64] {
     r.column(name).unwrap()
-}
-
-fn mean(x: &[f64]) -> f64 {
-    x.iter().sum::<f64>() / x.len() as f64
 }
 
 fn mean_prod(a: &[f64], b: &[f64]) -> f64 {

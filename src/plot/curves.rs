@@ -2,26 +2,20 @@
 //! estimates and their error bars over the element's intensity (log axis: the levels are
 //! usually spaced by factors), the constant fit, and the best templates of the element.
 //!
-//! The PNG back end rasterises text with an embedded font (DejaVu Sans, see
-//! `assets/DejaVuSans-LICENSE.txt`), so plotting needs no system font libraries.
+//! The PNG back end rasterises text with the embedded font (see [`super`]).
 
 use std::path::Path;
-use std::sync::Once;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{fmt_g, DetectError, Detection, ParamCurveResult, Verdict};
+use super::{register_font, PlotError};
+use crate::output::Staged;
+use dsl_parser::num;
+use dynid_runtime::detect::{Detection, ParamCurveResult, TemplateFit, Verdict};
 
-static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
-static REGISTER: Once = Once::new();
-
-fn register_font() {
-    REGISTER.call_once(|| {
-        // The embedded file is a valid TrueType font; failure here is a build defect.
-        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
-        let _ = plotters::style::register_font("sans-serif", FontStyle::Bold, FONT);
-    });
+fn fmt_g(x: f64) -> String {
+    num::sig(x, 4, true)
 }
 
 const PANEL_W: u32 = 760;
@@ -36,35 +30,39 @@ const TEMPLATE_COLORS: [RGBColor; N_TEMPLATES] = [
 ];
 const POINT_COLOR: RGBColor = RGBColor(25, 60, 160);
 
-/// Write the figure to `path`: SVG, or PNG when the name ends in `.png`. Panels are laid
-/// out two per row, one per curve in `detection.params`.
-pub fn plot_curves(detection: &Detection, path: impl AsRef<Path>) -> Result<(), DetectError> {
+/// Write the figure to `path`, all or nothing: SVG, or PNG when the name ends in `.png`.
+/// Panels are laid out two per row, one per curve in `detection.params`.
+pub fn plot_curves(detection: &Detection, path: impl AsRef<Path>) -> Result<(), PlotError> {
     let path = path.as_ref();
+    let err = |message: String| PlotError {
+        path: path.display().to_string(),
+        message,
+    };
+    let mut staged = Staged::new();
+    let tmp = staged.temp_for(path).map_err(|e| err(e.to_string()))?;
+    draw_curves(detection, &tmp).map_err(|e| err(e.message))?;
+    staged.commit().map_err(|e| err(e.to_string()))
+}
+
+/// Draw the figure into `path` as it is (no temporary): for a caller that stages several
+/// outputs itself ([`crate::output::Staged`]). The format follows the extension of `path`.
+pub fn draw_curves(detection: &Detection, path: &Path) -> Result<(), PlotError> {
     register_font();
     let n = detection.params.len().max(1);
     let cols = if n == 1 { 1 } else { 2 };
     let rows = n.div_ceil(cols);
     let size = (PANEL_W * cols as u32, PANEL_H * rows as u32);
-    let err = |message: String| DetectError::Plot {
+    let err = |message: String| PlotError {
         path: path.display().to_string(),
         message,
     };
     let png = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    // Render next to the target and rename, so that a failure leaves no partial file.
     if png {
-        let tmp = path.with_extension("partial.png");
-        let drawn = (|| {
-            let root = BitMapBackend::new(&tmp, size).into_drawing_area();
-            draw(&root, detection, rows, cols)?;
-            root.present().map_err(|e| e.to_string())
-        })();
-        let done = drawn.and_then(|()| std::fs::rename(&tmp, path).map_err(|e| e.to_string()));
-        if done.is_err() {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        done.map_err(err)
+        let root = BitMapBackend::new(path, size).into_drawing_area();
+        draw(&root, detection, rows, cols).map_err(err)?;
+        root.present().map_err(|e| err(e.to_string()))
     } else {
         let mut svg = String::new();
         {
@@ -92,12 +90,7 @@ fn draw<DB: DrawingBackend>(
 
 /// Axis ticks: at most four significant digits, without trailing zeros.
 fn fmt_tick(v: f64) -> String {
-    let s = fmt_g(v);
-    if s.contains('.') && !s.contains('e') {
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        s
-    }
+    num::sig(v, 4, false)
 }
 
 /// Ticks of a log10 axis drawn linearly: plotters' own log axis puts as few as one
@@ -228,10 +221,10 @@ fn panel<DB: DrawingBackend>(
             gray.stroke_width(2),
         ))
         .map_err(|e| e.to_string())?
-        .label(format!("constant {}", super::fmt_pm(p.mean, p.mean_stderr)))
+        .label(format!("constant {}", num::pm(p.mean, p.mean_stderr)))
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], gray.stroke_width(2)));
 
-    let template_points = |t: &super::TemplateFit| -> Vec<(f64, f64)> {
+    let template_points = |t: &TemplateFit| -> Vec<(f64, f64)> {
         t.predictions
             .iter()
             .filter(|pr| pr.param == p.curve.param)
@@ -299,4 +292,83 @@ fn panel<DB: DrawingBackend>(
         .draw()
         .map_err(|e| e.to_string())?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dynid_runtime::detect::{
+        detect, DetectOptions, DetectionInput, ElementIntensity, ParamCurve, Role,
+    };
+
+    /// Two elements over six levels: one hardening spring with level-dependent damping
+    /// (Coulomb friction), one linear element.
+    fn detection() -> Detection {
+        let ss: Vec<f64> = (0..6).map(|i| 0.1 * 2f64.powi(i)).collect();
+        let sv: Vec<f64> = ss.iter().map(|s| 2.0 * s).collect();
+        let curve = |param: &str, element: &str, role, values: Vec<f64>, rel: f64| {
+            let stderrs = values.iter().map(|v| rel * v.abs()).collect();
+            ParamCurve {
+                param: param.into(),
+                element: element.into(),
+                role,
+                values,
+                stderrs,
+            }
+        };
+        let k = ss.iter().map(|s| 4.0 + 6.0 * s * s).collect();
+        let d = sv.iter().map(|v| 0.4 + 0.24 / v).collect();
+        let input = DetectionInput {
+            held: Vec::new(),
+            level_labels: Vec::new(),
+            elements: vec![
+                ElementIntensity {
+                    element: "spring1".into(),
+                    sigma_s: ss.clone(),
+                    sigma_v: sv.clone(),
+                    ..Default::default()
+                },
+                ElementIntensity {
+                    element: "spring2".into(),
+                    sigma_s: ss.iter().map(|s| 0.5 * s).collect(),
+                    sigma_v: sv.iter().map(|v| 0.5 * v).collect(),
+                    ..Default::default()
+                },
+            ],
+            curves: vec![
+                curve("k1", "spring1", Role::Stiffness, k, 0.01),
+                curve("d1", "spring1", Role::Damping, d, 0.02),
+                curve("k2", "spring2", Role::Stiffness, vec![2.0; 6], 0.01),
+                curve("d2", "spring2", Role::Damping, vec![0.2; 6], 0.02),
+            ],
+        };
+        detect(&input, &[], &DetectOptions::default()).expect("detects")
+    }
+
+    #[test]
+    fn curves_are_written_as_svg_and_png_or_not_at_all() {
+        let det = detection();
+        let dir = tempfile::tempdir().unwrap();
+        let svg = dir.path().join("curves.svg");
+        let png = dir.path().join("curves.png");
+        plot_curves(&det, &svg).unwrap();
+        plot_curves(&det, &png).unwrap();
+        let svg_text = std::fs::read_to_string(&svg).unwrap();
+        assert!(svg_text.contains("<svg") && svg_text.contains("cubic stiffness"));
+        let png_bytes = std::fs::read(&png).unwrap();
+        assert_eq!(&png_bytes[1..4], b"PNG");
+        if let Ok(keep) = std::env::var("DYNID_KEEP_PLOTS") {
+            std::fs::copy(&svg, format!("{keep}.svg")).unwrap();
+            std::fs::copy(&png, format!("{keep}.png")).unwrap();
+        }
+        // No partial file is left when the target cannot be written.
+        let bad = dir.path().join("missing-dir").join("x.png");
+        assert!(plot_curves(&det, &bad).is_err());
+        let mut left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["curves.png", "curves.svg"]);
+    }
 }

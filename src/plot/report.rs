@@ -2,22 +2,11 @@
 //! plotters, inline CSS, no scripts), so that it opens offline and can be mailed around.
 
 use std::fmt::Write;
-use std::sync::Once;
 
 use plotters::prelude::*;
 
-use super::{fmt_num, Diagnosis, ModelGap};
-
-static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
-static REGISTER: Once = Once::new();
-
-fn register_font() {
-    REGISTER.call_once(|| {
-        // The embedded file is a valid TrueType font; failure here is a build defect.
-        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
-        let _ = plotters::style::register_font("sans-serif", FontStyle::Bold, FONT);
-    });
-}
+use super::register_font;
+use dynid_runtime::diagnose::{fmt_num, Diagnosis, ModelGap, Spectrum};
 
 const COLORS: [RGBColor; 4] = [
     RGBColor(25, 60, 160),
@@ -180,7 +169,7 @@ fn drift_svg(d: &Diagnosis) -> Result<String, String> {
     Ok(svg)
 }
 
-fn spectrum_svg(sp: &super::Spectrum) -> Result<String, String> {
+fn spectrum_svg(sp: &Spectrum) -> Result<String, String> {
     // Up to the frequency holding 99.9 % of the measured power, log10 of the PSD.
     let total: f64 = sp.measured.iter().skip(1).sum();
     let mut acc = 0.0;
@@ -308,8 +297,12 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
         "<h1>Sim-to-real gap of <code>{}</code></h1>",
         esc(&d.model)
     );
-    let headline = match (&d.effect, &d.location) {
-        (Some(e), Some(l)) => format!(
+    let first = d
+        .found
+        .first()
+        .map(|f| (f.effect.name(), f.location.label()));
+    let headline = match &first {
+        Some((e, l)) => format!(
             "Missing effect: <b>{}</b> at <b>{}</b>. Gap {:.1} % → {:.1} % on withheld levels (<b>{:.0} %</b> of the gap removed).",
             esc(e),
             esc(l),

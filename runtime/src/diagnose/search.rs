@@ -1,0 +1,248 @@
+//! The candidate search: every effect at every site on top of the current model, ranked by
+//! the cross-validated covariance residual; the best few scored by the withheld free-run gap.
+
+use super::effects::{add_effect, locations, Effect, Location, Variant};
+use super::gap::Data;
+use super::gap::{cross_validate, cv_gap, measure_all};
+use super::metrics;
+use super::types::{CandidateScore, DiagnoseOptions, FoundEffect, ModelGap};
+use crate::ident::Identification;
+use dynid_ir::ir::SignalKind;
+use dynid_ir::num;
+use rayon::prelude::*;
+
+pub(super) struct Search {
+    pub(super) ranking: Vec<CandidateScore>,
+    pub(super) best: Option<(CandidateScore, Variant, ModelGap, Identification)>,
+}
+
+/// One greedy step: try every effect at every location on top of `base`, except the kinds
+/// already `found` at a location (a second copy of a term is collinear with the first).
+pub(super) fn search_step(
+    base: &Variant,
+    found: &[FoundEffect],
+    data: &Data,
+    baseline: f64,
+    opts: &DiagnoseOptions,
+    notes: &mut Vec<String>,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Search {
+    let ir = &base.ir;
+    let n = data.records.len();
+    let vel_measured = ir
+        .signals
+        .iter()
+        .filter(|s| matches!(s.kind, SignalKind::Velocity { .. }))
+        .all(|s| s.measured);
+    // Gaps of the backlash grid are relative to each location's σ_s on the largest level.
+    let sigma_s = |loc: &Location| -> f64 {
+        let big = (0..n)
+            .max_by(|&a, &b| {
+                let sa = data.records[a]
+                    .columns
+                    .iter()
+                    .map(|c| metrics::std_dev(c))
+                    .sum::<f64>();
+                let sb = data.records[b]
+                    .columns
+                    .iter()
+                    .map(|c| metrics::std_dev(c))
+                    .sum::<f64>();
+                sa.total_cmp(&sb)
+            })
+            .unwrap_or(0);
+        let rec = &data.records[big];
+        let col = |node: &str| rec.column(&format!("{node}.x"));
+        let s: Vec<f64> = match (loc.a.as_str(), col(&loc.a), col(&loc.b)) {
+            ("ground", _, Some(xb)) => xb.to_vec(),
+            (_, Some(xa), Some(xb)) => xb.iter().zip(xa).map(|(b, a)| b - a).collect(),
+            (_, Some(xa), None) if loc.b == "ground" => xa.iter().map(|a| -a).collect(),
+            _ => return 0.0,
+        };
+        metrics::std_dev(&s)
+    };
+    let locs = locations(ir);
+    let mut cands: Vec<(Effect, Location)> = Vec::new();
+    let mut skipped_velocity = false;
+    let already = |kind: &str, loc: &Location| {
+        found
+            .iter()
+            .any(|f| f.effect.kind() == kind && f.location.a == loc.a && f.location.b == loc.b)
+    };
+    for loc in &locs {
+        for eff in [
+            Effect::Cubic,
+            Effect::QuadraticStiffness,
+            Effect::Coulomb,
+            Effect::QuadraticDamping,
+            Effect::Prestress,
+        ] {
+            if eff.needs_velocity() && !vel_measured {
+                skipped_velocity = true;
+                continue;
+            }
+            if already(eff.kind(), loc) {
+                continue;
+            }
+            cands.push((eff, loc.clone()));
+        }
+        let sg = sigma_s(loc);
+        if sg > 0.0 && !already("backlash", loc) {
+            for f in [0.1, 0.25, 0.5, 1.0] {
+                cands.push((
+                    Effect::Backlash {
+                        gap: num::round_sig(f * sg, 3),
+                    },
+                    loc.clone(),
+                ));
+            }
+        }
+    }
+    if skipped_velocity && !notes.iter().any(|s| s.contains("velocities")) {
+        notes.push(
+            "velocities are not measured: Coulomb friction and quadratic damping candidates \
+             were skipped (cubic, quadratic stiffness, backlash and prestress were searched)"
+                .into(),
+        );
+    }
+    let total = cands.len();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let evaluate = |(eff, loc): &(Effect, Location)| -> Option<(CandidateScore, Variant, Vec<Identification>, Identification)> {
+        let out = (|| {
+            let (cir, p) = add_effect(ir, *eff, loc)?;
+            let m = measure_all(&cir, data, opts).ok()?;
+            let all = m.identify_pooled();
+            let est = all.param(&p).cloned().unwrap_or(crate::ident::ParamEstimate {
+                name: p.clone(),
+                value: f64::NAN,
+                stderr: f64::NAN,
+                significant: false,
+            });
+            let (cv, fits) = cross_validate(&m, &cir, n);
+            let t = if est.value.is_finite() {
+                est.value.abs() / est.stderr.max(f64::MIN_POSITIVE)
+            } else {
+                0.0
+            };
+            let mut added = base.added.clone();
+            added.push(p);
+            let score = CandidateScore {
+                effect: *eff,
+                location: loc.clone(),
+                value: est.value,
+                stderr: est.stderr,
+                t_ratio: t,
+                sign_ok: est.value.is_finite() && eff.sign_ok(est.value),
+                cv_residual: cv,
+                gap: None,
+                accepted: false,
+                note: String::new(),
+            };
+            Some((score, Variant { ir: cir, added }, fits, all))
+        })();
+        let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress(k, total);
+        out
+    };
+    let mut results: Vec<_> = cands.par_iter().filter_map(&evaluate).collect();
+    // Refine the backlash gap around the best grid point of each location.
+    let mut refined = Vec::new();
+    for loc in &locs {
+        let best = results
+            .iter()
+            .filter(|r| r.0.location == *loc && matches!(r.0.effect, Effect::Backlash { .. }))
+            .min_by(|a, b| a.0.cv_residual.total_cmp(&b.0.cv_residual));
+        if let Some((s, ..)) = best {
+            if let Effect::Backlash { gap } = s.effect {
+                for f in [0.75, 1.35] {
+                    refined.push((
+                        Effect::Backlash {
+                            gap: num::round_sig(gap * f, 3),
+                        },
+                        loc.clone(),
+                    ));
+                }
+            }
+        }
+    }
+    let more: Vec<_> = refined.par_iter().filter_map(&evaluate).collect();
+    results.extend(more);
+    // Keep one backlash (the best gap) per location in the ranking.
+    results.sort_by(|a, b| a.0.cv_residual.total_cmp(&b.0.cv_residual));
+    let mut seen_bl: Vec<Location> = Vec::new();
+    results.retain(|r| {
+        if matches!(r.0.effect, Effect::Backlash { .. }) {
+            if seen_bl.contains(&r.0.location) {
+                return false;
+            }
+            seen_bl.push(r.0.location.clone());
+        }
+        true
+    });
+    // Free-run score for the best few physically admissible candidates.
+    let mut scored = 0;
+    let mut gaps: Vec<(usize, ModelGap)> = Vec::new();
+    #[allow(clippy::needless_range_loop)]
+    for i in 0..results.len() {
+        if scored >= opts.top_k {
+            break;
+        }
+        let r = &results[i];
+        if !r.0.sign_ok || r.0.t_ratio <= opts.t_min {
+            results[i].0.note = if !r.0.value.is_finite() {
+                "not resolved by the data".into()
+            } else if !r.0.sign_ok {
+                "unphysical sign".into()
+            } else {
+                format!("not significant (|p|/σ = {:.1})", r.0.t_ratio)
+            };
+            continue;
+        }
+        scored += 1;
+        let g = cv_gap(&r.1.ir, &r.2, data, opts, "corrected");
+        results[i].0.gap = Some(g.gap);
+        gaps.push((i, g));
+    }
+    // Free-run gaps within 10 % of the best are a tie (a wide dead zone mimics a cubic
+    // spring): the cross-validated covariance residual, which sees every instrument, breaks it.
+    let best_gap = gaps.iter().map(|g| g.1.gap).fold(f64::INFINITY, f64::min);
+    let best = gaps
+        .into_iter()
+        .filter(|(_, g)| g.gap <= 1.1 * best_gap)
+        .min_by(|a, b| {
+            results[a.0]
+                .0
+                .cv_residual
+                .total_cmp(&results[b.0].0.cv_residual)
+        });
+    let mut out_best = None;
+    if let Some((i, g)) = best {
+        let shrink_abs = baseline - g.gap;
+        let ok = g.gap.is_finite()
+            && shrink_abs > opts.min_abs_shrink
+            && shrink_abs > opts.min_rel_shrink * baseline;
+        if ok {
+            results[i].0.accepted = true;
+            results[i].0.note = "accepted".into();
+            let r = &results[i];
+            out_best = Some((
+                r.0.clone(),
+                Variant {
+                    ir: r.1.ir.clone(),
+                    added: r.1.added.clone(),
+                },
+                g,
+                r.3.clone(),
+            ));
+        } else {
+            results[i].0.note = format!(
+                "gap {:.1} % vs {:.1} % without it: not a material reduction",
+                g.gap, baseline
+            );
+        }
+    }
+    Search {
+        ranking: results.into_iter().map(|r| r.0).collect(),
+        best: out_best,
+    }
+}

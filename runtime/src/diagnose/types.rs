@@ -1,0 +1,231 @@
+//! What the diagnosis returns and how it is configured: options, errors and result types.
+
+use super::effects::{Effect, Location};
+use crate::data::DataError;
+use crate::ident::{IdentifyError, IdentifyOptions};
+use crate::sim::{SimError, DEFAULT_SUBSTEPS};
+use serde::Serialize;
+
+/// Errors of the diagnosis.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+pub enum DiagnoseError {
+    #[error("diagnosis needs at least 2 excitation levels, got {0}")]
+    #[diagnostic(
+        code(dynid::diagnose::levels),
+        help("pass one data file per excitation level; the gap is scored on a level withheld from fitting")
+    )]
+    TooFewLevels(usize),
+    #[error("the model has no nominal value for `{0}`, so it cannot be simulated")]
+    #[diagnostic(
+        code(dynid::diagnose::nominal),
+        help("give every unknown parameter a nominal value (`k ~ 4.0`)")
+    )]
+    MissingNominal(String),
+    #[error("the model measures no position or velocity, so there is no response to compare")]
+    #[diagnostic(
+        code(dynid::diagnose::no_response),
+        help("measure at least one body signal")
+    )]
+    NoResponse,
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Identify(#[from] IdentifyError),
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Data(#[from] DataError),
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Sim(#[from] SimError),
+}
+
+/// Choices of the diagnosis; `Default` gives the documented settings.
+#[derive(Clone, Debug)]
+pub struct DiagnoseOptions {
+    pub ident: IdentifyOptions,
+    /// Fraction of each record discarded before comparing responses (the transient from rest).
+    pub discard: f64,
+    /// RK4 sub-steps per sample in the free-run simulations.
+    pub substeps: usize,
+    /// How many candidates (best covariance score first) get the free-run score.
+    pub top_k: usize,
+    /// Most effects added one after the other.
+    pub max_effects: usize,
+    /// A coefficient counts as significant when |p| > `t_min` · stderr.
+    pub t_min: f64,
+    /// Required shrink of the withheld gap: relative and absolute (percentage points).
+    pub min_rel_shrink: f64,
+    pub min_abs_shrink: f64,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            ident: IdentifyOptions::default(),
+            discard: 0.1,
+            substeps: DEFAULT_SUBSTEPS,
+            top_k: 6,
+            max_effects: 2,
+            t_min: 4.0,
+            min_rel_shrink: 0.2,
+            min_abs_shrink: 1.0,
+        }
+    }
+}
+
+/// Response gap of one signal on one level.
+#[derive(Clone, Debug, Serialize)]
+pub struct SignalGap {
+    pub signal: String,
+    /// Free-run NRMSE in %.
+    pub nrmse: f64,
+    /// (std(sim) − std(meas)) / std(meas) in %.
+    pub std_error: f64,
+    /// Mean |log10| PSD ratio over the band holding 99 % of the measured power.
+    pub psd_gap: f64,
+}
+
+/// Response gap of a model on one level.
+#[derive(Clone, Debug, Serialize)]
+pub struct LevelGap {
+    pub level: usize,
+    pub origin: String,
+    /// Mean over response signals of the free-run NRMSE, in %; infinite if the run diverged.
+    pub gap: f64,
+    pub signals: Vec<SignalGap>,
+    /// The simulation diverged (the model is unstable with these parameters).
+    pub diverged: bool,
+}
+
+/// A model's gap on the levels it was scored on.
+#[derive(Clone, Debug, Serialize)]
+pub struct ModelGap {
+    pub label: String,
+    /// Mean of the per-level gaps in % (the headline number).
+    pub gap: f64,
+    pub levels: Vec<LevelGap>,
+}
+
+/// Covariance-equation residual of the nominal model, per equation and level.
+#[derive(Clone, Debug, Serialize)]
+pub struct EquationGap {
+    pub equation: String,
+    /// Relative RMS of `C p − c` over the (row-normalised) rows of that equation, in %.
+    pub per_level: Vec<f64>,
+}
+
+/// A parameter identified separately at each level.
+#[derive(Clone, Debug, Serialize)]
+pub struct ParamDrift {
+    pub name: String,
+    pub nominal: Option<f64>,
+    pub pooled: Option<f64>,
+    pub per_level: Vec<Option<f64>>,
+    pub stderr: Vec<Option<f64>>,
+    /// (max − min) / |mean| of the per-level values, in %.
+    pub drift: f64,
+    /// Whether the spread exceeds 4 combined standard errors.
+    pub significant: bool,
+}
+
+/// One candidate of the search.
+#[derive(Clone, Debug, Serialize)]
+pub struct CandidateScore {
+    pub effect: Effect,
+    pub location: Location,
+    /// The coefficient identified on all levels, its standard error and t-ratio.
+    pub value: f64,
+    pub stderr: f64,
+    pub t_ratio: f64,
+    pub sign_ok: bool,
+    /// Cross-validated covariance residual on the withheld levels, in %.
+    pub cv_residual: f64,
+    /// Cross-validated free-run gap in % (only for the best few by covariance score).
+    pub gap: Option<f64>,
+    pub accepted: bool,
+    pub note: String,
+}
+
+/// A parameter of the model as given: its nominal value and the value identified on all
+/// levels.
+#[derive(Clone, Debug, Serialize)]
+pub struct MovedParam {
+    pub name: String,
+    pub nominal: f64,
+    pub identified: f64,
+    /// (identified − nominal) / |nominal| in %; `None` for a nominal value of 0.
+    pub change: Option<f64>,
+}
+
+/// An effect the diagnosis adds to the model.
+#[derive(Clone, Debug, Serialize)]
+pub struct FoundEffect {
+    pub effect: Effect,
+    pub location: Location,
+    pub element: String,
+    pub param: String,
+    pub value: f64,
+    pub stderr: f64,
+    /// Withheld gap before and after adding this effect (in %).
+    pub gap_before: f64,
+    pub gap_after: f64,
+}
+
+/// What kind of gap the data shows.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// An effect of the library explains the gap.
+    MissingEffect,
+    /// Re-identifying the model's own parameters removes most of the gap.
+    MistunedParameters,
+    /// The model matches the data (small gap, nothing significant to add).
+    Consistent,
+    /// A gap remains that no library effect removes.
+    Unexplained,
+}
+
+/// The result of [`diagnose`].
+#[derive(Clone, Debug, Serialize)]
+pub struct Diagnosis {
+    pub model: String,
+    pub levels: Vec<String>,
+    pub response_signals: Vec<String>,
+    pub verdict: Verdict,
+    /// Headline gaps in %: nominal model (all levels), and after correction (withheld).
+    pub gap_before: f64,
+    pub gap_after: f64,
+    /// 1 − gap_after / gap_before.
+    pub shrink: f64,
+    pub nominal: ModelGap,
+    /// The model as given, re-identified on the training levels, scored on the withheld one.
+    pub reidentified: ModelGap,
+    /// The corrected model, cross-validated likewise (same as `reidentified` if nothing found).
+    pub corrected: ModelGap,
+    pub equations: Vec<EquationGap>,
+    pub drift: Vec<ParamDrift>,
+    /// Parameters of the model as given: nominal → identified on all levels.
+    pub moved: Vec<MovedParam>,
+    pub found: Vec<FoundEffect>,
+    /// Candidates of the first search step, best first.
+    pub ranking: Vec<CandidateScore>,
+    /// Candidates of the last search step, the one that added nothing (on top of the found
+    /// effects), best first; empty when the first step found nothing or the search stopped at
+    /// `max_effects`. What else the data hints at, below the acceptance threshold.
+    pub residual_ranking: Vec<CandidateScore>,
+    pub notes: Vec<String>,
+    /// The corrected model's source (identified values as nominals).
+    pub fixed_source: String,
+    /// Spectra for the report (not serialised).
+    #[serde(skip)]
+    pub spectra: Vec<Spectrum>,
+}
+
+/// Power spectra of one response signal on one level: measured and per model.
+#[derive(Clone, Debug)]
+pub struct Spectrum {
+    pub signal: String,
+    pub level: usize,
+    pub freqs: Vec<f64>,
+    pub measured: Vec<f64>,
+    pub models: Vec<(String, Vec<f64>)>,
+}
