@@ -1,0 +1,353 @@
+//! The `measure`, `excite` and `filter` statements: which signals are measured, the
+//! excitation of each input with its form filter and levels, and the identification
+//! filter bank.
+
+use super::names::closest;
+use super::{Decl, Lowerer};
+use crate::ast::*;
+use crate::error::{Draft, ErrorKind};
+use crate::ir::*;
+use std::collections::HashMap;
+
+impl Lowerer<'_> {
+    /// `measure`, `excite` and `filter` statements.
+    pub(super) fn statements(&mut self, ast: &AstModel, ir: &mut ModelIr) {
+        // measure
+        let lists: Vec<&Vec<AstSigRef>> = ast
+            .items
+            .iter()
+            .filter_map(|it| match it {
+                AstItem::Measure { signals, .. } => Some(signals),
+                _ => None,
+            })
+            .collect();
+        if !lists.is_empty() {
+            for s in ir.signals.iter_mut() {
+                s.measured = false;
+            }
+            for list in lists {
+                for r in list {
+                    if let Some(id) = self.signal_ref(r, ir) {
+                        ir.signals[id.index()].measured = true;
+                    }
+                }
+            }
+        }
+        // excite
+        let mut first: Option<(usize, Span)> = None;
+        let mut seen: HashMap<InputId, Span> = HashMap::new();
+        for item in &ast.items {
+            let AstItem::Excite {
+                input,
+                form,
+                levels,
+                levels_span,
+                span: _,
+            } = item
+            else {
+                continue;
+            };
+            let id = match self.names.get(&input.name) {
+                Some(&(Decl::Input(i), _)) => Some(i),
+                _ => {
+                    let inputs: Vec<&str> = ir.inputs.iter().map(|i| i.name.as_str()).collect();
+                    let help = match (
+                        closest(&input.name, inputs.iter().copied()),
+                        inputs.is_empty(),
+                    ) {
+                        (Some(c), _) => format!("did you mean `{c}`?"),
+                        (None, true) => "declare an input first: `input u on m1`".into(),
+                        (None, false) => format!(
+                            "the inputs are {}",
+                            inputs
+                                .iter()
+                                .map(|i| format!("`{i}`"))
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    };
+                    self.err(
+                        ErrorKind::UnknownInput,
+                        format!("`{}` is not an input", input.name),
+                        input.span,
+                        "not an input",
+                        help,
+                    );
+                    None
+                }
+            };
+            if let Some(i) = id {
+                if let Some(&prev) = seen.get(&i) {
+                    self.sink.draft(
+                        ErrorKind::DuplicateExcitation,
+                        Draft {
+                            message: format!("input `{}` is excited twice", input.name),
+                            span: Some(input.span),
+                            label: "second excitation".into(),
+                            other: Some(prev),
+                            other_label: "first excitation".into(),
+                            help: "give each input one `excite` line".into(),
+                        },
+                    );
+                } else {
+                    seen.insert(i, input.span);
+                }
+            }
+            let filter = self.form_filter(form);
+            let mut good = true;
+            for l in levels {
+                good &= self.check_positive(l, "an excitation level");
+            }
+            if levels.is_empty() {
+                self.err(
+                    ErrorKind::InvalidValue,
+                    "no excitation levels".into(),
+                    *levels_span,
+                    "empty",
+                    "give at least one level, e.g. `levels [6, 15, 40]`; several levels make nonlinear terms identifiable".into(),
+                );
+                good = false;
+            }
+            match first {
+                None => first = Some((levels.len(), *levels_span)),
+                Some((n, span)) if n != levels.len() => {
+                    self.sink.draft(
+                        ErrorKind::LevelCountMismatch,
+                        Draft {
+                            message: format!("{} here but {} in the first `excite` line", levels_text(levels.len()), levels_text(n)),
+                            span: Some(*levels_span),
+                            label: levels_text(levels.len()),
+                            other: Some(span),
+                            other_label: levels_text(n),
+                            help: "every `excite` line must list the same number of levels: level k of all inputs forms experiment k".into(),
+                        },
+                    );
+                }
+                _ => {}
+            }
+            if let (Some(i), Some(filter), true) = (id, filter, good) {
+                ir.excitation.push(ExcitationIr {
+                    input: i,
+                    filter,
+                    levels: levels.iter().map(|l| l.value).collect(),
+                });
+            }
+        }
+        // filter
+        let filters: Vec<&AstItem> = ast
+            .items
+            .iter()
+            .filter(|it| matches!(it, AstItem::Filter { .. }))
+            .collect();
+        for (k, item) in filters.iter().enumerate() {
+            let AstItem::Filter {
+                corners,
+                corners_span,
+                order,
+                driven_by,
+                span,
+            } = item
+            else {
+                continue;
+            };
+            if k > 0 {
+                self.err(
+                    ErrorKind::DuplicateName,
+                    "a second `filter` statement".into(),
+                    *span,
+                    "second filter",
+                    "a model has at most one identification filter bank; merge the corner lists"
+                        .into(),
+                );
+                continue;
+            }
+            for c in corners {
+                self.check_positive(c, "a corner frequency");
+            }
+            if corners.is_empty() {
+                self.err(
+                    ErrorKind::InvalidValue,
+                    "no corner frequencies".into(),
+                    *corners_span,
+                    "empty",
+                    "list the corner frequencies in rad/s, e.g. `corners [0.5, 1, 2, 4, 8, 16]`"
+                        .into(),
+                );
+            }
+            let order_v = order.map_or(2, |o| o.0);
+            if let Some((o, ospan)) = order {
+                if !(1..=8).contains(o) {
+                    self.err(
+                        ErrorKind::InvalidValue,
+                        format!("filter order {o} is out of range"),
+                        *ospan,
+                        "order",
+                        "use an order between 1 and 8 (2 is the default and works with displacement-only data)".into(),
+                    );
+                } else if *o < 2 {
+                    if let Some(b) = ir
+                        .bodies
+                        .iter()
+                        .enumerate()
+                        .find(|(i, _)| !ir.signals[2 * i + 1].measured)
+                    {
+                        self.err(
+                            ErrorKind::InvalidValue,
+                            format!("filter order 1 cannot be used: `{}.v` is not measured", b.1.name),
+                            *ospan,
+                            "order 1",
+                            "without velocity data the acceleration term must move twice onto the filter; use `order 2` or more".into(),
+                        );
+                    }
+                }
+            }
+            let mut ids = Vec::new();
+            for r in driven_by {
+                if let Some(id) = self.signal_ref(r, ir) {
+                    if !ir.signals[id.index()].measured {
+                        let n = &ir.signals[id.index()].name;
+                        self.err(
+                            ErrorKind::UnmeasuredSignal,
+                            format!("the filter is driven by `{n}`, which is not measured"),
+                            r.span,
+                            "not measured",
+                            format!(
+                                "add `{n}` to `measure` or drive the filter by measured signals"
+                            ),
+                        );
+                    }
+                    ids.push(id);
+                }
+            }
+            ir.filter = Some(FilterSpecIr {
+                corners: corners.iter().map(|c| c.value).collect(),
+                order: order_v,
+                driven_by: ids,
+            });
+        }
+    }
+
+    fn form_filter(&mut self, form: &AstForm) -> Option<FormFilter> {
+        let expected: &[&str] = match form.name.name.as_str() {
+            "lowpass" => &["corner"],
+            "second_order" => &["freq", "damping"],
+            "white" => &[],
+            other => {
+                self.err(
+                    ErrorKind::InvalidValue,
+                    format!("unknown form filter `{other}`"),
+                    form.name.span,
+                    "not a form filter",
+                    "use `lowpass(corner = ..)`, `second_order(freq = .., damping = ..)` or `white`".into(),
+                );
+                return None;
+            }
+        };
+        let mut vals = vec![None; expected.len()];
+        let mut ok = true;
+        for a in &form.args {
+            match expected.iter().position(|e| *e == a.name.name) {
+                Some(k) => {
+                    ok &= self.check_positive(&a.value, &format!("`{}`", a.name.name));
+                    vals[k] = Some(a.value.value);
+                }
+                None => {
+                    ok = false;
+                    self.err(
+                        ErrorKind::InvalidValue,
+                        format!("`{}` has no argument `{}`", form.name.name, a.name.name),
+                        a.name.span,
+                        "unknown argument",
+                        format!(
+                            "`{}` takes {}",
+                            form.name.name,
+                            if expected.is_empty() {
+                                "no arguments".to_string()
+                            } else {
+                                expected
+                                    .iter()
+                                    .map(|e| format!("`{e} = ..`"))
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            }
+                        ),
+                    );
+                }
+            }
+        }
+        for (k, v) in vals.iter().enumerate() {
+            if v.is_none() {
+                ok = false;
+                self.err(
+                    ErrorKind::InvalidValue,
+                    format!("`{}` needs `{} = ..`", form.name.name, expected[k]),
+                    form.span,
+                    "missing argument",
+                    "corner and frequencies are in rad/s, damping is a ratio, e.g. `lowpass(corner = 10)`, `second_order(freq = 20, damping = 0.3)`".into(),
+                );
+            }
+        }
+        if !ok {
+            return None;
+        }
+        let v = |k: usize| vals[k].unwrap_or(1.0);
+        Some(match expected.len() {
+            0 => FormFilter::White,
+            1 => FormFilter::Lowpass { corner: v(0) },
+            _ => FormFilter::SecondOrder {
+                freq: v(0),
+                damping: v(1),
+            },
+        })
+    }
+
+    /// A signal in `measure` or `driven by`: `m1.x`, `m1.v` or an input name.
+    fn signal_ref(&mut self, r: &AstSigRef, ir: &ModelIr) -> Option<SignalId> {
+        let full = match &r.field {
+            Some(f) => format!("{}.{}", r.base.name, f.name),
+            None => r.base.name.clone(),
+        };
+        if let Some(id) = ir.signal_id(&full) {
+            return Some(id);
+        }
+        let is_body = matches!(self.names.get(&r.base.name), Some((Decl::Body(_), _)));
+        if is_body {
+            let b = &r.base.name;
+            self.err(
+                ErrorKind::InvalidSignal,
+                format!("`{full}` is not a signal"),
+                r.span,
+                "not a signal",
+                format!("a body has a position `{b}.x` and a velocity `{b}.v`"),
+            );
+        } else {
+            let help = match closest(&full, ir.signals.iter().map(|s| s.name.as_str())) {
+                Some(c) => format!("did you mean `{c}`?"),
+                None => format!(
+                    "the signals are {}",
+                    ir.signals
+                        .iter()
+                        .map(|s| format!("`{}`", s.name))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            };
+            self.err(
+                ErrorKind::UndefinedName,
+                format!("unknown signal `{full}`"),
+                r.span,
+                "not a signal",
+                help,
+            );
+        }
+        None
+    }
+}
+
+fn levels_text(n: usize) -> String {
+    if n == 1 {
+        "1 level".into()
+    } else {
+        format!("{n} levels")
+    }
+}
