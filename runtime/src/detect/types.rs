@@ -131,8 +131,8 @@ pub struct DetectOptions {
 
 /// The distributions statistical linearisation averages over.
 ///
-/// Measured on simulated data with known truth (4 seeds, tests/detect_models.rs
-/// `linearisation_bias`), the per-level fits follow the *measured* distribution of s —
+/// Measured on simulated data with known truth (4 seeds, `cargo run --release --example
+/// detect_measurements -- linearisation_bias`), the per-level fits follow the *measured* distribution of s —
 /// a hardening spring makes s light-tailed, and the Gaussian form puts the implied k3
 /// 24 % low, the measured one 1 % — but the *Gaussian* form of v: with the measured
 /// distribution of v the implied Coulomb r and quadratic c came out 4–5 % high instead of
