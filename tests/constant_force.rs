@@ -13,9 +13,7 @@ use dynid::dsl_parser::{self, ir::ModelIr};
 use dynid::runtime::data::LevelSource;
 use dynid::runtime::detect::{self, DetectOptions, Verdict};
 use dynid::runtime::diagnose::{self, DiagnoseOptions};
-use dynid::runtime::ident::Identification;
 use dynid::runtime::record::Record;
-use dynid::runtime::sim::{self, SimConfig};
 use dynid::runtime::IdentifyOptions;
 use std::path::Path;
 
@@ -35,36 +33,6 @@ fn linear_offset() -> ModelIr {
         "    force off (ground, m) = f0 ~ -0.5\n    excite",
     );
     dsl_parser::compile_str("sdof_linear_offset", &src).expect("valid model")
-}
-
-fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
-    let cfg = SimConfig {
-        duration,
-        sample: 0.01,
-        seed: common::seed(seed),
-        noise,
-        noise_on_inputs: true,
-        ..Default::default()
-    };
-    sim::simulate(ir, &cfg).expect("simulation").records
-}
-
-/// Relative error per unknown parameter against the simulated truth; prints one row.
-fn errors(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, f64)> {
-    let errs = common::relative_errors(case, ir, id);
-    let row: Vec<String> = errs
-        .iter()
-        .map(|(n, e)| {
-            let se = id.param(n).map_or(0.0, |p| p.stderr / p.value.abs());
-            format!("{n} {:+.3}% (±{:.3}%)", 100.0 * e, 100.0 * se)
-        })
-        .collect();
-    println!(
-        "| {case:<32} | {} | cond {:.1e} |",
-        row.join(", "),
-        id.condition
-    );
-    errs
 }
 
 /// Every error within `default`, or the bound `tol` names for the parameter.
@@ -99,7 +67,7 @@ fn centred(recs: &[Record]) -> Vec<Record> {
 fn simulated_offset_shifts_the_mean_position() {
     // m ẍ + d ẋ + k x + r sign(ẋ) + f0 = u with zero-mean u: ⟨x⟩ = −f0 / k = 0.125.
     let ir = model("sdof_offset");
-    let recs = simulate(&ir, 500.0, 0.0, 21);
+    let recs = common::simulate(&ir, 500.0, 0.0, 21);
     for (i, r) in recs.iter().enumerate() {
         // The louder the level, the more the mean of 500 s wanders (seeds 21–25: 0.12–0.14
         // at level 1, 0.04–0.13 at level 3), so the mean is compared with its own standard
@@ -125,10 +93,10 @@ fn simulated_offset_shifts_the_mean_position() {
 #[test]
 fn sdof_offset_noise_free() {
     let ir = model("sdof_offset");
-    let recs = simulate(&ir, 2000.0, 0.0, 22);
+    let recs = common::simulate(&ir, 2000.0, 0.0, 22);
     let id = common::identify_records(&ir, &recs);
     assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
-    let e = errors("sdof_offset, noise 0 %", &ir, &id);
+    let e = common::error_row("sdof_offset, noise 0 %", &ir, &id);
     // Seeds 22–26 (`DYNID_SEED_OFFSET=0…4`): d, r up to −0.18, −0.21 %; k −0.03 %, f0 +0.03 %.
     assert_within(
         "sdof_offset noise-free",
@@ -147,9 +115,9 @@ fn sdof_offset_noise_free() {
 #[test]
 fn sdof_offset_five_percent_noise() {
     let ir = model("sdof_offset");
-    let recs = simulate(&ir, 2000.0, 0.05, 23);
+    let recs = common::simulate(&ir, 2000.0, 0.05, 23);
     let id = common::identify_records(&ir, &recs);
-    let e = errors("sdof_offset, noise 5 %", &ir, &id);
+    let e = common::error_row("sdof_offset, noise 5 %", &ir, &id);
     // Seeds 23–27 (`DYNID_SEED_OFFSET=0…4`): r up to +0.76 %, d −0.40 %, f0 −0.14 %.
     assert_within("sdof_offset 5 % noise", &e, 0.015, &[("f0", 0.004)]);
 }
@@ -157,7 +125,7 @@ fn sdof_offset_five_percent_noise() {
 #[test]
 fn data_without_a_mean_name_the_offset_unidentifiable() {
     let ir = model("sdof_offset");
-    let recs = centred(&simulate(&ir, 2000.0, 0.0, 22));
+    let recs = centred(&common::simulate(&ir, 2000.0, 0.0, 22));
     let id = common::identify_records(&ir, &recs);
     assert!(id.param("f0").is_none(), "{:?}", id.params);
     let u = id
@@ -184,7 +152,7 @@ fn zero_offset_in_the_data_is_estimated_near_zero_not_removed() {
     // significant" is not "unidentifiable".
     let ir = model("sdof_offset");
     let truth = ir.with_nominals(&[4.0, 0.4, 0.3, 0.0]);
-    let recs = simulate(&truth, 2000.0, 0.0, 24);
+    let recs = common::simulate(&truth, 2000.0, 0.0, 24);
     let id = common::identify_records(&ir, &recs);
     println!("{:?}\n{:?}", id.params, id.unidentifiable);
     assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
@@ -200,7 +168,7 @@ fn zero_offset_in_the_data_is_estimated_near_zero_not_removed() {
 #[test]
 fn detection_takes_an_offset_for_linear() {
     let ir = linear_offset();
-    let recs = simulate(&ir, 1000.0, 0.0, 25);
+    let recs = common::simulate(&ir, 1000.0, 0.0, 25);
     let srcs = common::sources(&ir, &recs);
     let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
     let (d, _) = detect::detect_from_data(
@@ -226,7 +194,7 @@ fn detection_takes_an_offset_for_linear() {
 #[test]
 fn diagnosis_of_a_matching_offset_model_adds_nothing() {
     let ir = linear_offset();
-    let recs = simulate(&ir, 300.0, 0.0, 26);
+    let recs = common::simulate(&ir, 300.0, 0.0, 26);
     let origins: Vec<String> = (1..=recs.len()).map(|k| format!("level{k}")).collect();
     let d = diagnose::diagnose(
         &ir,

@@ -10,9 +10,6 @@
 mod common;
 
 use dynid::dsl_parser::{self, ir::ModelIr};
-use dynid::runtime::ident::Identification;
-use dynid::runtime::record::Record;
-use dynid::runtime::sim::{self, SimConfig};
 use std::path::Path;
 
 fn model(name: &str) -> ModelIr {
@@ -22,36 +19,6 @@ fn model(name: &str) -> ModelIr {
 
 fn model_str(name: &str, text: &str) -> ModelIr {
     dsl_parser::compile_str(name, text).unwrap_or_else(|e| panic!("{name}: {e:?}"))
-}
-
-fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
-    let cfg = SimConfig {
-        duration,
-        sample: 0.01,
-        seed: common::seed(seed),
-        noise,
-        noise_on_inputs: true,
-        ..Default::default()
-    };
-    sim::simulate(ir, &cfg).expect("simulation").records
-}
-
-/// Relative error per unknown parameter; prints one table row per case.
-fn errors(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, f64)> {
-    let errs = common::relative_errors(case, ir, id);
-    let row: Vec<String> = errs
-        .iter()
-        .map(|(n, e)| {
-            let se = id.param(n).map_or(0.0, |p| p.stderr / p.value.abs());
-            format!("{n} {:+.2}% (±{:.2}%)", 100.0 * e, 100.0 * se)
-        })
-        .collect();
-    println!(
-        "| {case:<34} | {} | cond {:.1e} |",
-        row.join(", "),
-        id.condition
-    );
-    errs
 }
 
 fn assert_within(case: &str, errs: &[(String, f64)], tol: f64) {
@@ -68,10 +35,10 @@ fn assert_within(case: &str, errs: &[(String, f64)], tol: f64) {
 #[test]
 fn sdof_cubic_coulomb_noise_free_within_one_percent() {
     let ir = model("sdof_cubic_coulomb");
-    let recs = simulate(&ir, 2000.0, 0.0, 11);
+    let recs = common::simulate(&ir, 2000.0, 0.0, 11);
     let id = common::identify_records(&ir, &recs);
     assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
-    let e = errors("sdof_cubic_coulomb, noise 0 %", &ir, &id);
+    let e = common::error_row("sdof_cubic_coulomb, noise 0 %", &ir, &id);
     // Seeds 11–15 (`DYNID_SEED_OFFSET=0…4`): largest errors d −0.13 %, r −0.14 %.
     assert_within("sdof_cubic_coulomb noise-free", &e, 0.004);
 }
@@ -80,9 +47,9 @@ fn sdof_cubic_coulomb_noise_free_within_one_percent() {
 fn sdof_cubic_coulomb_five_percent_noise_within_two_percent() {
     // Noise of 5 % of each signal's std on position, velocity and input alike.
     let ir = model("sdof_cubic_coulomb");
-    let recs = simulate(&ir, 2000.0, 0.05, 12);
+    let recs = common::simulate(&ir, 2000.0, 0.05, 12);
     let id = common::identify_records(&ir, &recs);
-    let e = errors("sdof_cubic_coulomb, noise 5 %", &ir, &id);
+    let e = common::error_row("sdof_cubic_coulomb, noise 5 %", &ir, &id);
     // Seeds 12–16 (`DYNID_SEED_OFFSET=0…4`): largest errors r +0.77 %, d −0.46 %.
     assert_within("sdof_cubic_coulomb 5 % noise", &e, 0.02);
 }
@@ -90,9 +57,9 @@ fn sdof_cubic_coulomb_five_percent_noise_within_two_percent() {
 #[test]
 fn two_mass_within_two_percent() {
     let ir = model("two_mass");
-    let recs = simulate(&ir, 2000.0, 0.0, 13);
+    let recs = common::simulate(&ir, 2000.0, 0.0, 13);
     let id = common::identify_records(&ir, &recs);
-    let e = errors("two_mass, noise 0 %", &ir, &id);
+    let e = common::error_row("two_mass, noise 0 %", &ir, &id);
     // Seeds 13–17 (`DYNID_SEED_OFFSET=0…4`): largest error r −0.11 %.
     assert_within("two_mass", &e, 0.003);
 }
@@ -117,9 +84,9 @@ const CHAIN4_DURATION: f64 = 2000.0;
 #[test]
 fn chain4_within_measured_bounds() {
     let ir = model("chain4");
-    let recs = simulate(&ir, CHAIN4_DURATION, 0.0, 14);
+    let recs = common::simulate(&ir, CHAIN4_DURATION, 0.0, 14);
     let id = common::identify_records(&ir, &recs);
-    let e = errors("chain4, noise 0 %", &ir, &id);
+    let e = common::error_row("chain4, noise 0 %", &ir, &id);
     let (weak, strong): (Vec<_>, Vec<_>) = e
         .into_iter()
         .partition(|(n, _)| CHAIN4_WEAK.contains(&n.as_str()));
@@ -150,10 +117,10 @@ fn duffing_from_positions_and_input_only_within_one_percent() {
     .unwrap();
     let src = src.replace("input u on m\n", "input u on m\n    measure m.x, u\n");
     let ir = model_str("sdof_duffing_positions", &src);
-    let recs = simulate(&ir, 2000.0, 0.0, 15);
+    let recs = common::simulate(&ir, 2000.0, 0.0, 15);
     assert!(recs.iter().all(|r| r.column("m.v").is_none()));
     let id = common::identify_records(&ir, &recs);
-    let e = errors("sdof_duffing, x and u only, noise 0 %", &ir, &id);
+    let e = common::error_row("sdof_duffing, x and u only, noise 0 %", &ir, &id);
     // Seeds 15–19 (`DYNID_SEED_OFFSET=0…4`): largest errors k3 −0.11 %, d −0.10 %.
     assert_within("sdof_duffing from positions", &e, 0.003);
 }
@@ -172,7 +139,7 @@ fn unexcited_term_is_named_and_gets_no_value() {
             excite u: lowpass(corner = 10) levels [6, 15, 40]
         }",
     );
-    let recs = simulate(&ir, 500.0, 0.0, 16);
+    let recs = common::simulate(&ir, 500.0, 0.0, 16);
     let id = common::identify_records(&ir, &recs);
     assert!(id.param("kgap").is_none(), "{:?}", id.params);
     let u = id

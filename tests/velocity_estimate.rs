@@ -14,7 +14,7 @@ mod common;
 use dynid::dsl_parser::{self, ir::ModelIr};
 use dynid::runtime::ident::Identification;
 use dynid::runtime::record::Record;
-use dynid::runtime::sim::{self, SimConfig};
+
 use std::path::Path;
 
 fn model(name: &str, positions_only: bool) -> ModelIr {
@@ -29,15 +29,7 @@ fn model(name: &str, positions_only: bool) -> ModelIr {
 }
 
 fn simulate(ir: &ModelIr, noise: f64, seed: u64) -> Vec<Record> {
-    let cfg = SimConfig {
-        duration: 2000.0,
-        sample: 0.01,
-        seed: common::seed(seed),
-        noise,
-        noise_on_inputs: true,
-        ..Default::default()
-    };
-    sim::simulate(ir, &cfg).expect("simulation").records
+    common::simulate(ir, 2000.0, noise, seed)
 }
 
 /// Round the position column to multiples of `q`.

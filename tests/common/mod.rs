@@ -50,6 +50,39 @@ pub fn relative_errors(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(St
         .collect()
 }
 
+/// The model's levels, `duration` seconds at Ts = 0.01 s, with `noise` (a fraction of each
+/// signal's std) on every channel, inputs included; `seed` goes through [`seed`].
+pub fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
+    let cfg = sim::SimConfig {
+        duration,
+        sample: 0.01,
+        seed: self::seed(seed),
+        noise,
+        noise_on_inputs: true,
+        ..Default::default()
+    };
+    sim::simulate(ir, &cfg).expect("simulation").records
+}
+
+/// [`relative_errors`], printed as one table row `| case | k +0.012% (±0.034%), … | cond |`
+/// (the standard error relative to the estimate in brackets).
+pub fn error_row(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, f64)> {
+    let errs = relative_errors(case, ir, id);
+    let row: Vec<String> = errs
+        .iter()
+        .map(|(n, e)| {
+            let se = id.param(n).map_or(0.0, |p| p.stderr / p.value.abs());
+            format!("{n} {:+.3}% (±{:.3}%)", 100.0 * e, 100.0 * se)
+        })
+        .collect();
+    println!(
+        "| {case:<34} | {} | cond {:.1e} |",
+        row.join(", "),
+        id.condition
+    );
+    errs
+}
+
 /// `seed` shifted by the environment variable `DYNID_SEED_OFFSET` (default 0). The tests
 /// run on fixed seeds; `DYNID_SEED_OFFSET=1 cargo test --test NAME -- --nocapture` reruns
 /// them on other seeds to measure the spread their bounds are set from.
