@@ -2,12 +2,11 @@
 //! without a panic, without writing an output, and leave every input file as it was.
 //! (Output paths that name an input are in `tests/output_paths.rs`.)
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn dynid() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_dynid"))
-}
+use common::dynid;
+
+use std::path::{Path, PathBuf};
 
 fn model(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

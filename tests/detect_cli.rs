@@ -1,11 +1,10 @@
 //! `dynid detect` end to end on CSV files written by `dynid simulate`.
 
-use std::path::Path;
-use std::process::Command;
+mod common;
 
-fn dynid() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_dynid"))
-}
+use common::dynid;
+
+use std::path::Path;
 
 fn models() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("models")

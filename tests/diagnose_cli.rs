@@ -1,26 +1,17 @@
 //! `dynid diagnose` end to end: outputs written all or nothing, bad input refused before
 //! the work starts.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn dynid() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_dynid"))
-}
+use common::{dynid, stderr};
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
 
 fn model(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("models")
         .join(name)
-}
-
-/// Standard error with miette's line wrapping undone.
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr)
-        .split_whitespace()
-        .filter(|w| *w != "│")
-        .collect::<Vec<_>>()
-        .join(" ")
 }
 
 /// Three levels of two_mass (cubic coupling spring and Coulomb friction) in `dir/data`.

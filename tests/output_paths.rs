@@ -2,21 +2,11 @@
 //! `diagnose` refuse such a path before any work, with a message that names both files,
 //! and every input is byte-identical afterwards (symbolic links resolved).
 
+mod common;
+
+use common::{dynid, stderr};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn dynid() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_dynid"))
-}
-
-/// Standard error with miette's line wrapping undone.
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr)
-        .split_whitespace()
-        .filter(|w| *w != "│")
-        .collect::<Vec<_>>()
-        .join(" ")
-}
 
 /// A copy of the linear SDOF model and three short levels of it in `dir`.
 fn setup(dir: &Path) -> (PathBuf, Vec<PathBuf>) {

@@ -1,5 +1,5 @@
-//! Helpers shared by the recovery tests: identify simulated records and compare the
-//! estimates with the values the simulation used.
+//! Helpers shared by the integration tests: run the binary, identify simulated records and
+//! compare the estimates with the values the simulation used.
 #![allow(dead_code)] // each test binary uses a subset
 
 use dynid::dsl_parser::ir::ModelIr;
@@ -81,6 +81,20 @@ pub fn error_row(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, 
         id.condition
     );
     errs
+}
+
+/// The `dynid` binary of this build.
+pub fn dynid() -> std::process::Command {
+    std::process::Command::new(env!("CARGO_BIN_EXE_dynid"))
+}
+
+/// A command's standard error with miette's line wrapping undone.
+pub fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr)
+        .split_whitespace()
+        .filter(|w| *w != "│")
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// `seed` shifted by the environment variable `DYNID_SEED_OFFSET` (default 0). The tests
