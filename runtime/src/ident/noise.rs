@@ -14,8 +14,8 @@
 //! # Measured
 //!
 //! Benchmark SDOF (`d, k, k3, r`), three levels of 2000 s at `Tₛ = 0.01 s`, mean relative
-//! errors over seeds 11, 12, 13 (test `noise_measurement`, run with `cargo test -p
-//! dynid-runtime --lib ident::tests::noise_measurement -- --ignored --nocapture`):
+//! errors over seeds 11, 12, 13 (`cargo run --release -p dynid-runtime --features
+//! test-support --example measurements -- noise`):
 //!
 //! | noise on every channel | uncorrected                  | corrected                    |
 //! |------------------------|------------------------------|------------------------------|

@@ -593,54 +593,6 @@ fn standard_errors_cover_the_error() {
     }
 }
 
-/// Errors of (d, k, k3, r) with and without the noise correction, at 0 / 5 / 10 % noise on
-/// every channel, and the estimated noise levels.
-#[test]
-#[ignore = "measurement: cargo test -p dynid-runtime --lib ident::tests::noise_measurement -- --ignored --nocapture"]
-fn noise_measurement() {
-    let ir = sdof_model("");
-    for dur in [1000.0, 2000.0] {
-        for (eta, inputs) in [(0.0, true), (0.05, true), (0.1, true), (0.1, false)] {
-            for seed in [11, 12, 13] {
-                let cfg = SimConfig {
-                    duration: dur,
-                    noise: eta,
-                    noise_on_inputs: inputs,
-                    seed,
-                    ..Default::default()
-                };
-                let recs = sim::simulate(&ir, &cfg).expect("simulation").records;
-                for corr in [false, true] {
-                    let opts = IdentifyOptions {
-                        noise_correction: corr,
-                        ..Default::default()
-                    };
-                    let id = run(&ir, &recs, &opts);
-                    let e = rel_errors(&id, &sdof_truth());
-                    let est: Vec<String> = id
-                        .levels
-                        .iter()
-                        .map(|l| {
-                            l.noise
-                                .iter()
-                                .map(|(s, n)| format!("{s} {:.2}%", 100.0 * n / l.std[s]))
-                                .collect::<Vec<_>>()
-                                .join(" ")
-                        })
-                        .collect();
-                    eprintln!(
-                        "T {dur} noise {eta} inputs {inputs} seed {seed} corr {corr}: (d, k, k3, r) {} max {:.2}% | {} | {:?}",
-                        fmt_errs(&e),
-                        100.0 * e.iter().map(|v| v.abs()).fold(0.0, f64::max),
-                        est.join(" / "),
-                        id.noise.corrected
-                    );
-                }
-            }
-        }
-    }
-}
-
 /// Mean relative errors of (d, k, k3, r) over three seeds at noise `eta` on every channel.
 fn mean_noisy_errors(eta: f64, duration: f64, correction: bool) -> Vec<f64> {
     let ir = sdof_model("");

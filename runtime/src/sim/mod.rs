@@ -47,7 +47,8 @@
 //! The Coulomb term makes the error first order in the step (3.9e-4 at 5 sub-steps, 2.0e-4
 //! at 10, 5.4e-5 at 40), since RK4 steps across velocity reversals blindly; for smooth
 //! models the error is far smaller. 1e-4 is well below the identification floors of the
-//! method (≥ 1e-3 relative), so the default stays at 20.
+//! method (≥ 1e-3 relative), so the default stays at 20. Printed by `cargo run --release -p
+//! dynid-runtime --features test-support --example measurements -- integration`.
 //!
 //! # Divergence
 //!

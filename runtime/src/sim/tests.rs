@@ -1,4 +1,4 @@
-use super::test_models::{sdof, two_mass_chain, SdofParams};
+use super::test_models::{integration_error, sdof, tracking, two_mass_chain, SdofParams};
 use super::*;
 use crate::describe::mean;
 use dynid_ir::ir::FormFilter;
@@ -33,12 +33,6 @@ fn lyapunov(a: &DMatrix<f64>, w: &DMatrix<f64>) -> DMatrix<f64> {
     let rhs = -DMatrix::from_column_slice(n * n, 1, w.as_slice());
     let p = k.lu().solve(&rhs).unwrap();
     DMatrix::from_column_slice(n, n, p.as_slice())
-}
-
-/// RMS of `a − b` relative to the std of `b`.
-fn rel_rms_diff(a: &[f64], b: &[f64]) -> f64 {
-    let d: Vec<f64> = a.iter().zip(b).map(|(a, b)| a - b).collect();
-    (mean_prod(&d, &d)).sqrt() / std_dev(b)
 }
 
 #[test]
@@ -253,51 +247,11 @@ fn noise_has_the_requested_fraction_and_leaves_the_trajectory_alone() {
     assert_eq!(col(&clean_u.records[0], "u"), col(&clean.records[0], "u"));
 }
 
-/// The benchmark at its three levels with `substeps` and `4 × substeps`: the largest (over
-/// levels and signals) RMS difference relative to the signal's std.
-fn integration_error(substeps: usize, duration: f64) -> f64 {
-    let ir = sdof(&SdofParams::benchmark(), lowpass(), vec![6.0, 15.0, 40.0]);
-    let run = |s| {
-        simulate(
-            &ir,
-            &SimConfig {
-                substeps: s,
-                ..cfg(duration)
-            },
-        )
-        .unwrap()
-    };
-    let (a, b) = (run(substeps), run(4 * substeps));
-    a.records
-        .iter()
-        .zip(&b.records)
-        .flat_map(|(ra, rb)| ["m1.x", "m1.v"].map(|n| rel_rms_diff(col(ra, n), col(rb, n))))
-        .fold(0.0, f64::max)
-}
-
 #[test]
 fn integration_error_of_the_default_substeps_is_negligible() {
     let e = integration_error(DEFAULT_SUBSTEPS, 100.0);
     // Measured 1.0e-4 over 500 s (see the module doc).
     assert!(e < 2e-4, "relative RMS integration error {e}");
-}
-
-#[test]
-#[ignore = "measurement, prints the figures quoted in the module documentation"]
-fn measure_integration_error_and_speed() {
-    for s in [5, 10, 20, 40] {
-        eprintln!(
-            "substeps {s:3}: max rel RMS diff to 4x = {:.2e}",
-            integration_error(s, 500.0)
-        );
-    }
-    let ir = sdof(&SdofParams::benchmark(), lowpass(), vec![6.0, 15.0, 40.0]);
-    let t = std::time::Instant::now();
-    simulate(&ir, &SimConfig::default()).unwrap();
-    eprintln!(
-        "3 levels x (100 + 2000) s, Ts 0.01, 20 substeps: {:?}",
-        t.elapsed()
-    );
 }
 
 #[test]
@@ -568,18 +522,6 @@ fn quantised_positions_are_multiples_of_the_resolution() {
     assert!(matches!(e, SimError::InvalidConfig { .. }), "{e}");
 }
 
-/// `(RMS of the tracking error / RMS of the reference, lag-1 autocorrelation of u)` of a
-/// servo-axis record.
-fn tracking(r: &Record) -> (f64, f64) {
-    let (x, xr, u) = (col(r, "m.x"), col(r, "m.x_ref"), col(r, "u"));
-    let e: Vec<f64> = x.iter().zip(xr).map(|(x, r)| x - r).collect();
-    let err = mean_prod(&e, &e).sqrt() / std_dev(xr);
-    let mu = mean(u);
-    let uc: Vec<f64> = u.iter().map(|u| u - mu).collect();
-    let rho = mean_prod(&uc[1..], &uc[..uc.len() - 1]) / mean_prod(&uc, &uc);
-    (err, rho)
-}
-
 #[test]
 fn servo_axis_tracks_its_reference_with_a_coloured_force() {
     use super::test_models::ServoAxis;
@@ -590,10 +532,11 @@ fn servo_axis_tracks_its_reference_with_a_coloured_force() {
     assert_eq!(r.names, ["m.x", "u", "m.x_ref"]);
     assert_eq!(r.len(), 25_000);
     let (err, rho) = tracking(r);
-    // Measured 0.038 to 0.046 over seeds 1 to 6 (`measure_servo_axis_tracking`), 0.96
-    // for the autocorrelation (white noise would give 0).
-    assert!(err < 0.07, "relative tracking error {err}");
-    assert!(rho > 0.9, "lag-1 autocorrelation of the force {rho}");
+    // Measured 0.016 to 0.021 over seeds 1 to 6, and 0.9985 to 0.9989 for the
+    // autocorrelation (white noise would give 0): `cargo run --release -p dynid-runtime
+    // --features test-support --example measurements -- servo`.
+    assert!(err < 0.05, "relative tracking error {err}");
+    assert!(rho > 0.99, "lag-1 autocorrelation of the force {rho}");
     // The reference moves centimetres at up to about half a metre per second.
     let xr = col(r, "m.x_ref");
     let peak_speed = xr
@@ -666,27 +609,4 @@ fn bad_control_and_oversampling_settings_are_reported() {
         simulate(&ir, &c),
         Err(SimError::NoExcitation { .. })
     ));
-}
-
-#[test]
-#[ignore = "measurement, prints the servo-axis figures the tracking test bounds"]
-fn measure_servo_axis_tracking() {
-    use super::test_models::ServoAxis;
-    let axis = ServoAxis::standard();
-    let ir = axis.model();
-    for seed in 1..=6 {
-        let out = simulate(&ir, &axis.config(seed)).unwrap();
-        let r = &out.records[0];
-        let (err, rho) = tracking(r);
-        let xr = col(r, "m.x_ref");
-        let peak = xr
-            .windows(2)
-            .map(|w| (w[1] - w[0]).abs() / axis.sample)
-            .fold(0.0, f64::max);
-        eprintln!(
-            "seed {seed}: tracking {err:.4}, rho(u) {rho:.4}, std(r) {:.4}, peak speed {peak:.3}, std(u) {:.1}",
-            std_dev(xr),
-            std_dev(col(r, "u"))
-        );
-    }
 }
