@@ -363,28 +363,11 @@ fn model_struct(ir: &ModelIr, source: &str, n: &Names, opts: &CodegenOptions) ->
     }
 }
 
-/// The nodes that the roots depend on (the roots included).
-fn needed_nodes(ir: &ModelIr, roots: &[ExprId]) -> Vec<bool> {
-    let n = roots.iter().map(|r| r.index() + 1).max().unwrap_or(0);
-    let mut needed = vec![false; n];
-    for r in roots {
-        needed[r.index()] = true;
-    }
-    for i in (0..n).rev() {
-        if needed[i] {
-            for c in ir.exprs[i].children() {
-                needed[c.index()] = true;
-            }
-        }
-    }
-    needed
-}
-
 fn basis_eval_impl(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStream {
     let krate = &opts.crate_path;
     let ty = &n.ty;
     let roots = ir.eval_roots();
-    let needed = needed_nodes(ir, &roots);
+    let needed = ir.needed_nodes(&roots);
 
     // A constant is written as an unsuffixed literal, except where it receives a method call.
     let receiver = |e: ExprId, value: &[TokenStream]| match ir.exprs[e.index()] {

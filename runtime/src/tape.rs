@@ -49,18 +49,8 @@ pub struct TapeScratch {
 impl Tape {
     /// Compile the expressions `roots` of `ir`. Shared subexpressions are computed once.
     pub fn compile(ir: &ModelIr, roots: &[ExprId]) -> Tape {
-        let n = roots.iter().map(|r| r.index() + 1).max().unwrap_or(0);
-        let mut needed = vec![false; n];
-        for r in roots {
-            needed[r.index()] = true;
-        }
-        for i in (0..n).rev() {
-            if needed[i] {
-                for c in ir.exprs[i].children() {
-                    needed[c.index()] = true;
-                }
-            }
-        }
+        let needed = ir.needed_nodes(roots);
+        let n = needed.len();
         let mut place: Vec<Option<Operand>> = vec![None; n];
         let mut ops = Vec::new();
         for i in 0..n {

@@ -449,23 +449,35 @@ impl ModelIr {
     pub fn is_constant(&self, e: ExprId) -> bool {
         matches!(self.expr(e), ExprNode::Const(_))
     }
-    /// The signals an expression depends on.
-    pub fn expr_signals(&self, e: ExprId) -> Vec<SignalId> {
-        let mut mark = vec![false; e.index() + 1];
-        mark[e.index()] = true;
-        let mut out = Vec::new();
-        for i in (0..=e.index()).rev() {
-            if !mark[i] {
-                continue;
-            }
-            let node = self.exprs[i];
-            if let ExprNode::Signal(s) = node {
-                out.push(s);
-            }
-            for c in node.children() {
-                mark[c.index()] = true;
+    /// Which nodes the `roots` depend on (the roots included): `needed[i]` for node `i`,
+    /// up to the largest root. Evaluators compute exactly these nodes.
+    pub fn needed_nodes(&self, roots: &[ExprId]) -> Vec<bool> {
+        let n = roots.iter().map(|r| r.index() + 1).max().unwrap_or(0);
+        let mut needed = vec![false; n];
+        for r in roots {
+            needed[r.index()] = true;
+        }
+        // Topological order: a node's children have smaller ids.
+        for i in (0..n).rev() {
+            if needed[i] {
+                for c in self.exprs[i].children() {
+                    needed[c.index()] = true;
+                }
             }
         }
+        needed
+    }
+
+    /// The signals an expression depends on.
+    pub fn expr_signals(&self, e: ExprId) -> Vec<SignalId> {
+        let needed = self.needed_nodes(&[e]);
+        let mut out: Vec<SignalId> = (0..needed.len())
+            .filter(|&i| needed[i])
+            .filter_map(|i| match self.exprs[i] {
+                ExprNode::Signal(s) => Some(s),
+                _ => None,
+            })
+            .collect();
         out.sort();
         out.dedup();
         out
