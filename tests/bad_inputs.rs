@@ -36,6 +36,29 @@ fn setup(dir: &Path) {
     std::fs::write(dir.join("semicolon.csv"), level.replace(',', ";")).unwrap();
     std::fs::write(dir.join("tabs.csv"), level.replace(',', "\t")).unwrap();
     std::fs::write(dir.join("empty.csv"), "").unwrap();
+    // Compiled models (JSON IR) with one defect each.
+    let out = dynid()
+        .arg("compile")
+        .arg(model("sdof_linear.dyn"))
+        .args(["--emit", "json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let ir: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let defect = |name: &str, edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut v = ir.clone();
+        edit(&mut v);
+        std::fs::write(dir.join(name), serde_json::to_string(&v).unwrap()).unwrap();
+    };
+    defect("param_index.json", &|v| {
+        v["equations"][0]["terms"][1]["coef"]["param"] = 99.into();
+    });
+    defect("expr_index.json", &|v| {
+        v["elements"][0]["terms"][0]["basis"] = 999.into();
+    });
+    defect("negative_mass.json", &|v| {
+        v["bodies"][0]["mass"]["scale"] = (-1.0).into();
+    });
     let mut lines: Vec<&str> = level.lines().collect();
     lines[7] = lines[6];
     std::fs::write(dir.join("repeated_time.csv"), lines.join("\n")).unwrap();
@@ -124,6 +147,25 @@ const CASES: &[Case] = &[
         name: "a level file that does not exist",
         args: &["identify", "{model}", "{dir}/missing.csv"],
         code: "dynid::data::io",
+    },
+    Case {
+        name: "a JSON model with a parameter index out of range",
+        args: &["simulate", "{dir}/param_index.json", "--out", "{dir}/out"],
+        code: "dynid::model::json",
+    },
+    Case {
+        name: "a JSON model with an expression index out of range",
+        args: &[
+            "identify",
+            "{dir}/expr_index.json",
+            "{dir}/data/level_1.csv",
+        ],
+        code: "dynid::model::json",
+    },
+    Case {
+        name: "a JSON model with a negative known mass",
+        args: &["simulate", "{dir}/negative_mass.json", "--out", "{dir}/out"],
+        code: "dynid::model::json",
     },
 ];
 

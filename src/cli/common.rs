@@ -15,8 +15,14 @@ pub fn load_model(path: &Path) -> miette::Result<ModelIr> {
         let ir: ModelIr = serde_json::from_str(&text)
             .into_diagnostic()
             .wrap_err_with(|| format!("`{}` is not a compiled model (JSON IR)", path.display()))?;
-        ir.check_invariants()
-            .map_err(|e| miette!("`{}` is not a consistent model: {e}", path.display()))?;
+        ir.check_invariants().map_err(|e| {
+            miette!(
+                code = "dynid::model::json",
+                help = "write the model as .dyn and compile it (`dynid compile M.dyn --emit json`) instead of editing the JSON",
+                "`{}` is not a consistent model: {e}",
+                path.display()
+            )
+        })?;
         return Ok(ir);
     }
     Ok(dsl_parser::compile_file(path)?)

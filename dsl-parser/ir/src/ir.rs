@@ -517,6 +517,140 @@ impl ModelIr {
         if self.equations.len() != nb {
             return Err("one equation per body expected".into());
         }
+        self.check_references()
+    }
+
+    /// Every index in the model names something that exists, every number is finite and
+    /// every known mass is positive: what a model read from JSON must satisfy before any
+    /// back end indexes with it (the compiler guarantees it for models it lowered).
+    pub fn check_references(&self) -> Result<(), String> {
+        let (np, ns, ne, nb) = (
+            self.params.len(),
+            self.signals.len(),
+            self.exprs.len(),
+            self.bodies.len(),
+        );
+        let coef = |c: &Coef, at: &str| -> Result<(), String> {
+            if !c.scale.is_finite() {
+                return Err(format!("{at}: coefficient {} is not finite", c.scale));
+            }
+            match c.param {
+                Some(p) if p.index() >= np => {
+                    Err(format!("{at}: parameter #{} does not exist", p.index()))
+                }
+                _ => Ok(()),
+            }
+        };
+        let expr = |e: ExprId, at: &str| -> Result<(), String> {
+            if e.index() >= ne {
+                return Err(format!("{at}: expression #{} does not exist", e.index()));
+            }
+            Ok(())
+        };
+        let body = |b: BodyId, at: &str| -> Result<(), String> {
+            if b.index() >= nb {
+                return Err(format!("{at}: body #{} does not exist", b.index()));
+            }
+            Ok(())
+        };
+        let node = |n: Node, at: &str| match n {
+            Node::Ground => Ok(()),
+            Node::Body(b) => body(b, at),
+        };
+        for p in &self.params {
+            let v = match p.kind {
+                ParamKind::Known(v) => Some(v),
+                ParamKind::Unknown { nominal } => nominal,
+            };
+            if v.is_some_and(|v| !v.is_finite()) {
+                return Err(format!(
+                    "parameter `{}` has a value that is not finite",
+                    p.name
+                ));
+            }
+        }
+        for b in &self.bodies {
+            let at = format!("body `{}`", b.name);
+            coef(&b.mass, &at)?;
+            let known = match b.mass.param {
+                None => Some(b.mass.scale),
+                Some(p) => match self.params[p.index()].kind {
+                    ParamKind::Known(v) => Some(b.mass.scale * v),
+                    ParamKind::Unknown { .. } => None,
+                },
+            };
+            if known.is_some_and(|m| m <= 0.0) {
+                return Err(format!("{at}: the known mass must be positive"));
+            }
+        }
+        for (j, i) in self.inputs.iter().enumerate() {
+            body(i.body, &format!("input #{j} `{}`", i.name))?;
+        }
+        for (k, n) in self.exprs.iter().enumerate() {
+            let at = format!("expression #{k}");
+            match *n {
+                ExprNode::Signal(sig) if sig.index() >= ns => {
+                    return Err(format!("{at}: signal #{} does not exist", sig.index()))
+                }
+                ExprNode::Const(b) | ExprNode::Deadzone(_, b) | ExprNode::Saturate(_, b)
+                    if !f64::from_bits(b).is_finite() =>
+                {
+                    return Err(format!("{at}: a constant is not finite"))
+                }
+                _ => {}
+            }
+        }
+        for e in &self.elements {
+            let at = format!("element `{}`", e.name);
+            node(e.nodes.0, &at)?;
+            node(e.nodes.1, &at)?;
+            expr(e.s, &at)?;
+            expr(e.v, &at)?;
+            for t in &e.terms {
+                coef(&t.coef, &at)?;
+                expr(t.basis, &at)?;
+            }
+        }
+        for (k, eq) in self.equations.iter().enumerate() {
+            let at = format!("equation #{k}");
+            body(eq.body, &at)?;
+            for t in &eq.terms {
+                coef(&t.coef, &at)?;
+                match t.basis {
+                    Basis::Expr(e) => expr(e, &at)?,
+                    Basis::Deriv { body: b, order } => {
+                        body(b, &at)?;
+                        if !(1..=2).contains(&order) {
+                            return Err(format!("{at}: derivative of order {order}"));
+                        }
+                    }
+                }
+                let origin_ok = match t.origin {
+                    TermOrigin::Inertia(b) => b.index() < nb,
+                    TermOrigin::Element(el) => el.index() < self.elements.len(),
+                    TermOrigin::Input(i) => i.index() < self.inputs.len(),
+                };
+                if !origin_ok {
+                    return Err(format!("{at}: a term's origin does not exist"));
+                }
+            }
+        }
+        for x in &self.excitation {
+            if x.input.index() >= self.inputs.len() {
+                return Err(format!(
+                    "excitation of input #{} that does not exist",
+                    x.input.index()
+                ));
+            }
+        }
+        if let Some(f) = &self.filter {
+            if let Some(s) = f.driven_by.iter().find(|s| s.index() >= ns) {
+                return Err(format!(
+                    "the filter is driven by signal #{} that does not exist",
+                    s.index()
+                ));
+            }
+        }
         Ok(())
     }
 }
