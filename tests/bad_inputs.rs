@@ -149,6 +149,17 @@ const CASES: &[Case] = &[
         code: "dynid::data::io",
     },
     Case {
+        name: "filter corners above the Nyquist frequency (Ts = 0.01 s: 314 rad/s)",
+        args: &[
+            "identify",
+            "{model}",
+            "{dir}/data/level_1.csv",
+            "--filter-corners",
+            "50,200,400",
+        ],
+        code: "dynid::identify::option",
+    },
+    Case {
         name: "a JSON model with a parameter index out of range",
         args: &["simulate", "{dir}/param_index.json", "--out", "{dir}/out"],
         code: "dynid::model::json",

@@ -60,6 +60,24 @@ pub fn measure<'m>(
             help: "corners are positive angular frequencies in rad/s".into(),
         });
     }
+    // A corner at or above the Nyquist frequency of a level filters nothing there: the
+    // discretised filter aliases and the estimates are wrong without any other sign.
+    let ts_max = stats.iter().map(|s| s.ts).fold(0.0, f64::max);
+    let nyquist = std::f64::consts::PI / ts_max;
+    if let Some(c) = corners.iter().find(|c| **c >= nyquist) {
+        return Err(IdentifyError::BadOption {
+            message: format!(
+                "filter corner {} rad/s is at or above the Nyquist frequency π/Ts = {} rad/s \
+                 of the data (Ts = {} s)",
+                dynid_ir::num::sig(*c, 4, false),
+                dynid_ir::num::sig(nyquist, 4, false),
+                dynid_ir::num::sig(ts_max, 4, false)
+            ),
+            help: "use corners well below the Nyquist frequency (a few times below it), or \
+                   leave them out so that they are designed from the data"
+                .into(),
+        });
+    }
     plan.corners = vec![0.0; corners.len()];
     plan.set_corners(ir, &corners);
     let lam_min = corners.iter().copied().fold(f64::INFINITY, f64::min);
