@@ -160,6 +160,19 @@ const CASES: &[Case] = &[
         code: "dynid::identify::option",
     },
     Case {
+        name: "a plot named .jpg (only SVG and PNG are drawn)",
+        args: &[
+            "detect",
+            "{model}",
+            "{dir}/data/level_1.csv",
+            "{dir}/data/level_2.csv",
+            "{dir}/data/level_3.csv",
+            "--plot",
+            "{dir}/curves.jpg",
+        ],
+        code: "dynid::detect::plot_format",
+    },
+    Case {
         name: "a JSON model with a parameter index out of range",
         args: &["simulate", "{dir}/param_index.json", "--out", "{dir}/out"],
         code: "dynid::model::json",

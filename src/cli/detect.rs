@@ -46,7 +46,7 @@ pub struct Args {
     /// Write the full result (curves, tests, template ranking) as JSON to this file.
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
-    /// Plot the parameter curves with the best templates: SVG, or PNG if the name ends in `.png`.
+    /// Plot the parameter curves with the best templates: `.svg` or `.png` (by the name).
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
     #[command(flatten)]
@@ -57,6 +57,19 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
+    if let Some(p) = &args.plot {
+        let ext = p
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        if !matches!(ext.as_deref(), Some("svg" | "png")) {
+            return Err(miette!(
+                code = "dynid::detect::plot_format",
+                help = "name the file `….svg` or `….png`",
+                "the plot `{}` would be written in a format its name does not say: dynid draws SVG or PNG",
+                p.display()
+            ));
+        }
+    }
     check_outputs(
         [
             (args.json.as_deref(), "the JSON output"),
