@@ -57,6 +57,13 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
+    check_outputs(
+        [
+            (args.json.as_deref(), "the JSON output"),
+            (args.plot.as_deref(), "the plot"),
+        ],
+        inputs(&args.model, &args.data),
+    )?;
     if let Some(p) = &args.plot {
         let ext = p
             .extension()
@@ -70,13 +77,6 @@ pub fn run(args: Args) -> miette::Result<()> {
             ));
         }
     }
-    check_outputs(
-        [
-            (args.json.as_deref(), "the JSON output"),
-            (args.plot.as_deref(), "the plot"),
-        ],
-        inputs(&args.model, &args.data),
-    )?;
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
     let sources = args
