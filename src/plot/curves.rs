@@ -12,11 +12,7 @@ use plotters::prelude::*;
 use super::{register_font, PlotError};
 use crate::output::Staged;
 use dsl_parser::num;
-use dynid_runtime::detect::{Detection, ParamCurveResult, TemplateFit, Verdict};
-
-fn fmt_g(x: f64) -> String {
-    num::sig(x, 4, true)
-}
+use dynid_runtime::detect::{fmt_g, fmt_pm, Detection, ParamCurveResult, TemplateFit, Verdict};
 
 const PANEL_W: u32 = 760;
 const PANEL_H: u32 = 430;
@@ -221,7 +217,7 @@ fn panel<DB: DrawingBackend>(
             gray.stroke_width(2),
         ))
         .map_err(|e| e.to_string())?
-        .label(format!("constant {}", num::pm(p.mean, p.mean_stderr)))
+        .label(format!("constant {}", fmt_pm(p.mean, p.mean_stderr)))
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], gray.stroke_width(2)));
 
     let template_points = |t: &TemplateFit| -> Vec<(f64, f64)> {
