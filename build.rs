@@ -47,8 +47,9 @@ fn main() {
         );
     }
     let out = format!("{modules}\npub const CASES: &[Case] = &[\n{cases}];\n");
-    let path = Path::new(&std::env::var("OUT_DIR").expect("cargo sets OUT_DIR")).join("models.rs");
-    std::fs::write(path, out).expect("OUT_DIR is writable");
+    let path = Path::new(&std::env::var("OUT_DIR").expect("invariant: cargo sets OUT_DIR"))
+        .join("models.rs");
+    std::fs::write(path, out).expect("invariant: OUT_DIR is writable");
 }
 
 // `model_name_hint` and `type_name`, exactly as the macros use them.

@@ -6,9 +6,12 @@
 //! format) and all are moved into place by [`Staged::commit`]. Dropping an uncommitted set
 //! deletes its temporaries, so an error never leaves a partial output behind.
 
+use dsl_parser::ir::ModelIr;
 use dynid_runtime::record::Record;
-use dynid_runtime::sim::{level_file_names, write_csv, SimOutput};
-use miette::{miette, IntoDiagnostic, WrapErr};
+use dynid_runtime::sim::{
+    self, level_file_names, write_csv, CsvSink, SampleSink, SimConfig, SimOutput, Truth,
+};
+use miette::{miette, IntoDiagnostic};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use tempfile::TempPath;
@@ -36,7 +39,14 @@ impl Staged {
     pub fn temp_for(&mut self, target: &Path) -> miette::Result<PathBuf> {
         let name = target
             .file_name()
-            .ok_or_else(|| miette!("`{}` is not a file name", target.display()))?
+            .ok_or_else(|| {
+                miette!(
+                    code = "dynid::output::is_directory",
+                    help = "give the path of a file",
+                    "`{}` is not a file name",
+                    target.display()
+                )
+            })?
             .to_string_lossy();
         let ext = target
             .extension()
@@ -46,8 +56,7 @@ impl Staged {
             .prefix(&format!(".{name}."))
             .suffix(&format!(".tmp{ext}"))
             .tempfile_in(parent_dir(target))
-            .into_diagnostic()
-            .wrap_err_with(|| format!("cannot write `{}`", target.display()))?;
+            .map_err(|e| write_error(target, e))?;
         let path = file.into_temp_path();
         let p = path.to_path_buf();
         self.files.push((path, target.to_path_buf()));
@@ -72,8 +81,7 @@ impl Staged {
             fill(&mut w)?;
             w.into_inner().map_err(|e| e.into_error())?.sync_all()
         })()
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot write `{}`", target.display()))
+        .map_err(|e| write_error(target, e))
     }
 
     /// Move every staged file to its target. If one move fails, the files not yet moved
@@ -81,12 +89,19 @@ impl Staged {
     pub fn commit(mut self) -> miette::Result<()> {
         for (tmp, target) in std::mem::take(&mut self.files) {
             tmp.persist(&target)
-                .map_err(|e| e.error)
-                .into_diagnostic()
-                .wrap_err_with(|| format!("cannot write `{}`", target.display()))?;
+                .map_err(|e| write_error(&target, e.error))?;
         }
         Ok(())
     }
+}
+
+fn write_error(target: &Path, e: std::io::Error) -> miette::Report {
+    miette!(
+        code = "dynid::output::write",
+        help = "check the permissions and the free space where it goes; nothing was written",
+        "cannot write `{}`: {e}",
+        target.display()
+    )
 }
 
 /// Write one file all or nothing.
@@ -99,6 +114,119 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> miette::Result<()> {
 /// Stage `record` as a CSV file (header `t,<signals>`, numbers in shortest round-trip form).
 pub fn stage_csv(staged: &mut Staged, path: &Path, record: &Record) -> miette::Result<()> {
     staged.write_with(path, |w| write_csv(w, record))
+}
+
+/// One simulated level file being written: its CSV and, for the summary, the running mean
+/// and variance of every column (Welford's update).
+struct LevelFile {
+    csv: CsvSink<std::io::BufWriter<std::fs::File>>,
+    n: usize,
+    mean: Vec<f64>,
+    m2: Vec<f64>,
+}
+
+impl SampleSink for LevelFile {
+    fn begin(&mut self, names: &[String], ts: f64) -> std::io::Result<()> {
+        self.mean = vec![0.0; names.len()];
+        self.m2 = vec![0.0; names.len()];
+        self.csv.begin(names, ts)
+    }
+    fn push(&mut self, cols: &[&[f64]], len: usize) -> std::io::Result<()> {
+        for (j, c) in cols.iter().enumerate() {
+            let (mut n, mut mean, mut m2) = (self.n as f64, self.mean[j], self.m2[j]);
+            for &x in &c[..len] {
+                n += 1.0;
+                let d = x - mean;
+                mean += d / n;
+                m2 += d * (x - mean);
+            }
+            (self.mean[j], self.m2[j]) = (mean, m2);
+        }
+        self.n += len;
+        self.csv.push(cols, len)
+    }
+}
+
+/// A written level: its file, sample count and the std of each column.
+pub struct LevelWritten {
+    pub path: PathBuf,
+    pub samples: usize,
+    pub std: Vec<f64>,
+}
+
+/// Simulate `ir` under `cfg` straight into `DIR/level_k.csv` (streamed: memory does not
+/// grow with the duration) and write `DIR/truth.json`, all or nothing; `DIR` is created if
+/// missing (and removed again, if it was created and the run fails). Returns what was
+/// simulated and the level files.
+pub fn simulate_to_dir(
+    ir: &ModelIr,
+    cfg: &SimConfig,
+    dir: &Path,
+    progress: &(dyn Fn(u64) + Sync),
+) -> miette::Result<(Truth, Vec<LevelWritten>)> {
+    let n = sim::level_count(ir, cfg)?;
+    let created = !dir.exists();
+    std::fs::create_dir_all(dir).map_err(|e| {
+        miette!(
+            code = "dynid::output::write",
+            help = "check the permissions and the free space where it goes",
+            "cannot create the output directory `{}`: {e}",
+            dir.display()
+        )
+    })?;
+    let result = (|| {
+        let names = level_file_names(n);
+        let mut staged = Staged::new();
+        let mut files = Vec::with_capacity(n);
+        for name in &names {
+            let target = dir.join(name);
+            let tmp = staged.temp_for(&target)?;
+            let f = std::fs::File::create(&tmp).map_err(|e| write_error(&target, e))?;
+            files.push(LevelFile {
+                csv: CsvSink::new(std::io::BufWriter::with_capacity(1 << 16, f)),
+                n: 0,
+                mean: Vec::new(),
+                m2: Vec::new(),
+            });
+        }
+        let mut sinks: Vec<&mut dyn SampleSink> =
+            files.iter_mut().map(|f| f as &mut dyn SampleSink).collect();
+        let mut truth = sim::simulate_into(ir, cfg, progress, &mut sinks)?;
+        let mut written = Vec::with_capacity(n);
+        for (f, name) in files.into_iter().zip(&names) {
+            let target = dir.join(name);
+            f.csv
+                .into_inner()
+                .into_inner()
+                .map_err(|e| e.into_error())
+                .and_then(|file| file.sync_all())
+                .map_err(|e| write_error(&target, e))?;
+            written.push(LevelWritten {
+                path: target,
+                samples: f.n,
+                std: f
+                    .m2
+                    .iter()
+                    .map(|m2| {
+                        if f.n > 0 {
+                            (m2 / f.n as f64).sqrt()
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect(),
+            });
+        }
+        truth.files = names;
+        let json = serde_json::to_string_pretty(&truth).into_diagnostic()? + "\n";
+        staged.write(&dir.join("truth.json"), json.as_bytes())?;
+        staged.commit()?;
+        Ok::<_, miette::Report>((truth, written))
+    })();
+    if result.is_err() && created {
+        let _ = std::fs::remove_dir(dir);
+    }
+    result
 }
 
 /// Write `DIR/level_k.csv` for every level and `DIR/truth.json`, all or nothing. Returns

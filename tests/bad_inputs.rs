@@ -14,12 +14,29 @@ fn model(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// One case: the arguments (`{dir}` is replaced by the case's temporary directory) and
-/// the error code the message must carry.
+/// One case: the arguments (`{dir}` is replaced by the case's temporary directory and
+/// `{model}` by a copy of `models/sdof_linear.dyn` in it), the error code the message must
+/// carry, and further text it must contain.
 struct Case {
     name: &'static str,
     args: &'static [&'static str],
     code: &'static str,
+    also: &'static [&'static str],
+}
+
+const fn case(name: &'static str, args: &'static [&'static str], code: &'static str) -> Case {
+    Case {
+        name,
+        args,
+        code,
+        also: &[],
+    }
+}
+
+/// The linear SDOF model with one line changed (`{line}` replaces the damper).
+fn sdof_with(line: &str) -> String {
+    let base = std::fs::read_to_string(model("sdof_linear.dyn")).unwrap();
+    base.replace("damper d (ground, m) ~ 0.4", line)
 }
 
 /// Files written by `setup` into every case's directory.
@@ -32,10 +49,54 @@ fn setup(dir: &Path) {
         .output()
         .unwrap();
     assert!(st.status.success());
-    let level = std::fs::read_to_string(dir.join("data/level_1.csv")).unwrap();
-    std::fs::write(dir.join("semicolon.csv"), level.replace(',', ";")).unwrap();
-    std::fs::write(dir.join("tabs.csv"), level.replace(',', "\t")).unwrap();
-    std::fs::write(dir.join("empty.csv"), "").unwrap();
+    let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
+    std::fs::create_dir(dir.join("a_directory")).unwrap();
+    std::fs::write(dir.join("existing_file"), "keep me\n").unwrap();
+
+    // Models.
+    write(
+        "syntax.dyn",
+        "model m {\n    body m = 1.0\n    spring k (ground, m) ~\n}\n",
+    );
+    write("empty.dyn", "");
+    write("undefined.dyn", &sdof_with("damper d (ground, q) ~ 0.4"));
+    write("duplicate.dyn", &sdof_with("damper k (ground, m) ~ 0.4"));
+    write(
+        "bad_call.dyn",
+        &sdof_with("force f (ground, m) = c ~ 1.0 * frob(s)"),
+    );
+    write(
+        "reserved.dyn",
+        &sdof_with("damper ground (ground, m) ~ 0.4"),
+    );
+    write(
+        "nothing_unknown.dyn",
+        "model m {\n    body m = 1.0\n    input u on m\n    spring k (ground, m) = 4.0\n}\n",
+    );
+    let mut latin1 = sdof_with("damper d (ground, m) ~ 0.4").into_bytes();
+    latin1.splice(0..0, b"// d\xe9placement\n".iter().copied());
+    std::fs::write(dir.join("latin1.dyn"), latin1).unwrap();
+    write(
+        "power_tower.dyn",
+        &sdof_with(
+            "damper d (ground, m) ~ 0.4\n    force p (ground, m) = c ~ 0.0 * ((s^64)^64)^64",
+        ),
+    );
+    write(
+        "sqrt_negative.dyn",
+        &sdof_with("damper d (ground, m) ~ 0.4\n    force p (ground, m) = c ~ 0.0 * sqrt(s)"),
+    );
+    write(
+        "exp_overflow.dyn",
+        &sdof_with("damper d (ground, m) ~ 0.4\n    force p (ground, m) = c ~ 0.0 * exp(1000 * s)"),
+    );
+    write(
+        "softening.dyn",
+        &sdof_with("damper d (ground, m) ~ 0.4\n    force nl (ground, m) = k3 ~ -2.0 * s^3")
+            .replace("levels [6, 15, 40]", "levels [0.5, 500]"),
+    );
+    write("garbage.json", "{\"bodies\": [");
+
     // Compiled models (JSON IR) with one defect each.
     let out = dynid()
         .arg("compile")
@@ -59,15 +120,372 @@ fn setup(dir: &Path) {
     defect("negative_mass.json", &|v| {
         v["bodies"][0]["mass"]["scale"] = (-1.0).into();
     });
-    let mut lines: Vec<&str> = level.lines().collect();
-    lines[7] = lines[6];
-    std::fs::write(dir.join("repeated_time.csv"), lines.join("\n")).unwrap();
+
+    // Data: level 1 with one defect each.
+    let level = std::fs::read_to_string(dir.join("data/level_1.csv")).unwrap();
+    let lines: Vec<&str> = level.lines().collect();
+    let edited = |name: &str, edit: &dyn Fn(&mut Vec<String>)| {
+        let mut l: Vec<String> = lines.iter().map(|s| s.to_string()).collect();
+        edit(&mut l);
+        std::fs::write(dir.join(name), l.join("\n") + "\n").unwrap();
+    };
+    // Replace field `f` of line `i` (0 = header).
+    let set = |l: &mut Vec<String>, i: usize, f: usize, v: &str| {
+        let mut fields: Vec<String> = l[i].split(',').map(String::from).collect();
+        fields[f] = v.to_string();
+        l[i] = fields.join(",");
+    };
+    write("semicolon.csv", &level.replace(',', ";"));
+    write("tabs.csv", &level.replace(',', "\t"));
+    write("empty.csv", "");
+    write("header_only.csv", &format!("{}\n", lines[0]));
+    edited("repeated_time.csv", &|l| l[7] = l[6].clone());
+    edited("backwards_time.csv", &|l| l.swap(20, 21));
+    edited("gap_in_time.csv", &|l| {
+        l.remove(50);
+    });
+    edited("nan.csv", &|l| set(l, 33, 1, "NaN"));
+    edited("inf.csv", &|l| set(l, 34, 3, "inf"));
+    edited("word.csv", &|l| set(l, 35, 2, "abc"));
+    edited("blank_field.csv", &|l| set(l, 36, 2, ""));
+    edited("short_row.csv", &|l| {
+        let cut = l[40].rfind(',').unwrap();
+        l[40].truncate(cut);
+    });
+    edited("decimal_comma.csv", &|l| {
+        for row in l.iter_mut().skip(1) {
+            *row = row.replace('.', ",");
+        }
+    });
+    edited("quoted_comma.csv", &|l| set(l, 12, 1, "\"0,25\""));
+    edited("no_u.csv", &|l| {
+        for row in l.iter_mut() {
+            let cut = row.rfind(',').unwrap();
+            row.truncate(cut);
+        }
+    });
+    edited("duplicate_column.csv", &|l| set(l, 0, 2, "m.x"));
+    edited("no_time.csv", &|l| {
+        for row in l.iter_mut() {
+            *row = row.split_once(',').unwrap().1.to_string();
+        }
+    });
+    edited("outlier.csv", &|l| set(l, 500, 1, "1e20"));
+    edited("huge.csv", &|l| {
+        for row in l.iter_mut().skip(1) {
+            let f: Vec<String> = row.split(',').map(String::from).collect();
+            let scaled: Vec<String> = f[1..]
+                .iter()
+                .map(|v| format!("{:e}", v.parse::<f64>().unwrap() * 1e300))
+                .collect();
+            *row = format!("{},{}", f[0], scaled.join(","));
+        }
+    });
+    edited("at_rest.csv", &|l| {
+        for row in l.iter_mut().skip(1) {
+            let t = row.split(',').next().unwrap().to_string();
+            *row = format!("{t},0,0,0");
+        }
+    });
+    edited("too_few.csv", &|l| l.truncate(40));
+    edited("too_short.csv", &|l| l.truncate(130));
+    let mut binary: Vec<u8> = (0..4000u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
+    binary[0] = 0xff;
+    std::fs::write(dir.join("binary.csv"), binary).unwrap();
 }
 
+const DATA: &str = "{dir}/data/level_1.csv";
+
 const CASES: &[Case] = &[
+    // ---- Models ----
+    case(
+        "a syntax error",
+        &["compile", "{dir}/syntax.dyn"],
+        "dyn::syntax",
+    ),
+    case(
+        "an empty model file",
+        &["compile", "{dir}/empty.dyn"],
+        "dyn::syntax",
+    ),
+    case(
+        "a model file that does not exist",
+        &["compile", "{dir}/missing.dyn"],
+        "dyn::io",
+    ),
+    case(
+        "a directory as the model",
+        &["compile", "{dir}/a_directory"],
+        "dyn::io",
+    ),
     Case {
-        name: "a duration too long to hold in memory",
+        name: "a model that is not UTF-8 (Latin-1 `é`)",
+        args: &["compile", "{dir}/latin1.dyn"],
+        code: "dyn::io",
+        also: &["line 1, column 5"],
+    },
+    case(
+        "an element on an undeclared body",
+        &["compile", "{dir}/undefined.dyn"],
+        "dyn::undefined_name",
+    ),
+    case(
+        "a name declared twice",
+        &["compile", "{dir}/duplicate.dyn"],
+        "dyn::duplicate_name",
+    ),
+    case(
+        "an unknown function",
+        &["compile", "{dir}/bad_call.dyn"],
+        "dyn::invalid_call",
+    ),
+    case(
+        "a reserved word as a name",
+        &["compile", "{dir}/reserved.dyn"],
+        "dyn::reserved_name",
+    ),
+    case(
+        "a model with nothing to identify",
+        &["identify", "{dir}/nothing_unknown.dyn", DATA],
+        "dyn::nothing_to_identify",
+    ),
+    case(
+        "a model whose signals are not in the data",
+        &["identify", "{two_mass}", DATA],
+        "dynid::data::missing_column",
+    ),
+    Case {
+        name: "a term `((s^64)^64)^64` that overflows on the data (level 3: |s| > 1)",
         args: &[
+            "identify",
+            "{dir}/power_tower.dyn",
+            "{dir}/data/level_3.csv",
+        ],
+        code: "dynid::identify::non_finite_term",
+        also: &["((m.x^64)^64)^64", "sample"],
+    },
+    Case {
+        name: "`sqrt(s)` on data where s < 0",
+        args: &["identify", "{dir}/sqrt_negative.dyn", DATA],
+        code: "dynid::identify::non_finite_term",
+        also: &["sqrt(m.x)", "NaN", "sample 2"],
+    },
+    Case {
+        name: "`exp(1000 s)` overflowing on the data",
+        args: &[
+            "identify",
+            "{dir}/exp_overflow.dyn",
+            "{dir}/data/level_3.csv",
+        ],
+        code: "dynid::identify::non_finite_term",
+        also: &["inf"],
+    },
+    case(
+        "a JSON model that is not JSON",
+        &["identify", "{dir}/garbage.json", DATA],
+        "dynid::model::json",
+    ),
+    case(
+        "a JSON model with a parameter index out of range",
+        &["simulate", "{dir}/param_index.json", "--out", "{dir}/out"],
+        "dynid::model::json",
+    ),
+    case(
+        "a JSON model with an expression index out of range",
+        &["identify", "{dir}/expr_index.json", DATA],
+        "dynid::model::json",
+    ),
+    case(
+        "a JSON model with a negative known mass",
+        &["simulate", "{dir}/negative_mass.json", "--out", "{dir}/out"],
+        "dynid::model::json",
+    ),
+    // ---- Data ----
+    case(
+        "a level file that does not exist",
+        &["identify", "{model}", "{dir}/missing.csv"],
+        "dynid::data::io",
+    ),
+    case(
+        "a directory as a level file",
+        &["identify", "{model}", "{dir}/a_directory"],
+        "dynid::data::io",
+    ),
+    case(
+        "an empty level file",
+        &["identify", "{model}", "{dir}/empty.csv"],
+        "dynid::data::empty",
+    ),
+    case(
+        "a header without samples",
+        &["identify", "{model}", "{dir}/header_only.csv"],
+        "dynid::data::header_only",
+    ),
+    case(
+        "a binary file as a level",
+        &["identify", "{model}", "{dir}/binary.csv"],
+        "dynid::data::csv",
+    ),
+    case(
+        "a semicolon-separated level",
+        &[
+            "identify",
+            "{model}",
+            "{dir}/semicolon.csv",
+            "{dir}/data/level_2.csv",
+        ],
+        "dynid::data::separator",
+    ),
+    case(
+        "a tab-separated level",
+        &[
+            "identify",
+            "{model}",
+            "{dir}/tabs.csv",
+            "{dir}/data/level_2.csv",
+        ],
+        "dynid::data::separator",
+    ),
+    Case {
+        name: "numbers with a decimal comma",
+        args: &["identify", "{model}", "{dir}/decimal_comma.csv"],
+        code: "dynid::data::ragged",
+        also: &["decimal comma"],
+    },
+    Case {
+        name: "a quoted number with a decimal comma",
+        args: &["identify", "{model}", "{dir}/quoted_comma.csv"],
+        code: "dynid::data::not_a_number",
+        also: &["decimal comma", "line 13"],
+    },
+    Case {
+        name: "a row with a field missing",
+        args: &["identify", "{model}", "{dir}/short_row.csv"],
+        code: "dynid::data::ragged",
+        also: &["line 41"],
+    },
+    Case {
+        name: "a NaN sample",
+        args: &["identify", "{model}", "{dir}/nan.csv"],
+        code: "dynid::data::non_finite",
+        also: &["line 34", "`m.x`"],
+    },
+    Case {
+        name: "an infinite input sample",
+        args: &["identify", "{model}", "{dir}/inf.csv"],
+        code: "dynid::data::non_finite",
+        also: &["line 35", "`u`"],
+    },
+    Case {
+        name: "a word where a number belongs",
+        args: &["identify", "{model}", "{dir}/word.csv"],
+        code: "dynid::data::not_a_number",
+        also: &["line 36", "`abc`"],
+    },
+    case(
+        "an empty field",
+        &["identify", "{model}", "{dir}/blank_field.csv"],
+        "dynid::data::not_a_number",
+    ),
+    case(
+        "a measured input column missing",
+        &["identify", "{model}", "{dir}/no_u.csv"],
+        "dynid::data::missing_column",
+    ),
+    case(
+        "a column named twice",
+        &["identify", "{model}", "{dir}/duplicate_column.csv"],
+        "dynid::data::duplicate_column",
+    ),
+    case(
+        "no time column and no --sample",
+        &["identify", "{model}", "{dir}/no_time.csv"],
+        "dynid::data::no_sample_interval",
+    ),
+    case(
+        "no time column and --sample 0",
+        &["identify", "{model}", "{dir}/no_time.csv", "--sample", "0"],
+        "dynid::data::bad_sample_interval",
+    ),
+    Case {
+        name: "a repeated time stamp",
+        args: &["identify", "{model}", "{dir}/repeated_time.csv"],
+        code: "dynid::data::non_uniform_time",
+        also: &["does not increase", "line 8"],
+    },
+    Case {
+        name: "time stamps out of order",
+        args: &["identify", "{model}", "{dir}/backwards_time.csv"],
+        code: "dynid::data::non_uniform_time",
+        also: &["line 21", "time step"],
+    },
+    Case {
+        name: "a missing sample (a gap in time)",
+        args: &["identify", "{model}", "{dir}/gap_in_time.csv"],
+        code: "dynid::data::non_uniform_time",
+        also: &["line 51"],
+    },
+    case(
+        "too few samples",
+        &["identify", "{model}", "{dir}/too_few.csv"],
+        "dynid::data::too_few_samples",
+    ),
+    case(
+        "a record too short for the slowest filter",
+        &["identify", "{model}", "{dir}/too_short.csv"],
+        "dynid::identify::too_short",
+    ),
+    Case {
+        name: "one sample of 1e20 (a recording glitch)",
+        args: &[
+            "identify",
+            "{model}",
+            "{dir}/outlier.csv",
+            "{dir}/data/level_2.csv",
+        ],
+        code: "dynid::data::outlier",
+        also: &["`m.x`", "sample 500"],
+    },
+    Case {
+        name: "values of 1e300 (moments overflow)",
+        args: &["identify", "{model}", "{dir}/huge.csv"],
+        code: "dynid::identify::overflow",
+        also: &["rescale"],
+    },
+    case(
+        "a level at rest (every signal zero)",
+        &[
+            "identify",
+            "{model}",
+            "{dir}/at_rest.csv",
+            "{dir}/data/level_2.csv",
+        ],
+        "dynid::data::no_excitation",
+    ),
+    case(
+        "a level at rest in a diagnosis with a report",
+        &[
+            "diagnose",
+            "{model}",
+            DATA,
+            "{dir}/at_rest.csv",
+            "{dir}/data/level_3.csv",
+            "--report",
+            "{dir}/report.html",
+        ],
+        "dynid::data::no_excitation",
+    ),
+    case(
+        "a bad --map",
+        &["identify", "{model}", DATA, "--map", "x"],
+        "dynid::data::bad_map",
+    ),
+    // ---- Flags ----
+    case(
+        "a duration of 1e9 s (10¹¹ samples: far beyond the size cap)",
+        &[
             "simulate",
             "{model}",
             "--duration",
@@ -75,11 +493,11 @@ const CASES: &[Case] = &[
             "--out",
             "{dir}/out",
         ],
-        code: "dynid::sim::config",
-    },
-    Case {
-        name: "a duration that overflows the sample count",
-        args: &[
+        "dynid::sim::config",
+    ),
+    case(
+        "a duration that overflows the sample count",
+        &[
             "simulate",
             "{model}",
             "--duration",
@@ -87,11 +505,36 @@ const CASES: &[Case] = &[
             "--out",
             "{dir}/out",
         ],
-        code: "dynid::sim::config",
-    },
+        "dynid::sim::config",
+    ),
     Case {
-        name: "a sample interval of 1e-300 s",
+        name: "a negative duration",
         args: &[
+            "simulate",
+            "{model}",
+            "--duration",
+            "-5",
+            "--out",
+            "{dir}/out",
+        ],
+        code: "dynid::sim::config",
+        also: &["duration -5"],
+    },
+    case(
+        "a duration of NaN",
+        &[
+            "simulate",
+            "{model}",
+            "--duration",
+            "nan",
+            "--out",
+            "{dir}/out",
+        ],
+        "dynid::sim::config",
+    ),
+    case(
+        "a sample interval of 1e-300 s",
+        &[
             "simulate",
             "{model}",
             "--sample",
@@ -99,11 +542,74 @@ const CASES: &[Case] = &[
             "--out",
             "{dir}/out",
         ],
-        code: "dynid::sim::config",
-    },
-    Case {
-        name: "an excitation level of 1e308 (the response overflows)",
-        args: &[
+        "dynid::sim::config",
+    ),
+    case(
+        "a sample interval of 0",
+        &["simulate", "{model}", "--sample", "0", "--out", "{dir}/out"],
+        "dynid::sim::config",
+    ),
+    case(
+        "input oversampling 0",
+        &[
+            "simulate",
+            "{model}",
+            "--input-oversample",
+            "0",
+            "--out",
+            "{dir}/out",
+        ],
+        "dynid::sim::config",
+    ),
+    case(
+        "0 RK4 sub-steps",
+        &[
+            "simulate",
+            "{model}",
+            "--substeps",
+            "0",
+            "--out",
+            "{dir}/out",
+        ],
+        "dynid::sim::config",
+    ),
+    case(
+        "a negative noise fraction",
+        &["simulate", "{model}", "--noise", "-1", "--out", "{dir}/out"],
+        "dynid::sim::config",
+    ),
+    case(
+        "a negative level in a list",
+        &[
+            "simulate",
+            "{model}",
+            "--levels",
+            "-3,2",
+            "--out",
+            "{dir}/out",
+        ],
+        "dynid::sim::config",
+    ),
+    case(
+        "a quantisation step of 0",
+        &[
+            "simulate",
+            "{model}",
+            "--quantise",
+            "0",
+            "--out",
+            "{dir}/out",
+        ],
+        "dynid::sim::config",
+    ),
+    case(
+        "--pd with one gain",
+        &["simulate", "{model}", "--pd", "3", "--out", "{dir}/out"],
+        "dynid::simulate::option",
+    ),
+    case(
+        "an excitation level of 1e308 (the response overflows)",
+        &[
             "simulate",
             "{model}",
             "--levels",
@@ -111,86 +617,110 @@ const CASES: &[Case] = &[
             "--out",
             "{dir}/out",
         ],
+        "dynid::sim::diverged",
+    ),
+    Case {
+        name: "a model that diverges at its second level only",
+        args: &[
+            "simulate",
+            "{dir}/softening.dyn",
+            "--duration",
+            "20",
+            "--out",
+            "{dir}/out",
+        ],
         code: "dynid::sim::diverged",
+        also: &["level 2"],
     },
-    Case {
-        name: "a semicolon-separated level",
-        args: &[
+    case(
+        "--out naming an existing file",
+        &["simulate", "{model}", "--out", "{dir}/existing_file"],
+        "dynid::output::not_a_directory",
+    ),
+    case(
+        "filter corners above the Nyquist frequency (Ts = 0.01 s: 314 rad/s)",
+        &[
             "identify",
             "{model}",
-            "{dir}/semicolon.csv",
-            "{dir}/data/level_2.csv",
-        ],
-        code: "dynid::data::separator",
-    },
-    Case {
-        name: "a tab-separated level",
-        args: &[
-            "identify",
-            "{model}",
-            "{dir}/tabs.csv",
-            "{dir}/data/level_2.csv",
-        ],
-        code: "dynid::data::separator",
-    },
-    Case {
-        name: "an empty level file",
-        args: &["identify", "{model}", "{dir}/empty.csv"],
-        code: "dynid::data::empty",
-    },
-    Case {
-        name: "a repeated time stamp",
-        args: &["identify", "{model}", "{dir}/repeated_time.csv"],
-        code: "dynid::data::non_uniform_time",
-    },
-    Case {
-        name: "a level file that does not exist",
-        args: &["identify", "{model}", "{dir}/missing.csv"],
-        code: "dynid::data::io",
-    },
-    Case {
-        name: "filter corners above the Nyquist frequency (Ts = 0.01 s: 314 rad/s)",
-        args: &[
-            "identify",
-            "{model}",
-            "{dir}/data/level_1.csv",
+            DATA,
             "--filter-corners",
             "50,200,400",
         ],
-        code: "dynid::identify::option",
-    },
-    Case {
-        name: "a plot named .jpg (only SVG and PNG are drawn)",
-        args: &[
+        "dynid::identify::option",
+    ),
+    case(
+        "negative filter corners",
+        &["identify", "{model}", DATA, "--filter-corners", "-3,2"],
+        "dynid::identify::option",
+    ),
+    case(
+        "detection from one level",
+        &["detect", "{model}", DATA],
+        "dynid::detect::too_few_levels",
+    ),
+    case(
+        "a detection --alpha outside (0, 1)",
+        &[
             "detect",
             "{model}",
-            "{dir}/data/level_1.csv",
+            DATA,
+            "{dir}/data/level_2.csv",
+            "--alpha",
+            "2",
+        ],
+        "dynid::detect::option",
+    ),
+    case(
+        "an unknown flag",
+        &["identify", "{model}", DATA, "--frobnicate"],
+        "unexpected argument '--frobnicate'",
+    ),
+    case(
+        "an unknown command",
+        &["frobnicate"],
+        "unrecognized subcommand 'frobnicate'",
+    ),
+    case(
+        "an unknown --emit",
+        &["compile", "{model}", "--emit", "pdf"],
+        "invalid value 'pdf'",
+    ),
+    case("identify without data", &["identify", "{model}"], "<DATA>"),
+    // ---- Outputs ----
+    case(
+        "a plot named .jpg (only SVG and PNG are drawn)",
+        &[
+            "detect",
+            "{model}",
+            DATA,
             "{dir}/data/level_2.csv",
             "{dir}/data/level_3.csv",
             "--plot",
             "{dir}/curves.jpg",
         ],
-        code: "dynid::detect::plot_format",
-    },
-    Case {
-        name: "a JSON model with a parameter index out of range",
-        args: &["simulate", "{dir}/param_index.json", "--out", "{dir}/out"],
-        code: "dynid::model::json",
-    },
-    Case {
-        name: "a JSON model with an expression index out of range",
-        args: &[
+        "dynid::detect::plot_format",
+    ),
+    case(
+        "--json onto a level file",
+        &["identify", "{model}", DATA, "--json", DATA],
+        "dynid::output::is_input",
+    ),
+    case(
+        "--json onto a directory",
+        &["identify", "{model}", DATA, "--json", "{dir}/a_directory"],
+        "dynid::output::is_directory",
+    ),
+    case(
+        "--json into a directory that does not exist",
+        &[
             "identify",
-            "{dir}/expr_index.json",
-            "{dir}/data/level_1.csv",
+            "{model}",
+            DATA,
+            "--json",
+            "{dir}/nowhere/id.json",
         ],
-        code: "dynid::model::json",
-    },
-    Case {
-        name: "a JSON model with a negative known mass",
-        args: &["simulate", "{dir}/negative_mass.json", "--out", "{dir}/out"],
-        code: "dynid::model::json",
-    },
+        "dynid::output::no_directory",
+    ),
 ];
 
 /// Every file below `dir` with its content.
@@ -218,6 +748,7 @@ fn every_bad_input_is_refused_with_its_code_and_changes_nothing() {
     setup(dir.path());
     let model = dir.path().join("sdof_linear.dyn");
     std::fs::copy(self::model("sdof_linear.dyn"), &model).unwrap();
+    assert!(CASES.len() >= 60, "the catalogue has {} cases", CASES.len());
     let mut failures = Vec::new();
     for case in CASES {
         let before = snapshot(dir.path());
@@ -227,16 +758,27 @@ fn every_bad_input_is_refused_with_its_code_and_changes_nothing() {
             .map(|a| {
                 a.replace("{dir}", &dir.path().display().to_string())
                     .replace("{model}", &model.display().to_string())
+                    .replace(
+                        "{two_mass}",
+                        &self::model("two_mass.dyn").display().to_string(),
+                    )
             })
             .collect();
         let out = dynid().args(&args).env("NO_COLOR", "1").output().unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
+        // The message as one line: miette wraps it at 80 columns behind `│` rails.
+        let err = String::from_utf8_lossy(&out.stderr)
+            .split_whitespace()
+            .filter(|w| !matches!(*w, "│" | "×" | "help:"))
+            .collect::<Vec<_>>()
+            .join(" ");
         let problem = if out.status.success() {
             Some("accepted".to_string())
         } else if out.status.code() == Some(101) || err.contains("panicked") {
             Some(format!("panicked: {err}"))
         } else if !err.contains(case.code) {
             Some(format!("no `{}` in: {err}", case.code))
+        } else if let Some(t) = case.also.iter().find(|t| !err.contains(**t)) {
+            Some(format!("no `{t}` in: {err}"))
         } else if snapshot(dir.path()) != before {
             Some("files changed".into())
         } else {

@@ -64,21 +64,55 @@ pub fn compile_str(name: &str, source: &str) -> Result<ir::ModelIr, CompileError
 /// Read and compile a `.dyn` file. A read failure is reported as a `dyn::io` diagnostic.
 pub fn compile_file(path: &Path) -> Result<ir::ModelIr, CompileErrors> {
     let name = path.display().to_string();
-    match std::fs::read_to_string(path) {
-        Ok(src) => compile_str(&name, &src),
+    let io_error = |source: &str, d: error::Draft| {
+        let sink = error::ErrorSink::new(&name, source);
+        let err = CompileError::build(ErrorKind::Io, d, sink.src.clone());
+        Err(CompileErrors {
+            name: name.clone(),
+            src: sink.src,
+            errors: vec![err],
+        })
+    };
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
         Err(e) => {
-            let sink = error::ErrorSink::new(&name, "");
-            let d = error::Draft {
-                message: format!("cannot read `{name}`: {e}"),
-                help: "check the path and the file permissions".into(),
-                ..Default::default()
-            };
-            let err = CompileError::build(ErrorKind::Io, d, sink.src.clone());
-            Err(CompileErrors {
-                name,
-                src: sink.src,
-                errors: vec![err],
-            })
+            return io_error(
+                "",
+                error::Draft {
+                    message: format!("cannot read `{name}`: {e}"),
+                    help: "check the path and the file permissions".into(),
+                    ..Default::default()
+                },
+            )
+        }
+    };
+    match std::str::from_utf8(&bytes) {
+        Ok(src) => compile_str(&name, src),
+        Err(e) => {
+            // Point at the first byte that is not UTF-8, in a lossy copy of the text.
+            let good = e.valid_up_to();
+            let prefix = std::str::from_utf8(&bytes[..good]).unwrap_or_default();
+            let line = prefix.matches('\n').count() + 1;
+            let column = prefix[prefix.rfind('\n').map_or(0, |i| i + 1)..]
+                .chars()
+                .count()
+                + 1;
+            let lossy = String::from_utf8_lossy(&bytes);
+            io_error(
+                &lossy,
+                error::Draft {
+                    message: format!(
+                        "`{name}` is not UTF-8 text: line {line}, column {column} holds the byte \
+                         0x{:02x}",
+                        bytes[good]
+                    ),
+                    // The lossy copy holds U+FFFD (3 bytes) in place of the bad byte.
+                    span: Some(ir::Span::new(good, good + '\u{fffd}'.len_utf8())),
+                    label: "not UTF-8".into(),
+                    help: "save the model as UTF-8 (most editors: \"Save with encoding\")".into(),
+                    ..Default::default()
+                },
+            )
         }
     }
 }

@@ -36,7 +36,7 @@ impl SegmentPower {
         // Lengths come from the plan itself, so the transform cannot refuse them.
         self.fft
             .process_with_scratch(&mut self.input, &mut self.output, &mut self.scratch)
-            .expect("buffers made by the plan");
+            .expect("invariant: buffers made by the plan");
         for (k, (a, x)) in acc.iter_mut().zip(&self.output).enumerate() {
             *a += weight(k) * x.norm_sqr();
         }

@@ -1,7 +1,7 @@
 //! An in-memory, uniformly sampled multi-signal record (one excitation level).
 
 /// Columns of equal length sampled every `ts` seconds starting at `t0`.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Record {
     /// Signal names (`m1.x`, `m1.v`, `u`, …), one per column; never contains `t`.
     pub names: Vec<String>,

@@ -445,7 +445,7 @@ pub fn free_run_rms(
     let (yn, _) = names(ir)?;
     let ys: Vec<f64> = out
         .column(&yn)
-        .expect("simulated output column")
+        .expect("invariant: simulated output column")
         .iter()
         .step_by(l)
         .copied()
@@ -531,7 +531,7 @@ pub fn run(
             .iter()
             .find(|r| r.start <= t.start && t.end <= r.end)
             .copied()
-            .expect("test part inside a realisation");
+            .expect("invariant: test part inside a realisation");
         let (rms, _) = free_run_rms(
             &fitted,
             data,

@@ -57,7 +57,7 @@ impl Tape {
             if !needed[i] {
                 continue;
             }
-            let arg = |e: ExprId| place[e.index()].expect("topological order");
+            let arg = |e: ExprId| place[e.index()].expect("invariant: topological order");
             let op = match ir.exprs[i] {
                 ExprNode::Const(b) => {
                     place[i] = Some(Operand::Const(f64::from_bits(b)));
@@ -78,7 +78,10 @@ impl Tape {
         }
         Tape {
             ops,
-            roots: roots.iter().map(|r| place[r.index()].unwrap()).collect(),
+            roots: roots
+                .iter()
+                .map(|r| place[r.index()].expect("invariant: every root is placed above"))
+                .collect(),
             n_signals: ir.signals.len(),
         }
     }

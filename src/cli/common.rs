@@ -2,19 +2,29 @@
 
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::CsvOptions;
-use miette::{miette, IntoDiagnostic, WrapErr};
+use miette::miette;
 use std::path::{Path, PathBuf};
 
 /// Load a model: `.dyn` source through the compiler (all diagnostics rendered against the
 /// file), or a `.json` file holding a compiled `ModelIr` (`dynid compile --emit json`).
 pub fn load_model(path: &Path) -> miette::Result<ModelIr> {
     if path.extension().is_some_and(|e| e == "json") {
-        let text = std::fs::read_to_string(path)
-            .into_diagnostic()
-            .wrap_err_with(|| format!("cannot read the model `{}`", path.display()))?;
-        let ir: ModelIr = serde_json::from_str(&text)
-            .into_diagnostic()
-            .wrap_err_with(|| format!("`{}` is not a compiled model (JSON IR)", path.display()))?;
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            miette!(
+                code = "dynid::model::io",
+                help = "check the path and the file permissions (a compiled model is UTF-8 JSON)",
+                "cannot read the model `{}`: {e}",
+                path.display()
+            )
+        })?;
+        let ir: ModelIr = serde_json::from_str(&text).map_err(|e| {
+            miette!(
+                code = "dynid::model::json",
+                help = "a `.json` model is the output of `dynid compile M.dyn --emit json`; give the `.dyn` file instead",
+                "`{}` is not a compiled model (JSON IR): {e}",
+                path.display()
+            )
+        })?;
         ir.check_invariants().map_err(|e| {
             miette!(
                 code = "dynid::model::json",
@@ -26,6 +36,15 @@ pub fn load_model(path: &Path) -> miette::Result<ModelIr> {
         return Ok(ir);
     }
     Ok(dsl_parser::compile_file(path)?)
+}
+
+/// A count of at least one (clap value parser): `0` is refused, never read as 1.
+pub fn at_least_one(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("must be at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("{e}: give a whole number of at least 1")),
+    }
 }
 
 /// How the data files' columns are read; shared by every command that reads level CSVs.
@@ -60,6 +79,7 @@ pub fn check_output(path: &Path, what: &str) -> miette::Result<()> {
     let dir = parent_dir(path);
     if path.file_name().is_none() || path.is_dir() {
         return Err(miette!(
+            code = "dynid::output::is_directory",
             help = "give the path of a file (it may be inside that directory)",
             "{what} `{}` is a directory, not a file",
             path.display()
@@ -67,6 +87,7 @@ pub fn check_output(path: &Path, what: &str) -> miette::Result<()> {
     }
     if !dir.is_dir() {
         return Err(miette!(
+            code = "dynid::output::no_directory",
             help = format!("create it first (`mkdir -p {}`)", dir.display()),
             "the directory of {what} `{}` does not exist",
             path.display()
@@ -106,6 +127,7 @@ pub fn check_outputs<'a>(
         let same = |other: &Option<PathBuf>| r.is_some() && r == *other;
         if let Some((input, _)) = inputs.iter().find(|(_, ri)| same(ri)) {
             return Err(miette!(
+                code = "dynid::output::is_input",
                 help = "choose another path for the output; inputs are never overwritten",
                 "{what} `{}` is the input file `{}`",
                 p.display(),
@@ -114,6 +136,7 @@ pub fn check_outputs<'a>(
         }
         if let Some((other, other_what, _)) = seen.iter().find(|(_, _, ro)| same(ro)) {
             return Err(miette!(
+                code = "dynid::output::same_file",
                 help = "give each output its own path",
                 "{what} `{}` and {other_what} `{}` are the same file",
                 p.display(),

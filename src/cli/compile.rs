@@ -38,7 +38,7 @@ The language is described in docs/language.md.";
 
 /// Arguments of `dynid compile`.
 #[derive(clap::Args, Debug)]
-#[command(after_long_help = LONG_HELP)]
+#[command(after_long_help = LONG_HELP, allow_negative_numbers = true)]
 pub struct Args {
     /// The model file.
     pub model: PathBuf,
@@ -55,8 +55,13 @@ pub fn run(args: Args) -> miette::Result<()> {
     let ir = dsl_parser::compile_file(&args.model)?;
     match (args.emit, args.format) {
         (Some(Emit::Rust), _) => {
-            let source = std::fs::read_to_string(&args.model)
-                .map_err(|e| miette::miette!("cannot read {}: {e}", args.model.display()))?;
+            let source = std::fs::read_to_string(&args.model).map_err(|e| {
+                miette::miette!(
+                    code = "dynid::model::io",
+                    "cannot read {}: {e}",
+                    args.model.display()
+                )
+            })?;
             let opts = dsl_parser::codegen::CodegenOptions {
                 source_name: args
                     .model

@@ -22,7 +22,7 @@ Example:
 
 /// Arguments of `dynid demo`.
 #[derive(clap::Args, Debug)]
-#[command(after_long_help = LONG_HELP)]
+#[command(after_long_help = LONG_HELP, allow_negative_numbers = true)]
 pub struct Args {
     /// Where to write the HTML report.
     #[arg(long, value_name = "HTML", default_value = "dynid-demo-report.html")]

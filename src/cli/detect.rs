@@ -36,7 +36,7 @@ run `dynid identify` on the same files.";
 
 /// Arguments of `dynid detect`.
 #[derive(clap::Args, Debug)]
-#[command(after_long_help = EXAMPLE)]
+#[command(after_long_help = EXAMPLE, allow_negative_numbers = true)]
 pub struct Args {
     /// The linear model (springs and dampers with unknown parameters).
     pub model: PathBuf,
@@ -87,6 +87,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
     if !(args.alpha > 0.0 && args.alpha < 1.0) {
         return Err(miette!(
+            code = "dynid::detect::option",
             help = "a probability such as 1e-3",
             "--alpha {} is not between 0 and 1",
             args.alpha

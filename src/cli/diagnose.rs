@@ -35,7 +35,7 @@ Outputs are written all or nothing. Metrics and thresholds: docs/diagnosis.md.";
 
 /// Arguments of `dynid diagnose`.
 #[derive(clap::Args, Debug)]
-#[command(after_long_help = LONG_HELP)]
+#[command(after_long_help = LONG_HELP, allow_negative_numbers = true)]
 pub struct Args {
     /// The simulation model (.dyn, with nominal values).
     pub model: PathBuf,
@@ -98,7 +98,7 @@ pub fn run_diagnosis(
         let b = ProgressBar::new(0);
         b.set_style(
             ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} candidates ({elapsed})")
-                .expect("valid template")
+                .expect("invariant: valid template")
                 .progress_chars("=> "),
         );
         b.set_prefix("searching unmodelled effects");

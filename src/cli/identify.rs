@@ -40,7 +40,7 @@ stiffness is reported on stderr. Columns with other names: `--map disp=m1.x`.";
 
 /// Arguments of `dynid identify`.
 #[derive(clap::Args, Debug)]
-#[command(after_long_help = LONG_HELP)]
+#[command(after_long_help = LONG_HELP, allow_negative_numbers = true)]
 pub struct Args {
     /// The model file.
     pub model: PathBuf,
@@ -53,7 +53,12 @@ pub struct Args {
     #[command(flatten)]
     pub csv: CsvArgs,
     /// Identification filter corners in rad/s (default: designed from the data).
-    #[arg(long = "filter-corners", value_delimiter = ',', value_name = "A,B,C")]
+    #[arg(
+        long = "filter-corners",
+        value_delimiter = ',',
+        value_name = "A,B,C",
+        allow_hyphen_values = true
+    )]
     pub filter_corners: Option<Vec<f64>>,
     /// Leave out the virial / power-balance rows (the default).
     #[arg(long = "no-balance", conflicts_with = "balance")]

@@ -25,7 +25,7 @@ The procedure, the segment boundaries and the figures are in docs/silverbox.md."
 
 /// Arguments of `dynid silverbox`.
 #[derive(clap::Args, Debug)]
-#[command(after_long_help = LONG_HELP)]
+#[command(after_long_help = LONG_HELP, allow_negative_numbers = true)]
 pub struct Args {
     /// Directory holding SNLS80mV.csv.
     #[arg(long, value_name = "DIR", default_value = "../shared/data/silverbox")]
@@ -41,14 +41,19 @@ pub struct Args {
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
     /// RK4 sub-steps per (upsampled) sample in the free-run simulations.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = super::common::at_least_one)]
     pub substeps: usize,
     /// Band-limited (windowed-sinc) interpolation factor before identification and
     /// simulation; 1 = linear interpolation between the measured samples.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = super::common::at_least_one)]
     pub upsample: usize,
     /// Identification filter corners in rad/s (default: the model's, else 100…1000 rad/s).
-    #[arg(long = "filter-corners", value_delimiter = ',', value_name = "A,B,C")]
+    #[arg(
+        long = "filter-corners",
+        value_delimiter = ',',
+        value_name = "A,B,C",
+        allow_hyphen_values = true
+    )]
     pub filter_corners: Option<Vec<f64>>,
     /// Sections per identification low-pass chain.
     #[arg(long = "filter-order", value_name = "N")]
@@ -117,8 +122,13 @@ pub fn run(args: Args) -> miette::Result<()> {
             id.drivers = Some(
                 d.iter()
                     .map(|n| {
-                        ir.signal_id(n)
-                            .ok_or_else(|| miette!("no signal `{n}` in the model"))
+                        ir.signal_id(n).ok_or_else(|| {
+                            miette!(
+                                code = "dynid::identify::option",
+                                help = "name the model's positions or inputs, e.g. `--drivers y,u`",
+                                "no signal `{n}` in the model"
+                            )
+                        })
                     })
                     .collect::<miette::Result<_>>()?,
             );
@@ -210,7 +220,7 @@ fn export_estimation(
     data: &silverbox::SilverboxData,
     dir: &std::path::Path,
 ) -> miette::Result<()> {
-    let path = args.models.first().expect("a default model");
+    let path = args.models.first().expect("invariant: a default model");
     let ir = super::common::load_model(path)?;
     let split = silverbox::split(data)?;
     let records = split
@@ -241,12 +251,13 @@ fn export_levels(
 ) -> miette::Result<()> {
     if args.n_levels < 2 {
         return Err(miette!(
+            code = "dynid::detect::too_few_levels",
             help = "detection compares at least two levels; use e.g. `--levels 4`",
             "{} arrow levels",
             args.n_levels
         ));
     }
-    let path = args.models.first().expect("a default model");
+    let path = args.models.first().expect("invariant: a default model");
     let ir = super::common::load_model(path)?;
     let mut opts = silverbox::default_options(&ir);
     if args.filter_corners.is_some() {

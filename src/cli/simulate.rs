@@ -51,12 +51,17 @@ Example:
 
 /// Arguments of `dynid simulate`.
 #[derive(clap::Args, Debug)]
-#[command(after_long_help = LONG_HELP)]
+#[command(after_long_help = LONG_HELP, allow_negative_numbers = true)]
 pub struct Args {
     /// The model file (.dyn), or a model compiled to its JSON IR (.json).
     pub model: PathBuf,
     /// Excitation intensities, one experiment each (default: the model's `excite` levels).
-    #[arg(long, value_delimiter = ',', value_name = "L1,L2,...")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "L1,L2,...",
+        allow_hyphen_values = true
+    )]
     pub levels: Option<Vec<f64>>,
     /// Recorded seconds per level.
     #[arg(long, default_value_t = 2000.0, value_name = "SECONDS")]
@@ -86,7 +91,12 @@ pub struct Args {
     #[arg(long, value_name = "RESOLUTION")]
     pub quantise: Option<f64>,
     /// Close a PD position loop on the first input's body with these gains.
-    #[arg(long, value_delimiter = ',', value_name = "KP,KD")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "KP,KD",
+        allow_hyphen_values = true
+    )]
     pub pd: Option<Vec<f64>>,
     /// RMS of the controller's reference position at level 1.
     #[arg(long, default_value_t = 0.03, value_name = "X")]
@@ -121,6 +131,7 @@ pub enum Format {
 
 pub fn run(args: Args) -> miette::Result<()> {
     let ir = load_model(&args.model)?;
+    check_out_dir(&args.out)?;
     match &args.input {
         Some(input) => run_driven(&ir, &args, input),
         None => run_excited(&ir, &args),
@@ -141,35 +152,42 @@ fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
         quantise: args.quantise,
         control: pd_control(ir, args)?,
     };
-    let n_levels = args
-        .levels
-        .as_ref()
-        .map(Vec::len)
-        .or_else(|| ir.excitation.first().map(|e| e.levels.len()))
-        .unwrap_or(usize::from(cfg.control.is_some()));
+    let n_levels = sim::level_count(ir, &cfg)?;
     let bar = progress_bar(sim::total_samples(&cfg, n_levels));
-    let out = sim::simulate_with_progress(ir, &cfg, &|n| bar.inc(n));
+    let out = dynid::output::simulate_to_dir(ir, &cfg, &args.out, &|n| bar.inc(n));
     bar.finish_and_clear();
-    let out = out.map_err(miette::Report::new)?;
-    create_dir(&args.out)?;
-    let paths = dynid::output::write_simulation(&args.out, &out)?;
-    let stats: Vec<serde_json::Value> = out
-        .records
+    let (truth, written) = out?;
+    let mut paths: Vec<PathBuf> = written.iter().map(|w| w.path.clone()).collect();
+    paths.push(args.out.join("truth.json"));
+    let names: Vec<String> = ir
+        .measured_signals()
         .iter()
-        .zip(&paths)
-        .zip(&out.truth.levels)
-        .map(|((r, p), l)| level_summary(r, p, Some(*l)))
+        .map(|&s| ir.signal(s).name.clone())
+        .chain(cfg.control.as_ref().map(|c| sim::reference_column(&c.body)))
+        .collect();
+    let stats: Vec<serde_json::Value> = written
+        .iter()
+        .zip(&truth.levels)
+        .map(|(w, l)| {
+            serde_json::json!({
+                "file": w.path.display().to_string(),
+                "level": l,
+                "samples": w.samples,
+                "signals": names,
+                "std": w.std,
+            })
+        })
         .collect();
     match args.format {
         Format::Json => {
-            let v = serde_json::json!({ "truth": out.truth, "levels": stats });
+            let v = serde_json::json!({ "truth": truth, "levels": stats });
             println!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
         }
         Format::Text => {
             println!(
                 "simulated `{}`: {} level(s), {} s at Ts = {} s, noise {} %, seed {}",
-                out.truth.model,
-                out.records.len(),
+                truth.model,
+                written.len(),
                 cfg.duration,
                 cfg.sample,
                 100.0 * cfg.noise,
@@ -178,7 +196,10 @@ fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
             for s in &stats {
                 print_summary(s);
             }
-            println!("  {}", paths.last().expect("truth.json").display());
+            println!(
+                "  {}",
+                paths.last().expect("invariant: truth.json").display()
+            );
         }
     }
     Ok(())
@@ -191,6 +212,7 @@ fn pd_control(ir: &ModelIr, args: &Args) -> miette::Result<Option<sim::PdControl
     };
     let &[kp, kd] = gains.as_slice() else {
         miette::bail!(
+            code = "dynid::simulate::option",
             help = "give the position and velocity gains, e.g. `--pd 80000,2680`",
             "`--pd` takes two gains, got {}",
             gains.len()
@@ -198,6 +220,7 @@ fn pd_control(ir: &ModelIr, args: &Args) -> miette::Result<Option<sim::PdControl
     };
     let Some(input) = ir.inputs.first() else {
         miette::bail!(
+            code = "dynid::simulate::option",
             help = "declare an input (`input u on m`) for the controller to drive",
             "`--pd` needs a model input, and `{}` has none",
             ir.name
@@ -291,10 +314,39 @@ fn progress_bar(total: u64) -> indicatif::ProgressBar {
     bar
 }
 
+/// Refuse, before any work, an `--out` that exists and is not a directory (or whose
+/// nearest existing ancestor is not one).
+fn check_out_dir(dir: &Path) -> miette::Result<()> {
+    let mut p = Some(dir);
+    while let Some(d) = p {
+        if d.as_os_str().is_empty() {
+            break;
+        }
+        if let Ok(meta) = std::fs::metadata(d) {
+            if !meta.is_dir() {
+                miette::bail!(
+                    code = "dynid::output::not_a_directory",
+                    help = "`--out` names the directory that receives level_1.csv, …, truth.json: give a new or an existing directory",
+                    "`{}` is a file, not a directory",
+                    d.display()
+                );
+            }
+            break;
+        }
+        p = d.parent();
+    }
+    Ok(())
+}
+
 fn create_dir(dir: &Path) -> miette::Result<()> {
-    std::fs::create_dir_all(dir)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot create the output directory `{}`", dir.display()))
+    std::fs::create_dir_all(dir).map_err(|e| {
+        miette::miette!(
+            code = "dynid::output::write",
+            help = "check the permissions and the free space where it goes",
+            "cannot create the output directory `{}`: {e}",
+            dir.display()
+        )
+    })
 }
 
 fn level_summary(r: &Record, path: &Path, level: Option<f64>) -> serde_json::Value {

@@ -205,15 +205,29 @@ pub struct ColumnRow {
     pub kind: String,
 }
 
+/// Per parameter, the terms it multiplies as (equation, term) indices in model order: one
+/// pass over the equations, so the tables cost time linear in the model's size.
+fn terms_by_param(ir: &ModelIr) -> Vec<Vec<(usize, usize)>> {
+    let mut by = vec![Vec::new(); ir.params.len()];
+    for (q, eq) in ir.equations.iter().enumerate() {
+        for (k, t) in eq.terms.iter().enumerate() {
+            if let Some(p) = t.coef.param.and_then(|p| by.get_mut(p.index())) {
+                p.push((q, k));
+            }
+        }
+    }
+    by
+}
+
 pub fn param_rows(ir: &ModelIr) -> Vec<ParamRow> {
+    let by = terms_by_param(ir);
     ir.params
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            let id = ParamId(i as u32);
             let mut used_by: Vec<String> = Vec::new();
-            for eq in &ir.equations {
-                for t in eq.terms.iter().filter(|t| t.coef.param == Some(id)) {
+            {
+                for t in by[i].iter().map(|&(q, k)| &ir.equations[q].terms[k]) {
                     let who = match t.origin {
                         TermOrigin::Inertia(b) => format!("{} (mass)", ir.bodies[b.index()].name),
                         TermOrigin::Element(e) => ir.elements[e.index()].name.clone(),
@@ -235,17 +249,20 @@ pub fn param_rows(ir: &ModelIr) -> Vec<ParamRow> {
 }
 
 pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
+    let by = terms_by_param(ir);
     let mut rows = Vec::new();
     for p in ir.unknowns() {
-        for eq in &ir.equations {
-            let terms: Vec<&TermIr> = eq
-                .terms
+        let uses = &by[p.index()];
+        // The equations this parameter appears in, in model order.
+        let mut eqs: Vec<usize> = uses.iter().map(|&(q, _)| q).collect();
+        eqs.dedup();
+        for q in eqs {
+            let eq = &ir.equations[q];
+            let terms: Vec<&TermIr> = uses
                 .iter()
-                .filter(|t| t.coef.param == Some(p))
+                .filter(|&&(qq, _)| qq == q)
+                .map(|&(_, k)| &eq.terms[k])
                 .collect();
-            if terms.is_empty() {
-                continue;
-            }
             let mut pieces = Vec::new();
             let (mut is_static, mut velocities, mut derivative) = (false, Vec::new(), false);
             let mut constant = false;

@@ -187,11 +187,11 @@ impl CsvSource {
             (None, [a, b]) => {
                 let ts = b - a;
                 if ts.is_nan() || ts <= 0.0 {
-                    return Err(DataError::NonUniformTime {
+                    return Err(DataError::TimeNotIncreasing {
                         path: p,
                         line: 3,
-                        step: ts,
-                        ts: f64::NAN,
+                        t: *b,
+                        previous: *a,
                     });
                 }
                 ts
@@ -262,7 +262,7 @@ impl CsvSource {
             for (k, &(s, _)) in self.wanted.iter().enumerate() {
                 bufs[s].extend(raw[..len * row_bytes].chunks_exact(row_bytes).map(|row| {
                     let b = &row[8 * k..8 * k + 8];
-                    f64::from_le_bytes(b.try_into().expect("8 bytes"))
+                    f64::from_le_bytes(b.try_into().expect("invariant: 8 bytes"))
                 }));
             }
             let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
@@ -291,6 +291,13 @@ impl LevelSource for CsvSource {
     }
     fn ts(&self) -> f64 {
         self.ts
+    }
+    fn locate(&self, k: usize) -> String {
+        format!(
+            "sample {} (t = {} s)",
+            k + 1,
+            dynid_ir::num::sig(self.t0 + k as f64 * self.ts, 9, false)
+        )
     }
     fn stream(
         &self,
@@ -380,6 +387,14 @@ impl CsvSource {
                 let t = parse_cell(path, line, &self.header[tc], &rec[tc])?;
                 if n > 0 {
                     let step = t - t_prev;
+                    if step <= 0.0 {
+                        return Err(DataError::TimeNotIncreasing {
+                            path: p(),
+                            line,
+                            t,
+                            previous: t_prev,
+                        });
+                    }
                     if (step - self.ts).abs() > TIME_TOL * self.ts + 1e-12 * t.abs() {
                         return Err(DataError::NonUniformTime {
                             path: p(),

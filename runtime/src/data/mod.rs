@@ -7,6 +7,8 @@
 //! must be present; unmeasured signals are never required and extra columns are ignored.
 
 mod csv_file;
+#[doc(hidden)]
+pub mod fuzz;
 mod record;
 #[cfg(test)]
 mod tests;
@@ -38,6 +40,14 @@ pub trait LevelSource: Sync {
         max_len: usize,
         sink: &mut dyn FnMut(&[&[f64]], usize),
     ) -> Result<(), DataError>;
+    /// Where sample `k` (0-based) is, for messages: its number and time.
+    fn locate(&self, k: usize) -> String {
+        format!(
+            "sample {} (t = {} s)",
+            k + 1,
+            dynid_ir::num::sig(k as f64 * self.ts(), 9, false)
+        )
+    }
 }
 
 /// Problems with measured data. Every variant names the file (or record) and, where it
@@ -101,10 +111,7 @@ pub enum DataError {
     )]
     DuplicateColumn { path: String, column: String },
     #[error("{path}: line {line}: expected {expected} fields as in the header, found {found}")]
-    #[diagnostic(
-        code(dynid::data::ragged),
-        help("every line needs one value per header column")
-    )]
+    #[diagnostic(code(dynid::data::ragged), help("{}", ragged_help(*.expected, *.found)))]
     Ragged {
         path: String,
         line: u64,
@@ -112,10 +119,7 @@ pub enum DataError {
         found: usize,
     },
     #[error("{path}: line {line}, column `{column}`: `{value}` is not a number")]
-    #[diagnostic(
-        code(dynid::data::not_a_number),
-        help("use plain decimal numbers such as `-1.25e-3`")
-    )]
+    #[diagnostic(code(dynid::data::not_a_number), help("{}", number_help(value)))]
     NotANumber {
         path: String,
         line: u64,
@@ -150,6 +154,17 @@ pub enum DataError {
         step: f64,
         ts: f64,
     },
+    #[error("{path}: line {line}: the time stamp {t} s does not increase (the line before has {previous} s)")]
+    #[diagnostic(
+        code(dynid::data::non_uniform_time),
+        help("the samples must be in time order without repeats: sort the file by `t` and drop repeated samples")
+    )]
+    TimeNotIncreasing {
+        path: String,
+        line: u64,
+        t: f64,
+        previous: f64,
+    },
     #[error("{path}: no sample interval: the file has no `t` column")]
     #[diagnostic(
         code(dynid::data::no_sample_interval),
@@ -183,6 +198,27 @@ pub enum DataError {
         expected: usize,
         found: usize,
     },
+}
+
+fn ragged_help(expected: usize, found: usize) -> String {
+    let mut h = "every line needs one value per header column".to_string();
+    if found > expected {
+        h += "; more fields than columns often means numbers written with a decimal comma \
+               (`0,25`): write them with `.` as the decimal point";
+    }
+    h
+}
+
+fn number_help(value: &str) -> String {
+    let v = value.trim();
+    if v.contains(',') && v.replace(',', ".").parse::<f64>().is_ok() {
+        format!(
+            "`{v}` has a decimal comma: write numbers with `.` as the decimal point (`{}`)",
+            v.replace(',', ".")
+        )
+    } else {
+        "use plain decimal numbers such as `-1.25e-3`".into()
+    }
 }
 
 /// How to read CSV files.

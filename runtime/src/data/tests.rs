@@ -224,3 +224,48 @@ fn a_semicolon_or_tab_separated_file_is_named_as_such() {
         assert!(e.to_string().contains(&format!("uses `{name}`")), "{e}");
     }
 }
+
+/// The seed records of the CSV fuzzing: a valid level, and one without a time column.
+fn fuzz_seeds() -> Vec<Vec<u8>> {
+    let no_t: String = rows(150, 0.01)
+        .lines()
+        .map(|l| l.split_once(',').map_or(l, |(_, rest)| rest).to_string() + "\n")
+        .collect();
+    vec![rows(150, 0.01).into_bytes(), no_t.into_bytes()]
+}
+
+#[test]
+fn the_csv_readers_survive_thousands_of_mutated_files() {
+    // A deterministic miniature of `fuzz/fuzz_targets/csv.rs`: mutations of valid files
+    // (byte flips, inserted separators, line breaks and special numbers, cuts) through
+    // `fuzz::check_csv_bytes`, which panics if a reader breaks its contract.
+    use rand::{Rng, SeedableRng};
+    const PIECES: &[&[u8]] = &[
+        b",", b"\n", b"\r\n", b";", b"\"", b"NaN", b"inf", b"-1e999", b"1e308", b"0,5", b"",
+        b"\xff", b"t", b"m1.x", b"  ", b"#",
+    ];
+    let ir = sdof_ir(false);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("level.csv");
+    let mut rng = rand::rngs::StdRng::seed_from_u64(17);
+    let seeds = fuzz_seeds();
+    for _ in 0..1500 {
+        let mut b = seeds[rng.random_range(0..seeds.len())].clone();
+        for _ in 0..rng.random_range(1..4) {
+            let at = rng.random_range(0..=b.len());
+            match rng.random_range(0..4) {
+                0 if at < b.len() => b[at] = rng.random(),
+                1 => {
+                    let p = PIECES[rng.random_range(0..PIECES.len())];
+                    b.splice(at..at, p.iter().copied());
+                }
+                2 => b.truncate(at),
+                _ => {
+                    let end = (at + rng.random_range(1..40)).min(b.len());
+                    b.drain(at..end);
+                }
+            }
+        }
+        fuzz::check_csv_bytes(&path, &b, &ir);
+    }
+}

@@ -260,7 +260,7 @@ const GOLDEN_ITERS: usize = 60;
 
 /// Minimise χ² over θ_j (others fixed) on a log grid, refined by golden section.
 fn search_shape(el: &ElementData, effects: &[&Candidate], thetas: &mut [f64], j: usize) {
-    let shape = effects[j].shape.as_ref().expect("shaped effect");
+    let shape = effects[j].shape.as_ref().expect("invariant: shaped effect");
     let sig = match shape.scale_by {
         Dependence::V => median(&el.sigma_v),
         _ => median(&el.sigma_s),
@@ -475,7 +475,7 @@ pub(crate) fn fit_template(
         col += 1;
     }
     for &j in &shaped {
-        let shape = effects[j].shape.as_ref().expect("shaped effect");
+        let shape = effects[j].shape.as_ref().expect("invariant: shaped effect");
         let th = thetas[j];
         let se = match &joint {
             // Error of ln θ → error of θ.

@@ -28,7 +28,10 @@ pub fn measure<'m>(
     let t0 = Instant::now();
     let stats: Vec<LevelStats> = levels
         .par_iter()
-        .map(|src| level_stats(&plan, *src, opts.chunk_len))
+        .map(|src| level_stats(ir, &plan, *src, opts.chunk_len))
+        .collect::<Vec<_>>()
+        .into_iter()
+        // The first failing level in the given order, whichever thread finished first.
         .collect::<Result<_, _>>()?;
     let stats_time = t0.elapsed();
     let (noise_var, noise) = noise_plan(ir, &mut plan, &stats, opts.noise_correction);
@@ -138,6 +141,8 @@ pub fn measure<'m>(
         levels
             .par_iter()
             .map(|src| velocity::EstimatedVelocity::design(*src, &targets, opts.chunk_len))
+            .collect::<Vec<_>>()
+            .into_iter()
             .collect::<Result<_, _>>()?
     };
     let sources: Vec<&dyn LevelSource> = if estimators.is_empty() {
@@ -172,11 +177,22 @@ pub fn measure<'m>(
                 acc.push(cols, len);
                 t_read = Instant::now();
             })?;
+            if let Some((root, k, value)) = acc.non_finite {
+                return Err(non_finite_term(ir, &plan, *src, root, k, value));
+            }
             let (mut m, mut t) = acc.finish();
+            if let Some(col) = m.overflowed_column() {
+                return Err(IdentifyError::Overflow {
+                    origin: src.origin(),
+                    term: column_label(ir, &plan, col),
+                });
+            }
             noise::debias(&plan, &mut m, var, opts.hold);
             t.read = read;
             Ok::<_, IdentifyError>((m, t))
         })
+        .collect::<Vec<_>>()
+        .into_iter()
         .collect::<Result<_, _>>()?;
     let mut times = PhaseTimes {
         read: stats_time,
@@ -363,6 +379,7 @@ struct LevelStats {
 }
 
 fn level_stats(
+    ir: &ModelIr,
     plan: &Plan,
     src: &dyn LevelSource,
     chunk: usize,
@@ -377,6 +394,7 @@ fn level_stats(
     let mut side = vec![0i8; ny];
     let mut crossings = vec![0usize; ny];
     let mut floors = vec![noise::NoiseFloor::default(); ny];
+    let mut screens = vec![screen::ColumnScreen::default(); ny];
     src.stream(chunk, &mut |cols, len| {
         if n == 0 {
             for (k, s) in plan.y.iter().enumerate() {
@@ -398,6 +416,7 @@ fn level_stats(
             s1[k] += a;
             s2[k] += b;
             floors[k].push(c);
+            screens[k].push(c);
             let (mid, h) = reference[k];
             for &v in c {
                 let now = if v > mid + h {
@@ -417,6 +436,7 @@ fn level_stats(
         }
         n += len;
     })?;
+    screen_level(ir, plan, src, &screens)?;
     let ts = src.ts();
     let std = (0..ny)
         .map(|k| {
@@ -445,4 +465,92 @@ fn level_stats(
         noise_var: floors.iter().map(|f| f.variance()).collect(),
         noise_flat: floors.iter().map(|f| f.flat()).collect(),
     })
+}
+
+/// Refuse a level without motion or with a sample far outside its column's spread
+/// ([`screen`]).
+fn screen_level(
+    ir: &ModelIr,
+    plan: &Plan,
+    src: &dyn LevelSource,
+    screens: &[screen::ColumnScreen],
+) -> Result<(), IdentifyError> {
+    let ir_name = |k: usize| ir.signal(plan.y[k]).name.clone();
+    if !screens.is_empty() && screens.iter().all(|s| s.constant()) {
+        return Err(IdentifyError::NoExcitation {
+            origin: src.origin(),
+            columns: (0..screens.len())
+                .map(|k| format!("`{}`", ir_name(k)))
+                .collect::<Vec<_>>()
+                .join(", "),
+        });
+    }
+    for (k, sc) in screens.iter().enumerate() {
+        if let Some(o) = sc.outlier() {
+            let num = |v: f64| dynid_ir::num::sig(v, 4, false);
+            return Err(IdentifyError::Outlier {
+                origin: src.origin(),
+                at: src.locate(o.sample),
+                column: ir_name(k),
+                detail: format!(
+                    "{} lies {:.1e} robust standard deviations from the column's median \
+                     ({}, robust std {})",
+                    num(o.value),
+                    (o.value - o.median).abs() / o.scale,
+                    num(o.median),
+                    num(o.scale)
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The name of column `col` of `w` (a basis root, a measured signal, or a noise column).
+fn column_label(ir: &ModelIr, plan: &Plan, col: usize) -> String {
+    let n_g = plan.roots.len();
+    if col < n_g {
+        dynid_ir::print::render_expr(ir, plan.roots[col])
+    } else if let Some(s) = plan.y.get(col - n_g) {
+        ir.signal(*s).name.clone()
+    } else {
+        "a noise-correction column".into()
+    }
+}
+
+/// The error for a basis root that is not finite at sample `k` of `src`.
+fn non_finite_term(
+    ir: &ModelIr,
+    plan: &Plan,
+    src: &dyn LevelSource,
+    root: usize,
+    k: usize,
+    value: f64,
+) -> IdentifyError {
+    let e = plan.roots[root];
+    let signals = ir
+        .expr_signals(e)
+        .iter()
+        .map(|s| format!("`{}`", ir.signal(*s).name))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let advice = if value.is_nan() {
+        format!(
+            "the term is undefined for the values of {signals} there (e.g. `sqrt` or `log` of \
+             a negative number): write it so that it is defined for every value the data take \
+             (e.g. `sqrt(abs(s))`), or check the data"
+        )
+    } else {
+        format!(
+            "the term overflows double precision for the values of {signals} there: rescale \
+             the data or the term (e.g. `exp(s / s0)` with a larger `s0`, a lower power)"
+        )
+    };
+    IdentifyError::NonFiniteTerm {
+        origin: src.origin(),
+        term: dynid_ir::print::render_expr(ir, e),
+        at: src.locate(k),
+        value,
+        advice,
+    }
 }

@@ -48,6 +48,7 @@ mod moments;
 pub mod noise;
 mod plan;
 pub mod print;
+mod screen;
 mod solve;
 mod stats;
 mod types;
@@ -68,6 +69,10 @@ pub const CENTRED_REL: f64 = 1e-9;
 /// An estimate counts as significant when `|value| > SIGNIFICANCE_T · stderr` (about 95 %
 /// two-sided for a normal estimate).
 pub const SIGNIFICANCE_T: f64 = 2.0;
+
+/// Norm below which a column of the row-normalised least-squares matrix is zero: far below
+/// any rounding error of a non-vanishing moment.
+const ZERO_COLUMN: f64 = 1e-250;
 pub use noise::NoiseSummary;
 
 use crate::basis::BasisEval;
@@ -309,19 +314,16 @@ impl<'m> Moments<'m> {
         let rows = r_full.len();
         // Row normalisation: every row (with its right-hand side) gets unit norm, so rows of
         // weak instruments and quiet levels count as much as loud ones.
+        // (Scaled by the row's largest entry first, so that squares cannot overflow.)
         let weights: Vec<f64> = (0..rows)
             .map(|r| {
-                let n = (c_full[r * ncol..(r + 1) * ncol]
-                    .iter()
-                    .map(|v| v * v)
-                    .sum::<f64>()
-                    + r_full[r] * r_full[r])
-                    .sqrt();
-                if n > 0.0 {
-                    1.0 / n
-                } else {
-                    0.0
+                let row = || c_full[r * ncol..(r + 1) * ncol].iter().chain([&r_full[r]]);
+                let big = row().fold(0.0, |m: f64, v| m.max(v.abs()));
+                if !(big > 0.0 && big.is_finite()) {
+                    return 0.0;
                 }
+                let n = big * row().map(|v| (v / big).powi(2)).sum::<f64>().sqrt();
+                1.0 / n
             })
             .collect();
         // Rows of the hat contributions of every level (for the standard errors).
@@ -358,13 +360,27 @@ impl<'m> Moments<'m> {
         };
         let (sol, se) = loop {
             let (a, b) = weighted(&c_full, &r_full, &active);
-            let sol = solve::lstsq(&a, &b, rows, active.len(), self.rcond);
+            let sol = match solve::lstsq(&a, &b, rows, active.len(), self.rcond) {
+                Ok(sol) => sol,
+                Err(why) => {
+                    // Nothing can be trusted: every remaining parameter is named, none valued.
+                    unident.extend(active.drain(..).map(|j| Unidentifiable {
+                        name: names[j].clone(),
+                        reason: format!(
+                            "{why}: check the data for values far outside the physical range"
+                        ),
+                    }));
+                    continue;
+                }
+            };
             if active.is_empty() {
                 break (sol, vec![]);
             }
-            let cmax = sol.col_norms.iter().copied().fold(0.0, f64::max);
+            // Zero to double precision: the rows are scaled to unit norm, so a column is
+            // judged on its own, never against another column with other units (a term like
+            // `exp(100 s)` may be 1e17 times larger than `s` and both still be identified).
             if let Some(j) =
-                (0..active.len()).find(|&j| sol.col_norms[j] <= 1e-12 * cmax || meanless[active[j]])
+                (0..active.len()).find(|&j| sol.col_norms[j] <= ZERO_COLUMN || meanless[active[j]])
             {
                 unident.push(Unidentifiable {
                     name: names[active[j]].clone(),
@@ -378,7 +394,7 @@ impl<'m> Moments<'m> {
                 let vmax = sol.v_min.iter().map(|v| v.abs()).fold(0.0, f64::max);
                 let j = (0..active.len())
                     .max_by(|&x, &y| sol.v_min[x].abs().total_cmp(&sol.v_min[y].abs()))
-                    .unwrap();
+                    .expect("invariant: `active` is not empty here");
                 let partners: Vec<String> = (0..active.len())
                     .filter(|&k| k != j && sol.v_min[k].abs() >= 0.1 * vmax)
                     .map(|k| format!("`{}`", names[active[k]]))
@@ -489,6 +505,10 @@ impl<'m> Moments<'m> {
     }
 }
 
+/// Invariant: a row is formed only where its instrument has the derivatives its terms need
+/// (`Plan::set_corners` keeps only computable rows).
+const ROW_NEEDS_DERIVATIVES: &str = "invariant: the row's instrument has the derivatives it needs";
+
 /// The moment `⟨φ ι basis⟩` of an instrument from a view (`φ ≡ 1` for the whole record;
 /// the `φ'` terms of a hat window vanish there, see the `moments` module).
 fn term_moment(ins: &Instrument, basis: &BasisMoment, v: &MomentView) -> f64 {
@@ -496,18 +516,21 @@ fn term_moment(ins: &Instrument, basis: &BasisMoment, v: &MomentView) -> f64 {
     match *basis {
         BasisMoment::Static(w) => v.mean(a, w),
         BasisMoment::D1Pos(x) => {
-            -v.mean(ins.a1.as_ref().unwrap(), x) + v.bnd(a, x) - v.mean_d(a, x)
+            -v.mean(ins.a1.as_ref().expect(ROW_NEEDS_DERIVATIVES), x) + v.bnd(a, x) - v.mean_d(a, x)
         }
         BasisMoment::D2Vel(w, body) => {
             if ins.power == Some(body) {
                 0.5 * (v.bnd(a, w) - v.mean_d(a, w))
             } else {
-                -v.mean(ins.a1.as_ref().unwrap(), w) + v.bnd(a, w) - v.mean_d(a, w)
+                -v.mean(ins.a1.as_ref().expect(ROW_NEEDS_DERIVATIVES), w) + v.bnd(a, w)
+                    - v.mean_d(a, w)
             }
         }
         BasisMoment::D2Pos(x, q) => {
-            let a1 = ins.a1.as_ref().unwrap();
-            v.mean(ins.a2.as_ref().unwrap(), x) - v.bnd(a1, x) + v.bnd(a, q) + 2.0 * v.mean_d(a1, x)
+            let a1 = ins.a1.as_ref().expect(ROW_NEEDS_DERIVATIVES);
+            v.mean(ins.a2.as_ref().expect(ROW_NEEDS_DERIVATIVES), x) - v.bnd(a1, x)
+                + v.bnd(a, q)
+                + 2.0 * v.mean_d(a1, x)
                 - v.bnd_d(a, x)
         }
     }

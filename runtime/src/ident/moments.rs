@@ -125,6 +125,16 @@ impl MomentView {
 }
 
 impl LevelMoments {
+    /// The first column of `w` with a non-finite moment (an overflow), if any.
+    pub fn overflowed_column(&self) -> Option<usize> {
+        let bad = |m: &[f64], n: usize| m.iter().position(|v| !v.is_finite()).map(|i| i % n);
+        self.sums
+            .iter()
+            .chain(&self.tsums)
+            .find_map(|m| bad(m, self.n_w))
+            .or_else(|| self.snaps.iter().find_map(|m| bad(m, self.n_q)))
+    }
+
     pub fn n_blocks(&self) -> usize {
         self.lens.len()
     }
@@ -295,7 +305,7 @@ fn central_velocity_weights() -> Vec<f64> {
     });
     let pinv = v
         .pseudo_inverse(1e-12)
-        .expect("a Vandermonde matrix of distinct points has full rank");
+        .expect("invariant: a Vandermonde matrix of distinct points has full rank");
     // x ≈ Σ c_j (t/h)^j, so dx/dt at t = 0 is c_1 / h (t in samples).
     pinv.row(1).iter().map(|w| w / h).collect()
 }
@@ -325,6 +335,8 @@ pub(crate) struct LevelAccumulator<'a> {
     vhat_weights: Vec<f64>,
     /// Kernel widths of the plan's extra columns at this level ([`super::noise`]).
     extra_width: Vec<f64>,
+    /// The first non-finite basis value met: (root, sample, value).
+    pub non_finite: Option<(usize, usize, f64)>,
     pub times: PhaseTimes,
 }
 
@@ -368,6 +380,7 @@ impl<'a> LevelAccumulator<'a> {
             qrow: vec![0.0; n_q],
             vhat_weights: central_velocity_weights(),
             extra_width: vec![1.0; plan.extra.len()],
+            non_finite: None,
             times: PhaseTimes::default(),
         }
     }
@@ -469,6 +482,17 @@ impl<'a> LevelAccumulator<'a> {
         );
         self.times.evaluate += t_eval;
         self.times.filter += t_filter;
+        if self.non_finite.is_none() {
+            // A finite sum means every value is finite: one pass, no branch per sample.
+            self.non_finite = self.wbuf[..n_g * len]
+                .chunks_exact(len)
+                .enumerate()
+                .find(|(_, c)| !c.iter().sum::<f64>().is_finite())
+                .and_then(|(r, c)| {
+                    let i = c.iter().position(|v| !v.is_finite())?;
+                    Some((r, p0 + i, c[i]))
+                });
+        }
 
         let t = Instant::now();
         // Snapshot at a block boundary (the first sample of this piece).

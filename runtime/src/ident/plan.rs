@@ -130,7 +130,7 @@ pub(crate) fn build_structure(
     }
     let unknowns = ir.unknowns();
     let col_of = |p: dynid_ir::ir::ParamId| unknowns.iter().position(|u| *u == p);
-    let root_of = |e: ExprId| roots.iter().position(|r| *r == e).expect("root");
+    let root_of = |e: ExprId| roots.iter().position(|r| *r == e).expect("invariant: root");
     let n_g = roots.len();
     let mut vhat_bodies = Vec::new();
     let mut estimated = Vec::new();
@@ -142,7 +142,7 @@ pub(crate) fn build_structure(
                 Some(p) => match ir.params[p.index()].kind {
                     ParamKind::Known(v) => TermCoef::Known(v * t.coef.scale),
                     ParamKind::Unknown { .. } => TermCoef::Unknown {
-                        col: col_of(p).expect("unknown"),
+                        col: col_of(p).expect("invariant: unknown"),
                         scale: t.coef.scale,
                     },
                 },

@@ -30,8 +30,18 @@ impl LsSolution {
 }
 
 /// Solve with unit-norm column scaling. Singular values below `rcond · σ_max` are treated as
-/// zero (the caller flags those directions as unidentifiable before trusting `x`).
-pub(crate) fn lstsq(a: &[f64], b: &[f64], rows: usize, cols: usize, rcond: f64) -> LsSolution {
+/// zero (the caller flags those directions as unidentifiable before trusting `x`). Fails,
+/// saying why, on non-finite entries or when the SVD does not converge.
+pub(crate) fn lstsq(
+    a: &[f64],
+    b: &[f64],
+    rows: usize,
+    cols: usize,
+    rcond: f64,
+) -> Result<LsSolution, String> {
+    if !a.iter().chain(b).all(|v| v.is_finite()) {
+        return Err("the least-squares problem has entries that are not finite".into());
+    }
     let mut col_norms = vec![0.0; cols];
     for i in 0..rows {
         for j in 0..cols {
@@ -44,16 +54,18 @@ pub(crate) fn lstsq(a: &[f64], b: &[f64], rows: usize, cols: usize, rcond: f64) 
         .map(|&n| if n > 0.0 { 1.0 / n } else { 1.0 })
         .collect();
     if cols == 0 {
-        return LsSolution {
+        return Ok(LsSolution {
             x: vec![],
             sv: vec![],
             v_min: vec![],
             col_norms,
             pinv: vec![],
-        };
+        });
     }
     let m = Mat::<f64>::from_fn(rows, cols, |i, j| a[i * cols + j] * scale[j]);
-    let svd = m.thin_svd().expect("SVD of a finite matrix converges");
+    let svd = m
+        .thin_svd()
+        .map_err(|e| format!("the singular value decomposition did not converge ({e:?})"))?;
     let (u, s, v) = (svd.U(), svd.S().column_vector(), svd.V());
     let k = s.nrows();
     let sv: Vec<f64> = (0..k).map(|i| s[i]).collect();
@@ -79,13 +91,13 @@ pub(crate) fn lstsq(a: &[f64], b: &[f64], rows: usize, cols: usize, rcond: f64) 
     }
     let x = y.iter().zip(&scale).map(|(y, s)| y * s).collect();
     let v_min = (0..cols).map(|j| v[(j, k - 1)]).collect();
-    LsSolution {
+    Ok(LsSolution {
         x,
         sv,
         v_min,
         col_norms,
         pinv,
-    }
+    })
 }
 
 #[cfg(test)]
@@ -103,7 +115,7 @@ mod tests {
         let b: Vec<f64> = (0..rows)
             .map(|i| a[2 * i] * x_true[0] + a[2 * i + 1] * x_true[1])
             .collect();
-        let s = lstsq(&a, &b, rows, 2, 1e-12);
+        let s = lstsq(&a, &b, rows, 2, 1e-12).unwrap();
         assert!((s.x[0] / x_true[0] - 1.0).abs() < 1e-12);
         assert!((s.x[1] / x_true[1] - 1.0).abs() < 1e-12);
         assert!(s.condition() < 10.0);
@@ -111,7 +123,7 @@ mod tests {
         let a2: Vec<f64> = (0..rows)
             .flat_map(|i| [i as f64 + 1.0, i as f64 + 1.0])
             .collect();
-        let s2 = lstsq(&a2, &b, rows, 2, 1e-12);
+        let s2 = lstsq(&a2, &b, rows, 2, 1e-12).unwrap();
         assert!(s2.condition() > 1e12);
         assert!((s2.v_min[0].abs() - s2.v_min[1].abs()).abs() < 1e-12);
     }

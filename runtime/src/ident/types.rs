@@ -103,6 +103,42 @@ pub enum IdentifyError {
     #[error("invalid option: {message}")]
     #[diagnostic(code(dynid::identify::option), help("{help}"))]
     BadOption { message: String, help: String },
+    #[error(
+        "{origin}: every measured signal is constant ({columns}): the level carries no excitation"
+    )]
+    #[diagnostic(
+        code(dynid::data::no_excitation),
+        help("check that this is the right file; a level without motion adds nothing to the fit — leave it out")
+    )]
+    NoExcitation { origin: String, columns: String },
+    #[error("{origin}: {at}, column `{column}`: {detail}")]
+    #[diagnostic(
+        code(dynid::data::outlier),
+        help("a sample this far out is a recording error (a glitch, a lost digit, a saturated channel): repair or remove it, or cut the record there — one such sample ruins every moment of the level")
+    )]
+    Outlier {
+        origin: String,
+        /// Where: the sample and its time.
+        at: String,
+        column: String,
+        /// The value and how far out it lies.
+        detail: String,
+    },
+    #[error("{origin}: the term `{term}` is {value} at {at}: it is not finite on the data")]
+    #[diagnostic(code(dynid::identify::non_finite_term), help("{advice}"))]
+    NonFiniteTerm {
+        origin: String,
+        term: String,
+        at: String,
+        value: f64,
+        advice: String,
+    },
+    #[error("{origin}: the moments of `{term}` overflow double precision (the values on the data are too large)")]
+    #[diagnostic(
+        code(dynid::identify::overflow),
+        help("rescale the data (e.g. millimetres → metres) or the term so that its values stay far below 1e150")
+    )]
+    Overflow { origin: String, term: String },
     #[error(transparent)]
     #[diagnostic(transparent)]
     Data(#[from] DataError),

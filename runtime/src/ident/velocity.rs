@@ -315,6 +315,9 @@ impl LevelSource for EstimatedVelocity<'_> {
     fn ts(&self) -> f64 {
         self.inner.ts()
     }
+    fn locate(&self, k: usize) -> String {
+        self.inner.locate(k)
+    }
     fn stream(
         &self,
         max_len: usize,

@@ -50,8 +50,9 @@ impl Default for SimConfig {
     }
 }
 
-/// Most samples (burn-in included) of one simulated level: 2·10⁸ samples of a few columns
-/// are several GB of memory.
+/// Most samples (burn-in included) of one simulated level. Simulation streams (memory does
+/// not grow with the duration), but 2·10⁸ samples are tens of GB of CSV per level and hours
+/// of integration: a larger request is almost surely a mistyped duration or interval.
 pub const MAX_SAMPLES: f64 = 2e8;
 
 pub(super) fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
@@ -68,7 +69,7 @@ pub(super) fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
             "give a duration of at least two sample intervals, e.g. `--duration 2000`",
         ));
     }
-    // The records are held in memory: refuse sizes that cannot be, before allocating.
+    // Refuse absurd sizes up front, before hours of work and a full disk.
     let samples = (cfg.burn_in.max(0.0) + cfg.duration) / cfg.sample;
     if samples.is_nan() || samples > MAX_SAMPLES {
         return Err(config_error(
@@ -79,7 +80,7 @@ pub(super) fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
                 dynid_ir::num::sig(cfg.sample, 4, false)
             ),
             &format!(
-                "a level holds at most {MAX_SAMPLES:.0e} samples in memory; shorten `--duration` or lengthen `--sample`"
+                "a level has at most {MAX_SAMPLES:.0e} samples (about 16 GB of CSV); shorten `--duration` or lengthen `--sample`"
             ),
         ));
     }

@@ -37,7 +37,12 @@ impl Mechanics {
     pub(crate) fn new(ir: &ModelIr, params: &[f64]) -> Result<Self, SimError> {
         let nb = ir.bodies.len();
         let roots = ir.eval_roots();
-        let root_index = |e| roots.iter().position(|&r| r == e).expect("root of a term");
+        let root_index = |e| {
+            roots
+                .iter()
+                .position(|&r| r == e)
+                .expect("invariant: root of a term")
+        };
         let value = |c: dynid_ir::ir::Coef| c.scale * c.param.map_or(1.0, |p| params[p.index()]);
         let mut mass = nalgebra::DMatrix::<f64>::zeros(nb, nb);
         let mut expr_terms = Vec::new();
@@ -94,7 +99,8 @@ impl Mechanics {
                     body: ir.bodies[body].name.clone(),
                 });
             }
-            mass.try_inverse().expect("well-conditioned mass matrix")
+            mass.try_inverse()
+                .expect("invariant: well-conditioned mass matrix")
         };
         let minv = (0..nb)
             .flat_map(|i| (0..nb).map(move |j| (i, j)))

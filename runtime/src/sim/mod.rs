@@ -34,6 +34,11 @@
 //! - **Measurement noise**: white Gaussian, standard deviation `noise · std(signal)` per
 //!   measured signal (std of the clean record of that level), from an RNG stream separate
 //!   from the excitation, so switching noise on or off leaves the clean trajectory intact.
+//! - **Streaming**: [`simulate_into`] hands each level to a [`SampleSink`] chunk by chunk
+//!   (a CSV writer for `dynid simulate`), so memory does not grow with the duration; with
+//!   noise the clean columns pass through temporary files first (see `stream`). The
+//!   in-memory [`simulate`] is the same code with a collecting sink, and both give the same
+//!   bits.
 //! - **Determinism**: the random streams (excitation, noise, reference) of level `k` are
 //!   seeded from `(seed, k, stream)` only, so results are bit-identical whatever the number
 //!   of threads.
@@ -64,6 +69,7 @@ mod error;
 pub(crate) mod excite;
 mod mech;
 mod output;
+mod stream;
 #[doc(hidden)]
 #[cfg(any(test, feature = "test-support"))]
 pub mod test_models;
@@ -75,18 +81,19 @@ pub use driven::{simulate_driven, simulate_driven_from, Start};
 use config::{check_config, config_error, sample_counts, stream_seed, Stream};
 use driven::signal_value;
 pub use error::SimError;
-pub use output::{level_file_names, write_csv, Truth};
+pub use output::{level_file_names, write_csv, CsvSink, Truth};
+pub use stream::SampleSink;
 
 use crate::describe::std_dev;
 use crate::record::Record;
-use control::{quantise, Controller};
+use control::Controller;
 use dynid_ir::ir::{FormFilter, InputId, ModelIr, ParamKind, SignalKind};
 use excite::FormFilterSampler;
 use mech::{Mechanics, Rk4};
 use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
-use rand_distr::StandardNormal;
+use rand::SeedableRng;
 use rayon::prelude::*;
+use stream::{ColumnFinish, LevelWriter};
 
 /// Default RK4 sub-steps per sample interval (see the module doc for the measured error).
 pub const DEFAULT_SUBSTEPS: usize = 20;
@@ -115,16 +122,56 @@ pub fn simulate_with_progress(
     cfg: &SimConfig,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<SimOutput, SimError> {
+    let n = level_count(ir, cfg)?;
+    let mut records: Vec<Record> = (0..n).map(|_| Record::default()).collect();
+    let mut sinks: Vec<&mut dyn SampleSink> = records
+        .iter_mut()
+        .map(|r| r as &mut dyn SampleSink)
+        .collect();
+    let truth = simulate_into(ir, cfg, progress, &mut sinks)?;
+    Ok(SimOutput { records, truth })
+}
+
+/// Number of experiments (levels) `cfg` simulates for `ir`: one sink each for
+/// [`simulate_into`].
+pub fn level_count(ir: &ModelIr, cfg: &SimConfig) -> Result<usize, SimError> {
+    check_config(cfg)?;
+    Ok(ExcitationPlan::new(ir, cfg)?.n_levels)
+}
+
+/// Simulate every excitation level into its sink (`sinks[k]` receives level `k`; levels
+/// run in parallel), streaming: memory does not grow with the duration. Returns what was
+/// simulated. Calls `progress(n)` as [`simulate_with_progress`] does.
+pub fn simulate_into(
+    ir: &ModelIr,
+    cfg: &SimConfig,
+    progress: &(dyn Fn(u64) + Sync),
+    sinks: &mut [&mut dyn SampleSink],
+) -> Result<Truth, SimError> {
     check_config(cfg)?;
     let params = parameter_values(ir)?;
     let plan = ExcitationPlan::new(ir, cfg)?;
     let mech = Mechanics::new(ir, &params)?;
-    let records = (0..plan.n_levels)
-        .into_par_iter()
-        .map(|k| simulate_level(ir, &mech, &plan, cfg, k, progress))
+    assert_eq!(
+        sinks.len(),
+        plan.n_levels,
+        "invariant: one sink per level (`level_count`)"
+    );
+    sinks
+        .par_iter_mut()
+        .enumerate()
+        .map(|(k, sink)| simulate_level(ir, &mech, &plan, cfg, k, progress, &mut **sink))
+        .collect::<Vec<_>>()
+        .into_iter()
+        // The first failing level in order, whichever thread finished first.
         .collect::<Result<Vec<_>, _>>()?;
-    let truth = Truth::new(ir, cfg, &params, &plan.level_table(ir), &plan.levels);
-    Ok(SimOutput { records, truth })
+    Ok(Truth::new(
+        ir,
+        cfg,
+        &params,
+        &plan.level_table(ir),
+        &plan.levels,
+    ))
 }
 
 /// Total number of samples [`simulate_with_progress`] reports for `cfg` and `n_levels`.
@@ -328,7 +375,8 @@ fn simulate_level(
     cfg: &SimConfig,
     level: usize,
     progress: &(dyn Fn(u64) + Sync),
-) -> Result<Record, SimError> {
+    sink: &mut dyn SampleSink,
+) -> Result<(), SimError> {
     let fine = cfg.input_oversample;
     let h = cfg.sample / fine as f64;
     let substeps = cfg.substeps.div_ceil(fine);
@@ -338,7 +386,8 @@ fn simulate_level(
         .iter()
         .map(|f| {
             f.as_ref().map(|(filter, levels)| {
-                FormFilterSampler::new(filter, levels[level], h).expect("checked when planning")
+                FormFilterSampler::new(filter, levels[level], h)
+                    .expect("invariant: checked when planning")
             })
         })
         .collect();
@@ -348,7 +397,7 @@ fn simulate_level(
     let mut control = plan.control.as_ref().map(|c| {
         let r = &c.spec.reference;
         let mut reference = FormFilterSampler::new(&r.filter(), r.intensity(c.scales[level]), h)
-            .expect("checked when planning");
+            .expect("invariant: checked when planning");
         let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Reference));
         reference.start(&mut rng);
         let ctl = Controller::new(&c.spec, c.input, c.body, cfg.quantise, h, fine, reference);
@@ -366,8 +415,45 @@ fn simulate_level(
     );
     let (n_burn, n) = sample_counts(cfg);
     let measured = ir.measured_signals();
-    let n_cols = measured.len() + usize::from(control.is_some());
-    let mut columns: Vec<Vec<f64>> = (0..n_cols).map(|_| Vec::with_capacity(n)).collect();
+    let mut names: Vec<String> = measured
+        .iter()
+        .map(|&s| ir.signal(s).name.clone())
+        .collect();
+    let mut finish: Vec<ColumnFinish> = measured
+        .iter()
+        .map(|&s| {
+            let kind = &ir.signal(s).kind;
+            ColumnFinish {
+                noisy: cfg.noise_on_inputs || !matches!(kind, SignalKind::Input(_)),
+                quantised: matches!(kind, SignalKind::Position(_)),
+            }
+        })
+        .collect();
+    if let Some(c) = &plan.control {
+        // The reference is exact: neither noisy nor quantised.
+        names.push(reference_column(&ir.bodies[c.body].name));
+        finish.push(ColumnFinish {
+            noisy: false,
+            quantised: false,
+        });
+    }
+    let context = || {
+        format!(
+            "level {} (intensity {})",
+            level + 1,
+            dynid_ir::num::sig(plan.levels[level], 6, false)
+        )
+    };
+    let mut out = LevelWriter::new(
+        sink,
+        &names,
+        cfg.sample,
+        finish,
+        cfg.noise,
+        cfg.quantise,
+        context(),
+    )?;
+    let mut row = vec![0.0; names.len()];
     let mut rk = Rk4::new(mech);
     let mut res = Resolution::new(mech.n_bodies);
     let read = |s: &[Option<FormFilterSampler>], u: &mut [f64]| {
@@ -378,13 +464,6 @@ fn simulate_level(
     let mut u0 = vec![0.0; samplers.len()];
     let mut u1 = vec![0.0; samplers.len()];
     read(&samplers, &mut u0);
-    let context = || {
-        format!(
-            "level {} (intensity {})",
-            level + 1,
-            dynid_ir::num::sig(plan.levels[level], 6, false)
-        )
-    };
     let mut pending = 0;
     for k in 0..n_burn + n {
         for j in 0..fine {
@@ -393,12 +472,13 @@ fn simulate_level(
                 u0[ctl.input] = ctl.output(rk.x[b], rk.v[b]);
             }
             if j == 0 && k >= n_burn {
-                for (col, &s) in columns.iter_mut().zip(&measured) {
-                    col.push(signal_value(ir, s, &rk, &u0));
+                for (v, &s) in row.iter_mut().zip(&measured) {
+                    *v = signal_value(ir, s, &rk, &u0);
                 }
                 if let Some((ctl, _)) = &control {
-                    columns[n_cols - 1].push(ctl.reference().0);
+                    row[measured.len()] = ctl.reference().0;
                 }
+                out.sample(row.iter().copied())?;
             }
             for s in samplers.iter_mut().flatten() {
                 s.step(&mut rng);
@@ -427,40 +507,8 @@ fn simulate_level(
     }
     progress(pending as u64);
     res.check(ir, cfg.sample, context)?;
-    if cfg.noise > 0.0 {
-        let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Noise));
-        for (col, &s) in columns.iter_mut().zip(&measured) {
-            if !cfg.noise_on_inputs && matches!(ir.signal(s).kind, SignalKind::Input(_)) {
-                continue;
-            }
-            let sd = cfg.noise * std_dev(col);
-            for x in col.iter_mut() {
-                *x += sd * rng.sample::<f64, _>(StandardNormal);
-            }
-        }
-    }
-    if cfg.quantise.is_some() {
-        for (col, &s) in columns.iter_mut().zip(&measured) {
-            if matches!(ir.signal(s).kind, SignalKind::Position(_)) {
-                for x in col.iter_mut() {
-                    *x = quantise(*x, cfg.quantise);
-                }
-            }
-        }
-    }
-    let mut names: Vec<String> = measured
-        .iter()
-        .map(|&s| ir.signal(s).name.clone())
-        .collect();
-    if let Some(c) = &plan.control {
-        names.push(reference_column(&ir.bodies[c.body].name));
-    }
-    Ok(Record {
-        names,
-        columns,
-        ts: cfg.sample,
-        t0: 0.0,
-    })
+    let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Noise));
+    out.finish(&mut rng)
 }
 
 /// Largest `ω·Ts` (ω = dominant angular frequency of a body's motion) accepted: about four

@@ -1,7 +1,7 @@
 //! Simulated records as text: the CSV format of a level and the `truth.json` record of
 //! what a simulation used. Formatting only, into any `io::Write`; the caller opens files.
 
-use super::{PdControl, SimConfig};
+use super::{PdControl, SampleSink, SimConfig};
 use crate::record::Record;
 use dynid_ir::ir::{FormFilter, ModelIr};
 use serde::{Deserialize, Serialize};
@@ -106,27 +106,85 @@ pub fn level_file_names(n: usize) -> Vec<String> {
 
 /// Write `record` as CSV with header `t,<signals>` (t = t0 + i·ts) and numbers in their
 /// shortest round-trip form (buffer `w`: this writes field by field).
-pub fn write_csv(mut w: &mut dyn Write, record: &Record) -> std::io::Result<()> {
-    write!(w, "t")?;
-    for n in &record.names {
-        write!(w, ",{n}")?;
-    }
-    writeln!(w)?;
-    let decimals = time_decimals(record.ts).zip(time_decimals(record.t0));
-    for i in 0..record.len() {
-        let t = record.t0 + i as f64 * record.ts;
-        match decimals {
-            // `35 · 0.01` is 0.35000000000000003 in binary; print the decimal grid instead.
-            Some((a, b)) => write!(w, "{t:.*}", a.max(b))?,
-            None => write_number(&mut w, t)?,
+pub fn write_csv(w: &mut dyn Write, record: &Record) -> std::io::Result<()> {
+    let mut sink = CsvSink::new(w);
+    sink.start(&record.names, record.ts, record.t0)?;
+    let cols: Vec<&[f64]> = record.columns.iter().map(Vec::as_slice).collect();
+    sink.rows(&cols, record.len())
+}
+
+/// A [`SampleSink`] writing CSV (the format of [`write_csv`]) as the samples arrive.
+pub struct CsvSink<W: Write> {
+    w: W,
+    ts: f64,
+    t0: f64,
+    decimals: Option<usize>,
+    /// Samples written so far.
+    pub written: usize,
+}
+
+impl<W: Write> CsvSink<W> {
+    pub fn new(w: W) -> Self {
+        CsvSink {
+            w,
+            ts: 1.0,
+            t0: 0.0,
+            decimals: None,
+            written: 0,
         }
-        for c in &record.columns {
-            w.write_all(b",")?;
-            write_number(&mut w, c[i])?;
-        }
-        w.write_all(b"\n")?;
     }
-    Ok(())
+
+    /// Write the header; times are `t0 + i·ts`.
+    pub fn start(&mut self, names: &[String], ts: f64, t0: f64) -> std::io::Result<()> {
+        write!(self.w, "t")?;
+        for n in names {
+            write!(self.w, ",{n}")?;
+        }
+        writeln!(self.w)?;
+        self.ts = ts;
+        self.t0 = t0;
+        self.decimals = time_decimals(ts)
+            .zip(time_decimals(t0))
+            .map(|(a, b)| a.max(b));
+        Ok(())
+    }
+}
+
+impl<W: Write + Send> SampleSink for CsvSink<W> {
+    fn begin(&mut self, names: &[String], ts: f64) -> std::io::Result<()> {
+        self.start(names, ts, 0.0)
+    }
+
+    fn push(&mut self, cols: &[&[f64]], len: usize) -> std::io::Result<()> {
+        self.rows(cols, len)
+    }
+}
+
+impl<W: Write> CsvSink<W> {
+    /// Write `len` samples; `cols[j]` is column `j`.
+    pub fn rows(&mut self, cols: &[&[f64]], len: usize) -> std::io::Result<()> {
+        let w = &mut self.w;
+        for i in 0..len {
+            let t = self.t0 + (self.written + i) as f64 * self.ts;
+            match self.decimals {
+                // `35 · 0.01` is 0.35000000000000003 in binary; print the decimal grid instead.
+                Some(d) => write!(w, "{t:.d$}")?,
+                None => write_number(w, t)?,
+            }
+            for c in cols {
+                w.write_all(b",")?;
+                write_number(w, c[i])?;
+            }
+            w.write_all(b"\n")?;
+        }
+        self.written += len;
+        Ok(())
+    }
+
+    /// The writer, e.g. to flush it.
+    pub fn into_inner(self) -> W {
+        self.w
+    }
 }
 
 /// Number of decimals of `x` if it is a short decimal (≤ 9 decimals), e.g. 2 for 0.01.

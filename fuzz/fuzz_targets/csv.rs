@@ -1,0 +1,24 @@
+//! The CSV level reader must return data or an error for any bytes, never panic; data it
+//! returns must be complete and finite (`dynid_runtime::data::fuzz::check_csv_bytes`).
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use std::sync::OnceLock;
+
+const MODEL: &str = "model m {
+    body m1 = 1.0
+    input u on m1
+    measure m1.x, u
+    spring k (ground, m1) ~ 4.0
+    damper d (ground, m1) ~ 0.4
+}";
+
+fn ir() -> &'static dsl_parser::ir::ModelIr {
+    static IR: OnceLock<dsl_parser::ir::ModelIr> = OnceLock::new();
+    IR.get_or_init(|| dsl_parser::compile_str("fuzz.dyn", MODEL).expect("the model compiles"))
+}
+
+fuzz_target!(|data: &[u8]| {
+    let path = std::env::temp_dir().join(format!("dynid-fuzz-{}.csv", std::process::id()));
+    dynid_runtime::data::fuzz::check_csv_bytes(&path, data, ir());
+});

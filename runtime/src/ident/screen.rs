@@ -1,0 +1,168 @@
+//! Screening of a level's columns in the first pass: a sample far outside the robust spread
+//! of its column (a recording glitch, a lost exponent, a saturated channel) and a level
+//! without any motion are refused before they spoil the moments.
+//!
+//! The robust spread is `1.4826 · MAD` (median absolute deviation about the median, scaled
+//! to the standard deviation of a normal distribution), taken over a strided subsample of at
+//! most [`KEEP`] values so memory stays fixed for any record length. A sample counts as an
+//! outlier when it lies more than [`OUTLIER_RATIO`] robust standard deviations from the
+//! median: no sensor has that dynamic range within one record, while a genuinely
+//! intermittent signal (bursts, moves from rest) stays far below it.
+
+/// Samples kept per column for the robust spread.
+const KEEP: usize = 4096;
+
+/// Distance from the median, in robust standard deviations, beyond which a sample is an
+/// outlier.
+pub(crate) const OUTLIER_RATIO: f64 = 1e5;
+
+/// Running screen of one column.
+#[derive(Clone, Debug)]
+pub(crate) struct ColumnScreen {
+    kept: Vec<f64>,
+    stride: usize,
+    seen: usize,
+    /// (value, sample) of the smallest and the largest value.
+    min: (f64, usize),
+    max: (f64, usize),
+}
+
+impl Default for ColumnScreen {
+    fn default() -> Self {
+        ColumnScreen {
+            kept: Vec::with_capacity(KEEP),
+            stride: 1,
+            seen: 0,
+            min: (f64::INFINITY, 0),
+            max: (f64::NEG_INFINITY, 0),
+        }
+    }
+}
+
+/// A sample far out: its index, value, the column's median and robust standard deviation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Outlier {
+    pub sample: usize,
+    pub value: f64,
+    pub median: f64,
+    pub scale: f64,
+}
+
+impl ColumnScreen {
+    pub fn push(&mut self, c: &[f64]) {
+        for &v in c {
+            if v < self.min.0 {
+                self.min = (v, self.seen);
+            }
+            if v > self.max.0 {
+                self.max = (v, self.seen);
+            }
+            if self.seen.is_multiple_of(self.stride) {
+                if self.kept.len() == KEEP {
+                    // Keep every other value and double the stride.
+                    let mut i = 0;
+                    self.kept.retain(|_| {
+                        i += 1;
+                        i % 2 == 1
+                    });
+                    self.stride *= 2;
+                }
+                if self.seen.is_multiple_of(self.stride) {
+                    self.kept.push(v);
+                }
+            }
+            self.seen += 1;
+        }
+    }
+
+    /// Whether every value was the same.
+    pub fn constant(&self) -> bool {
+        self.seen > 0 && self.min.0 == self.max.0
+    }
+
+    /// The most extreme sample, when it lies more than [`OUTLIER_RATIO`] robust standard
+    /// deviations from the median. Columns whose robust spread is zero (a signal at rest
+    /// for most of the record) are not judged.
+    pub fn outlier(&self) -> Option<Outlier> {
+        if self.kept.is_empty() {
+            return None;
+        }
+        let mut v = self.kept.clone();
+        let median = median_of(&mut v);
+        v.iter_mut().for_each(|x| *x = (*x - median).abs());
+        let scale = 1.4826 * median_of(&mut v);
+        if scale.is_nan() || scale <= 0.0 {
+            return None;
+        }
+        let (lo, hi) = (median - self.min.0, self.max.0 - median);
+        let (value, sample, dist) = if hi >= lo {
+            (self.max.0, self.max.1, hi)
+        } else {
+            (self.min.0, self.min.1, lo)
+        };
+        (dist > OUTLIER_RATIO * scale).then_some(Outlier {
+            sample,
+            value,
+            median,
+            scale,
+        })
+    }
+}
+
+fn median_of(v: &mut [f64]) -> f64 {
+    let mid = v.len() / 2;
+    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
+    *m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn screen(values: &[f64], chunk: usize) -> ColumnScreen {
+        let mut s = ColumnScreen::default();
+        for c in values.chunks(chunk) {
+            s.push(c);
+        }
+        s
+    }
+
+    #[test]
+    fn one_glitch_in_a_long_record_is_found_at_its_sample() {
+        let mut x: Vec<f64> = (0..100_000).map(|i| (i as f64 * 0.37).sin()).collect();
+        x[77_777] = 1e20;
+        let o = screen(&x, 1000).outlier().expect("outlier");
+        assert_eq!(o.sample, 77_777);
+        assert_eq!(o.value, 1e20);
+        assert!(
+            o.median.abs() < 0.05 && (o.scale - 1.0).abs() < 0.1,
+            "{o:?}"
+        );
+        // Without it, nothing is flagged, whatever the chunking.
+        x[77_777] = 0.5;
+        assert_eq!(screen(&x, 7).outlier(), None);
+    }
+
+    #[test]
+    fn bursts_and_moves_from_rest_are_not_outliers() {
+        // Noise at rest with a burst 1000× larger in a tenth of the record.
+        let x: Vec<f64> = (0..50_000)
+            .map(|i| {
+                let noise = ((i * 7919) % 1000) as f64 / 1000.0 - 0.5;
+                if (20_000..25_000).contains(&i) {
+                    1000.0 * (i as f64 * 0.01).sin()
+                } else {
+                    noise
+                }
+            })
+            .collect();
+        assert_eq!(screen(&x, 4096).outlier(), None);
+        // A column at rest but for a few samples has no robust spread and is not judged.
+        let mut y = vec![0.0; 10_000];
+        y[5] = 1e9;
+        let s = screen(&y, 100);
+        assert_eq!(s.outlier(), None);
+        assert!(!s.constant());
+        assert!(screen(&[2.0; 300], 64).constant());
+    }
+}
