@@ -215,7 +215,7 @@ fn silverbox_diagnose_names_the_cubic_spring() {
         ("ground", "y")
     );
     assert!((3.0..5.0).contains(&f.value), "{}", d.summary());
-    assert!(d.shrink > 0.9, "{}", d.summary());
+    assert!(d.shrink.is_some_and(|s| s > 0.9), "{}", d.summary());
     assert!(d.gap_after < 6.0, "{}", d.summary());
     assert!(
         d.residual_ranking
