@@ -194,9 +194,10 @@ fn silverbox_diagnose_names_the_cubic_spring() {
         &|_, _| {},
     )
     .expect("diagnoses");
-    // Measured: cubic stiffness at (ground, y), k3 = 3.90 ± 0.12, headline gap
-    // 79.7 % → 3.5 % (96 % removed); nothing else material (quadratic stiffness
-    // 0.51 ± 0.51 on top of the cubic).
+    // Measured: cubic stiffness at (ground, y), k3 = 3.9045 ± 0.090, headline
+    // (statistical) gap 12.7 % (nominal) / 8.6 % (re-identified) → 2.2 % (82 % removed
+    // overall, 74 % of the re-identified gap); pathwise 79.7 % → 3.5 %; nothing else
+    // material (quadratic stiffness 0.51 ± 0.30 on top of the cubic).
     assert_eq!(d.verdict, Verdict::MissingEffect, "{}", d.summary());
     // "Where": with the mass held, the spring's stiffness is the one parameter that drifts
     // (a: 1.016 → 1.032 → 1.052 → 1.085).
@@ -215,8 +216,9 @@ fn silverbox_diagnose_names_the_cubic_spring() {
         ("ground", "y")
     );
     assert!((3.0..5.0).contains(&f.value), "{}", d.summary());
-    assert!(d.shrink > 0.9, "{}", d.summary());
-    assert!(d.gap_after < 6.0, "{}", d.summary());
+    assert!(d.shrink.is_some_and(|s| s > 0.75), "{}", d.summary());
+    assert!(d.gap_after < 3.0, "{}", d.summary());
+    assert!(d.pathwise_gap_after < 6.0, "{}", d.summary());
     assert!(
         d.residual_ranking
             .iter()

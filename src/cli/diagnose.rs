@@ -14,13 +14,16 @@ const LONG_HELP: &str = "\
 Compares the simulation MODEL (nominal values) with measured levels and answers three
 questions:
   where  - free-run gap per level and signal (the model driven by the measured input from
-           the measured initial state), covariance-equation residual per body, parameters
-           that drift with the level;
+           the measured initial state): the headline compares spectrum and std of each
+           response signal (statistical), the pathwise NRMSE is shown beside it;
+           covariance-equation residual per body, parameters that drift with the level;
   which  - candidate unmodelled effects (cubic and quadratic stiffness, Coulomb friction,
            quadratic damping, backlash with a gap search, prestress) at every element and
            body-to-ground, each fitted on all levels but one and scored on the withheld one;
-  how far - the withheld gap before and after adding the winner (and a second effect on
-           top when it still pays), with the identified value and a confidence.
+  how far - the gap of the nominal model, of the model re-identified on the other levels
+           and of the corrected model (withheld levels): what re-tuning achieves, what
+           the winner adds (and a second effect on top when it still pays), with the
+           identified value and a confidence.
 
 Example:
   dynid simulate models/two_mass_friction.dyn --out data/
@@ -28,7 +31,9 @@ Example:
       --report gap.html --write-model fixed.dyn --json gap.json
 
     Most likely missing effect: Coulomb friction sign(v) at (m1, m2) (element k2, d2)
-      identified r_fix = 0.3 ± 1.3839e-4 (...); withheld gap 34.2 % → 0.1 % (100 % smaller)
+      identified r_fix = 0.3 ± ... (...); withheld gap ... → ... (... smaller; pathwise ...)
+    Re-identification alone: ... → ...; the effect: ... → ... (... of the re-identified gap removed)
+    Overall (nominal → corrected): ... → ... (... of the gap removed); pathwise ... → ...
 
 The corrected model (fixed.dyn) is ordinary .dyn text, compiled before it is written.
 Outputs are written all or nothing. Metrics and thresholds: docs/diagnosis.md.";

@@ -6,7 +6,7 @@ use std::fmt::Write;
 use plotters::prelude::*;
 
 use super::register_font;
-use dynid_runtime::diagnose::{fmt_num, Diagnosis, ModelGap, Spectrum};
+use dynid_runtime::diagnose::{fmt_gap, fmt_num, fmt_shrink, Diagnosis, ModelGap, Spectrum};
 
 const COLORS: [RGBColor; 4] = [
     RGBColor(25, 60, 160),
@@ -21,13 +21,13 @@ fn esc(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
-/// Mean NRMSE (%) of one signal over the levels of a model's gap.
+/// Mean statistical gap (%) of one signal over the levels of a model's gap.
 fn signal_mean(g: &ModelGap, sig: &str) -> f64 {
     let v: Vec<f64> = g
         .levels
         .iter()
         .filter_map(|l| l.signals.iter().find(|s| s.signal == sig))
-        .map(|s| s.nrmse)
+        .map(|s| s.statistical)
         .collect();
     if v.is_empty() {
         f64::NAN
@@ -59,7 +59,10 @@ fn bars_svg(d: &Diagnosis) -> Result<String, String> {
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let n = sigs.len() as f64;
         let mut chart = ChartBuilder::on(&root)
-            .caption("Free-run gap per signal (NRMSE, %)", ("sans-serif", 20))
+            .caption(
+                "Statistical gap per signal (spectrum and std, %)",
+                ("sans-serif", 20),
+            )
             .margin(12)
             .x_label_area_size(36)
             .y_label_area_size(50)
@@ -77,7 +80,7 @@ fn bars_svg(d: &Diagnosis) -> Result<String, String> {
                     String::new()
                 }
             })
-            .y_desc("NRMSE %")
+            .y_desc("gap %")
             .label_style(("sans-serif", 14))
             .draw()
             .map_err(|e| e.to_string())?;
@@ -303,16 +306,24 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
         .map(|f| (f.effect.name(), f.location.label()));
     let headline = match &first {
         Some((e, l)) => format!(
-            "Missing effect: <b>{}</b> at <b>{}</b>. Gap {:.1} % → {:.1} % on withheld levels (<b>{:.0} %</b> of the gap removed).",
+            "Missing effect: <b>{}</b> at <b>{}</b>. Statistical gap (spectrum and std) on withheld levels: nominal {}, re-identified {}, corrected {}: <b>{}</b> overall, {}. Pathwise (free-run NRMSE): {} → {}.",
             esc(e),
             esc(l),
-            d.gap_before,
-            d.gap_after,
-            100.0 * d.shrink
+            fmt_gap(d.gap_before),
+            fmt_gap(d.gap_reidentified),
+            fmt_gap(d.gap_after),
+            fmt_shrink(d.shrink, "of the gap removed"),
+            fmt_shrink(d.effect_shrink, "of the re-identified gap removed by the effect"),
+            fmt_gap(d.pathwise_gap_before),
+            fmt_gap(d.pathwise_gap_after),
         ),
         _ => format!(
-            "No significant unmodelled effect ({:?}). Gap: nominal {:.1} %, re-identified {:.1} %.",
-            d.verdict, d.nominal.gap, d.reidentified.gap
+            "No significant unmodelled effect ({:?}). Statistical gap: nominal {}, re-identified {}; pathwise: nominal {}, re-identified {}.",
+            d.verdict,
+            fmt_gap(d.nominal.gap),
+            fmt_gap(d.reidentified.gap),
+            fmt_gap(d.nominal.pathwise),
+            fmt_gap(d.reidentified.pathwise)
         ),
     };
     let _ = write!(h, "<p class=\"big\">{headline}</p>");
@@ -322,24 +333,39 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
     figure(&mut h, bars_svg(d));
     let _ = write!(
         h,
-        "<table><tr><th class=\"l\">signal</th><th class=\"l\">model</th><th>NRMSE %</th><th>std error %</th><th>PSD gap (log10)</th></tr>"
+        "<table><tr><th class=\"l\">signal</th><th class=\"l\">model</th><th>statistical gap %</th><th>spectral error %</th><th>std error %</th><th>PSD gap (log10)</th><th>pathwise NRMSE %</th></tr>"
     );
     for sig in &d.response_signals {
-        for m in [&d.nominal, &d.reidentified, &d.corrected] {
+        let models = if d.found.is_empty() {
+            vec![&d.nominal, &d.reidentified]
+        } else {
+            vec![&d.nominal, &d.reidentified, &d.corrected]
+        };
+        for m in models {
             let rows: Vec<_> = m
                 .levels
                 .iter()
                 .filter_map(|l| l.signals.iter().find(|s| &s.signal == sig))
                 .collect();
-            let k = rows.len().max(1) as f64;
+            let mean = |f: fn(&dynid_runtime::diagnose::SignalGap) -> f64| {
+                let v = rows.iter().map(|s| f(s)).sum::<f64>() / rows.len().max(1) as f64;
+                (!rows.is_empty() && v.is_finite()).then_some(v)
+            };
+            let cell = |v: Option<f64>, digits: usize, sign: bool| match v {
+                Some(v) if sign => format!("{v:+.digits$}"),
+                Some(v) => format!("{v:.digits$}"),
+                None => "–".into(),
+            };
             let _ = write!(
                 h,
-                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.1}</td><td>{:+.1}</td><td>{:.3}</td></tr>",
+                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
                 esc(sig),
                 esc(&m.label),
-                rows.iter().map(|s| s.nrmse).sum::<f64>() / k,
-                rows.iter().map(|s| s.std_error).sum::<f64>() / k,
-                rows.iter().map(|s| s.psd_gap).sum::<f64>() / k
+                cell(mean(|s| s.statistical), 1, false),
+                cell(mean(|s| s.spectral), 1, false),
+                cell(mean(|s| s.std_error), 1, true),
+                cell(mean(|s| s.psd_gap), 3, false),
+                cell(mean(|s| s.nrmse), 1, false),
             );
         }
     }
@@ -355,7 +381,11 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
     for e in &d.equations {
         let _ = write!(h, "<tr><td class=\"l\">{}</td>", esc(&e.equation));
         for v in &e.per_level {
-            let _ = write!(h, "<td>{v:.1}</td>");
+            let _ = write!(
+                h,
+                "<td>{}</td>",
+                v.map_or("–".into(), |v| format!("{v:.1}"))
+            );
         }
         let _ = write!(h, "</tr>");
     }
@@ -398,20 +428,23 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
     }
     let _ = write!(h, "</table>");
 
-    let _ = write!(h, "<h2>Spectra before and after</h2>");
+    let _ = write!(
+        h,
+        "<h2>Spectra before and after</h2><p>On the level where the nominal model misses most. The re-identified and corrected models are the ones fitted on the other levels (this level withheld), as they are scored.</p>"
+    );
     for sp in &d.spectra {
         figure(&mut h, spectrum_svg(sp));
     }
 
     let _ = write!(
         h,
-        "<h2>Candidate ranking (first search step)</h2><p>Each candidate is fitted on all levels but one and scored on the withheld one (rotated). The free-run gap is computed for the best admissible candidates by covariance score.</p>\
-<table><tr><th>#</th><th class=\"l\">effect</th><th class=\"l\">location</th><th>coefficient</th><th>|p|/σ</th><th>CV cov. residual %</th><th>CV free-run gap %</th><th class=\"l\">note</th></tr>"
+        "<h2>Candidate ranking (first search step)</h2><p>Each candidate is fitted on all levels but one and scored on the withheld one (rotated). The free-run gaps (statistical and pathwise) are computed for the best admissible candidates by covariance score.</p>\
+<table><tr><th>#</th><th class=\"l\">effect</th><th class=\"l\">location</th><th>coefficient</th><th>|p|/σ</th><th>CV cov. residual %</th><th>CV statistical gap</th><th>CV pathwise gap</th><th class=\"l\">note</th></tr>"
     );
     for (i, c) in d.ranking.iter().enumerate() {
         let _ = write!(
             h,
-            "<tr{}><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{:.1}</td><td>{:.2}</td><td>{}</td><td class=\"l\">{}</td></tr>",
+            "<tr{}><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{:.1}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td></tr>",
             if c.accepted { " class=\"acc\"" } else { "" },
             i + 1,
             esc(&c.effect.name()),
@@ -422,8 +455,13 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
                 "–".into()
             },
             c.t_ratio,
-            c.cv_residual,
-            c.gap.map_or("".into(), |g| format!("{g:.1}")),
+            if c.cv_residual.is_finite() {
+                format!("{:.2}", c.cv_residual)
+            } else {
+                "–".into()
+            },
+            c.gap.map_or("".into(), fmt_gap),
+            c.pathwise_gap.map_or("".into(), fmt_gap),
             esc(&c.note)
         );
     }

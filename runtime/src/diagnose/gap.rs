@@ -53,34 +53,59 @@ pub(super) struct Data<'a> {
     pub(super) response: Vec<String>,
 }
 
+/// Power spectra of the response signals on one level: (signal, frequencies, measured
+/// PSD, simulated PSD).
+pub(super) type LevelSpectra = Vec<(String, Vec<f64>, Vec<f64>, Vec<f64>)>;
+
 /// Free-run gap of `ir` (with its nominal values) on level `w`.
-#[allow(clippy::type_complexity)]
 pub(super) fn level_gap(
     ir: &ModelIr,
     data: &Data,
     w: usize,
     opts: &DiagnoseOptions,
     want_psd: bool,
-) -> (
-    LevelGap,
-    Option<Vec<(String, Vec<f64>, Vec<f64>, Vec<f64>)>>,
-) {
+) -> (LevelGap, Option<LevelSpectra>) {
     let rec = &data.records[w];
-    let diverged = |origin: &str| LevelGap {
+    let start = ((rec.len() as f64) * opts.discard) as usize;
+    // Signals whose measured response varies after the discard: the others have no gap.
+    let usable: Vec<&String> = data
+        .response
+        .iter()
+        .filter(|name| {
+            rec.column(name).is_some_and(|m| {
+                let s = metrics::std_dev(&m[start.min(m.len())..]);
+                s.is_finite() && s > 0.0
+            })
+        })
+        .collect();
+    let unavailable = |signals: Vec<SignalGap>| LevelGap {
         level: w,
-        origin: origin.to_string(),
-        gap: f64::INFINITY,
-        signals: vec![],
-        diverged: true,
+        origin: data.origins[w].clone(),
+        gap: None,
+        pathwise: None,
+        signals,
+        diverged: false,
     };
+    if usable.is_empty() {
+        return (unavailable(vec![]), None);
+    }
     let sim = match simulate_driven_from(ir, rec, opts.substeps, Start::Measured) {
         Ok(s) => s,
-        Err(_) => return (diverged(&data.origins[w]), None),
+        Err(_) => {
+            let diverged = LevelGap {
+                level: w,
+                origin: data.origins[w].clone(),
+                gap: Some(f64::INFINITY),
+                pathwise: Some(f64::INFINITY),
+                signals: vec![],
+                diverged: true,
+            };
+            return (diverged, None);
+        }
     };
-    let start = ((rec.len() as f64) * opts.discard) as usize;
     let mut signals = Vec::new();
     let mut spectra = Vec::new();
-    for name in &data.response {
+    for name in usable {
         let (Some(y), Some(m)) = (sim.column(name), rec.column(name)) else {
             continue;
         };
@@ -88,32 +113,70 @@ pub(super) fn level_gap(
         let (f, pm) = metrics::welch(m, rec.ts, 4096);
         let (_, ps) = metrics::welch(y, rec.ts, 4096);
         let sm = metrics::std_dev(m);
+        if pm.iter().skip(1).sum::<f64>().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            // Too short for a spectrum, or no power outside DC: no gap for this signal.
+            continue;
+        }
+        let psd_gap = metrics::psd_gap(&ps, &pm);
+        let std_error = 100.0 * (metrics::std_dev(y) - sm) / sm;
+        let spectral = metrics::spectral_error(psd_gap);
         signals.push(SignalGap {
             signal: name.clone(),
             nrmse: 100.0 * metrics::nrmse(y, m),
-            std_error: 100.0 * (metrics::std_dev(y) - sm) / sm,
-            psd_gap: metrics::psd_gap(&ps, &pm),
+            std_error,
+            psd_gap,
+            spectral,
+            statistical: 0.5 * (spectral + std_error.abs()),
         });
         if want_psd {
             spectra.push((name.clone(), f, pm, ps));
         }
     }
-    let gap = signals.iter().map(|s| s.nrmse).sum::<f64>() / signals.len().max(1) as f64;
-    let gap = if gap.is_finite() { gap } else { f64::INFINITY };
+    if signals.is_empty() {
+        return (unavailable(signals), None);
+    }
+    let mean = |f: fn(&SignalGap) -> f64| {
+        let v = signals.iter().map(f).sum::<f64>() / signals.len() as f64;
+        // Not finite only when the simulated response is (a run that escaped the
+        // divergence check): count it as diverged.
+        if v.is_finite() {
+            v
+        } else {
+            f64::INFINITY
+        }
+    };
+    let gap = mean(|s| s.statistical);
+    let pathwise = mean(|s| s.nrmse);
     (
         LevelGap {
             level: w,
             origin: data.origins[w].clone(),
-            gap,
+            gap: Some(gap),
+            pathwise: Some(pathwise),
             signals,
-            diverged: !gap.is_finite(),
+            diverged: !gap.is_finite() || !pathwise.is_finite(),
         },
         want_psd.then_some(spectra),
     )
 }
 
-pub(super) fn mean_gap(levels: &[LevelGap]) -> f64 {
-    levels.iter().map(|l| l.gap).sum::<f64>() / levels.len().max(1) as f64
+/// A model's gap from its per-level gaps: the means over the levels where the gap is
+/// available (infinite when a run diverged).
+pub(super) fn model_gap(label: &str, levels: Vec<LevelGap>) -> ModelGap {
+    let mean = |f: fn(&LevelGap) -> Option<f64>| {
+        let v: Vec<f64> = levels.iter().filter_map(f).collect();
+        if v.iter().any(|x| !x.is_finite()) {
+            f64::INFINITY
+        } else {
+            v.iter().sum::<f64>() / v.len().max(1) as f64
+        }
+    };
+    ModelGap {
+        label: label.into(),
+        gap: mean(|l| l.gap),
+        pathwise: mean(|l| l.pathwise),
+        levels,
+    }
 }
 
 pub(super) fn sources<'r>(
@@ -147,8 +210,14 @@ pub(super) fn training(n: usize, w: usize) -> Vec<usize> {
 }
 
 /// Relative residual (%) of the row-normalised rows of level `w` with the parameters `p`,
-/// optionally restricted to the rows of one equation.
-pub(super) fn cov_residual(m: &Moments, p: &[f64], w: usize, equation: Option<&str>) -> f64 {
+/// optionally restricted to the rows of one equation; `None` when those rows are all zero
+/// or the residual is not finite.
+pub(super) fn cov_residual(
+    m: &Moments,
+    p: &[f64],
+    w: usize,
+    equation: Option<&str>,
+) -> Option<f64> {
     let sys = m.system();
     let n_levels = m.levels().len();
     let per = sys.rows / n_levels;
@@ -173,11 +242,8 @@ pub(super) fn cov_residual(m: &Moments, p: &[f64], w: usize, equation: Option<&s
             row.iter().zip(p).map(|(a, b)| (a * b).powi(2)).sum::<f64>() + sys.rhs[r] * sys.rhs[r];
         den += terms / (norm * norm);
     }
-    if den > 0.0 {
-        100.0 * (num / den).sqrt()
-    } else {
-        f64::NAN
-    }
+    let r = 100.0 * (num / den).sqrt();
+    (den > 0.0 && r.is_finite()).then_some(r)
 }
 
 pub(super) fn param_vector(ir: &ModelIr, id: &Identification) -> Vec<f64> {
@@ -197,14 +263,19 @@ pub(super) fn param_vector(ir: &ModelIr, id: &Identification) -> Vec<f64> {
 /// and the training fits per withheld level.
 pub(super) fn cross_validate(m: &Moments, ir: &ModelIr, n: usize) -> (f64, Vec<Identification>) {
     let mut fits = Vec::with_capacity(n);
-    let mut res = 0.0;
+    let (mut res, mut k) = (0.0, 0);
     for w in 0..n {
         let fit = m.identify_levels(&training(n, w));
         let p = param_vector(ir, &fit);
-        res += cov_residual(m, &p, w, None);
+        // A level whose rows are all zero (no excitation) has no residual.
+        if let Some(r) = cov_residual(m, &p, w, None) {
+            res += r;
+            k += 1;
+        }
         fits.push(fit);
     }
-    (res / n as f64, fits)
+    // No level with a residual: rank last.
+    (if k > 0 { res / k as f64 } else { f64::INFINITY }, fits)
 }
 
 /// Free-run gap with the training fits, each scored on its withheld level.
@@ -220,9 +291,5 @@ pub(super) fn cv_gap(
         .enumerate()
         .map(|(w, fit)| level_gap(&with_values(ir, fit), data, w, opts, false).0)
         .collect();
-    ModelGap {
-        label: label.into(),
-        gap: mean_gap(&levels),
-        levels,
-    }
+    model_gap(label, levels)
 }

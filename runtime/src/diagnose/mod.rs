@@ -20,6 +20,7 @@ pub mod types;
 
 pub use effects::{Effect, Location};
 pub use gap::read_record;
+pub use summary::fmt_shrink;
 pub use types::*;
 
 use crate::ident::Identification;
@@ -27,13 +28,37 @@ use crate::record::Record;
 use dynid_ir::ir::{ModelIr, SignalKind};
 use dynid_ir::num;
 use effects::Variant;
-use gap::{cov_residual, cross_validate, cv_gap, level_gap, mean_gap, measure_all, Data};
+use gap::{
+    cov_residual, cross_validate, cv_gap, level_gap, measure_all, model_gap, with_values, Data,
+};
 use rayon::prelude::*;
 use search::search_step;
 
 /// Values in the diagnosis' text and report: five significant digits.
 pub fn fmt_num(v: f64) -> String {
     num::sig(v, 5, false)
+}
+
+/// A gap in % for the text and report: one decimal, "diverged" for an infinite gap (a run
+/// that diverged), "unavailable" for one that cannot be computed.
+pub fn fmt_gap(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.1} %")
+    } else if v == f64::INFINITY {
+        "diverged".into()
+    } else {
+        "unavailable".into()
+    }
+}
+
+/// [`fmt_gap`] of a gap that may be unavailable.
+pub fn fmt_opt_gap(v: Option<f64>) -> String {
+    v.map_or("unavailable".into(), fmt_gap)
+}
+
+/// `1 − after / before`; `None` when either gap is not finite or `before` is 0.
+pub fn shrink(before: f64, after: f64) -> Option<f64> {
+    (before.is_finite() && after.is_finite() && before > 0.0).then(|| 1.0 - after / before)
 }
 
 /// Diagnose the gap between the model in `source` and measured `levels` (one record per
@@ -76,7 +101,7 @@ pub fn diagnose(
         origins: &origins,
         response: response.clone(),
     };
-    let mut notes = Vec::new();
+    let mut notes: Vec<String> = Vec::new();
 
     // Before: the nominal model on every level.
     let nominal_runs: Vec<_> = (0..n)
@@ -84,11 +109,16 @@ pub fn diagnose(
         .map(|w| level_gap(&ir, &data, w, opts, true))
         .collect();
     let nominal_levels: Vec<LevelGap> = nominal_runs.iter().map(|r| r.0.clone()).collect();
-    let nominal = ModelGap {
-        label: "nominal".into(),
-        gap: mean_gap(&nominal_levels),
-        levels: nominal_levels,
-    };
+    if nominal_levels.iter().all(|l| l.gap.is_none()) {
+        return Err(DiagnoseError::NoVariance);
+    }
+    for l in nominal_levels.iter().filter(|l| l.gap.is_none()) {
+        notes.push(format!(
+            "{}: no response signal varies, so its gap is unavailable and left out of the means",
+            l.origin
+        ));
+    }
+    let nominal = model_gap("nominal", nominal_levels);
     // Where: covariance residual per equation with the nominal values; drift per level.
     let m = measure_all(&ir, &data, opts)?;
     let p_nom: Vec<f64> = ir
@@ -172,6 +202,7 @@ pub fn diagnose(
         .collect();
     let (_, base_fits) = cross_validate(&m, &ir, n);
     let reidentified = cv_gap(&ir, &base_fits, &data, opts, "re-identified");
+    let reid_fits = base_fits.clone();
     drop(m);
 
     // Which effect: greedy search.
@@ -181,6 +212,7 @@ pub fn diagnose(
     };
     let mut current_gap = reidentified.clone();
     let mut current_fit = pooled.clone();
+    let mut current_fits = base_fits;
     let mut found = Vec::new();
     let mut ranking = Vec::new();
     let mut residual_ranking = Vec::new();
@@ -199,7 +231,16 @@ pub fn diagnose(
         } else if s.best.is_none() {
             residual_ranking = s.ranking;
         }
-        let Some((c, v, g, fit)) = s.best else { break };
+        let Some(search::Accepted {
+            score: c,
+            variant: v,
+            gap: g,
+            fit,
+            fits,
+        }) = s.best
+        else {
+            break;
+        };
         let param = v.added.last().cloned().unwrap_or_default();
         let element =
             v.ir.elements
@@ -217,10 +258,13 @@ pub fn diagnose(
             stderr: c.stderr,
             gap_before: current_gap.gap,
             gap_after: g.gap,
+            pathwise_gap_before: current_gap.pathwise,
+            pathwise_gap_after: g.pathwise,
         });
         current = v;
         current_gap = g;
         current_fit = fit;
+        current_fits = fits;
     }
 
     // The corrected model: identified on all levels, values written as nominals.
@@ -236,29 +280,49 @@ pub fn diagnose(
         ..current_gap.clone()
     };
 
-    // Spectra on the level where the nominal model misses most.
+    // Spectra on the level where the nominal model misses most: the nominal model, and the
+    // re-identified and corrected models fitted without that level (as scored).
     let big = (0..n)
-        .max_by(|&a, &b| nominal.levels[a].gap.total_cmp(&nominal.levels[b].gap))
+        .max_by(|&a, &b| {
+            let g = |w: usize| nominal.levels[w].gap.unwrap_or(f64::NEG_INFINITY);
+            g(a).total_cmp(&g(b))
+        })
         .unwrap_or(0);
-    let corrected_runs = level_gap(&fixed_ir, &data, big, opts, true);
+    let reid_runs = level_gap(&with_values(&ir, &reid_fits[big]), &data, big, opts, true);
+    let corrected_runs = if found.is_empty() {
+        None
+    } else {
+        Some(level_gap(
+            &with_values(&current.ir, &current_fits[big]),
+            &data,
+            big,
+            opts,
+            true,
+        ))
+    };
     let mut spectra = Vec::new();
-    if let (Some(nom), Some(cor)) = (&nominal_runs[big].1, &corrected_runs.1) {
-        for ((sig, f, pm, ps), (_, _, _, pc)) in nom.iter().zip(cor) {
+    if let (Some(nom), Some(re)) = (&nominal_runs[big].1, &reid_runs.1) {
+        let cor = corrected_runs.as_ref().and_then(|r| r.1.as_ref());
+        for (k, ((sig, f, pm, ps), (_, _, _, pr))) in nom.iter().zip(re).enumerate() {
+            let mut models = vec![
+                ("nominal".to_string(), ps.clone()),
+                ("re-identified (level withheld)".to_string(), pr.clone()),
+            ];
+            if let Some((_, _, _, pc)) = cor.and_then(|c| c.get(k)) {
+                models.push(("corrected (level withheld)".into(), pc.clone()));
+            }
             spectra.push(Spectrum {
                 signal: sig.clone(),
                 level: big,
                 freqs: f.clone(),
                 measured: pm.clone(),
-                models: vec![
-                    ("nominal".into(), ps.clone()),
-                    ("corrected".into(), pc.clone()),
-                ],
+                models,
             });
         }
     }
 
     let gap_before = nominal.gap;
-    let gap_after = corrected.gap.min(gap_before);
+    let gap_after = corrected.gap;
     let verdict = if !found.is_empty() {
         Verdict::MissingEffect
     } else if reidentified.gap < 0.5 * gap_before && gap_before > opts.min_abs_shrink * 2.0 {
@@ -278,20 +342,17 @@ pub fn diagnose(
         response_signals: response,
         verdict,
         gap_before,
-        gap_after: if found.is_empty() {
-            reidentified.gap.min(gap_before)
+        gap_reidentified: reidentified.gap,
+        gap_after,
+        shrink: shrink(gap_before, gap_after),
+        effect_shrink: if found.is_empty() {
+            Some(0.0)
         } else {
-            gap_after
+            shrink(reidentified.gap, gap_after)
         },
-        shrink: if gap_before > 0.0 {
-            1.0 - (if found.is_empty() {
-                reidentified.gap.min(gap_before)
-            } else {
-                gap_after
-            }) / gap_before
-        } else {
-            0.0
-        },
+        pathwise_gap_before: nominal.pathwise,
+        pathwise_gap_reidentified: reidentified.pathwise,
+        pathwise_gap_after: corrected.pathwise,
         nominal,
         reidentified,
         corrected,

@@ -4,8 +4,8 @@
 use super::effects::{add_effect, locations, Effect, Location, Variant};
 use super::gap::Data;
 use super::gap::{cross_validate, cv_gap, measure_all};
-use super::metrics;
 use super::types::{CandidateScore, DiagnoseOptions, FoundEffect, ModelGap};
+use super::{fmt_gap, metrics};
 use crate::ident::Identification;
 use dynid_ir::ir::SignalKind;
 use dynid_ir::num;
@@ -13,7 +13,17 @@ use rayon::prelude::*;
 
 pub(super) struct Search {
     pub(super) ranking: Vec<CandidateScore>,
-    pub(super) best: Option<(CandidateScore, Variant, ModelGap, Identification)>,
+    /// The accepted candidate: its score, model, withheld gap, fit on all levels and the
+    /// training fit for each withheld level.
+    pub(super) best: Option<Accepted>,
+}
+
+pub(super) struct Accepted {
+    pub(super) score: CandidateScore,
+    pub(super) variant: Variant,
+    pub(super) gap: ModelGap,
+    pub(super) fit: Identification,
+    pub(super) fits: Vec<Identification>,
 }
 
 /// One greedy step: try every effect at every location on top of `base`, except the kinds
@@ -135,6 +145,7 @@ pub(super) fn search_step(
                 sign_ok: est.value.is_finite() && eff.sign_ok(est.value),
                 cv_residual: cv,
                 gap: None,
+                pathwise_gap: None,
                 accepted: false,
                 note: String::new(),
             };
@@ -201,6 +212,7 @@ pub(super) fn search_step(
         scored += 1;
         let g = cv_gap(&r.1.ir, &r.2, data, opts, "corrected");
         results[i].0.gap = Some(g.gap);
+        results[i].0.pathwise_gap = Some(g.pathwise);
         gaps.push((i, g));
     }
     // Free-run gaps within 10 % of the best are a tie (a wide dead zone mimics a cubic
@@ -218,26 +230,30 @@ pub(super) fn search_step(
     let mut out_best = None;
     if let Some((i, g)) = best {
         let shrink_abs = baseline - g.gap;
+        // A current model that diverges on a withheld level is beaten by any finite gap.
         let ok = g.gap.is_finite()
-            && shrink_abs > opts.min_abs_shrink
-            && shrink_abs > opts.min_rel_shrink * baseline;
+            && (baseline == f64::INFINITY
+                || (shrink_abs > opts.min_abs_shrink
+                    && shrink_abs > opts.min_rel_shrink * baseline));
         if ok {
             results[i].0.accepted = true;
             results[i].0.note = "accepted".into();
             let r = &results[i];
-            out_best = Some((
-                r.0.clone(),
-                Variant {
+            out_best = Some(Accepted {
+                score: r.0.clone(),
+                variant: Variant {
                     ir: r.1.ir.clone(),
                     added: r.1.added.clone(),
                 },
-                g,
-                r.3.clone(),
-            ));
+                gap: g,
+                fit: r.3.clone(),
+                fits: r.2.clone(),
+            });
         } else {
             results[i].0.note = format!(
-                "gap {:.1} % vs {:.1} % without it: not a material reduction",
-                g.gap, baseline
+                "gap {} vs {} without it: not a material reduction",
+                fmt_gap(g.gap),
+                fmt_gap(baseline)
             );
         }
     }

@@ -1,7 +1,17 @@
 //! The diagnosis as text: verdict, location, effect, gaps and the evidence behind them.
 
-use super::fmt_num;
-use super::types::{Diagnosis, MovedParam, Verdict};
+use super::types::{Diagnosis, ModelGap, MovedParam, Verdict};
+use super::{fmt_gap, fmt_num, fmt_opt_gap, shrink};
+
+/// A shrink as "N % `word`" (e.g. "N % smaller"), "N % larger" when the gap grew, or
+/// "change unavailable" when a gap diverged.
+pub fn fmt_shrink(shrink: Option<f64>, word: &str) -> String {
+    match shrink {
+        Some(x) if x >= 0.0 => format!("{:.0} % {word}", 100.0 * x),
+        Some(x) => format!("{:.0} % larger", -100.0 * x),
+        None => "change unavailable".into(),
+    }
+}
 
 impl Diagnosis {
     /// A short human summary: verdict, location, effect, shrink, evidence.
@@ -17,28 +27,28 @@ impl Diagnosis {
             self.response_signals.join(", ")
         );
         let _ = writeln!(s);
-        let _ = writeln!(s, "Gap (free-run NRMSE, mean over response signals):");
         let _ = writeln!(
             s,
-            "  nominal model                      {:>7.1} %",
-            self.nominal.gap
+            "Gap (mean over response signals and levels; statistical: spectrum and std of each signal, the headline; pathwise: free-run NRMSE):"
         );
-        let _ = writeln!(
-            s,
-            "  re-identified (withheld level)     {:>7.1} %",
-            self.reidentified.gap
-        );
-        if !self.found.is_empty() {
+        let _ = writeln!(s, "{:<38}{:>12}{:>12}", "", "statistical", "pathwise");
+        let mut row = |label: &str, g: &ModelGap| {
             let _ = writeln!(
                 s,
-                "  corrected model (withheld level)   {:>7.1} %",
-                self.corrected.gap
+                "  {label:<36}{:>12}{:>12}",
+                fmt_gap(g.gap),
+                fmt_gap(g.pathwise)
             );
+        };
+        row("nominal model", &self.nominal);
+        row("re-identified (withheld level)", &self.reidentified);
+        if !self.found.is_empty() {
+            row("corrected model (withheld level)", &self.corrected);
         }
         let _ = writeln!(s);
         // Where.
         let worst: Vec<String> = {
-            let mut sig: Vec<(String, f64)> = self
+            let mut sig: Vec<(String, Option<f64>)> = self
                 .response_signals
                 .iter()
                 .map(|name| {
@@ -47,15 +57,17 @@ impl Diagnosis {
                         .levels
                         .iter()
                         .filter_map(|l| l.signals.iter().find(|g| &g.signal == name))
-                        .map(|g| g.nrmse)
+                        .map(|g| g.statistical)
                         .collect();
-                    (name.clone(), v.iter().sum::<f64>() / v.len().max(1) as f64)
+                    let mean = (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
+                    (name.clone(), mean)
                 })
                 .collect();
-            sig.sort_by(|a, b| b.1.total_cmp(&a.1));
+            let key = |v: &Option<f64>| v.unwrap_or(f64::NEG_INFINITY);
+            sig.sort_by(|a, b| key(&b.1).total_cmp(&key(&a.1)));
             sig.iter()
                 .take(3)
-                .map(|(n, v)| format!("{n} {v:.1} %"))
+                .map(|(n, v)| format!("{n} {}", fmt_opt_gap(*v)))
                 .collect()
         };
         let _ = writeln!(s, "Where: worst signals (nominal): {}", worst.join(", "));
@@ -63,11 +75,9 @@ impl Diagnosis {
             .equations
             .iter()
             .map(|e| {
-                format!(
-                    "{} {:.1} %",
-                    e.equation,
-                    e.per_level.iter().sum::<f64>() / e.per_level.len().max(1) as f64
-                )
+                let v: Vec<f64> = e.per_level.iter().flatten().copied().collect();
+                let mean = (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
+                format!("{} {}", e.equation, fmt_opt_gap(mean))
             })
             .collect();
         let _ = writeln!(
@@ -101,8 +111,8 @@ impl Diagnosis {
         match self.verdict {
             Verdict::MissingEffect => {
                 for (k, f) in self.found.iter().enumerate() {
-                    let shrink = 100.0 * (1.0 - f.gap_after / f.gap_before.max(1e-300));
-                    let conf = confidence(f.value / f.stderr, shrink);
+                    let step = shrink(f.gap_before, f.gap_after);
+                    let conf = confidence(f.value / f.stderr, step.map_or(0.0, |x| 100.0 * x));
                     let _ = writeln!(
                         s,
                         "{} missing effect: {} at {}{}",
@@ -117,24 +127,37 @@ impl Diagnosis {
                     );
                     let _ = writeln!(
                         s,
-                        "  identified {} = {} ± {} (|p|/σ = {:.0}); withheld gap {:.1} % → {:.1} % ({:.0} % smaller); confidence: {}",
+                        "  identified {} = {} ± {} (|p|/σ = {:.0}); withheld gap {} → {} ({}; pathwise {} → {}); confidence: {}",
                         f.param,
                         fmt_num(f.value),
                         fmt_num(f.stderr),
                         f.value.abs() / f.stderr,
-                        f.gap_before,
-                        f.gap_after,
-                        shrink,
+                        fmt_gap(f.gap_before),
+                        fmt_gap(f.gap_after),
+                        fmt_shrink(step, "smaller"),
+                        fmt_gap(f.pathwise_gap_before),
+                        fmt_gap(f.pathwise_gap_after),
                         conf
                     );
                 }
                 let _ = writeln!(
                     s,
-                    "Overall: {:.1} % → {:.1} % ({:.0} % of the gap removed); remaining {:.1} %",
-                    self.gap_before,
-                    self.gap_after,
-                    100.0 * self.shrink,
-                    self.gap_after
+                    "Re-identification alone: {} → {}; the effect{}: {} → {} ({})",
+                    fmt_gap(self.gap_before),
+                    fmt_gap(self.gap_reidentified),
+                    if self.found.len() > 1 { "s" } else { "" },
+                    fmt_gap(self.gap_reidentified),
+                    fmt_gap(self.gap_after),
+                    fmt_shrink(self.effect_shrink, "of the re-identified gap removed"),
+                );
+                let _ = writeln!(
+                    s,
+                    "Overall (nominal → corrected): {} → {} ({}); pathwise {} → {}",
+                    fmt_gap(self.gap_before),
+                    fmt_gap(self.gap_after),
+                    fmt_shrink(self.shrink, "of the gap removed"),
+                    fmt_gap(self.pathwise_gap_before),
+                    fmt_gap(self.pathwise_gap_after),
                 );
                 if let Some(next) = self
                     .ranking
@@ -144,10 +167,10 @@ impl Diagnosis {
                 {
                     let _ = writeln!(
                         s,
-                        "  runner-up: {} at {} (withheld gap {:.1} %)",
+                        "  runner-up: {} at {} (withheld gap {})",
                         next.effect.name(),
                         next.location.label(),
-                        next.gap.unwrap_or(f64::NAN)
+                        fmt_opt_gap(next.gap)
                     );
                 }
                 if !self.residual_ranking.is_empty() {
@@ -155,7 +178,7 @@ impl Diagnosis {
                     for c in self.residual_ranking.iter().take(4) {
                         let gap = c
                             .gap
-                            .map_or(String::new(), |g| format!(", withheld gap {g:.1} %"));
+                            .map_or(String::new(), |g| format!(", withheld gap {}", fmt_gap(g)));
                         let val = if c.value.is_finite() {
                             format!("{} ± {}", fmt_num(c.value), fmt_num(c.stderr))
                         } else {
@@ -178,8 +201,11 @@ impl Diagnosis {
             Verdict::MistunedParameters => {
                 let _ = writeln!(
                     s,
-                    "Mis-tuned parameters: re-identification alone removes the gap ({:.1} % → {:.1} %); no significant unmodelled effect.",
-                    self.nominal.gap, self.reidentified.gap
+                    "Mis-tuned parameters: re-identification alone removes the gap ({} → {}; pathwise {} → {}); no significant unmodelled effect.",
+                    fmt_gap(self.nominal.gap),
+                    fmt_gap(self.reidentified.gap),
+                    fmt_gap(self.nominal.pathwise),
+                    fmt_gap(self.reidentified.pathwise)
                 );
                 let mut moved = self.moved.clone();
                 let size = |m: &MovedParam| m.change.map_or(f64::INFINITY, f64::abs);
@@ -198,15 +224,21 @@ impl Diagnosis {
             Verdict::Consistent => {
                 let _ = writeln!(
                     s,
-                    "No significant unmodelled effect: the model matches the data within {:.1} %.",
-                    self.reidentified.gap.min(self.nominal.gap)
+                    "No significant unmodelled effect: the model matches the data within {} (statistical gap, {}).",
+                    fmt_gap(self.reidentified.gap.min(self.nominal.gap)),
+                    if self.reidentified.gap < self.nominal.gap {
+                        "re-identified"
+                    } else {
+                        "nominal"
+                    }
                 );
             }
             Verdict::Unexplained => {
                 let _ = writeln!(
                     s,
-                    "No significant unmodelled effect from the library explains the remaining gap of {:.1} %.",
-                    self.reidentified.gap
+                    "No significant unmodelled effect from the library explains the remaining gap of {} (re-identified; pathwise {}).",
+                    fmt_gap(self.reidentified.gap),
+                    fmt_gap(self.reidentified.pathwise)
                 );
             }
         }

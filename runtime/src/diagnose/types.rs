@@ -27,6 +27,12 @@ pub enum DiagnoseError {
         help("measure at least one body signal")
     )]
     NoResponse,
+    #[error("no measured response signal varies on any level, so there is no gap to measure")]
+    #[diagnostic(
+        code(dynid::diagnose::no_variance),
+        help("check that the levels are excited: every position and velocity column is constant after the first 10 % of each record")
+    )]
+    NoVariance,
     #[error(transparent)]
     #[diagnostic(transparent)]
     Identify(#[from] IdentifyError),
@@ -72,16 +78,21 @@ impl Default for DiagnoseOptions {
     }
 }
 
-/// Response gap of one signal on one level.
+/// Response gap of one signal on one level. A signal whose measured response has no
+/// variance on the level has no gap (the metrics divide by its spread): it is not listed.
 #[derive(Clone, Debug, Serialize)]
 pub struct SignalGap {
     pub signal: String,
-    /// Free-run NRMSE in %.
+    /// Free-run NRMSE in % (pathwise).
     pub nrmse: f64,
     /// (std(sim) − std(meas)) / std(meas) in %.
     pub std_error: f64,
     /// Mean |log10| PSD ratio over the band holding 99 % of the measured power.
     pub psd_gap: f64,
+    /// The PSD gap as an amplitude error: `100 · (10^(psd_gap/2) − 1)`, in %.
+    pub spectral: f64,
+    /// Statistical gap of the signal: `(spectral + |std_error|) / 2`, in %.
+    pub statistical: f64,
 }
 
 /// Response gap of a model on one level.
@@ -89,8 +100,12 @@ pub struct SignalGap {
 pub struct LevelGap {
     pub level: usize,
     pub origin: String,
-    /// Mean over response signals of the free-run NRMSE, in %; infinite if the run diverged.
-    pub gap: f64,
+    /// Statistical gap: mean over response signals of [`SignalGap::statistical`], in %;
+    /// infinite if the run diverged, `None` when no response signal varies on this level.
+    pub gap: Option<f64>,
+    /// Pathwise gap: mean over response signals of the free-run NRMSE, in %; infinite if the
+    /// run diverged, `None` as for `gap`.
+    pub pathwise: Option<f64>,
     pub signals: Vec<SignalGap>,
     /// The simulation diverged (the model is unstable with these parameters).
     pub diverged: bool,
@@ -100,8 +115,11 @@ pub struct LevelGap {
 #[derive(Clone, Debug, Serialize)]
 pub struct ModelGap {
     pub label: String,
-    /// Mean of the per-level gaps in % (the headline number).
+    /// Mean of the per-level statistical gaps in % (the headline number), over the levels
+    /// where it is available; infinite if a run diverged.
     pub gap: f64,
+    /// Mean of the per-level pathwise gaps (free-run NRMSE) in %, over the same levels.
+    pub pathwise: f64,
     pub levels: Vec<LevelGap>,
 }
 
@@ -109,8 +127,9 @@ pub struct ModelGap {
 #[derive(Clone, Debug, Serialize)]
 pub struct EquationGap {
     pub equation: String,
-    /// Relative RMS of `C p − c` over the (row-normalised) rows of that equation, in %.
-    pub per_level: Vec<f64>,
+    /// Relative RMS of `C p − c` over the (row-normalised) rows of that equation, in %;
+    /// `None` on a level where those rows are all zero.
+    pub per_level: Vec<Option<f64>>,
 }
 
 /// A parameter identified separately at each level.
@@ -139,8 +158,10 @@ pub struct CandidateScore {
     pub sign_ok: bool,
     /// Cross-validated covariance residual on the withheld levels, in %.
     pub cv_residual: f64,
-    /// Cross-validated free-run gap in % (only for the best few by covariance score).
+    /// Cross-validated statistical gap in % (only for the best few by covariance score).
     pub gap: Option<f64>,
+    /// Cross-validated pathwise gap in %, for the same candidates.
+    pub pathwise_gap: Option<f64>,
     pub accepted: bool,
     pub note: String,
 }
@@ -165,9 +186,12 @@ pub struct FoundEffect {
     pub param: String,
     pub value: f64,
     pub stderr: f64,
-    /// Withheld gap before and after adding this effect (in %).
+    /// Withheld statistical gap before and after adding this effect (in %).
     pub gap_before: f64,
     pub gap_after: f64,
+    /// Withheld pathwise gap (free-run NRMSE) before and after adding this effect (in %).
+    pub pathwise_gap_before: f64,
+    pub pathwise_gap_after: f64,
 }
 
 /// What kind of gap the data shows.
@@ -191,11 +215,22 @@ pub struct Diagnosis {
     pub levels: Vec<String>,
     pub response_signals: Vec<String>,
     pub verdict: Verdict,
-    /// Headline gaps in %: nominal model (all levels), and after correction (withheld).
+    /// Headline (statistical) gaps in %: the nominal model (all levels), the model as given
+    /// re-identified (withheld levels), and the corrected model (withheld levels; the
+    /// re-identified one when nothing was found). Never capped: a worse model says so.
     pub gap_before: f64,
+    pub gap_reidentified: f64,
     pub gap_after: f64,
-    /// 1 − gap_after / gap_before.
-    pub shrink: f64,
+    /// Overall: 1 − gap_after / gap_before (nominal → corrected); negative when worse;
+    /// `None` when a gap is infinite (a run diverged) or the nominal gap is 0.
+    pub shrink: Option<f64>,
+    /// What the effect(s) add: 1 − gap_after / gap_reidentified; 0 when nothing was found,
+    /// `None` as for `shrink`.
+    pub effect_shrink: Option<f64>,
+    /// The same three gaps, pathwise (free-run NRMSE), in %.
+    pub pathwise_gap_before: f64,
+    pub pathwise_gap_reidentified: f64,
+    pub pathwise_gap_after: f64,
     pub nominal: ModelGap,
     /// The model as given, re-identified on the training levels, scored on the withheld one.
     pub reidentified: ModelGap,
