@@ -412,11 +412,32 @@ fn a_level_without_response_is_unavailable_not_nan() {
         ..Default::default()
     };
     let mut records = simulate(&ir, &cfg).expect("simulates").records;
-    // Level 1 with every column zero: no excitation, no response.
-    for c in records[0].columns.iter_mut() {
+    let origins: Vec<String> = (1..=records.len()).map(|k| format!("level{k}")).collect();
+    // Level 1 with every column zero (no excitation at all) is refused up front.
+    let mut dead = records.clone();
+    for c in dead[0].columns.iter_mut() {
         c.iter_mut().for_each(|v| *v = 0.0);
     }
-    let origins: Vec<String> = (1..=records.len()).map(|k| format!("level{k}")).collect();
+    let refused = diagnose(
+        &ir,
+        &dead,
+        &origins,
+        &DiagnoseOptions::default(),
+        &|_, _| {},
+    );
+    let err = format!("{:?}", refused.err().expect("a dead level is refused"));
+    assert!(err.contains("NoExcitation"), "{err}");
+    // Level 1 with the input kept but no motion (a blocked axis): its gap is unavailable.
+    let input = records[0]
+        .names
+        .iter()
+        .position(|n| n == "u")
+        .expect("input column");
+    for (k, c) in records[0].columns.iter_mut().enumerate() {
+        if k != input {
+            c.iter_mut().for_each(|v| *v = 0.0);
+        }
+    }
     let d = diagnose(
         &ir,
         &records,
