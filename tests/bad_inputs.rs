@@ -9,9 +9,7 @@ use common::dynid;
 use std::path::{Path, PathBuf};
 
 fn model(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("models")
-        .join(name)
+    common::model_path(name)
 }
 
 /// One case: the arguments (`{dir}` is replaced by the case's temporary directory and

@@ -8,11 +8,7 @@ use common::dynid;
 use std::path::Path;
 
 fn model(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("models")
-        .join(name)
-        .display()
-        .to_string()
+    common::model_path(name).display().to_string()
 }
 
 /// Run `dynid args` with `threads` worker threads; panics unless it succeeds.

@@ -84,6 +84,13 @@ pub fn error_row(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, 
 }
 
 /// The `dynid` binary of this build.
+/// `models/NAME` as an absolute path (the CLI tests run in temporary folders).
+pub fn model_path(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("models")
+        .join(name)
+}
+
 pub fn dynid() -> std::process::Command {
     std::process::Command::new(env!("CARGO_BIN_EXE_dynid"))
 }
