@@ -425,7 +425,10 @@ fn a_level_without_response_is_unavailable_not_nan() {
         &DiagnoseOptions::default(),
         &|_, _| {},
     );
-    let err = format!("{:?}", refused.err().expect("a dead level is refused"));
+    let Err(err) = refused else {
+        panic!("a level without any motion must be refused");
+    };
+    let err = format!("{err:?}");
     assert!(err.contains("NoExcitation"), "{err}");
     // Level 1 with the input kept but no motion (a blocked axis): its gap is unavailable.
     let input = records[0]
