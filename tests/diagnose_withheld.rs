@@ -9,7 +9,9 @@
 
 mod common;
 
-use dynid::runtime::diagnose::{diagnose, fmt_opt_gap, DiagnoseOptions, Diagnosis, Verdict};
+use dynid::runtime::diagnose::{
+    diagnose, fmt_opt_gap, DiagnoseOptions, Diagnosis, FoundEffect, Verdict,
+};
 use dynid::runtime::sim::{simulate, SimConfig};
 
 const TWO_MASS: &str = include_str!("../models/two_mass_linear.dyn");
@@ -119,6 +121,16 @@ fn run(case: &Case) -> Diagnosis {
     d
 }
 
+/// The single effect found, checked to be `kind` at `(a, b)` in that order.
+fn the_one_found<'d>(d: &'d Diagnosis, kind: &str, (a, b): (&str, &str)) -> &'d FoundEffect {
+    assert_eq!(d.verdict, Verdict::MissingEffect, "{}", d.summary());
+    assert_eq!(d.found.len(), 1, "{}", d.summary());
+    let f = &d.found[0];
+    assert_eq!(f.effect.kind(), kind, "{}", d.summary());
+    assert_eq!((f.location.a.as_str(), f.location.b.as_str()), (a, b));
+    f
+}
+
 fn assert_found(d: &Diagnosis, expected: &[(&str, &str, &str)]) {
     assert_eq!(d.verdict, Verdict::MissingEffect, "{}", d.summary());
     assert_eq!(d.found.len(), expected.len(), "{}", d.summary());
@@ -226,14 +238,7 @@ fn asymmetric_spring_at_the_wall() {
     // Seeds 11–15 (`for o in 0 1 2 3 4; do DYNID_SEED_OFFSET=$o cargo test --test
     // diagnose_withheld -- --nocapture asymmetric; done`): kq = 0.99996 … 1.00016, withheld
     // gap 14.1–15.1 % → 0.1 % (99–100 % removed).
-    assert_eq!(d.verdict, Verdict::MissingEffect, "{}", d.summary());
-    assert_eq!(d.found.len(), 1, "{}", d.summary());
-    let f = &d.found[0];
-    assert_eq!(f.effect.kind(), "quadratic_stiffness", "{}", d.summary());
-    assert_eq!(
-        (f.location.a.as_str(), f.location.b.as_str()),
-        ("ground", "m1")
-    );
+    let f = the_one_found(&d, "quadratic_stiffness", ("ground", "m1"));
     eprintln!("kq = {:.5}", f.value);
     assert!((f.value - 1.0).abs() < 5e-4, "{}", d.summary());
     assert_shrink(&d, 0.95);
@@ -375,14 +380,7 @@ fn asymmetric_spring_with_input_between_samples() {
     // model keeps here (0.5–0.7 %, `a_matching_model_with_input_between_samples`): overall
     // 81 / 60 / 77 % removed on seeds 11 / 12 / 13, short of 80 %. What the effect adds
     // to the re-identified model is measured instead: 91 / 91 / 92 %.
-    assert_eq!(d.verdict, Verdict::MissingEffect, "{}", d.summary());
-    assert_eq!(d.found.len(), 1, "{}", d.summary());
-    let f = &d.found[0];
-    assert_eq!(f.effect.kind(), "quadratic_stiffness", "{}", d.summary());
-    assert_eq!(
-        (f.location.a.as_str(), f.location.b.as_str()),
-        ("ground", "m1")
-    );
+    the_one_found(&d, "quadratic_stiffness", ("ground", "m1"));
     let s = d.effect_shrink.expect("finite gaps");
     assert!(s >= 0.8, "effect shrink {s:.3}:\n{}", d.summary());
 }
