@@ -116,6 +116,18 @@ pub fn stage_csv(staged: &mut Staged, path: &Path, record: &Record) -> miette::R
     staged.write_with(path, |w| write_csv(w, record))
 }
 
+/// Create an output directory (and its parents) if missing.
+pub fn create_dir(dir: &Path) -> miette::Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| {
+        miette!(
+            code = "dynid::output::write",
+            help = "check the permissions and the free space where it goes",
+            "cannot create the output directory `{}`: {e}",
+            dir.display()
+        )
+    })
+}
+
 /// One simulated level file being written: its CSV and, for the summary, the running mean
 /// and variance of every column (Welford's update).
 struct LevelFile {
@@ -166,14 +178,7 @@ pub fn simulate_to_dir(
 ) -> miette::Result<(Truth, Vec<LevelWritten>)> {
     let n = sim::level_count(ir, cfg)?;
     let created = !dir.exists();
-    std::fs::create_dir_all(dir).map_err(|e| {
-        miette!(
-            code = "dynid::output::write",
-            help = "check the permissions and the free space where it goes",
-            "cannot create the output directory `{}`: {e}",
-            dir.display()
-        )
-    })?;
+    create_dir(dir)?;
     let result = (|| {
         let names = level_file_names(n);
         let mut staged = Staged::new();

@@ -27,5 +27,14 @@ pub mod silverbox;
 pub mod sim;
 pub mod tape;
 
+/// Collect the results of parallel per-level work; on failure, the error of the first
+/// failing item in the iterator's order (rayon's own `Result` collection returns whichever
+/// error a thread meets first, so the message would change from run to run).
+pub(crate) fn first_error_in_order<T: Send, E: Send>(
+    results: impl rayon::iter::IndexedParallelIterator<Item = Result<T, E>>,
+) -> Result<Vec<T>, E> {
+    results.collect::<Vec<_>>().into_iter().collect()
+}
+
 pub use basis::BasisEval;
 pub use ident::{identify, identify_per_level, identify_with, IdentifyError, IdentifyOptions};

@@ -251,7 +251,7 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
         .map_err(miette::Report::new)
         .wrap_err_with(|| format!("driving `{}` with `{}`", ir.name, input.display()))?;
     let params = sim::parameter_values(ir).map_err(miette::Report::new)?;
-    create_dir(&args.out)?;
+    dynid::output::create_dir(&args.out)?;
     let csv = args.out.join("driven.csv");
     let truth = serde_json::json!({
         "model": ir.name,
@@ -336,17 +336,6 @@ fn check_out_dir(dir: &Path) -> miette::Result<()> {
         p = d.parent();
     }
     Ok(())
-}
-
-fn create_dir(dir: &Path) -> miette::Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| {
-        miette::miette!(
-            code = "dynid::output::write",
-            help = "check the permissions and the free space where it goes",
-            "cannot create the output directory `{}`: {e}",
-            dir.display()
-        )
-    })
 }
 
 fn level_summary(r: &Record, path: &Path, level: Option<f64>) -> serde_json::Value {

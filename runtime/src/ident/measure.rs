@@ -26,13 +26,11 @@ pub fn measure<'m>(
     let bank = choose_bank(ir, opts)?;
     let mut plan = plan::build_structure(ir, opts.balance.unwrap_or(false), &bank)?;
     let t0 = Instant::now();
-    let stats: Vec<LevelStats> = levels
-        .par_iter()
-        .map(|src| level_stats(ir, &plan, *src, opts.chunk_len))
-        .collect::<Vec<_>>()
-        .into_iter()
-        // The first failing level in the given order, whichever thread finished first.
-        .collect::<Result<_, _>>()?;
+    let stats: Vec<LevelStats> = crate::first_error_in_order(
+        levels
+            .par_iter()
+            .map(|src| level_stats(ir, &plan, *src, opts.chunk_len)),
+    )?;
     let stats_time = t0.elapsed();
     let (noise_var, noise) = noise_plan(ir, &mut plan, &stats, opts.noise_correction);
 
@@ -138,12 +136,11 @@ pub fn measure<'m>(
     let estimators: Vec<velocity::EstimatedVelocity> = if targets.is_empty() {
         Vec::new()
     } else {
-        levels
-            .par_iter()
-            .map(|src| velocity::EstimatedVelocity::design(*src, &targets, opts.chunk_len))
-            .collect::<Vec<_>>()
-            .into_iter()
-            .collect::<Result<_, _>>()?
+        crate::first_error_in_order(
+            levels
+                .par_iter()
+                .map(|src| velocity::EstimatedVelocity::design(*src, &targets, opts.chunk_len)),
+        )?
     };
     let sources: Vec<&dyn LevelSource> = if estimators.is_empty() {
         levels.to_vec()
@@ -163,37 +160,34 @@ pub fn measure<'m>(
         })
         .collect();
 
-    let results: Vec<(LevelMoments, PhaseTimes)> = sources
-        .par_iter()
-        .zip(&stats)
-        .zip(&noise_var)
-        .map(|((src, st), var)| {
-            let mut acc = LevelAccumulator::new(&plan, eval, st.ts, st.n, opts.n_blocks, opts.hold);
-            acc.set_extra_widths(noise::extra_widths(&plan, &st.noise_var, &st.std));
-            let mut read = Duration::ZERO;
-            let mut t_read = Instant::now();
-            src.stream(opts.chunk_len, &mut |cols, len| {
-                read += t_read.elapsed();
-                acc.push(cols, len);
-                t_read = Instant::now();
-            })?;
-            if let Some((root, k, value)) = acc.non_finite {
-                return Err(non_finite_term(ir, &plan, *src, root, k, value));
-            }
-            let (mut m, mut t) = acc.finish();
-            if let Some(col) = m.overflowed_column() {
-                return Err(IdentifyError::Overflow {
-                    origin: src.origin(),
-                    term: column_label(ir, &plan, col),
-                });
-            }
-            noise::debias(&plan, &mut m, var, opts.hold);
-            t.read = read;
-            Ok::<_, IdentifyError>((m, t))
-        })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .collect::<Result<_, _>>()?;
+    let results: Vec<(LevelMoments, PhaseTimes)> =
+        crate::first_error_in_order(sources.par_iter().zip(&stats).zip(&noise_var).map(
+            |((src, st), var)| {
+                let mut acc =
+                    LevelAccumulator::new(&plan, eval, st.ts, st.n, opts.n_blocks, opts.hold);
+                acc.set_extra_widths(noise::extra_widths(&plan, &st.noise_var, &st.std));
+                let mut read = Duration::ZERO;
+                let mut t_read = Instant::now();
+                src.stream(opts.chunk_len, &mut |cols, len| {
+                    read += t_read.elapsed();
+                    acc.push(cols, len);
+                    t_read = Instant::now();
+                })?;
+                if let Some((root, k, value)) = acc.non_finite {
+                    return Err(non_finite_term(ir, &plan, *src, root, k, value));
+                }
+                let (mut m, mut t) = acc.finish();
+                if let Some(col) = m.overflowed_column() {
+                    return Err(IdentifyError::Overflow {
+                        origin: src.origin(),
+                        term: column_label(ir, &plan, col),
+                    });
+                }
+                noise::debias(&plan, &mut m, var, opts.hold);
+                t.read = read;
+                Ok::<_, IdentifyError>((m, t))
+            },
+        ))?;
     let mut times = PhaseTimes {
         read: stats_time,
         ..Default::default()

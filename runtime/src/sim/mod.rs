@@ -157,14 +157,12 @@ pub fn simulate_into(
         plan.n_levels,
         "invariant: one sink per level (`level_count`)"
     );
-    sinks
-        .par_iter_mut()
-        .enumerate()
-        .map(|(k, sink)| simulate_level(ir, &mech, &plan, cfg, k, progress, &mut **sink))
-        .collect::<Vec<_>>()
-        .into_iter()
-        // The first failing level in order, whichever thread finished first.
-        .collect::<Result<Vec<_>, _>>()?;
+    crate::first_error_in_order(
+        sinks
+            .par_iter_mut()
+            .enumerate()
+            .map(|(k, sink)| simulate_level(ir, &mech, &plan, cfg, k, progress, &mut **sink)),
+    )?;
     Ok(Truth::new(
         ir,
         cfg,
