@@ -51,8 +51,10 @@ impl Default for SimConfig {
 }
 
 /// Most samples (burn-in included) of one simulated level. Simulation streams (memory does
-/// not grow with the duration), but 2·10⁸ samples are tens of GB of CSV per level and hours
-/// of integration: a larger request is almost surely a mistyped duration or interval.
+/// not grow with the duration), but 2·10⁸ samples are over 10 GB of CSV per level (about
+/// 65 bytes per sample for a model with three recorded signals: 3 × 2·10⁶ samples of
+/// `sdof_linear` with noise wrote 400 MB) and hours of integration: a larger request is
+/// almost surely a mistyped duration or interval.
 pub const MAX_SAMPLES: f64 = 2e8;
 
 pub(super) fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
@@ -80,7 +82,7 @@ pub(super) fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
                 dynid_ir::num::sig(cfg.sample, 4, false)
             ),
             &format!(
-                "a level has at most {MAX_SAMPLES:.0e} samples (about 16 GB of CSV); shorten `--duration` or lengthen `--sample`"
+                "a level has at most {MAX_SAMPLES:.0e} samples (over 10 GB of CSV); shorten `--duration` or lengthen `--sample`"
             ),
         ));
     }
