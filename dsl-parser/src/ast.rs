@@ -77,6 +77,17 @@ pub enum AstItem {
         body: AstIdent,
         span: Span,
     },
+    /// `reference r`: a measured set point that control laws read.
+    Reference {
+        name: AstIdent,
+        span: Span,
+    },
+    /// `control u = law`: input `u` computed from the state and references.
+    Control {
+        input: AstIdent,
+        law: AstExpr,
+        span: Span,
+    },
     Measure {
         signals: Vec<AstSigRef>,
         span: Span,
@@ -273,6 +284,8 @@ fn is_keyword(r: Rule) -> bool {
             | Rule::kw_input
             | Rule::kw_on
             | Rule::kw_measure
+            | Rule::kw_reference
+            | Rule::kw_control
             | Rule::kw_param
             | Rule::kw_spring
             | Rule::kw_damper
@@ -315,6 +328,15 @@ fn build_item(p: Pair<Rule>, sink: &mut ErrorSink) -> Option<AstItem> {
         Rule::input => AstItem::Input {
             name: ident(it.next()?),
             body: ident(it.next()?),
+            span,
+        },
+        Rule::reference => AstItem::Reference {
+            name: ident(it.next()?),
+            span,
+        },
+        Rule::control => AstItem::Control {
+            input: ident(it.next()?),
+            law: build_expr(it.next()?, sink),
             span,
         },
         Rule::measure => AstItem::Measure {

@@ -301,6 +301,7 @@ fn model_struct(ir: &ModelIr, source: &str, n: &Names, opts: &CodegenOptions) ->
                 SignalKind::Position(_) => "position",
                 SignalKind::Velocity(_) => "velocity",
                 SignalKind::Input(_) => "input",
+                SignalKind::Reference(_) => "reference",
             };
             let d = doc(&format!(" Index of signal `{}` ({what}).", s.name));
             let i = Literal::usize_unsuffixed(i);

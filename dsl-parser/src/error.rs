@@ -125,6 +125,9 @@ error_kinds! {
     DuplicateExcitation => "dyn::duplicate_excitation",
     /// `excite` lines with different numbers of levels.
     LevelCountMismatch => "dyn::level_count_mismatch",
+    /// A control law that cannot be simulated: an unknown gain, an input or `s`/`v` read by
+    /// the law, an excited or twice-controlled input, a reference read by a force.
+    InvalidControl => "dyn::invalid_control",
     /// A value out of its range (mass ≤ 0, corner ≤ 0, unknown form-filter argument …).
     InvalidValue => "dyn::invalid_value",
 }
@@ -262,6 +265,8 @@ fn rule_name(r: &Rule) -> String {
         Rule::kw_input => "`input`",
         Rule::kw_on => "`on`",
         Rule::kw_measure => "`measure`",
+        Rule::kw_reference => "`reference`",
+        Rule::kw_control => "`control`",
         Rule::kw_param => "`param`",
         Rule::kw_spring => "`spring`",
         Rule::kw_damper => "`damper`",

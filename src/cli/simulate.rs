@@ -28,6 +28,12 @@ every recorded position to a multiple of Q (an encoder resolution, after any noi
 record positions without velocities, list the measured signals in the model
 (`measure m.x, u`).
 
+A model with a `control` line runs in closed loop: its law (`control u = 80000 * (xr -
+m.x) - 2680 * m.v`) computes the input from the simulated state and the references every
+Ts / N (N = --input-oversample), held in between; `excite xr: …` makes the set point,
+and the record holds it and the law's force as columns. With --input the references are
+read from the file instead (a column per reference; the controlled input needs none).
+
 --pd KP,KD closes a position loop around the body of the model's first input:
 u = KP (r − x) + KD (ṙ − v̂), v̂ the backward difference of the (quantised) position
 over one sample interval Ts (--tachometer: the true velocity), updated every Ts / N and
@@ -40,7 +46,7 @@ DIR/truth.json records the parameter values, levels and settings used, so identi
 results can be scored against it.
 
 With --input data.csv the model is instead driven by the measured input columns (named
-like the model's inputs, plus a uniform time column `t`), starting from rest, and its
+like the model's inputs and references, plus a uniform time column `t`), starting from rest, and its
 response is written to DIR/driven.csv on the same time base — to compare the model with
 reality.
 

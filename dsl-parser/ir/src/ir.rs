@@ -4,7 +4,8 @@
 //! - `exprs` is topologically ordered: a node only refers to nodes with smaller ids, and the
 //!   DAG is hash-consed, so structurally equal sub-expressions share one id.
 //! - `bodies[i]` is degree of freedom `i`; its position and velocity signals are
-//!   `signals[2 i]` and `signals[2 i + 1]`; input `j` is `signals[2 n_bodies + j]`.
+//!   `signals[2 i]` and `signals[2 i + 1]`; input `j` is `signals[2 n_bodies + j]`;
+//!   reference `k` is `signals[2 n_bodies + n_inputs + k]`.
 //! - `equations[i]` is the equation of motion of body `i`, written as `Σ coef · basis = 0`
 //!   (input forces appear as terms with a known coefficient −1).
 //! - Every parameter is used by at least one term (validation rejects unused parameters).
@@ -38,14 +39,25 @@ macro_rules! typed_id {
         }
     )*};
 }
-typed_id!(BodyId, InputId, ParamId, ElementId, SignalId, ExprId);
+typed_id!(
+    BodyId,
+    InputId,
+    ReferenceId,
+    ParamId,
+    ElementId,
+    SignalId,
+    ExprId
+);
 
-/// What a signal is. Signal names: body `m1` gives `m1.x` and `m1.v`; input `u` is `u`.
+/// What a signal is. Signal names: body `m1` gives `m1.x` and `m1.v`; input `u` is `u`;
+/// reference `r` is `r`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum SignalKind {
     Position(BodyId),
     Velocity(BodyId),
     Input(InputId),
+    /// A measured set point: read only by control laws, never by a force.
+    Reference(ReferenceId),
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -68,6 +80,22 @@ pub struct InputIr {
     pub name: String,
     /// The body the input force acts on (positive along the body's coordinate).
     pub body: BodyId,
+}
+
+/// `reference r`: an exogenous, measured signal (a set point) that control laws read.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceIr {
+    pub name: String,
+}
+
+/// `control u = law`: in a simulation the input `u` is not driven by its data or form
+/// filter but computed from the law, an expression of body signals, references and
+/// constants (known parameters are folded in). Identification ignores the law and uses
+/// the measured `u`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ControlIr {
+    pub input: InputId,
+    pub law: ExprId,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -303,6 +331,15 @@ pub struct ExcitationIr {
     pub levels: Vec<f64>,
 }
 
+/// `excite r: …` on a reference: the set point of a closed-loop experiment is the output of
+/// the form filter, level by level as for an input.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceExcitationIr {
+    pub reference: ReferenceId,
+    pub filter: FormFilter,
+    pub levels: Vec<f64>,
+}
+
 /// A user-specified identification filter bank.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FilterSpecIr {
@@ -321,6 +358,10 @@ pub struct SpanTable {
     pub inputs: Vec<Span>,
     pub params: Vec<Span>,
     pub elements: Vec<Span>,
+    #[serde(default)]
+    pub references: Vec<Span>,
+    #[serde(default)]
+    pub controls: Vec<Span>,
     /// Span of the whole `model` item.
     pub model: Span,
 }
@@ -338,6 +379,14 @@ pub struct ModelIr {
     pub excitation: Vec<ExcitationIr>,
     pub filter: Option<FilterSpecIr>,
     pub spans: SpanTable,
+    /// Set points of closed loops (their signals follow the inputs').
+    #[serde(default)]
+    pub references: Vec<ReferenceIr>,
+    /// Control laws, at most one per input.
+    #[serde(default)]
+    pub controls: Vec<ControlIr>,
+    #[serde(default)]
+    pub reference_excitation: Vec<ReferenceExcitationIr>,
 }
 
 impl ModelIr {
@@ -349,6 +398,13 @@ impl ModelIr {
     }
     pub fn input_signal(&self, i: InputId) -> SignalId {
         SignalId(2 * self.bodies.len() as u32 + i.0)
+    }
+    pub fn reference_signal(&self, r: ReferenceId) -> SignalId {
+        SignalId((2 * self.bodies.len() + self.inputs.len()) as u32 + r.0)
+    }
+    /// The control law of input `i`, if it is computed in closed loop.
+    pub fn control_of(&self, i: InputId) -> Option<&ControlIr> {
+        self.controls.iter().find(|c| c.input == i)
     }
     pub fn signal(&self, s: SignalId) -> &SignalIr {
         &self.signals[s.index()]
@@ -503,8 +559,8 @@ impl ModelIr {
             }
         }
         let nb = self.bodies.len();
-        if self.signals.len() != 2 * nb + self.inputs.len() {
-            return Err("signal table does not match bodies and inputs".into());
+        if self.signals.len() != 2 * nb + self.inputs.len() + self.references.len() {
+            return Err("signal table does not match bodies, inputs and references".into());
         }
         for (i, b) in self.bodies.iter().enumerate() {
             let id = BodyId(i as u32);
@@ -633,6 +689,35 @@ impl ModelIr {
                 if !origin_ok {
                     return Err(format!("{at}: a term's origin does not exist"));
                 }
+            }
+        }
+        let nr = self.references.len();
+        for c in &self.controls {
+            if c.input.index() >= self.inputs.len() {
+                return Err(format!(
+                    "control law of input #{} that does not exist",
+                    c.input.index()
+                ));
+            }
+            expr(c.law, "a control law")?;
+        }
+        for x in &self.reference_excitation {
+            if x.reference.index() >= nr {
+                return Err(format!(
+                    "excitation of reference #{} that does not exist",
+                    x.reference.index()
+                ));
+            }
+        }
+        for (k, r) in self.references.iter().enumerate() {
+            let s = self.reference_signal(ReferenceId(k as u32));
+            if self.signals.get(s.index()).map(|s| s.kind)
+                != Some(SignalKind::Reference(ReferenceId(k as u32)))
+            {
+                return Err(format!(
+                    "the signal of reference `{}` is out of place",
+                    r.name
+                ));
             }
         }
         for x in &self.excitation {

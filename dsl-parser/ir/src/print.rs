@@ -411,6 +411,9 @@ pub fn render_report(ir: &ModelIr) -> String {
         .map(|s| s.name.as_str())
         .collect();
     let _ = writeln!(out, "measured: {}", measured.join(", "));
+    for (input, law) in control_rows(ir) {
+        let _ = writeln!(out, "closed loop: {input} = {law}");
+    }
     out.push_str("\nequations of motion:\n");
     for eq in &ir.equations {
         let _ = writeln!(out, "  {}", render_equation(ir, eq));
@@ -428,10 +431,27 @@ struct JsonEquation {
     text: String,
 }
 
+/// `(input, law)` of every control law, the law as source text.
+fn control_rows(ir: &ModelIr) -> Vec<(String, String)> {
+    let pr = Printer { ir, names: &[] };
+    ir.controls
+        .iter()
+        .map(|c| (ir.inputs[c.input.index()].name.clone(), pr.expr(c.law)))
+        .collect()
+}
+
+#[derive(Serialize)]
+struct JsonControl {
+    input: String,
+    law: String,
+}
+
 #[derive(Serialize)]
 struct JsonReport {
     model: String,
     measured: Vec<String>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    controls: Vec<JsonControl>,
     equations: Vec<JsonEquation>,
     params: Vec<ParamRow>,
     columns: Vec<ColumnRow>,
@@ -446,6 +466,10 @@ pub fn report_json(ir: &ModelIr) -> serde_json::Value {
             .iter()
             .filter(|s| s.measured)
             .map(|s| s.name.clone())
+            .collect(),
+        controls: control_rows(ir)
+            .into_iter()
+            .map(|(input, law)| JsonControl { input, law })
             .collect(),
         equations: ir
             .equations
@@ -508,6 +532,12 @@ pub fn to_source(ir: &ModelIr) -> String {
             i.name,
             ir.bodies[i.body.index()].name
         );
+    }
+    for r in &ir.references {
+        let _ = writeln!(out, "    reference {}", r.name);
+    }
+    for (input, law) in control_rows(ir) {
+        let _ = writeln!(out, "    control {input} = {law}");
     }
     if ir.signals.iter().any(|s| !s.measured) {
         let m: Vec<&str> = ir
@@ -585,8 +615,8 @@ pub fn to_source(ir: &ModelIr) -> String {
             join_signed(&pieces)
         );
     }
-    for x in &ir.excitation {
-        let form = match x.filter {
+    let excite = |out: &mut String, name: &str, filter: &FormFilter, levels: &[f64]| {
+        let form = match *filter {
             FormFilter::Lowpass { corner } => format!("lowpass(corner = {})", fmt_num(corner)),
             FormFilter::SecondOrder { freq, damping } => format!(
                 "second_order(freq = {}, damping = {})",
@@ -595,13 +625,24 @@ pub fn to_source(ir: &ModelIr) -> String {
             ),
             FormFilter::White => "white".into(),
         };
-        let levels: Vec<String> = x.levels.iter().map(|l| fmt_num(*l)).collect();
+        let levels: Vec<String> = levels.iter().map(|l| fmt_num(*l)).collect();
         let _ = writeln!(
             out,
-            "    excite {}: {form} levels [{}]",
-            ir.inputs[x.input.index()].name,
+            "    excite {name}: {form} levels [{}]",
             levels.join(", ")
         );
+    };
+    for x in &ir.excitation {
+        excite(
+            &mut out,
+            &ir.inputs[x.input.index()].name,
+            &x.filter,
+            &x.levels,
+        );
+    }
+    for x in &ir.reference_excitation {
+        let name = &ir.references[x.reference.index()].name;
+        excite(&mut out, name, &x.filter, &x.levels);
     }
     if let Some(f) = &ir.filter {
         let corners: Vec<String> = f.corners.iter().map(|c| fmt_num(*c)).collect();

@@ -84,6 +84,7 @@ impl Lowerer<'_> {
                 let ctx = Ctx {
                     s: &s_tree,
                     v: &v_tree,
+                    law: false,
                 };
                 let (ss, s_core) = s_tree.clone().extract_scale();
                 let (vs, v_core) = v_tree.clone().extract_scale();

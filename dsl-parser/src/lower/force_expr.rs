@@ -14,6 +14,9 @@ use crate::ir::*;
 pub(super) struct Ctx<'a> {
     pub(super) s: &'a LExpr,
     pub(super) v: &'a LExpr,
+    /// Lowering a control law: parameters are their known values, references are signals,
+    /// and `s`, `v` and inputs do not exist.
+    pub(super) law: bool,
 }
 
 impl Lowerer<'_> {
@@ -43,6 +46,13 @@ impl Lowerer<'_> {
         };
         match &e.kind {
             AstExprKind::Num(v) => Some(LExpr::Const(*v)),
+            AstExprKind::ParamDecl(name, value) if ctx.law => match value {
+                AstValue::Known(n) => Some(LExpr::Const(n.value)),
+                AstValue::Nominal(_) => {
+                    self.unknown_gain(&name.name, e.span);
+                    None
+                }
+            },
             AstExprKind::ParamDecl(..) => Some(LExpr::Const(1.0)),
             AstExprKind::Ref(r) => self.lower_ref(r, ctx, coef),
             AstExprKind::Neg(a) => {
@@ -208,6 +218,9 @@ impl Lowerer<'_> {
                 }
             };
         }
+        if ctx.law {
+            return self.lower_law_ref(r);
+        }
         match name {
             "s" => return Some(ctx.s.clone()),
             "v" => return Some(ctx.v.clone()),
@@ -231,6 +244,16 @@ impl Lowerer<'_> {
                 // The term's coefficient stands for 1; any other occurrence was reported.
                 let _ = coef;
                 Some(LExpr::Const(1.0))
+            }
+            Some((Decl::Reference(_), _)) => {
+                self.err(
+                    ErrorKind::InvalidControl,
+                    format!("a force cannot read the reference `{name}`"),
+                    r.span,
+                    "a reference",
+                    "a reference is a set point that only control laws read (`control u = kp * (r - m.x)`); a force acts through the bodies' motion".into(),
+                );
+                None
             }
             Some((Decl::Body(_), _)) => {
                 self.err(
@@ -258,5 +281,75 @@ impl Lowerer<'_> {
                 None
             }
         }
+    }
+}
+
+impl Lowerer<'_> {
+    /// A plain name inside a control law (body signals were resolved by the caller).
+    fn lower_law_ref(&mut self, r: &AstSigRef) -> Option<LExpr> {
+        let name = r.base.name.as_str();
+        let refuse = |l: &mut Self, message: String, label: &str, help: &str| {
+            l.err(
+                ErrorKind::InvalidControl,
+                message,
+                r.span,
+                label,
+                help.into(),
+            );
+            None
+        };
+        match self.names.get(name).copied() {
+            Some((Decl::Reference(k), _)) => Some(LExpr::Sig(SignalId(
+                (2 * self.bodies.len() + self.inputs.len()) as u32 + k.0,
+            ))),
+            Some((Decl::Param(p), _)) | Some((Decl::Element(Some(p)), _)) => {
+                self.pending[p].mentioned = true;
+                match self.pending[p].value {
+                    Some(AstValue::Known(n)) => Some(LExpr::Const(n.value)),
+                    _ => {
+                        self.unknown_gain(name, r.span);
+                        None
+                    }
+                }
+            }
+            Some((Decl::Input(_), _)) => refuse(
+                self,
+                format!("a control law cannot read the input `{name}`"),
+                "an input",
+                "a law computes its input from body signals (`m.x`, `m.v`), references and known numbers",
+            ),
+            Some((Decl::Body(_), _)) => refuse(
+                self,
+                format!("body `{name}` is not a value"),
+                "a body",
+                "write its position `NAME.x` or velocity `NAME.v`",
+            ),
+            Some((Decl::Element(None), _)) => refuse(
+                self,
+                format!("element `{name}` is not a value"),
+                "an element",
+                "a law reads body signals (`m.x`, `m.v`), references and known numbers",
+            ),
+            None if matches!(name, "s" | "v" | "t") => refuse(
+                self,
+                format!("`{name}` has no meaning in a control law"),
+                "not available",
+                "`s` and `v` belong to force elements; a law reads body signals (`m.x`, `m.v`), references and known numbers",
+            ),
+            None => {
+                self.undefined(&r.base, r.span, "a law reads body signals, references and known parameters");
+                None
+            }
+        }
+    }
+
+    fn unknown_gain(&mut self, name: &str, span: Span) {
+        self.err(
+            ErrorKind::InvalidControl,
+            format!("the control law uses `{name}`, which is not a known value"),
+            span,
+            "unknown",
+            format!("a controller's gains are known settings: declare `param {name} = VALUE`"),
+        );
     }
 }

@@ -34,6 +34,7 @@ use std::collections::HashMap;
 enum Decl {
     Body(BodyId),
     Input(InputId),
+    Reference(ReferenceId),
     /// An element; springs and dampers own the parameter of the same name.
     Element(Option<usize>),
     /// A parameter (index into `Lowerer::pending`).
@@ -60,6 +61,7 @@ struct Lowerer<'a> {
     bodies: Vec<BodyIr>,
     body_spans: Vec<Span>,
     inputs: Vec<(String, AstIdent, Span)>,
+    references: Vec<(String, Span)>,
     pending: Vec<Pending>,
     params: Vec<ParamIr>,
     param_spans: Vec<Span>,
@@ -73,6 +75,7 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
         bodies: Vec::new(),
         body_spans: Vec::new(),
         inputs: Vec::new(),
+        references: Vec::new(),
         pending: Vec::new(),
         params: Vec::new(),
         param_spans: Vec::new(),
@@ -95,6 +98,8 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
             _ => None,
         })
         .collect();
+    // Laws before the check of unused parameters: a gain used only by a law is used.
+    let (controls, control_spans) = l.controls(ast);
     for p in &l.pending {
         if p.statement && p.id.is_none() && !p.mentioned {
             let name = &p.name;
@@ -142,6 +147,14 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
             measured: true,
         });
     }
+    for (k, (name, _)) in l.references.iter().enumerate() {
+        signals.push(SignalIr {
+            name: name.clone(),
+            kind: SignalKind::Reference(ReferenceId(k as u32)),
+            // A set point is always a column of the data.
+            measured: true,
+        });
+    }
     // Input signals are interned: the input forces of the equations refer to them.
     for j in 0..inputs.len() {
         l.arena.signal(SignalId((2 * nb + j) as u32));
@@ -160,6 +173,13 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
         equations: Vec::new(),
         excitation: Vec::new(),
         filter: None,
+        references: l
+            .references
+            .iter()
+            .map(|(name, _)| ReferenceIr { name: name.clone() })
+            .collect(),
+        controls,
+        reference_excitation: Vec::new(),
         spans: SpanTable {
             bodies: std::mem::take(&mut l.body_spans),
             inputs: input_spans,
@@ -172,6 +192,8 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
                     _ => None,
                 })
                 .collect(),
+            references: l.references.iter().map(|r| r.1).collect(),
+            controls: control_spans,
             model: ast.span,
         },
     };
@@ -280,6 +302,11 @@ impl Lowerer<'_> {
                     self.register(name, Decl::Input(id), "input");
                     self.inputs.push((name.name.clone(), body.clone(), *span));
                 }
+                AstItem::Reference { name, span } => {
+                    let id = ReferenceId(self.references.len() as u32);
+                    self.register(name, Decl::Reference(id), "reference");
+                    self.references.push((name.name.clone(), *span));
+                }
                 AstItem::Param { name, value, span } => {
                     let p = self.add_pending(name, *value, *span, true);
                     self.register(name, Decl::Param(p), "parameter");
@@ -340,6 +367,62 @@ impl Lowerer<'_> {
             let p = self.add_pending(&name, Some(value), span, false);
             self.register(&name, Decl::Param(p), "parameter");
         }
+    }
+
+    /// The `control` statements: each law lowered over body signals, references and known
+    /// values, at most one per input.
+    fn controls(&mut self, ast: &AstModel) -> (Vec<ControlIr>, Vec<Span>) {
+        let mut out: Vec<ControlIr> = Vec::new();
+        let mut spans: Vec<Span> = Vec::new();
+        let zero = expr::LExpr::Const(0.0);
+        for item in &ast.items {
+            let AstItem::Control { input, law, span } = item else {
+                continue;
+            };
+            let span = &Span::new(span.start, law.span.end.max(span.start));
+            let id = match self.names.get(&input.name).copied() {
+                Some((Decl::Input(i), _)) => Some(i),
+                _ => {
+                    self.err(
+                        ErrorKind::InvalidControl,
+                        format!("`{}` is not an input", input.name),
+                        input.span,
+                        "not an input",
+                        "a control law computes an input: declare `input u on BODY` and write `control u = …`".into(),
+                    );
+                    None
+                }
+            };
+            let ctx = force_expr::Ctx {
+                s: &zero,
+                v: &zero,
+                law: true,
+            };
+            let lowered = self.lower_expr(law, &ctx, None);
+            let Some(i) = id else { continue };
+            if let Some(k) = out.iter().position(|c| c.input == i) {
+                self.sink.draft(
+                    ErrorKind::InvalidControl,
+                    crate::error::Draft {
+                        message: format!("input `{}` has two control laws", input.name),
+                        span: Some(*span),
+                        label: "second law".into(),
+                        other: Some(spans[k]),
+                        other_label: "first law".into(),
+                        help: "give each input one `control` line".into(),
+                    },
+                );
+                continue;
+            }
+            if let Some(x) = lowered {
+                out.push(ControlIr {
+                    input: i,
+                    law: x.intern(&mut self.arena),
+                });
+                spans.push(*span);
+            }
+        }
+        (out, spans)
     }
 
     fn check_positive(&mut self, n: &AstNumber, what: &str) -> bool {

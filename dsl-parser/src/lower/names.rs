@@ -17,8 +17,24 @@ pub(super) const FUNCTIONS: &[(&str, usize)] = &[
 ];
 
 const KEYWORDS: &[&str] = &[
-    "model", "body", "input", "on", "measure", "param", "spring", "damper", "force", "excite",
-    "levels", "filter", "corners", "order", "driven", "by",
+    "model",
+    "body",
+    "input",
+    "reference",
+    "control",
+    "on",
+    "measure",
+    "param",
+    "spring",
+    "damper",
+    "force",
+    "excite",
+    "levels",
+    "filter",
+    "corners",
+    "order",
+    "driven",
+    "by",
 ];
 
 pub(super) fn is_reserved(name: &str) -> bool {

@@ -32,10 +32,16 @@ impl Lowerer<'_> {
                     }
                 }
             }
+            // A reference is a column of the data whether listed or not.
+            for s in ir.signals.iter_mut() {
+                if matches!(s.kind, SignalKind::Reference(_)) {
+                    s.measured = true;
+                }
+            }
         }
         // excite
         let mut first: Option<(usize, Span)> = None;
-        let mut seen: HashMap<InputId, Span> = HashMap::new();
+        let mut seen: HashMap<SignalId, Span> = HashMap::new();
         for item in &ast.items {
             let AstItem::Excite {
                 input,
@@ -48,7 +54,21 @@ impl Lowerer<'_> {
                 continue;
             };
             let id = match self.names.get(&input.name) {
-                Some(&(Decl::Input(i), _)) => Some(i),
+                Some(&(Decl::Input(i), _)) => {
+                    if ir.control_of(i).is_some() {
+                        self.err(
+                            ErrorKind::InvalidControl,
+                            format!("input `{}` is computed by its control law and cannot be excited", input.name),
+                            input.span,
+                            "controlled",
+                            "excite the law's reference instead (`excite r: lowpass(corner = ..) levels [..]`)".into(),
+                        );
+                        None
+                    } else {
+                        Some(ir.input_signal(i))
+                    }
+                }
+                Some(&(Decl::Reference(r), _)) => Some(ir.reference_signal(r)),
                 _ => {
                     let inputs: Vec<&str> = ir.inputs.iter().map(|i| i.name.as_str()).collect();
                     let help = match (
@@ -68,7 +88,7 @@ impl Lowerer<'_> {
                     };
                     self.err(
                         ErrorKind::UnknownInput,
-                        format!("`{}` is not an input", input.name),
+                        format!("`{}` is not an input or a reference", input.name),
                         input.span,
                         "not an input",
                         help,
@@ -81,12 +101,12 @@ impl Lowerer<'_> {
                     self.sink.draft(
                         ErrorKind::DuplicateExcitation,
                         Draft {
-                            message: format!("input `{}` is excited twice", input.name),
+                            message: format!("`{}` is excited twice", input.name),
                             span: Some(input.span),
                             label: "second excitation".into(),
                             other: Some(prev),
                             other_label: "first excitation".into(),
-                            help: "give each input one `excite` line".into(),
+                            help: "give each input and reference one `excite` line".into(),
                         },
                     );
                 } else {
@@ -125,12 +145,23 @@ impl Lowerer<'_> {
                 }
                 _ => {}
             }
-            if let (Some(i), Some(filter), true) = (id, filter, good) {
-                ir.excitation.push(ExcitationIr {
-                    input: i,
-                    filter,
-                    levels: levels.iter().map(|l| l.value).collect(),
-                });
+            if let (Some(id), Some(filter), true) = (id, filter, good) {
+                let levels = levels.iter().map(|l| l.value).collect();
+                match ir.signal(id).kind {
+                    SignalKind::Reference(reference) => {
+                        ir.reference_excitation.push(ReferenceExcitationIr {
+                            reference,
+                            filter,
+                            levels,
+                        })
+                    }
+                    SignalKind::Input(input) => ir.excitation.push(ExcitationIr {
+                        input,
+                        filter,
+                        levels,
+                    }),
+                    _ => {}
+                }
             }
         }
         // filter

@@ -78,11 +78,18 @@ pub fn diagnose(
     if let Some(p) = ir.params.iter().find(|p| p.nominal().is_none()) {
         return Err(DiagnoseError::MissingNominal(p.name.clone()));
     }
+    // The responses: body signals, and in closed loop the inputs a law computes (the drive
+    // force answers the plant as much as the position does). Open-loop inputs and
+    // references are given, not responses.
     let response: Vec<String> = ir
         .measured_signals()
         .iter()
         .map(|s| ir.signal(*s))
-        .filter(|s| !matches!(s.kind, SignalKind::Input { .. }))
+        .filter(|s| match s.kind {
+            SignalKind::Position(_) | SignalKind::Velocity(_) => true,
+            SignalKind::Input(i) => ir.control_of(i).is_some(),
+            SignalKind::Reference(_) => false,
+        })
         .map(|s| s.name.clone())
         .collect();
     if response.is_empty() {

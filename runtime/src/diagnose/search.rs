@@ -39,11 +39,12 @@ pub(super) fn search_step(
 ) -> Search {
     let ir = &base.ir;
     let n = data.records.len();
-    let vel_measured = ir
-        .signals
-        .iter()
-        .filter(|s| matches!(s.kind, SignalKind::Velocity { .. }))
-        .all(|s| s.measured);
+    // A velocity term needs each velocity measured or estimable from a measured position
+    // (identification then differentiates the position, see `ident::velocity`).
+    let vel_measured = ir.signals.iter().all(|s| match s.kind {
+        SignalKind::Velocity(b) => s.measured || ir.signal(ir.position(b)).measured,
+        _ => true,
+    });
     // Gaps of the backlash grid are relative to each location's σ_s on the largest level.
     let sigma_s = |loc: &Location| -> f64 {
         let big = (0..n)
@@ -110,8 +111,8 @@ pub(super) fn search_step(
     }
     if skipped_velocity && !notes.iter().any(|s| s.contains("velocities")) {
         notes.push(
-            "velocities are not measured: Coulomb friction and quadratic damping candidates \
-             were skipped (cubic, quadratic stiffness, backlash and prestress were searched)"
+            "velocities are neither measured nor estimable from positions: Coulomb friction and \
+             quadratic damping candidates were skipped (cubic, quadratic stiffness, backlash and prestress were searched)"
                 .into(),
         );
     }

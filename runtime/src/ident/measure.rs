@@ -324,7 +324,12 @@ pub(super) fn choose_bank(
         _ => ir
             .measured_signals()
             .into_iter()
-            .filter(|s| !matches!(ir.signal(*s).kind, SignalKind::Velocity(_)))
+            .filter(|s| {
+                matches!(
+                    ir.signal(*s).kind,
+                    SignalKind::Position(_) | SignalKind::Input(_)
+                )
+            })
             .collect(),
     };
     // Accelerations from positions alone need ι'' free of the driving signal: degree ≥ 3.

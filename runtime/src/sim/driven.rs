@@ -6,7 +6,11 @@ use super::*;
 /// Drive `ir` with measured inputs and return its simulated response.
 ///
 /// `input` must contain a column for every model input (matched by name; other columns
-/// are ignored). The inputs are interpolated linearly between samples. The model starts
+/// are ignored). The inputs are interpolated linearly between samples. An input computed by
+/// a control law needs no column: the law is evaluated at every sample from the simulated
+/// state and the references' columns (which are then required) and held until the next
+/// sample, so the loop runs closed around the model (see [`super::law`]); the returned
+/// record holds the law's values in that input's column. The model starts
 /// at rest at the origin at the first sample, so the beginning of the response contains
 /// the transient from rest. The returned record has the same time base (`t0`, `ts`,
 /// length) and one column per measured signal in IR order; input columns are copies of
@@ -50,26 +54,41 @@ pub fn simulate_driven_from(
     }
     let params = parameter_values(ir)?;
     let mech = Mechanics::new(ir, &params)?;
-    let mut cols: Vec<&[f64]> = Vec::with_capacity(ir.inputs.len());
-    for inp in &ir.inputs {
+    let by_law = law::controlled(ir);
+    let column = |name: &str| -> Result<&[f64], SimError> {
         let col = input
-            .column(&inp.name)
+            .column(name)
             .ok_or_else(|| SimError::MissingInputColumn {
-                input: inp.name.clone(),
+                input: name.to_string(),
                 found: input.names.join(", "),
             })?;
         if let Some(i) = col.iter().position(|x| !x.is_finite()) {
             return Err(SimError::BadInputData {
                 what: format!(
-                    "column `{}` has the non-finite value {} at sample {i}",
-                    inp.name, col[i]
+                    "column `{name}` has the non-finite value {} at sample {i}",
+                    col[i]
                 ),
             });
         }
-        cols.push(col);
+        Ok(col)
+    };
+    // A controlled input reads no column: an empty slice stands for it.
+    let mut cols: Vec<&[f64]> = Vec::with_capacity(ir.inputs.len());
+    for (inp, &law) in ir.inputs.iter().zip(&by_law) {
+        cols.push(if law { &[] } else { column(&inp.name)? });
     }
+    let refs: Vec<&[f64]> = ir
+        .references
+        .iter()
+        .map(|r| column(&r.name))
+        .collect::<Result<_, _>>()?;
     let n = input.len();
-    let limit = divergence_limit(cols.iter().map(|c| std_dev(c)));
+    let limit = divergence_limit(
+        cols.iter()
+            .chain(&refs)
+            .filter(|c| !c.is_empty())
+            .map(|c| std_dev(c)),
+    );
     let mut rk = Rk4::new(&mech);
     if start == Start::Measured {
         set_measured_state(ir, input, &mut rk);
@@ -79,18 +98,29 @@ pub fn simulate_driven_from(
     let mut out: Vec<Vec<f64>> = measured.iter().map(|_| Vec::with_capacity(n)).collect();
     let mut u0 = vec![0.0; cols.len()];
     let mut u1 = vec![0.0; cols.len()];
+    let mut r = vec![0.0; ir.references.len()];
+    let mut laws = law::Laws::new(ir);
     for k in 0..n {
         for (j, c) in cols.iter().enumerate() {
-            u0[j] = c[k];
+            if !by_law[j] {
+                u0[j] = c[k];
+            }
+        }
+        for (v, c) in r.iter_mut().zip(&refs) {
+            *v = c[k];
+        }
+        if let Some(laws) = &mut laws {
+            laws.apply(&rk.x, &rk.v, &r, &mut u0);
         }
         for (col, &s) in out.iter_mut().zip(&measured) {
-            col.push(signal_value(ir, s, &rk, &u0));
+            col.push(signal_value(ir, s, &rk, &u0, &r));
         }
         if k + 1 == n {
             break;
         }
         for (j, c) in cols.iter().enumerate() {
-            u1[j] = c[k + 1];
+            // A law's value is held over the sample interval.
+            u1[j] = if by_law[j] { u0[j] } else { c[k + 1] };
         }
         rk.advance(&mech, &u0, &u1, input.ts, substeps);
         res.add(&rk.x);
@@ -129,10 +159,18 @@ fn set_measured_state(ir: &ModelIr, rec: &Record, rk: &mut Rk4) {
     }
 }
 
-pub(super) fn signal_value(ir: &ModelIr, s: dynid_ir::ir::SignalId, rk: &Rk4, u: &[f64]) -> f64 {
+/// The value of signal `s` given the state, the inputs `u` and the references `r`.
+pub(super) fn signal_value(
+    ir: &ModelIr,
+    s: dynid_ir::ir::SignalId,
+    rk: &Rk4,
+    u: &[f64],
+    r: &[f64],
+) -> f64 {
     match ir.signal(s).kind {
         SignalKind::Position(b) => rk.x[b.index()],
         SignalKind::Velocity(b) => rk.v[b.index()],
         SignalKind::Input(InputId(i)) => u[i as usize],
+        SignalKind::Reference(k) => r.get(k.index()).copied().unwrap_or(0.0),
     }
 }

@@ -100,7 +100,7 @@ pub enum SimError {
     #[error("the input data has no column `{input}`")]
     #[diagnostic(
         code(dynid::sim::missing_input),
-        help("the driving data needs one column per model input, named like the input (found: {found})")
+        help("the driving data needs one column per model input not computed by a control law, and one per reference, named like them (found: {found})")
     )]
     MissingInputColumn { input: String, found: String },
 

@@ -28,9 +28,13 @@
 //! - **Quantisation**: with `quantise = Some(q)` every recorded position is rounded to a
 //!   multiple of `q` after the measurement noise; velocities and inputs are not. Which
 //!   signals are recorded is the model's `measure` list.
-//! - **Closed loop**: with `control`, a PD position controller produces one input from a
-//!   random reference, on the fine grid with a zero-order hold; the record gets the
-//!   reference as the extra last column `<body>.x_ref`. See [`control`].
+//! - **Closed loop**: a model's `control` laws compute their inputs from the state and the
+//!   references (excited like inputs, recorded as columns) on the fine grid with a
+//!   zero-order hold; driven runs read the references from the data (see `law`).
+//!   Alternatively [`SimConfig::control`] (`simulate --pd`), a PD position controller
+//!   with an encoder-difference velocity, produces one input from a random reference; the
+//!   record then gets that reference as the extra last column `<body>.x_ref`. See
+//!   [`control`].
 //! - **Measurement noise**: white Gaussian, standard deviation `noise · std(signal)` per
 //!   measured signal (std of the clean record of that level), from an RNG stream separate
 //!   from the excitation, so switching noise on or off leaves the clean trajectory intact.
@@ -67,6 +71,7 @@ pub mod control;
 mod driven;
 mod error;
 pub(crate) mod excite;
+mod law;
 mod mech;
 mod output;
 mod stream;
@@ -186,8 +191,10 @@ struct ExcitationPlan {
     /// Reported levels: the override, or the first excitation's intensities.
     levels: Vec<f64>,
     /// `filters[input] = Some((filter, intensities per level))`; `None` for inputs without
-    /// an excitation and for the controlled input.
+    /// an excitation and for controlled inputs.
     filters: Vec<Option<(FormFilter, Vec<f64>)>>,
+    /// The same for each reference of the model's control laws (`None`: held at 0).
+    references: Vec<Option<(FormFilter, Vec<f64>)>>,
     control: Option<ControlPlan>,
 }
 
@@ -208,55 +215,94 @@ impl ExcitationPlan {
             .as_ref()
             .map(|c| resolve_control(ir, c))
             .transpose()?;
-        if ir.excitation.is_empty() && controlled.is_none() {
+        if ir.excitation.is_empty() && ir.reference_excitation.is_empty() && controlled.is_none() {
             return Err(SimError::NoExcitation {
                 model: ir.name.clone(),
             });
         }
+        if controlled.is_some() && !ir.controls.is_empty() {
+            return Err(config_error(
+                "the model has its own control law and a PD controller was asked for as well",
+                "drop the PD controller (`--pd`): the model's `control` line closes the loop",
+            ));
+        }
         let h = cfg.sample / cfg.input_oversample as f64;
+        let by_law = law::controlled(ir);
         let mut filters: Vec<Option<(FormFilter, Vec<f64>)>> = vec![None; ir.inputs.len()];
-        let mut seen = vec![false; ir.inputs.len()];
+        let mut references: Vec<Option<(FormFilter, Vec<f64>)>> = vec![None; ir.references.len()];
         let mut control_levels = None;
-        let first = ir.excitation.first();
-        for ex in &ir.excitation {
-            let name = || ir.inputs[ex.input.index()].name.clone();
-            if std::mem::replace(&mut seen[ex.input.index()], true) {
-                return Err(SimError::ExcitedTwice { input: name() });
+        // Every excited signal, as (name, slot, filter, levels): inputs, then references.
+        let excited: Vec<(String, Slot, &FormFilter, &Vec<f64>)> = ir
+            .excitation
+            .iter()
+            .map(|ex| {
+                let i = ex.input.index();
+                (
+                    ir.inputs[i].name.clone(),
+                    Slot::Input(i),
+                    &ex.filter,
+                    &ex.levels,
+                )
+            })
+            .chain(ir.reference_excitation.iter().map(|ex| {
+                let k = ex.reference.index();
+                (
+                    ir.references[k].name.clone(),
+                    Slot::Reference(k),
+                    &ex.filter,
+                    &ex.levels,
+                )
+            }))
+            .collect();
+        let first = excited.first();
+        let mut seen = std::collections::HashSet::new();
+        for (name, slot, filter, ex_levels) in &excited {
+            if !seen.insert(*slot) {
+                return Err(SimError::ExcitedTwice {
+                    input: name.clone(),
+                });
             }
             let levels = match (&cfg.levels, first) {
                 (Some(l), _) => l.clone(),
                 (None, Some(first)) => {
-                    if ex.levels.len() != first.levels.len() {
+                    if ex_levels.len() != first.3.len() {
                         return Err(SimError::LevelCountMismatch {
-                            first: ir.inputs[first.input.index()].name.clone(),
-                            n_first: first.levels.len(),
-                            other: name(),
-                            n_other: ex.levels.len(),
+                            first: first.0.clone(),
+                            n_first: first.3.len(),
+                            other: name.clone(),
+                            n_other: ex_levels.len(),
                         });
                     }
-                    ex.levels.clone()
+                    (*ex_levels).clone()
                 }
                 (None, None) => unreachable!("an excitation exists"),
             };
-            if controlled.map(|c| c.0) == Some(ex.input.index()) {
-                control_levels = Some(levels);
-                continue;
+            if let Slot::Input(i) = *slot {
+                if controlled.map(|c| c.0) == Some(i) {
+                    control_levels = Some(levels);
+                    continue;
+                }
+                if by_law[i] {
+                    // Computed by its law; an excitation read from JSON is not used.
+                    continue;
+                }
             }
             // Discretise once up front so a bad filter fails before any work is done.
             for &l in &levels {
-                FormFilterSampler::new(&ex.filter, l, h).map_err(|reason| {
-                    SimError::BadFormFilter {
-                        input: name(),
-                        reason,
-                    }
+                FormFilterSampler::new(filter, l, h).map_err(|reason| SimError::BadFormFilter {
+                    input: name.clone(),
+                    reason,
                 })?;
             }
-            filters[ex.input.index()] = Some((ex.filter.clone(), levels));
+            match *slot {
+                Slot::Input(i) => filters[i] = Some(((*filter).clone(), levels)),
+                Slot::Reference(k) => references[k] = Some(((*filter).clone(), levels)),
+            }
         }
         let levels = cfg
             .levels
             .clone()
-            .or_else(|| first.map(|f| f.levels.clone()))
+            .or_else(|| first.map(|f| f.3.clone()))
             .unwrap_or_else(|| vec![1.0]);
         if levels.is_empty() {
             return Err(SimError::NoLevels);
@@ -286,21 +332,37 @@ impl ExcitationPlan {
             n_levels: levels.len(),
             levels,
             filters,
+            references,
             control,
         })
     }
 
-    /// `(input name, filter, intensities)` of every input driven by its form filter.
+    /// `(name, filter, intensities)` of every input and reference driven by its form
+    /// filter.
     fn level_table(&self, ir: &ModelIr) -> Vec<(String, FormFilter, Vec<f64>)> {
-        self.filters
-            .iter()
-            .enumerate()
-            .filter_map(|(i, f)| {
-                f.as_ref()
-                    .map(|(f, l)| (ir.inputs[i].name.clone(), f.clone(), l.clone()))
-            })
-            .collect()
+        let table = |names: Vec<&String>, f: &[Option<(FormFilter, Vec<f64>)>]| {
+            f.iter()
+                .zip(names)
+                .filter_map(|(f, name)| {
+                    f.as_ref()
+                        .map(|(f, l)| (name.clone(), f.clone(), l.clone()))
+                })
+                .collect::<Vec<_>>()
+        };
+        let mut out = table(ir.inputs.iter().map(|i| &i.name).collect(), &self.filters);
+        out.extend(table(
+            ir.references.iter().map(|r| &r.name).collect(),
+            &self.references,
+        ));
+        out
     }
+}
+
+/// An excited signal of the model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Slot {
+    Input(usize),
+    Reference(usize),
 }
 
 /// `(input index, body index)` of a controller, and a check of its gains and reference.
@@ -392,6 +454,22 @@ fn simulate_level(
     for s in samplers.iter_mut().flatten() {
         s.start(&mut rng);
     }
+    // References are drawn after the inputs from the same stream, so a model without
+    // references gives the same inputs as before they existed.
+    let mut ref_samplers: Vec<Option<FormFilterSampler>> = plan
+        .references
+        .iter()
+        .map(|f| {
+            f.as_ref().map(|(filter, levels)| {
+                FormFilterSampler::new(filter, levels[level], h)
+                    .expect("invariant: checked when planning")
+            })
+        })
+        .collect();
+    for s in ref_samplers.iter_mut().flatten() {
+        s.start(&mut rng);
+    }
+    let mut laws = law::Laws::new(ir);
     let mut control = plan.control.as_ref().map(|c| {
         let r = &c.spec.reference;
         let mut reference = FormFilterSampler::new(&r.filter(), r.intensity(c.scales[level]), h)
@@ -407,6 +485,7 @@ fn simulate_level(
     let limit = divergence_limit(
         samplers
             .iter()
+            .chain(&ref_samplers)
             .flatten()
             .map(|s| s.output_std())
             .chain([control_scale]),
@@ -422,7 +501,12 @@ fn simulate_level(
         .map(|&s| {
             let kind = &ir.signal(s).kind;
             ColumnFinish {
-                noisy: cfg.noise_on_inputs || !matches!(kind, SignalKind::Input(_)),
+                // Inputs are noisy only on request; a reference (a set point) never is.
+                noisy: match kind {
+                    SignalKind::Input(_) => cfg.noise_on_inputs,
+                    SignalKind::Reference(_) => false,
+                    _ => true,
+                },
                 quantised: matches!(kind, SignalKind::Position(_)),
             }
         })
@@ -461,7 +545,9 @@ fn simulate_level(
     };
     let mut u0 = vec![0.0; samplers.len()];
     let mut u1 = vec![0.0; samplers.len()];
+    let mut r = vec![0.0; ref_samplers.len()];
     read(&samplers, &mut u0);
+    read(&ref_samplers, &mut r);
     let mut pending = 0;
     for k in 0..n_burn + n {
         for j in 0..fine {
@@ -469,9 +555,12 @@ fn simulate_level(
                 let b = ctl.body;
                 u0[ctl.input] = ctl.output(rk.x[b], rk.v[b]);
             }
+            if let Some(laws) = &mut laws {
+                laws.apply(&rk.x, &rk.v, &r, &mut u0);
+            }
             if j == 0 && k >= n_burn {
                 for (v, &s) in row.iter_mut().zip(&measured) {
-                    *v = signal_value(ir, s, &rk, &u0);
+                    *v = signal_value(ir, s, &rk, &u0, &r);
                 }
                 if let Some((ctl, _)) = &control {
                     row[measured.len()] = ctl.reference().0;
@@ -481,11 +570,22 @@ fn simulate_level(
             for s in samplers.iter_mut().flatten() {
                 s.step(&mut rng);
             }
+            for s in ref_samplers.iter_mut().flatten() {
+                s.step(&mut rng);
+            }
             read(&samplers, &mut u1);
+            read(&ref_samplers, &mut r);
             if let Some((ctl, rng)) = &mut control {
                 // Zero-order hold of the controller output over the step.
                 u1[ctl.input] = u0[ctl.input];
                 ctl.step_reference(rng);
+            }
+            if let Some(laws) = &laws {
+                for c in &ir.controls {
+                    let i = c.input.index();
+                    u1[i] = u0[i];
+                }
+                debug_assert!(ir.controls.iter().all(|c| laws.controls(c.input.index())));
             }
             rk.advance(mech, &u0, &u1, h, substeps);
             std::mem::swap(&mut u0, &mut u1);
