@@ -130,6 +130,22 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
             if p.significant { "" } else { "  (n.s.)" }
         ));
     }
+    for sh in &id.shapes {
+        let (se, rel) = match sh.stderr {
+            Some(e) if sh.value != 0.0 => (
+                print::fmt_num(e),
+                format!("{:>8.2}%", 100.0 * e / sh.value.abs()),
+            ),
+            Some(e) => (print::fmt_num(e), format!("{:>9}", "-")),
+            None => ("–".to_string(), format!("{:>9}", "-")),
+        };
+        s.push_str(&format!(
+            "{:<12} {:>14} {:>12} {rel}  (shape, profiled)\n",
+            sh.name,
+            print::fmt_num(sh.value),
+            se
+        ));
+    }
     if id.params.iter().any(|p| !p.significant) {
         s.push_str(&format!(
             "(n.s.): not significant, |value| ≤ {} std. errors — kept in the fit; the data \
@@ -234,6 +250,7 @@ pub fn to_json(id: &Identification) -> serde_json::Value {
         "warnings": id.warnings,
         "filter": id.filter,
         "estimated": id.estimated,
+        "shapes": id.shapes,
     })
 }
 

@@ -387,6 +387,22 @@ pub struct ModelIr {
     pub controls: Vec<ControlIr>,
     #[serde(default)]
     pub reference_excitation: Vec<ReferenceExcitationIr>,
+    /// Shape parameters: unknown gaps and limits (`deadzone(s, g ~ 0.05)`).
+    #[serde(default)]
+    pub shapes: Vec<ShapeIr>,
+}
+
+/// An unknown that enters nonlinearly, as the gap of a `deadzone` or the limit of a
+/// `saturate`: not a least-squares column, but profiled (each trial value is a linear
+/// least-squares problem). The nodes in `sites` hold the current value as their constant;
+/// [`ModelIr::with_shapes`] rewrites them.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShapeIr {
+    pub name: String,
+    /// The starting (simulation) value.
+    pub nominal: f64,
+    /// `Deadzone` or `Saturate` nodes whose constant is this parameter.
+    pub sites: Vec<ExprId>,
 }
 
 impl ModelIr {
@@ -450,6 +466,35 @@ impl ModelIr {
             ir.params[p.index()].kind = ParamKind::Unknown { nominal: Some(v) };
         }
         ir
+    }
+    /// A copy whose shape parameters take `values` (one per shape, in order) at every site,
+    /// and as their nominal values.
+    ///
+    /// # Panics
+    /// If `values` does not hold one value per shape parameter.
+    pub fn with_shapes(&self, values: &[f64]) -> ModelIr {
+        assert_eq!(
+            values.len(),
+            self.shapes.len(),
+            "one value per shape parameter"
+        );
+        let mut ir = self.clone();
+        for (shape, &v) in ir.shapes.iter_mut().zip(values) {
+            shape.nominal = v;
+            for site in &shape.sites {
+                let node = &mut ir.exprs[site.index()];
+                *node = match *node {
+                    ExprNode::Deadzone(a, _) => ExprNode::Deadzone(a, v.to_bits()),
+                    ExprNode::Saturate(a, _) => ExprNode::Saturate(a, v.to_bits()),
+                    other => other,
+                };
+            }
+        }
+        ir
+    }
+    /// The shape parameter whose value node `e` holds, if any.
+    pub fn shape_at(&self, e: ExprId) -> Option<&ShapeIr> {
+        self.shapes.iter().find(|s| s.sites.contains(&e))
     }
     /// The elements grouped by the pair of nodes they connect (in either order): one
     /// group per pair, in order of first appearance, with the nodes of its first element.
@@ -700,6 +745,23 @@ impl ModelIr {
                 ));
             }
             expr(c.law, "a control law")?;
+        }
+        for sh in &self.shapes {
+            if !sh.nominal.is_finite() {
+                return Err(format!("shape parameter `{}` is not finite", sh.name));
+            }
+            for &site in &sh.sites {
+                expr(site, "a shape parameter")?;
+                if !matches!(
+                    self.exprs[site.index()],
+                    ExprNode::Deadzone(..) | ExprNode::Saturate(..)
+                ) {
+                    return Err(format!(
+                        "shape parameter `{}` sits on a node that is no gap or limit",
+                        sh.name
+                    ));
+                }
+            }
         }
         for x in &self.reference_excitation {
             if x.reference.index() >= nr {

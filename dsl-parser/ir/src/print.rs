@@ -20,6 +20,9 @@ struct Printer<'a> {
     ir: &'a ModelIr,
     /// Nodes printed by a name instead (an element's `s` and `v`).
     names: &'a [(ExprId, &'a str)],
+    /// Printing source: which shape parameters were declared already (the first use is
+    /// written `g ~ value`, later ones `g`). `None`: shapes print by name.
+    declared: Option<&'a std::cell::RefCell<Vec<bool>>>,
 }
 
 impl Printer<'_> {
@@ -35,6 +38,20 @@ impl Printer<'_> {
             ExprNode::Binary(BinaryOp::Add | BinaryOp::Sub, ..) => P_ADD,
             ExprNode::Binary(..) => P_MUL,
             ExprNode::Powi(..) => 4,
+        }
+    }
+
+    /// The gap or limit of node `e`: its number, or its shape parameter's name.
+    fn shape_or(&self, e: ExprId, bits: u64) -> String {
+        let Some(k) = self.ir.shapes.iter().position(|s| s.sites.contains(&e)) else {
+            return fmt_num(f64::from_bits(bits));
+        };
+        let name = &self.ir.shapes[k].name;
+        match self.declared {
+            Some(d) if !std::mem::replace(&mut d.borrow_mut()[k], true) => {
+                format!("{name} ~ {}", fmt_num(self.ir.shapes[k].nominal))
+            }
+            _ => name.clone(),
         }
     }
 
@@ -80,10 +97,10 @@ impl Printer<'_> {
             }
             ExprNode::Powi(a, n) => format!("{}^{n}", self.at(a, P_ATOM)),
             ExprNode::Deadzone(a, g) => {
-                format!("deadzone({}, {})", self.expr(a), fmt_num(f64::from_bits(g)))
+                format!("deadzone({}, {})", self.expr(a), self.shape_or(e, g))
             }
             ExprNode::Saturate(a, l) => {
-                format!("saturate({}, {})", self.expr(a), fmt_num(f64::from_bits(l)))
+                format!("saturate({}, {})", self.expr(a), self.shape_or(e, l))
             }
         }
     }
@@ -91,7 +108,12 @@ impl Printer<'_> {
 
 /// An expression in the model's notation, e.g. `(m2.x - m1.x)^3`.
 pub fn render_expr(ir: &ModelIr, e: ExprId) -> String {
-    Printer { ir, names: &[] }.expr(e)
+    Printer {
+        ir,
+        names: &[],
+        declared: None,
+    }
+    .expr(e)
 }
 
 /// A basis as it stands after a coefficient (`k1 (m2.x - m1.x)`, `k3 m1.x^3`).
@@ -104,7 +126,12 @@ pub fn render_basis(ir: &ModelIr, b: Basis) -> String {
                 "'".repeat(order as usize)
             )
         }
-        Basis::Expr(e) => Printer { ir, names: &[] }.at(e, P_MUL),
+        Basis::Expr(e) => Printer {
+            ir,
+            names: &[],
+            declared: None,
+        }
+        .at(e, P_MUL),
     }
 }
 
@@ -149,7 +176,12 @@ pub fn render_equation(ir: &ModelIr, eq: &EquationIr) -> String {
         match t.origin {
             TermOrigin::Input(_) if t.coef.param.is_none() => {
                 let basis = match t.basis {
-                    Basis::Expr(e) => Printer { ir, names: &[] }.at(e, P_MUL),
+                    Basis::Expr(e) => Printer {
+                        ir,
+                        names: &[],
+                        declared: None,
+                    }
+                    .at(e, P_MUL),
                     b => render_basis(ir, b),
                 };
                 let piece = if t.coef.scale.abs() == 1.0 {
@@ -420,6 +452,14 @@ pub fn render_report(ir: &ModelIr) -> String {
     }
     out.push_str("\nparameters:\n");
     out.push_str(&render_params(ir));
+    for sh in &ir.shapes {
+        let _ = writeln!(
+            out,
+            "  shape parameter {} ~ {} (a gap or limit: profiled by identification, not a column)",
+            sh.name,
+            fmt_num(sh.nominal)
+        );
+    }
     out.push_str("\nleast-squares columns:\n");
     out.push_str(&render_columns(ir));
     out
@@ -433,7 +473,11 @@ struct JsonEquation {
 
 /// `(input, law)` of every control law, the law as source text.
 fn control_rows(ir: &ModelIr) -> Vec<(String, String)> {
-    let pr = Printer { ir, names: &[] };
+    let pr = Printer {
+        ir,
+        names: &[],
+        declared: None,
+    };
     ir.controls
         .iter()
         .map(|c| (ir.inputs[c.input.index()].name.clone(), pr.expr(c.law)))
@@ -568,6 +612,7 @@ pub fn to_source(ir: &ModelIr) -> String {
             declared[p.index()] = true;
         }
     }
+    let shapes_declared = std::cell::RefCell::new(vec![false; ir.shapes.len()]);
     for e in &ir.elements {
         let (a, b) = (node_name(ir, e.nodes.0), node_name(ir, e.nodes.1));
         if let Some(p) = owned(e) {
@@ -585,7 +630,11 @@ pub fn to_source(ir: &ModelIr) -> String {
             continue;
         }
         let names = [(e.s, "s"), (e.v, "v")];
-        let pr = Printer { ir, names: &names };
+        let pr = Printer {
+            ir,
+            names: &names,
+            declared: Some(&shapes_declared),
+        };
         let mut pieces = Vec::new();
         for t in &e.terms {
             let mut factors = Vec::new();

@@ -22,6 +22,9 @@ pub(super) enum Place {
     Factor,
     /// Anywhere else; the string says where, for the error message.
     Nested(String),
+    /// The gap of `deadzone` or the limit of `saturate` directly: an unknown parameter
+    /// there is a shape parameter, profiled by identification.
+    Shape,
 }
 
 impl Lowerer<'_> {
@@ -96,7 +99,15 @@ impl Lowerer<'_> {
                     } else if basis == s_core {
                         (scale * ss, s)
                     } else {
-                        (scale, basis.intern(&mut self.arena))
+                        let id = basis.intern(&mut self.arena);
+                        let mut sites = Vec::new();
+                        basis.shape_sites(&mut self.arena, &mut sites);
+                        for (k, site) in sites {
+                            if !self.shapes[k].2.contains(&site) {
+                                self.shapes[k].2.push(site);
+                            }
+                        }
+                        (scale, id)
                     };
                     terms.push(ForceTerm {
                         coef: Coef { scale, param },
@@ -156,6 +167,9 @@ impl Lowerer<'_> {
                 };
                 self.pending[p].mentioned = true;
                 match place {
+                    // A known value is a number; an unknown one a shape parameter (checked
+                    // where the gap is lowered).
+                    Place::Shape => {}
                     Place::Nested(where_) => {
                         ok = false;
                         self.err(
@@ -289,7 +303,7 @@ pub(super) fn walk_params<'e>(
                 walk_params(a, Place::Factor, f);
                 walk_params(b, Place::Nested("in a denominator".into()), f);
             }
-            (AstBinOp::Div, Place::Nested(_)) => {
+            (AstBinOp::Div, _) => {
                 walk_params(a, place.clone(), f);
                 walk_params(b, place, f);
             }
@@ -300,7 +314,7 @@ pub(super) fn walk_params<'e>(
                 walk_params(a, p.clone(), f);
                 walk_params(b, p, f);
             }
-            (_, Place::Nested(_)) => {
+            (_, _) => {
                 walk_params(a, place.clone(), f);
                 walk_params(b, place, f);
             }
@@ -311,7 +325,7 @@ pub(super) fn walk_params<'e>(
                     Place::Nested("as the base of a power".into()),
                     Place::Nested("in an exponent".into()),
                 ),
-                Place::Nested(_) => (place.clone(), place.clone()),
+                _ => (place.clone(), place.clone()),
             };
             walk_params(a, pa, f);
             walk_params(b, pb, f);
@@ -319,10 +333,20 @@ pub(super) fn walk_params<'e>(
         AstExprKind::Call(name, args) => {
             let p = match &place {
                 Place::Factor => Place::Nested(format!("inside `{}(…)`", name.name)),
-                Place::Nested(_) => place.clone(),
+                _ => place.clone(),
             };
-            for a in args {
-                walk_params(a, p.clone(), f);
+            let shaped = matches!(name.name.as_str(), "deadzone" | "saturate") && args.len() == 2;
+            for (k, a) in args.iter().enumerate() {
+                let named = match &a.kind {
+                    AstExprKind::ParamDecl(..) => true,
+                    AstExprKind::Ref(r) => r.field.is_none(),
+                    _ => false,
+                };
+                if shaped && k == 1 && named {
+                    f(a, Place::Shape);
+                } else {
+                    walk_params(a, p.clone(), f);
+                }
             }
         }
     }

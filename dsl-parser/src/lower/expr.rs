@@ -13,8 +13,9 @@ pub(super) enum LExpr {
     Unary(UnaryOp, Box<LExpr>),
     Binary(BinaryOp, Box<LExpr>, Box<LExpr>),
     Powi(Box<LExpr>, i32),
-    Deadzone(Box<LExpr>, f64),
-    Saturate(Box<LExpr>, f64),
+    /// `deadzone(a, gap)`; the index of the shape parameter the gap stands for, if any.
+    Deadzone(Box<LExpr>, f64, Option<usize>),
+    Saturate(Box<LExpr>, f64, Option<usize>),
 }
 
 impl LExpr {
@@ -77,8 +78,8 @@ impl LExpr {
             LExpr::Sig(_) => true,
             LExpr::Unary(_, a)
             | LExpr::Powi(a, _)
-            | LExpr::Deadzone(a, _)
-            | LExpr::Saturate(a, _) => a.has_signal(),
+            | LExpr::Deadzone(a, ..)
+            | LExpr::Saturate(a, ..) => a.has_signal(),
             LExpr::Binary(_, a, b) => a.has_signal() || b.has_signal(),
         }
     }
@@ -126,13 +127,31 @@ impl LExpr {
                 let a = a.intern(arena);
                 arena.intern(ExprNode::Powi(a, *n))
             }
-            LExpr::Deadzone(a, g) => {
+            LExpr::Deadzone(a, g, _) => {
                 let a = a.intern(arena);
                 arena.intern(ExprNode::Deadzone(a, g.to_bits()))
             }
-            LExpr::Saturate(a, l) => {
+            LExpr::Saturate(a, l, _) => {
                 let a = a.intern(arena);
                 arena.intern(ExprNode::Saturate(a, l.to_bits()))
+            }
+        }
+    }
+    /// `(shape index, node)` of every gap or limit that stands for a shape parameter, once
+    /// the tree is interned (interning again only looks the nodes up).
+    pub(super) fn shape_sites(&self, arena: &mut ExprArena, out: &mut Vec<(usize, ExprId)>) {
+        match self {
+            LExpr::Const(_) | LExpr::Sig(_) => {}
+            LExpr::Unary(_, a) | LExpr::Powi(a, _) => a.shape_sites(arena, out),
+            LExpr::Binary(_, a, b) => {
+                a.shape_sites(arena, out);
+                b.shape_sites(arena, out);
+            }
+            LExpr::Deadzone(a, _, k) | LExpr::Saturate(a, _, k) => {
+                a.shape_sites(arena, out);
+                if let Some(k) = k {
+                    out.push((*k, self.intern(arena)));
+                }
             }
         }
     }

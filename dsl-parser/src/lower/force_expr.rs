@@ -128,7 +128,10 @@ impl Lowerer<'_> {
                         } else {
                             "the limit"
                         };
-                        let c = self.const_arg(&args[1], ctx, what)?;
+                        let (c, shape) = match self.shape_arg(&args[1], ctx) {
+                            Some(found) => found?,
+                            None => (self.const_arg(&args[1], ctx, what)?, None),
+                        };
                         let ok = if f.name == "deadzone" {
                             c >= 0.0
                         } else {
@@ -155,9 +158,9 @@ impl Lowerer<'_> {
                         let x = x?;
                         match (f.name.as_str(), x.as_const()) {
                             ("deadzone", Some(a)) => LExpr::Const(deadzone(a, c)),
-                            ("deadzone", None) => LExpr::Deadzone(Box::new(x), c),
+                            ("deadzone", None) => LExpr::Deadzone(Box::new(x), c, shape),
                             (_, Some(a)) => LExpr::Const(saturate(a, c)),
-                            (_, None) => LExpr::Saturate(Box::new(x), c),
+                            (_, None) => LExpr::Saturate(Box::new(x), c, shape),
                         }
                     }
                     name => {
@@ -172,6 +175,44 @@ impl Lowerer<'_> {
                     }
                 };
                 folded(self, x)
+            }
+        }
+    }
+
+    /// A gap or limit written as a parameter (`deadzone(s, g ~ 0.05)`, `deadzone(s, g)`):
+    /// `None` when it is not a plain parameter name; else its value and, for an unknown
+    /// parameter, the index of its shape parameter (created at first use, valued at its
+    /// nominal). An unknown parameter without a nominal value is an error (`Some(None)`).
+    fn shape_arg(&mut self, e: &AstExpr, ctx: &Ctx) -> Option<Option<(f64, Option<usize>)>> {
+        if ctx.law {
+            return None;
+        }
+        let name = match &e.kind {
+            AstExprKind::ParamDecl(n, _) => &n.name,
+            AstExprKind::Ref(r) if r.field.is_none() => &r.base.name,
+            _ => return None,
+        };
+        let p = self.param_of(name)?;
+        if let Some(&k) = self.shape_of.get(&p) {
+            return Some(Some((self.shapes[k].1, Some(k))));
+        }
+        match self.pending[p].value {
+            Some(AstValue::Known(n)) => Some(Some((n.value, None))),
+            Some(AstValue::Nominal(n)) => {
+                self.shapes.push((name.clone(), n.value, Vec::new()));
+                let k = self.shapes.len() - 1;
+                self.shape_of.insert(p, k);
+                Some(Some((n.value, Some(k))))
+            }
+            None => {
+                self.err(
+                    ErrorKind::NonConstantArgument,
+                    format!("the shape parameter `{name}` has no starting value"),
+                    e.span,
+                    "no nominal value",
+                    format!("an unknown gap or limit is profiled from a starting value: write `{name} ~ 0.01`"),
+                );
+                Some(None)
             }
         }
     }

@@ -66,6 +66,10 @@ struct Lowerer<'a> {
     params: Vec<ParamIr>,
     param_spans: Vec<Span>,
     arena: ExprArena,
+    /// Shape parameters: name, nominal value, and the nodes whose gap or limit it is.
+    shapes: Vec<(String, f64, Vec<ExprId>)>,
+    /// Pending parameter → its shape parameter.
+    shape_of: HashMap<usize, usize>,
 }
 
 pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
@@ -80,6 +84,8 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
         params: Vec::new(),
         param_spans: Vec::new(),
         arena: ExprArena::default(),
+        shapes: Vec::new(),
+        shape_of: HashMap::new(),
     };
     l.declare(ast);
     let input_bodies = l.resolve_inputs();
@@ -180,6 +186,14 @@ pub(crate) fn lower(ast: &AstModel, sink: &mut ErrorSink) -> ModelIr {
             .collect(),
         controls,
         reference_excitation: Vec::new(),
+        shapes: std::mem::take(&mut l.shapes)
+            .into_iter()
+            .map(|(name, nominal, sites)| ShapeIr {
+                name,
+                nominal,
+                sites,
+            })
+            .collect(),
         spans: SpanTable {
             bodies: std::mem::take(&mut l.body_spans),
             inputs: input_spans,

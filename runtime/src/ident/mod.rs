@@ -49,6 +49,7 @@ pub mod noise;
 mod plan;
 pub mod print;
 mod screen;
+pub mod shape;
 mod solve;
 mod stats;
 mod types;
@@ -110,6 +111,9 @@ pub fn identify(
     levels: &[&dyn LevelSource],
     opts: &IdentifyOptions,
 ) -> Result<Identification, IdentifyError> {
+    if !ir.shapes.is_empty() {
+        return Ok(shape::profile(ir, levels, opts)?.1);
+    }
     let tape = Tape::compile(ir, &ir.eval_roots());
     Ok(measure(ir, &tape, levels, opts)?.identify_pooled())
 }
@@ -487,9 +491,17 @@ impl<'m> Moments<'m> {
                     .collect(),
             })
             .collect();
+        let ssr: f64 = (0..rows)
+            .map(|i| {
+                let fit: f64 = (0..ncol).map(|j| c_full[i * ncol + j] * p_full[j]).sum();
+                (weights[i] * (fit - r_full[i])).powi(2)
+            })
+            .sum();
         let mut times = self.times;
         times.solve = t0.elapsed();
         Identification {
+            shapes: Vec::new(),
+            ssr,
             warnings: stats::physical_warnings(self.ir, &params),
             params,
             unidentifiable: unident,

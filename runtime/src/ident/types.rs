@@ -215,8 +215,32 @@ pub struct Identification {
     pub rows: usize,
     /// Estimated measurement noise and the terms de-biased for it.
     pub noise: NoiseSummary,
+    /// Shape parameters (unknown gaps and limits), profiled; the estimates above are
+    /// those at the profile's minimum.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub shapes: Vec<ShapeEstimate>,
+    /// Sum of squares of the weighted (unit-norm) rows' residuals: what a profile over
+    /// shape parameters minimises.
+    #[serde(skip)]
+    pub ssr: f64,
     #[serde(skip)]
     pub times: PhaseTimes,
+}
+
+/// A shape parameter estimated by profiling the least squares over it.
+#[derive(Clone, Debug, Serialize)]
+pub struct ShapeEstimate {
+    pub name: String,
+    pub value: f64,
+    /// From the curvature of the residual profile at its minimum (classical least-squares
+    /// scaling); `None` when the profile is flat or the minimum lies on the search edge.
+    pub stderr: Option<f64>,
+    /// `(value, weighted residual sum of squares)` of every trial, in search order.
+    #[serde(skip)]
+    pub profile: Vec<(f64, f64)>,
+    /// `∂p̂/∂g` of every linear estimate along the profile (in `params` order).
+    #[serde(skip)]
+    pub slopes: Vec<f64>,
 }
 
 impl Identification {
