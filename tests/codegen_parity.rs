@@ -118,7 +118,12 @@ fn generated_and_interpreted_evaluators_assemble_the_same_system() {
         );
         assert!(same_bits(&g.rhs, &t.rhs), "{}: c differs", case.file);
 
-        // The generated `identify` (generated basis) against the runtime's (tape).
+        // The generated `identify` (generated basis) against the runtime's (tape). A model
+        // with a shape parameter is profiled only by the interpreter (the generated code has
+        // the starting gap compiled in), so its systems are compared above, not its fits.
+        if !ir.shapes.is_empty() {
+            continue;
+        }
         let by_macro = (case.identify)(&records, &opts);
         let by_tape = ident::identify(ir, &levels, &opts);
         match (by_macro, by_tape) {

@@ -263,7 +263,6 @@ pub fn diagnose(
             param,
             value: c.value,
             stderr: c.stderr,
-            shape_stderr: c.shape_stderr,
             gap_before: current_gap.gap,
             gap_after: g.gap,
             pathwise_gap_before: current_gap.pathwise,

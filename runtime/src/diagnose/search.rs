@@ -149,7 +149,6 @@ pub(super) fn search_step(
                 pathwise_gap: None,
                 accepted: false,
                 note: String::new(),
-                shape_stderr: None,
             };
             Some((score, Variant { ir: cir, added }, fits, all))
         })();
@@ -158,40 +157,27 @@ pub(super) fn search_step(
         out
     };
     let mut results: Vec<_> = cands.par_iter().filter_map(&evaluate).collect();
-    // The backlash gap of each location by variable projection: the pooled least-squares
-    // residual profiled over the gap around the best grid point (the grid is a factor 2–2.5
-    // apart, so the bracket spans that), with the gap's standard error.
-    let profiled: Vec<(Effect, Location, Option<f64>, Option<f64>)> = locs
-        .par_iter()
-        .filter_map(|loc| {
-            let best = results
-                .iter()
-                .filter(|r| r.0.location == *loc && matches!(r.0.effect, Effect::Backlash { .. }))
-                .min_by(|a, b| a.0.cv_residual.total_cmp(&b.0.cv_residual))?;
-            let Effect::Backlash { gap } = best.0.effect else {
-                return None;
-            };
-            let (gap, se, coef_se) = profile_gap(ir, loc, gap, data, opts)?;
-            Some((Effect::Backlash { gap }, loc.clone(), se, coef_se))
-        })
-        .collect();
-    let refined: Vec<(Effect, Location)> =
-        profiled.iter().map(|(e, l, ..)| (*e, l.clone())).collect();
-    let mut more: Vec<_> = refined.par_iter().filter_map(&evaluate).collect();
-    for r in &mut more {
-        let Some(p) = profiled
+    // Refine the backlash gap around the best grid point of each location.
+    let mut refined = Vec::new();
+    for loc in &locs {
+        let best = results
             .iter()
-            .find(|(e, l, ..)| *e == r.0.effect && *l == r.0.location)
-        else {
-            continue;
-        };
-        r.0.shape_stderr = p.2;
-        // The coefficient's error carries the gap's (the solve alone holds the gap fixed).
-        if let Some(se) = p.3.filter(|se| se.is_finite() && *se > r.0.stderr) {
-            r.0.stderr = se;
-            r.0.t_ratio = r.0.value.abs() / se.max(f64::MIN_POSITIVE);
+            .filter(|r| r.0.location == *loc && matches!(r.0.effect, Effect::Backlash { .. }))
+            .min_by(|a, b| a.0.cv_residual.total_cmp(&b.0.cv_residual));
+        if let Some((s, ..)) = best {
+            if let Effect::Backlash { gap } = s.effect {
+                for f in [0.75, 1.35] {
+                    refined.push((
+                        Effect::Backlash {
+                            gap: num::round_sig(gap * f, 3),
+                        },
+                        loc.clone(),
+                    ));
+                }
+            }
         }
     }
+    let more: Vec<_> = refined.par_iter().filter_map(&evaluate).collect();
     results.extend(more);
     // Keep one backlash (the best gap) per location in the ranking.
     results.sort_by(|a, b| a.0.cv_residual.total_cmp(&b.0.cv_residual));
@@ -276,37 +262,4 @@ pub(super) fn search_step(
         ranking: results.into_iter().map(|r| r.0).collect(),
         best: out_best,
     }
-}
-
-/// The backlash gap at `loc` that minimises the pooled residual, from `start`: `(gap, its
-/// standard error, the coefficient's standard error with the gap's carried in)`, or `None`
-/// when the profile cannot be formed.
-fn profile_gap(
-    ir: &dynid_ir::ir::ModelIr,
-    loc: &Location,
-    start: f64,
-    data: &Data,
-    opts: &DiagnoseOptions,
-) -> Option<(f64, Option<f64>, Option<f64>)> {
-    let (mut cir, p) = add_effect(ir, Effect::Backlash { gap: start }, loc)?;
-    let site = cir.elements.last()?.terms.first()?.basis;
-    if !matches!(cir.expr(site), dynid_ir::ir::ExprNode::Deadzone(..)) {
-        return None;
-    }
-    cir.shapes = vec![dynid_ir::ir::ShapeIr {
-        name: "gap".into(),
-        nominal: start,
-        sites: vec![site],
-    }];
-    let search = crate::ident::shape::Search {
-        bracket: vec![0.4, 0.63, 1.0, 1.6, 2.5],
-        steps: 8,
-    };
-    let (_, id) = crate::ident::shape::profile_with(&cir, &search, &|at| {
-        measure_all(at, data, opts).map(|m| m.identify_pooled())
-    })
-    .ok()?;
-    let sh = id.shapes.first()?;
-    let coef_se = id.param(&p).map(|e| e.stderr);
-    Some((num::round_sig(sh.value, 4), sh.stderr, coef_se))
 }

@@ -125,15 +125,9 @@ impl Diagnosis {
                             format!(" (element {})", f.location.elements.join(", "))
                         }
                     );
-                    let shape = match (f.effect, f.shape_stderr) {
-                        (crate::diagnose::Effect::Backlash { gap }, Some(se)) => {
-                            format!(", gap {} ± {} (profiled)", fmt_num(gap), fmt_num(se))
-                        }
-                        _ => String::new(),
-                    };
                     let _ = writeln!(
                         s,
-                        "  identified {} = {} ± {} (|p|/σ = {:.0}){shape}; withheld gap {} → {} ({}; pathwise {} → {}); confidence: {}",
+                        "  identified {} = {} ± {} (|p|/σ = {:.0}); withheld gap {} → {} ({}; pathwise {} → {}); confidence: {}",
                         f.param,
                         fmt_num(f.value),
                         fmt_num(f.stderr),

@@ -164,9 +164,6 @@ pub struct CandidateScore {
     pub pathwise_gap: Option<f64>,
     pub accepted: bool,
     pub note: String,
-    /// The standard error of a profiled shape value (the backlash gap), when resolved.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub shape_stderr: Option<f64>,
 }
 
 /// A parameter of the model as given: its nominal value and the value identified on all
@@ -189,9 +186,6 @@ pub struct FoundEffect {
     pub param: String,
     pub value: f64,
     pub stderr: f64,
-    /// The standard error of the effect's profiled shape value (the backlash gap).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub shape_stderr: Option<f64>,
     /// Withheld statistical gap before and after adding this effect (in %).
     pub gap_before: f64,
     pub gap_after: f64,
