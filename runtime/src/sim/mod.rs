@@ -441,34 +441,10 @@ fn simulate_level(
     let h = cfg.sample / fine as f64;
     let substeps = cfg.substeps.div_ceil(fine);
     let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Excitation));
-    let mut samplers: Vec<Option<FormFilterSampler>> = plan
-        .filters
-        .iter()
-        .map(|f| {
-            f.as_ref().map(|(filter, levels)| {
-                FormFilterSampler::new(filter, levels[level], h)
-                    .expect("invariant: checked when planning")
-            })
-        })
-        .collect();
-    for s in samplers.iter_mut().flatten() {
-        s.start(&mut rng);
-    }
+    let mut samplers = start_samplers(&plan.filters, level, h, &mut rng);
     // References are drawn after the inputs from the same stream, so a model without
     // references gives the same inputs as before they existed.
-    let mut ref_samplers: Vec<Option<FormFilterSampler>> = plan
-        .references
-        .iter()
-        .map(|f| {
-            f.as_ref().map(|(filter, levels)| {
-                FormFilterSampler::new(filter, levels[level], h)
-                    .expect("invariant: checked when planning")
-            })
-        })
-        .collect();
-    for s in ref_samplers.iter_mut().flatten() {
-        s.start(&mut rng);
-    }
+    let mut ref_samplers = start_samplers(&plan.references, level, h, &mut rng);
     let mut laws = law::Laws::new(ir);
     let mut control = plan.control.as_ref().map(|c| {
         let r = &c.spec.reference;
@@ -607,6 +583,29 @@ fn simulate_level(
     res.check(ir, cfg.sample, context)?;
     let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Noise));
     out.finish(&mut rng)
+}
+
+/// The form-filter samplers of one level (`None` where a signal is not excited), started
+/// from `rng` in order.
+fn start_samplers(
+    plans: &[Option<(FormFilter, Vec<f64>)>],
+    level: usize,
+    h: f64,
+    rng: &mut StdRng,
+) -> Vec<Option<FormFilterSampler>> {
+    let mut out: Vec<Option<FormFilterSampler>> = plans
+        .iter()
+        .map(|f| {
+            f.as_ref().map(|(filter, levels)| {
+                FormFilterSampler::new(filter, levels[level], h)
+                    .expect("invariant: checked when planning")
+            })
+        })
+        .collect();
+    for s in out.iter_mut().flatten() {
+        s.start(rng);
+    }
+    out
 }
 
 /// Largest `ω·Ts` (ω = dominant angular frequency of a body's motion) accepted: about four
