@@ -533,7 +533,7 @@ mod tests {
     fn the_default_response_is_the_first_measured_position() {
         let ir = dsl_parser::compile_str(
             "m",
-            "model m {\n body a = 1.0\n body b = 1.0\n input u on a\n spring k (a, b) ~ 1.0\n spring k0 (ground, a) ~ 1.0\n measure a.v, b.x, u\n}\n",
+            "model m {\n body a = 1.0\n body b = 1.0\n input u on a\n damper d (ground, a) ~ 1.0\n spring k (ground, b) ~ 1.0\n measure a.v, b.x, u\n}\n",
         );
         let ir = match ir {
             Ok(ir) => ir,
