@@ -163,7 +163,7 @@ fn detect_names_the_cubic_spring_from_one_noisy_sweep() {
 }
 
 #[test]
-fn a_linear_sweep_is_not_flagged_and_a_steady_record_is_too_alike() {
+fn a_linear_record_is_not_flagged_swept_or_steady() {
     let dir = tempfile::tempdir().unwrap();
     let model = model_path("sdof_linear.dyn");
     let one = one_record(dir.path(), "sdof_linear.dyn", 600.0, 22, 0.02, sweep(600.0));
@@ -181,8 +181,10 @@ fn a_linear_sweep_is_not_flagged_and_a_steady_record_is_too_alike() {
     segment_sigmas(&v);
     assert!(v["warnings"].as_array().unwrap().is_empty(), "{v}");
 
-    // The same system at one steady level: the segments' σ barely differ, and the
-    // verdict "linear" comes with the warning.
+    // The same system at one steady level: the segments' σ differ only by the random
+    // wander of the envelope; still linear. (Whether the drift test can resolve an effect
+    // of a quarter of `k` there depends on that wander; the warning itself is tested in
+    // `dynid_runtime::detect::resolution`.)
     let one = one_record(dir.path(), "sdof_linear.dyn", 600.0, 23, 0.02, |_| 15.0);
     let out = run(&[
         "detect".as_ref(),
@@ -194,14 +196,6 @@ fn a_linear_sweep_is_not_flagged_and_a_steady_record_is_too_alike() {
     let (so, se) = (String::from_utf8_lossy(&out.stdout), stderr(&out));
     eprintln!("{se}");
     assert!(so.contains("Element k/d (ground, m): linear"), "{so}");
-    assert!(se.contains("warning: levels too alike for `k`"), "{se}");
-    let v = json(&out_json);
-    let w = v["warnings"].as_array().unwrap();
-    assert!(
-        w.iter()
-            .any(|w| w["param"] == "k" && w["sigma_ratio"].as_f64().unwrap() < 1.5),
-        "{v}"
-    );
 }
 
 #[test]
@@ -235,7 +229,8 @@ fn diagnose_finds_the_withheld_cubic_spring_in_one_sweep() {
         v["gap_after"].as_f64().unwrap(),
     );
     eprintln!("headline gap {before:.2} % → {after:.2} %");
-    assert!(after < 0.5 * before, "{before} → {after}");
+    // Measured 46.8 % → 0.06 % (seed 24); the bound leaves room for other seeds.
+    assert!(before > 20.0 && after < 1.0, "{before} → {after}");
 }
 
 #[test]

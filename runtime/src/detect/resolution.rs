@@ -85,6 +85,16 @@ pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooA
         if r.drifting || !matches!(r.curve.role, Role::Stiffness | Role::Damping) {
             continue;
         }
+        // Only a "linear" verdict can be silently wrong: an element found nonlinear has
+        // shown its effect on another curve.
+        let linear = det
+            .elements
+            .iter()
+            .find(|e| e.element == r.curve.element)
+            .is_none_or(|e| e.verdict == super::Verdict::Linear);
+        if !linear {
+            continue;
+        }
         let (sig, se) = (&r.sigma, &r.stderrs_used);
         let (lo, hi) = sig
             .iter()
@@ -120,11 +130,12 @@ pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooA
         if f > MAX_INVISIBLE {
             let element = r.curve.element.clone();
             let message = format!(
-                "levels too alike for `{}` of {element}: their {} spans only a factor {:.3}, \
-                 so an effect that scales with σ or 1/σ (friction, prestress, quadratic \
-                 damping) would have to reach {} of `{}` to show as a drift (at most {:.0} % \
-                 is needed); `linear` here only rules out larger effects — add levels that \
-                 span a wider range of amplitude (a factor ≥ 3)",
+                "levels too alike for `{}` of {element}: with its {} spanning a factor {:.3} \
+                 over the levels and its standard errors, an effect that scales with σ or \
+                 1/σ (friction, prestress, quadratic damping) would have to reach {} of `{}` \
+                 to show as a drift (at most {:.0} % is needed); `linear` here only rules \
+                 out larger effects — add levels that span a wider range of amplitude (a \
+                 factor ≥ 3) or longer levels",
                 r.curve.param,
                 r.sigma_name,
                 ratio,
@@ -200,7 +211,7 @@ mod tests {
         assert_eq!(w.len(), 1, "{w:?}");
         assert!((w[0].sigma_ratio - 1.1).abs() < 1e-12);
         assert!(w[0].smallest_visible > 0.25, "{w:?}");
-        assert!(w[0].message.contains("factor 1.100"), "{}", w[0].message);
+        assert!(w[0].message.contains("a factor 1.100"), "{}", w[0].message);
         // The same factor 3 with 20 % errors cannot resolve a quarter either.
         let (d, o) = detection(&[0.1, 0.17, 0.3], 0.2);
         assert_eq!(levels_too_alike(&d, &o).len(), 1);
