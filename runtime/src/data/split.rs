@@ -257,6 +257,7 @@ fn crossings(x: &[f64], mean: f64, h: f64) -> usize {
 
 /// Cut `rec` into `opts.segments` contiguous segments by the amplitude of its column
 /// `signal` (see the module documentation); `origin` names the record in errors.
+#[allow(clippy::result_large_err)] // an error is built once, on the way out
 pub fn split_record(
     rec: &Record,
     origin: &str,
@@ -361,8 +362,8 @@ pub fn split_record(
     let inf = f64::INFINITY;
     let mut best = vec![vec![inf; nw + 1]; segments];
     let mut from = vec![vec![0usize; nw + 1]; segments];
-    for j in lw..=nw {
-        best[0][j] = cost(0, j);
+    for (j, b) in best[0].iter_mut().enumerate().skip(lw) {
+        *b = cost(0, j);
     }
     for m in 1..segments {
         for j in (m + 1) * lw..=nw {

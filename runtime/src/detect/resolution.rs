@@ -102,7 +102,7 @@ pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooA
         let mean = r.mean.abs();
         if sig.len() < 2
             || !(lo > 0.0 && hi.is_finite() && mean > 0.0)
-            || se.iter().any(|s| !(*s > 0.0))
+            || !se.iter().all(|s| s.is_finite() && *s > 0.0)
         {
             continue;
         }
