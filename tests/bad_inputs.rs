@@ -652,9 +652,36 @@ const CASES: &[Case] = &[
         "dynid::identify::option",
     ),
     case(
-        "detection from one level",
+        "detection from one file too short to split into levels",
         &["detect", "{model}", DATA],
-        "dynid::detect::too_few_levels",
+        "dynid::split::too_short",
+    ),
+    case(
+        "a diagnosis from one file too short to split into levels",
+        &["diagnose", "{model}", DATA, "--segments", "2"],
+        "dynid::split::too_short",
+    ),
+    case(
+        "--split-by naming no column",
+        &["detect", "{model}", DATA, "--split-by", "m.y"],
+        "dynid::split::unknown_signal",
+    ),
+    case(
+        "--segments with several files",
+        &[
+            "detect",
+            "{model}",
+            DATA,
+            "{dir}/data/level_2.csv",
+            "--segments",
+            "3",
+        ],
+        "dynid::split::several_files",
+    ),
+    case(
+        "--segments 1",
+        &["detect", "{model}", DATA, "--segments", "1"],
+        "must be at least 2",
     ),
     case(
         "a detection --alpha outside (0, 1)",

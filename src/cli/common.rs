@@ -1,7 +1,9 @@
 //! Helpers shared by the subcommands.
 
 use dsl_parser::ir::ModelIr;
-use dynid_runtime::data::CsvOptions;
+use dynid_runtime::data::{default_response, read_record, split_record, CsvOptions};
+use dynid_runtime::data::{Split, SplitOptions};
+use dynid_runtime::record::Record;
 use miette::miette;
 use std::path::{Path, PathBuf};
 
@@ -69,6 +71,93 @@ impl CsvArgs {
             csv.map.push(CsvOptions::parse_map(spec, ir)?);
         }
         Ok(csv)
+    }
+}
+
+/// A count of at least two (clap value parser for `--segments`).
+pub fn at_least_two(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if n < 2 => Err("must be at least 2 (a split gives at least two levels)".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("{e}: give a whole number of at least 2")),
+    }
+}
+
+/// How one data file is cut into levels (`detect` and `diagnose`).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct SplitArgs {
+    /// With ONE data file: cut it into N contiguous segments by amplitude, one level each
+    /// [default: 3].
+    #[arg(long, value_name = "N", value_parser = at_least_two)]
+    pub segments: Option<usize>,
+    /// With ONE data file: judge the amplitude by this signal [default: the first measured
+    /// position of the model].
+    #[arg(long = "split-by", value_name = "SIGNAL")]
+    pub split_by: Option<String>,
+}
+
+/// One data file cut into levels by [`SplitArgs`].
+pub struct SplitLevels {
+    /// One record per segment, quietest first, each with all columns of the file.
+    pub records: Vec<Record>,
+    /// `file [t0–t1 s]` per segment.
+    pub origins: Vec<String>,
+    pub split: Split,
+}
+
+impl SplitArgs {
+    /// With one data file, cut it into levels and print the segment table to stderr;
+    /// with several, `None` (and an error when a split option was given).
+    pub fn levels(
+        &self,
+        ir: &ModelIr,
+        data: &[PathBuf],
+        csv: &CsvOptions,
+    ) -> miette::Result<Option<SplitLevels>> {
+        if data.len() > 1 {
+            let flag = match (&self.segments, &self.split_by) {
+                (Some(_), _) => "--segments",
+                (None, Some(_)) => "--split-by",
+                (None, None) => return Ok(None),
+            };
+            return Err(miette!(
+                code = "dynid::split::several_files",
+                help = "give one file to be split into levels, or drop the flag: with several \
+                        files each file is one level",
+                "{flag} splits a single data file, but {} files were given",
+                data.len()
+            ));
+        }
+        let Some(path) = data.first() else {
+            return Ok(None);
+        };
+        let origin = path.display().to_string();
+        let signal = match &self.split_by {
+            Some(s) => s.clone(),
+            None => default_response(ir).ok_or_else(|| {
+                miette!(
+                    code = "dynid::split::no_response",
+                    help = "measure a position or velocity of a body, or give one file per level",
+                    "`{}` measures no response to judge the amplitude of `{origin}` by",
+                    ir.name
+                )
+            })?,
+        };
+        let record = read_record(path, csv)?;
+        let opts = SplitOptions {
+            segments: self.segments.unwrap_or(3),
+            ..Default::default()
+        };
+        let split = split_record(&record, &origin, &signal, &opts)?;
+        eprint!("{origin}: {}", split.table());
+        let origins = (0..split.segments.len())
+            .map(|i| split.label(&origin, i))
+            .collect();
+        Ok(Some(SplitLevels {
+            records: split.records(&record),
+            origins,
+            split,
+        }))
     }
 }
 

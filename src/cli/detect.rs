@@ -1,10 +1,10 @@
 //! `dynid detect LINEAR_MODEL.dyn LEVEL1.csv LEVEL2.csv ...`: which force elements of a
 //! linear model hide a nonlinearity, which kind, and how sure.
 
-use super::common::{check_outputs, inputs, CsvArgs, Staged};
+use super::common::{check_outputs, inputs, CsvArgs, SplitArgs, Staged};
 use dynid::plot::draw_curves;
-use dynid_runtime::data::{CsvSource, LevelSource};
-use dynid_runtime::detect::{detect_from_data, DetectOptions, SigmaVSource};
+use dynid_runtime::data::{CsvSource, LevelSource, RecordSource};
+use dynid_runtime::detect::{detect_from_data, levels_too_alike, DetectOptions, SigmaVSource};
 use dynid_runtime::IdentifyOptions;
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
@@ -27,6 +27,18 @@ Example:
   Element k/d (ground, m): nonlinear: cubic stiffness
     k3 = 1.98 ± 0.28; explains 94.2 % of the drift, χ²/dof = 5.234
 
+One record whose amplitude varies (a run-up, a sweep of drive levels) can stand for the
+levels: give ONE file and it is cut into --segments N (default 3) contiguous segments by the
+local RMS of the response (--split-by SIGNAL, default the first measured position), each
+long enough for identification (80/ω₀ s, ω₀ the response's dominant frequency). The
+segment table (time span, samples, σ) goes to stderr and into the JSON:
+
+  dynid detect models/sdof_linear.dyn run_up.csv --segments 4
+
+Levels (files or segments) whose σ are too alike for the drift test to resolve an effect
+of a quarter of a parameter's value get a warning (stderr, JSON `warnings`): their
+`linear` then only rules out larger effects.
+
 Unknown masses are held at one value for all levels (a nonlinear force linearises to a
 stiffness or damping, never to a mass). A second effect that a single-effect verdict
 leaves unexplained is reported as `also suspected`; more levels separate the two.
@@ -40,7 +52,8 @@ run `dynid identify` on the same files.";
 pub struct Args {
     /// The linear model (springs and dampers with unknown parameters).
     pub model: PathBuf,
-    /// One CSV file per excitation level (header with `t` and the measured signals).
+    /// One CSV file per excitation level (header with `t` and the measured signals), or ONE
+    /// file whose amplitude varies, split into levels (see --segments).
     #[arg(required = true)]
     pub data: Vec<PathBuf>,
     /// Write the full result (curves, tests, template ranking) as JSON to this file.
@@ -51,6 +64,8 @@ pub struct Args {
     pub plot: Option<PathBuf>,
     #[command(flatten)]
     pub csv: CsvArgs,
+    #[command(flatten)]
+    pub split: SplitArgs,
     /// Significance of the constancy test of each curve.
     #[arg(long, default_value_t = 1e-3, value_name = "P")]
     pub alpha: f64,
@@ -77,14 +92,6 @@ pub fn run(args: Args) -> miette::Result<()> {
             ));
         }
     }
-    let ir = super::common::load_model(&args.model)?;
-    let csv = args.csv.options(&ir)?;
-    let sources = args
-        .data
-        .iter()
-        .map(|p| CsvSource::open(p, &ir, &csv))
-        .collect::<Result<Vec<_>, _>>()?;
-    let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
     if !(args.alpha > 0.0 && args.alpha < 1.0) {
         return Err(miette!(
             code = "dynid::detect::option",
@@ -93,11 +100,39 @@ pub fn run(args: Args) -> miette::Result<()> {
             args.alpha
         ));
     }
-    let dopts = DetectOptions {
+    let ir = super::common::load_model(&args.model)?;
+    let csv = args.csv.options(&ir)?;
+    let split = args.split.levels(&ir, &args.data, &csv)?;
+    let (files, segments) = match &split {
+        Some(s) => (
+            Vec::new(),
+            s.records
+                .iter()
+                .zip(&s.origins)
+                .map(|(r, o)| RecordSource::new(r, &ir, o.clone()))
+                .collect::<Result<Vec<_>, _>>()?,
+        ),
+        None => (
+            args.data
+                .iter()
+                .map(|p| CsvSource::open(p, &ir, &csv))
+                .collect::<Result<Vec<_>, _>>()?,
+            Vec::new(),
+        ),
+    };
+    let levels: Vec<&dyn LevelSource> = files
+        .iter()
+        .map(|s| s as &dyn LevelSource)
+        .chain(segments.iter().map(|s| s as &dyn LevelSource))
+        .collect();
+    let mut dopts = DetectOptions {
         alpha: args.alpha,
         ..Default::default()
     };
     let (det, fits) = detect_from_data(&ir, &levels, &IdentifyOptions::default(), &dopts, &[])?;
+    // The options the test ran with (the jackknife's degrees of freedom filled in).
+    dopts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
+    let warnings = levels_too_alike(&det, &dopts);
 
     // Write all outputs or none (the plot format follows the extension, which the staged
     // name keeps).
@@ -109,6 +144,8 @@ pub fn run(args: Args) -> miette::Result<()> {
                 "intensities": fits.input.elements,
                 "sigma_v_source": fits.sigma_v_source,
                 "jackknife_blocks": fits.n_blocks,
+                "segments": split.as_ref().map(|s| &s.split),
+                "warnings": warnings,
             }))
             .into_diagnostic()?;
             staged.write(out, text.as_bytes())?;
@@ -120,6 +157,9 @@ pub fn run(args: Args) -> miette::Result<()> {
         staged.commit()
     })();
     print!("{}", det.render_table());
+    for w in &warnings {
+        eprintln!("warning: {}", w.message);
+    }
     let estimated: Vec<&str> = fits
         .input
         .elements

@@ -1,9 +1,9 @@
 //! `dynid diagnose MODEL.dyn LEVEL.csv...`: where the model misses the data, which
 //! unmodelled effect explains the gap, and how far it shrinks once that effect is added.
 
-use super::common::{check_outputs, inputs, CsvArgs, Staged};
+use super::common::{check_outputs, inputs, CsvArgs, SplitArgs, Staged};
 use dsl_parser::ir::ModelIr;
-use dynid_runtime::data::CsvSource;
+use dynid_runtime::data::{CsvSource, RecordSource, Split};
 use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
 use dynid_runtime::record::Record;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -35,6 +35,15 @@ Example:
     Re-identification alone: ... → ...; the effect: ... → ... (... of the re-identified gap removed)
     Overall (nominal → corrected): ... → ... (... of the gap removed); pathwise ... → ...
 
+One record whose amplitude varies (a run-up, a sweep of drive levels) can stand for the
+levels: give ONE file and it is cut into --segments N (default 3) contiguous segments by the
+local RMS of the response (--split-by SIGNAL, default the first measured position), each
+long enough for identification (80/ω₀ s, ω₀ the response's dominant frequency); every
+segment is then withheld in turn like a level. The segment table (time span, samples, σ)
+goes to stderr and into the JSON (`segments`):
+
+  dynid diagnose models/sdof_linear.dyn run_up.csv --segments 3
+
 The corrected model (fixed.dyn) is ordinary .dyn text, compiled before it is written.
 Outputs are written all or nothing. Metrics and thresholds: docs/diagnosis.md.";
 
@@ -44,8 +53,9 @@ Outputs are written all or nothing. Metrics and thresholds: docs/diagnosis.md.";
 pub struct Args {
     /// The simulation model (.dyn, with nominal values).
     pub model: PathBuf,
-    /// One CSV file per excitation level (at least 2).
-    #[arg(required = true, num_args = 2..)]
+    /// One CSV file per excitation level (at least 2), or ONE file whose amplitude varies,
+    /// split into levels (see --segments).
+    #[arg(required = true)]
     pub data: Vec<PathBuf>,
     /// Write an HTML report (opens offline) to this file.
     #[arg(long, value_name = "HTML")]
@@ -58,6 +68,8 @@ pub struct Args {
     pub write_model: Option<PathBuf>,
     #[command(flatten)]
     pub csv: CsvArgs,
+    #[command(flatten)]
+    pub split: SplitArgs,
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -74,19 +86,36 @@ pub fn run(args: Args) -> miette::Result<()> {
     )?;
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
+    let split = args.split.levels(&ir, &args.data, &csv)?;
     let mut records = Vec::new();
-    for p in &args.data {
-        let src = CsvSource::open(p, &ir, &csv)?;
-        records.push(diagnose::read_record(&src, &ir)?);
-    }
-    let origins: Vec<String> = args.data.iter().map(|p| p.display().to_string()).collect();
+    let origins: Vec<String> = match &split {
+        Some(s) => {
+            // The model's measured columns of each segment, checked like a file's.
+            for (r, o) in s.records.iter().zip(&s.origins) {
+                let src = RecordSource::new(r, &ir, o.clone())?;
+                records.push(Record {
+                    t0: r.t0,
+                    ..diagnose::read_record(&src, &ir)?
+                });
+            }
+            s.origins.clone()
+        }
+        None => {
+            for p in &args.data {
+                let src = CsvSource::open(p, &ir, &csv)?;
+                records.push(diagnose::read_record(&src, &ir)?);
+            }
+            args.data.iter().map(|p| p.display().to_string()).collect()
+        }
+    };
     let d = run_diagnosis(&ir, &records, &origins, args.quiet)?;
     print!("{}", d.summary());
-    write_outputs(
+    write_outputs_with(
         &d,
         args.report.as_deref(),
         args.json.as_deref(),
         args.write_model.as_deref(),
+        split.as_ref().map(|s| &s.split),
     )
 }
 
@@ -126,9 +155,36 @@ pub fn write_outputs(
     json: Option<&Path>,
     model: Option<&Path>,
 ) -> miette::Result<()> {
+    write_outputs_with(d, report, json, model, None)
+}
+
+/// The JSON of a diagnosis on a split record.
+#[derive(serde::Serialize)]
+struct WithSegments<'a> {
+    #[serde(flatten)]
+    diagnosis: &'a Diagnosis,
+    segments: &'a Split,
+}
+
+/// [`write_outputs`], with the segments of a split record added to the JSON (`segments`).
+pub fn write_outputs_with(
+    d: &Diagnosis,
+    report: Option<&Path>,
+    json: Option<&Path>,
+    model: Option<&Path>,
+    segments: Option<&Split>,
+) -> miette::Result<()> {
     let html = report.map(|_| dynid::plot::render_html(d));
     let js = match json {
-        Some(_) => Some(serde_json::to_string_pretty(d).into_diagnostic()?),
+        Some(_) => Some(match segments {
+            None => serde_json::to_string_pretty(d).into_diagnostic()?,
+            // The diagnosis' fields flattened next to the segments.
+            Some(s) => serde_json::to_string_pretty(&WithSegments {
+                diagnosis: d,
+                segments: s,
+            })
+            .into_diagnostic()?,
+        }),
         None => None,
     };
     let mut staged = Staged::new();

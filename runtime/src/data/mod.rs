@@ -10,11 +10,13 @@ mod csv_file;
 #[doc(hidden)]
 pub mod fuzz;
 mod record;
+pub mod split;
 #[cfg(test)]
 mod tests;
 
 pub use csv_file::{read_record, CsvSource};
 pub use record::RecordSource;
+pub use split::{default_response, split_record, Segment, Split, SplitError, SplitOptions};
 
 use crate::record::Record;
 use dynid_ir::ir::ModelIr;

@@ -30,6 +30,7 @@ mod fit;
 pub mod from_data;
 mod quad;
 mod render;
+pub mod resolution;
 pub mod stats;
 mod types;
 
@@ -42,6 +43,7 @@ pub use from_data::{
 };
 pub use quad::NormalRule;
 pub use render::{fmt_g, fmt_pm};
+pub use resolution::{levels_too_alike, LevelsTooAlike};
 pub use types::{
     DetectError, DetectOptions, Detection, DetectionInput, ElementFinding, ElementIntensity,
     Estimate, HeldParam, Linearisation, ParamCurve, ParamCurveResult, Prediction, Role, Suspected,

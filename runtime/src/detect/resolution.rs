@@ -1,0 +1,219 @@
+//! Levels too alike to resolve a nonlinearity: a "linear" verdict that only means the
+//! levels could not tell.
+//!
+//! Detection sees a nonlinearity only through the drift of an equivalent-linear parameter
+//! over the levels' intensities. On levels of nearly equal σ every template is nearly
+//! constant, so even a large effect passes the constancy test. Whether the level set can
+//! resolve one is a question about the test itself, asked of every curve that did not
+//! drift:
+//!
+//! * Take an effect whose equivalent-linear part scales like σ or 1/σ — quadratic damping
+//!   (∝ σ_v), Coulomb friction (∝ 1/σ_v), prestress (∝ 1/σ_s). These are the built-ins
+//!   whose drift over a σ range is smallest for their size (a cubic spring drifts ∝ σ²,
+//!   twice as steeply), so a level set that resolves them resolves the others.
+//! * Let it contribute a fraction `f` of the curve's mean at the level where it is largest.
+//!   Across levels whose σ spans a factor `r` it changes the parameter by `f·(1 − 1/r)` of
+//!   the mean, shaped `σ_l/σ_max` or `σ_min/σ_l`.
+//! * Without noise, that curve gives the constancy statistic `f²·χ²₁` (χ²₁: the weighted
+//!   squared deviation of the shape from its weighted mean, with the curve's own standard
+//!   errors). The test flags it when this reaches the critical value of the test at
+//!   [`DetectOptions::alpha`] (χ² or F with [`DetectOptions::se_dof`], as in
+//!   [`super::constancy_test`]) — even odds of detection — and when `f·(1 − 1/r)` exceeds
+//!   [`DetectOptions::min_rel_change`].
+//!
+//! The smallest `f` meeting both, for the harder of the two shapes, is the smallest visible
+//! effect. When it exceeds [`MAX_INVISIBLE`] (an effect a quarter the size of the linear
+//! value would go unseen), the levels are too alike: the curve is reported with a warning
+//! instead of a silent "linear". With the recommended factor of 3 in σ, `1 − 1/r = 2/3`
+//! and the 2 % minimum change alone needs only `f = 3 %`; at a factor 1.1 it needs 22 %
+//! before any noise.
+
+use super::stats::{chi2_sf, f_sf};
+use super::{DetectOptions, Detection, Role};
+use serde::Serialize;
+
+/// Largest effect (fraction of the curve's mean at the level where the effect is largest)
+/// that a level set may fail to reveal before it is reported as too alike.
+pub const MAX_INVISIBLE: f64 = 0.25;
+
+/// A curve that did not drift although its levels could not have shown a drift.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LevelsTooAlike {
+    pub element: String,
+    pub param: String,
+    /// `σ_s` or `σ_v`.
+    pub sigma_name: String,
+    /// Largest over smallest σ of the levels.
+    pub sigma_ratio: f64,
+    /// The smallest visible effect, a fraction of the parameter (see the module docs).
+    pub smallest_visible: f64,
+    /// The warning as one sentence.
+    pub message: String,
+}
+
+/// The critical value `c` of the constancy statistic χ² over `dof` degrees of freedom:
+/// its p-value at `c` is `alpha` (bisection on the monotone tail probability).
+fn critical(alpha: f64, dof: usize, se_dof: Option<f64>) -> f64 {
+    let d = dof as f64;
+    let p = |c: f64| match se_dof {
+        Some(nu) => f_sf(c / d, d, nu),
+        None => chi2_sf(c, d),
+    };
+    let mut hi = 1.0;
+    while p(hi) > alpha && hi < 1e12 {
+        hi *= 2.0;
+    }
+    let mut lo = 0.0;
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if p(mid) > alpha {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+/// The stiffness and damping curves of `det` that stayed constant on levels too alike to
+/// reveal an effect of [`MAX_INVISIBLE`] of their value. `opts` must be the options the
+/// detection ran with (`se_dof` included: [`super::detect_from_data`] sets it to the
+/// jackknife blocks minus one).
+pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooAlike> {
+    let mut out = Vec::new();
+    for r in &det.params {
+        if r.drifting || !matches!(r.curve.role, Role::Stiffness | Role::Damping) {
+            continue;
+        }
+        // Only a "linear" verdict can be silently wrong: an element found nonlinear has
+        // shown its effect on another curve.
+        let linear = det
+            .elements
+            .iter()
+            .find(|e| e.element == r.curve.element)
+            .is_none_or(|e| e.verdict == super::Verdict::Linear);
+        if !linear {
+            continue;
+        }
+        let (sig, se) = (&r.sigma, &r.stderrs_used);
+        let (lo, hi) = sig
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(a, b), &s| (a.min(s), b.max(s)));
+        let mean = r.mean.abs();
+        if sig.len() < 2
+            || !(lo > 0.0 && hi.is_finite() && mean > 0.0)
+            || !se.iter().all(|s| s.is_finite() && *s > 0.0)
+        {
+            continue;
+        }
+        let ratio = hi / lo;
+        let span = 1.0 - 1.0 / ratio;
+        let crit = critical(opts.alpha, sig.len() - 1, opts.se_dof);
+        let smallest = |shape: &dyn Fn(f64) -> f64| {
+            let g: Vec<f64> = sig.iter().map(|&s| mean * shape(s)).collect();
+            let w: Vec<f64> = se.iter().map(|s| 1.0 / (s * s)).collect();
+            let gm = g.iter().zip(&w).map(|(g, w)| g * w).sum::<f64>() / w.iter().sum::<f64>();
+            let chi2: f64 = g.iter().zip(se).map(|(g, s)| ((g - gm) / s).powi(2)).sum();
+            let by_test = if chi2 > 0.0 {
+                (crit / chi2).sqrt()
+            } else {
+                f64::INFINITY
+            };
+            let by_change = if span > 0.0 {
+                opts.min_rel_change / span
+            } else {
+                f64::INFINITY
+            };
+            by_test.max(by_change)
+        };
+        let f = smallest(&|s| s / hi).max(smallest(&|s| lo / s));
+        if f > MAX_INVISIBLE {
+            let element = r.curve.element.clone();
+            let message = format!(
+                "levels too alike for `{}` of {element}: with its {} spanning a factor {:.3} \
+                 over the levels and its standard errors, an effect that scales with σ or \
+                 1/σ (friction, prestress, quadratic damping) would have to reach {} of `{}` \
+                 to show as a drift (at most {:.0} % is needed); `linear` here only rules \
+                 out larger effects — add levels that span a wider range of amplitude (a \
+                 factor ≥ 3) or longer levels",
+                r.curve.param,
+                r.sigma_name,
+                ratio,
+                if f.is_finite() {
+                    format!("{:.0} %", 100.0 * f)
+                } else {
+                    "any size".into()
+                },
+                r.curve.param,
+                100.0 * MAX_INVISIBLE,
+            );
+            out.push(LevelsTooAlike {
+                element,
+                param: r.curve.param.clone(),
+                sigma_name: r.sigma_name.clone(),
+                sigma_ratio: ratio,
+                smallest_visible: f,
+                message,
+            });
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::{detect, DetectionInput, ElementIntensity, ParamCurve};
+
+    fn detection(sigma: &[f64], rel_se: f64) -> (Detection, DetectOptions) {
+        let n = sigma.len();
+        let input = DetectionInput {
+            level_labels: Vec::new(),
+            elements: vec![ElementIntensity {
+                element: "k (ground, m)".into(),
+                sigma_s: sigma.to_vec(),
+                sigma_v: sigma.iter().map(|s| 2.0 * s).collect(),
+                ..Default::default()
+            }],
+            curves: vec![ParamCurve {
+                param: "k".into(),
+                element: "k (ground, m)".into(),
+                role: Role::Stiffness,
+                values: vec![4.0; n],
+                stderrs: vec![4.0 * rel_se; n],
+            }],
+            held: Vec::new(),
+        };
+        let opts = DetectOptions {
+            se_dof: Some(19.0),
+            ..Default::default()
+        };
+        (detect(&input, &[], &opts).unwrap(), opts)
+    }
+
+    #[test]
+    fn the_critical_value_inverts_the_test() {
+        // P(χ²_4 > 18.4668) = 0.001.
+        assert!((critical(1e-3, 4, None) - 18.466_826_952_903_15).abs() < 1e-6);
+        let c = critical(1e-3, 2, Some(19.0));
+        assert!((f_sf(c / 2.0, 2.0, 19.0) - 1e-3).abs() < 1e-9);
+    }
+
+    #[test]
+    fn alike_levels_warn_and_spread_levels_do_not() {
+        // Three levels spanning a factor 3 with 1 % errors: the 2 % minimum change
+        // decides (f = 0.02 / (2/3) = 3 %) or the test (a few %): no warning.
+        let (d, o) = detection(&[0.1, 0.17, 0.3], 0.01);
+        assert!(levels_too_alike(&d, &o).is_empty());
+        // A factor 1.1: the minimum change alone needs 22 %, the test more.
+        let (d, o) = detection(&[0.1, 0.105, 0.11], 0.01);
+        let w = levels_too_alike(&d, &o);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!((w[0].sigma_ratio - 1.1).abs() < 1e-12);
+        assert!(w[0].smallest_visible > 0.25, "{w:?}");
+        assert!(w[0].message.contains("a factor 1.100"), "{}", w[0].message);
+        // The same factor 3 with 20 % errors cannot resolve a quarter either.
+        let (d, o) = detection(&[0.1, 0.17, 0.3], 0.2);
+        assert_eq!(levels_too_alike(&d, &o).len(), 1);
+    }
+}
