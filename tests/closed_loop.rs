@@ -84,15 +84,18 @@ fn a_closed_loop_model_drives_its_loop_from_a_recorded_set_point() {
         csv.push_str(&format!("{t},{xr}\n"));
     }
     std::fs::write(&input, csv).unwrap();
-    let out = dynid()
-        .arg("simulate")
-        .arg(model_path("servo_axis_linear.dyn"))
-        .arg("--input")
-        .arg(&input)
-        .arg("--out")
-        .arg(dir.path().join("run"))
-        .output()
-        .unwrap();
+    let drive = |out: &str| {
+        dynid()
+            .arg("simulate")
+            .arg(model_path("servo_axis_linear.dyn"))
+            .arg("--input")
+            .arg(&input)
+            .arg("--out")
+            .arg(dir.path().join(out))
+            .output()
+            .unwrap()
+    };
+    let out = drive("run");
     assert!(out.status.success(), "{}", stderr(&out));
     let text = std::fs::read_to_string(dir.path().join("run/driven.csv")).unwrap();
     let last: Vec<f64> = text
@@ -108,15 +111,7 @@ fn a_closed_loop_model_drives_its_loop_from_a_recorded_set_point() {
 
     // Without the set point the loop cannot run, and says what is missing.
     std::fs::write(&input, "t,r\n0,0\n0.001,0\n0.002,0\n").unwrap();
-    let out = dynid()
-        .arg("simulate")
-        .arg(model_path("servo_axis_linear.dyn"))
-        .arg("--input")
-        .arg(&input)
-        .arg("--out")
-        .arg(dir.path().join("bad"))
-        .output()
-        .unwrap();
+    let out = drive("bad");
     assert!(!out.status.success());
     assert!(stderr(&out).contains("`xr`"), "{}", stderr(&out));
     assert!(!dir.path().join("bad").exists());

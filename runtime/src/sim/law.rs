@@ -44,9 +44,11 @@ impl Laws {
         })
     }
 
-    /// Whether input `i` is computed by a law.
-    pub(crate) fn controls(&self, i: usize) -> bool {
-        self.inputs.contains(&i)
+    /// Hold every law's value over the next step: copy it from `from` into `to`.
+    pub(crate) fn hold(&self, from: &[f64], to: &mut [f64]) {
+        for &i in &self.inputs {
+            to[i] = from[i];
+        }
     }
 
     /// Write every law's value into `u[input]`, from positions `x`, velocities `v` and

@@ -557,11 +557,7 @@ fn simulate_level(
                 ctl.step_reference(rng);
             }
             if let Some(laws) = &laws {
-                for c in &ir.controls {
-                    let i = c.input.index();
-                    u1[i] = u0[i];
-                }
-                debug_assert!(ir.controls.iter().all(|c| laws.controls(c.input.index())));
+                laws.hold(&u0, &mut u1);
             }
             rk.advance(mech, &u0, &u1, h, substeps);
             std::mem::swap(&mut u0, &mut u1);
