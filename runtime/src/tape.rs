@@ -248,3 +248,219 @@ impl crate::basis::BasisEval for Tape {
         *scratch = s.regs;
     }
 }
+
+/// A [`Tape`] laid out for evaluation one point at a time (the simulator's right-hand side,
+/// millions of times a second): every operand is an index into one array
+/// `mem = [signals…, constants…, registers…]`, so an instruction is two loads, one
+/// operation and one store, with no dispatch on where an operand lives.
+///
+/// Results are bit-identical to [`Tape::eval_point`].
+#[derive(Clone, Debug)]
+pub struct PointTape {
+    ops: Vec<PointOp>,
+    /// `mem` index of each root.
+    roots: Vec<usize>,
+    /// `mem[n_signals .. n_signals + consts.len()]`, written by [`PointTape::memory`].
+    consts: Vec<f64>,
+    n_signals: usize,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct PointOp {
+    kind: PointKind,
+    a: usize,
+    b: usize,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum PointKind {
+    Unary(UnaryOp),
+    Binary(BinaryOp),
+    Square,
+    Cube,
+    Powi(i32),
+    Deadzone(f64),
+    Saturate(f64),
+}
+
+impl PointTape {
+    pub fn new(tape: &Tape) -> PointTape {
+        let n_signals = tape.n_signals;
+        // Distinct constants (by bits), in order of first use; the registers follow them.
+        let mut consts: Vec<f64> = Vec::new();
+        for o in tape
+            .ops
+            .iter()
+            .flat_map(op_operands)
+            .chain(tape.roots.iter().copied())
+        {
+            if let Operand::Const(c) = o {
+                if !consts.iter().any(|x| x.to_bits() == c.to_bits()) {
+                    consts.push(c);
+                }
+            }
+        }
+        let base = n_signals + consts.len();
+        let slot = |o: Operand| match o {
+            Operand::Reg(r) => base + r as usize,
+            Operand::Sig(s) => s as usize,
+            Operand::Const(c) => {
+                n_signals
+                    + consts
+                        .iter()
+                        .position(|x| x.to_bits() == c.to_bits())
+                        .expect("invariant: every constant was collected above")
+            }
+        };
+        let ops: Vec<PointOp> = tape
+            .ops
+            .iter()
+            .map(|op| match *op {
+                Op::Unary(u, a) => PointOp {
+                    kind: PointKind::Unary(u),
+                    a: slot(a),
+                    b: 0,
+                },
+                Op::Binary(b, x, y) => PointOp {
+                    kind: PointKind::Binary(b),
+                    a: slot(x),
+                    b: slot(y),
+                },
+                Op::Powi(a, k) => PointOp {
+                    kind: match k {
+                        2 => PointKind::Square,
+                        3 => PointKind::Cube,
+                        _ => PointKind::Powi(k),
+                    },
+                    a: slot(a),
+                    b: 0,
+                },
+                Op::Deadzone(a, g) => PointOp {
+                    kind: PointKind::Deadzone(g),
+                    a: slot(a),
+                    b: 0,
+                },
+                Op::Saturate(a, l) => PointOp {
+                    kind: PointKind::Saturate(l),
+                    a: slot(a),
+                    b: 0,
+                },
+            })
+            .collect();
+        let roots = tape.roots.iter().map(|&o| slot(o)).collect();
+        // What `eval`'s unchecked reads rely on: operands are signals, constants or
+        // earlier registers (the tape is in topological order).
+        for (i, op) in ops.iter().enumerate() {
+            assert!(
+                op.a < base + i && op.b < base + i,
+                "invariant: operands precede their instruction"
+            );
+        }
+        PointTape {
+            ops,
+            roots,
+            consts,
+            n_signals,
+        }
+    }
+
+    /// A memory array for [`PointTape::eval`] with the constants in place; the caller
+    /// writes the signals into `mem[..n_signals]`.
+    pub fn memory(&self) -> Vec<f64> {
+        let mut mem = vec![0.0; self.memory_len()];
+        mem[self.n_signals..self.n_signals + self.consts.len()].copy_from_slice(&self.consts);
+        mem
+    }
+
+    /// Length of [`PointTape::memory`].
+    pub fn memory_len(&self) -> usize {
+        self.n_signals + self.consts.len() + self.ops.len()
+    }
+
+    /// Where root `r` lives in the memory after [`PointTape::eval`].
+    pub fn root_slot(&self, r: usize) -> usize {
+        self.roots[r]
+    }
+
+    pub fn n_signals(&self) -> usize {
+        self.n_signals
+    }
+
+    /// Evaluate every instruction on `mem` (from [`PointTape::memory`], signals written).
+    #[inline]
+    pub fn eval(&self, mem: &mut [f64]) {
+        let base = self.n_signals + self.consts.len();
+        assert!(
+            mem.len() >= base + self.ops.len(),
+            "memory smaller than PointTape::memory"
+        );
+        for (i, op) in self.ops.iter().enumerate() {
+            // SAFETY: `new` makes every operand index smaller than `base + i` (signals,
+            // constants, or an earlier register), and `mem` holds `base + ops.len()` values
+            // (asserted above).
+            let a = unsafe { *mem.get_unchecked(op.a) };
+            let v = match op.kind {
+                PointKind::Unary(u) => u.apply(a),
+                // SAFETY: as for `a`.
+                PointKind::Binary(b) => b.apply(a, unsafe { *mem.get_unchecked(op.b) }),
+                // `powi` by repeated squaring gives these same products.
+                PointKind::Square => a * a,
+                PointKind::Cube => a * a * a,
+                PointKind::Powi(k) => a.powi(k),
+                PointKind::Deadzone(g) => deadzone(a, g),
+                PointKind::Saturate(l) => saturate(a, l),
+            };
+            // SAFETY: `base + i < base + ops.len() <= mem.len()`.
+            unsafe { *mem.get_unchecked_mut(base + i) = v };
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every kind of instruction, constants shared and not, roots that are signals.
+    fn model() -> ModelIr {
+        let src = "model every_op {
+            body m = 1.0
+            body n ~ 2.0
+            input u on m
+            spring k (ground, m) ~ 4.0
+            damper d (m, n) ~ 0.4
+            force a (ground, m) = c1 ~ 1.0 * s^3 + c2 ~ 1.0 * s^2 * v + c3 ~ 1.0 * s^5
+            force b (m, n) = c4 ~ 1.0 * sign(v) + c5 ~ 1.0 * tanh(v / 0.3) + c6 ~ 1.0 * abs(v) * v
+            force c (ground, n) = c7 ~ 1.0 * deadzone(s, 0.05) + c8 ~ 1.0 * saturate(s, 0.2)
+            force e (ground, n) = c9 ~ 1.0 * sqrt(abs(s)) * exp(-v * v) - 3 * s / 7
+            excite u: lowpass(corner = 10) levels [1]
+        }";
+        dsl_parser::compile_str("every_op", src).expect("a valid model")
+    }
+
+    #[test]
+    fn the_point_tape_gives_the_tapes_values_bit_for_bit() {
+        let ir = model();
+        let roots = ir.eval_roots();
+        let tape = Tape::compile(&ir, &roots);
+        let point = PointTape::new(&tape);
+        let mut mem = point.memory();
+        let mut regs = vec![0.0; tape.ops.len()];
+        let mut expected = vec![0.0; tape.n_roots()];
+        for k in 0..200 {
+            // Values around every kink: zero, the dead zone's and the limit's edges.
+            let signals: Vec<f64> = (0..tape.n_signals)
+                .map(|s| ((k * 7 + s * 13) % 41) as f64 * 0.0125 - 0.25)
+                .collect();
+            tape.eval_point(&signals, &mut regs, &mut expected);
+            mem[..point.n_signals()].copy_from_slice(&signals);
+            point.eval(&mut mem);
+            for (r, e) in expected.iter().enumerate() {
+                assert_eq!(
+                    mem[point.root_slot(r)].to_bits(),
+                    e.to_bits(),
+                    "root {r} at point {k}"
+                );
+            }
+        }
+    }
+}

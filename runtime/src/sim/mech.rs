@@ -5,7 +5,7 @@
 //! once (coefficients are constants during a simulation).
 
 use super::SimError;
-use crate::tape::Tape;
+use crate::tape::{PointTape, Tape};
 use dynid_ir::ir::{Basis, ModelIr};
 
 /// Precomputed, allocation-free acceleration function of a model.
@@ -13,11 +13,16 @@ use dynid_ir::ir::{Basis, ModelIr};
 pub(crate) struct Mechanics {
     pub(crate) n_bodies: usize,
     pub(crate) n_inputs: usize,
-    tape: Tape,
-    /// `(equation, root, coefficient value)` for every `Expr` term.
-    expr_terms: Vec<(usize, usize, f64)>,
-    /// `(equation, body, coefficient value)` for every `Deriv{body, 1}` term.
-    vel_terms: Vec<(usize, usize, f64)>,
+    /// The expressions of the terms, evaluated on `MechScratch::mem`, whose first entries
+    /// are the signals: position `i` at `2i`, velocity `i` at `2i + 1`, input `j` at `2nb + j`.
+    point: PointTape,
+    /// The force terms, grouped by equation: equation `i` sums `terms[starts[i]..starts[i + 1]]`.
+    /// Each term is `(slot, coefficient value)`, the slot indexing `MechScratch::mem` (a
+    /// tape root for an `Expr` term, the velocity signal for a `Deriv{body, 1}` term).
+    /// Within an equation the `Expr` terms come first, then the velocity terms, each in
+    /// declaration order (the order of the sums the simulator always used).
+    terms: Vec<(usize, f64)>,
+    starts: Vec<usize>,
     /// `M⁻¹`, row-major.
     minv: Vec<f64>,
     diagonal_mass: bool,
@@ -26,9 +31,8 @@ pub(crate) struct Mechanics {
 /// Scratch space for [`Mechanics::accel`], one per thread.
 #[derive(Clone, Debug)]
 pub(crate) struct MechScratch {
-    signals: Vec<f64>,
-    regs: Vec<f64>,
-    roots: Vec<f64>,
+    /// [`PointTape::memory`]: signals, constants, registers.
+    mem: Vec<f64>,
     force: Vec<f64>,
 }
 
@@ -106,12 +110,41 @@ impl Mechanics {
             .flat_map(|i| (0..nb).map(move |j| (i, j)))
             .map(|(i, j)| minv[(i, j)])
             .collect();
+        let point = PointTape::new(&Tape::compile(ir, &roots));
+        let mut terms = Vec::with_capacity(expr_terms.len() + vel_terms.len());
+        let mut starts = Vec::with_capacity(nb + 1);
+        for eq in 0..nb {
+            starts.push(terms.len());
+            // What `accel`'s unchecked reads rely on.
+            assert!(
+                terms.iter().all(|&(slot, _)| slot < point.memory_len()),
+                "invariant: every term reads the tape's memory"
+            );
+            terms.extend(
+                expr_terms
+                    .iter()
+                    .filter(|t| t.0 == eq)
+                    .map(|&(_, root, c)| (point.root_slot(root), c)),
+            );
+            terms.extend(
+                vel_terms
+                    .iter()
+                    .filter(|t| t.0 == eq)
+                    .map(|&(_, body, c)| (2 * body + 1, c)),
+            );
+        }
+        starts.push(terms.len());
+        // What `accel`'s unchecked reads rely on.
+        assert!(
+            terms.iter().all(|&(slot, _)| slot < point.memory_len()),
+            "invariant: every term reads the tape's memory"
+        );
         Ok(Mechanics {
             n_bodies: nb,
             n_inputs: ir.inputs.len(),
-            tape: Tape::compile(ir, &roots),
-            expr_terms,
-            vel_terms,
+            point,
+            terms,
+            starts,
             minv,
             diagonal_mass,
         })
@@ -119,15 +152,13 @@ impl Mechanics {
 
     pub(crate) fn scratch(&self) -> MechScratch {
         MechScratch {
-            signals: vec![0.0; self.tape.n_signals],
-            regs: vec![0.0; self.tape.ops.len()],
-            roots: vec![0.0; self.tape.n_roots()],
+            mem: self.point.memory(),
             force: vec![0.0; self.n_bodies],
         }
     }
 
     /// Accelerations `a` at positions `x`, velocities `v` and inputs `u`.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn accel(
         &self,
         x: &[f64],
@@ -137,18 +168,27 @@ impl Mechanics {
         a: &mut [f64],
     ) {
         let nb = self.n_bodies;
-        for i in 0..nb {
-            s.signals[2 * i] = x[i];
-            s.signals[2 * i + 1] = v[i];
+        let mem = &mut s.mem[..];
+        for (i, (&x, &v)) in x.iter().zip(v).enumerate().take(nb) {
+            mem[2 * i] = x;
+            mem[2 * i + 1] = v;
         }
-        s.signals[2 * nb..2 * nb + self.n_inputs].copy_from_slice(u);
-        self.tape.eval_point(&s.signals, &mut s.regs, &mut s.roots);
-        s.force.fill(0.0);
-        for &(eq, root, c) in &self.expr_terms {
-            s.force[eq] += c * s.roots[root];
+        for (m, &u) in mem[2 * nb..2 * nb + self.n_inputs].iter_mut().zip(u) {
+            *m = u;
         }
-        for &(eq, body, c) in &self.vel_terms {
-            s.force[eq] += c * v[body];
+        self.point.eval(mem);
+        let mem = &s.mem[..];
+        assert!(
+            mem.len() >= self.point.memory_len(),
+            "invariant: scratch of this model"
+        );
+        for (f, w) in s.force.iter_mut().zip(self.starts.windows(2)) {
+            let mut sum = 0.0;
+            for &(slot, c) in &self.terms[w[0]..w[1]] {
+                // SAFETY: `new` checks every slot against `memory_len` (asserted above).
+                sum += c * unsafe { *mem.get_unchecked(slot) };
+            }
+            *f = sum;
         }
         if self.diagonal_mass {
             for (i, (a, f)) in a.iter_mut().zip(&s.force).enumerate() {
@@ -167,14 +207,9 @@ impl Mechanics {
 pub(crate) struct Rk4 {
     pub(crate) x: Vec<f64>,
     pub(crate) v: Vec<f64>,
-    a1: Vec<f64>,
-    a2: Vec<f64>,
-    a3: Vec<f64>,
-    a4: Vec<f64>,
-    v2: Vec<f64>,
-    v3: Vec<f64>,
-    v4: Vec<f64>,
-    xt: Vec<f64>,
+    /// The stages `a1 a2 a3 a4 v2 v3 v4 xt`, `n_bodies` values each, in one buffer so that
+    /// `advance` works on slices of one known length.
+    stages: Vec<f64>,
     u: Vec<f64>,
     scratch: MechScratch,
 }
@@ -182,18 +217,11 @@ pub(crate) struct Rk4 {
 impl Rk4 {
     /// At rest at the origin.
     pub(crate) fn new(mech: &Mechanics) -> Self {
-        let z = vec![0.0; mech.n_bodies];
+        let nb = mech.n_bodies;
         Rk4 {
-            x: z.clone(),
-            v: z.clone(),
-            a1: z.clone(),
-            a2: z.clone(),
-            a3: z.clone(),
-            a4: z.clone(),
-            v2: z.clone(),
-            v3: z.clone(),
-            v4: z.clone(),
-            xt: z,
+            x: vec![0.0; nb],
+            v: vec![0.0; nb],
+            stages: vec![0.0; 8 * nb],
             u: vec![0.0; mech.n_inputs],
             scratch: mech.scratch(),
         }
@@ -214,30 +242,36 @@ impl Rk4 {
         let (h2, h6) = (0.5 * h, h / 6.0);
         let n = substeps as f64;
         let nb = mech.n_bodies;
+        let (x, v) = (&mut self.x[..nb], &mut self.v[..nb]);
+        let mut parts = self.stages.chunks_exact_mut(nb);
+        let mut next = || parts.next().expect("invariant: eight stages");
+        let (a1, a2, a3, a4) = (next(), next(), next(), next());
+        let (v2, v3, v4, xt) = (next(), next(), next(), next());
+        let (u, scratch) = (&mut self.u, &mut self.scratch);
+        // `out = base + f · d`, element by element.
+        let step = |out: &mut [f64], base: &[f64], f: f64, d: &[f64]| {
+            for ((o, &b), &d) in out.iter_mut().zip(base).zip(d) {
+                *o = b + f * d;
+            }
+        };
         for j in 0..substeps {
             let j = j as f64;
-            lerp(u0, u1, j / n, &mut self.u);
-            mech.accel(&self.x, &self.v, &self.u, &mut self.scratch, &mut self.a1);
+            lerp(u0, u1, j / n, u);
+            mech.accel(x, v, u, scratch, a1);
+            step(xt, x, h2, v);
+            step(v2, v, h2, a1);
+            lerp(u0, u1, (j + 0.5) / n, u);
+            mech.accel(xt, v2, u, scratch, a2);
+            step(xt, x, h2, v2);
+            step(v3, v, h2, a2);
+            mech.accel(xt, v3, u, scratch, a3);
+            step(xt, x, h, v3);
+            step(v4, v, h, a3);
+            lerp(u0, u1, (j + 1.0) / n, u);
+            mech.accel(xt, v4, u, scratch, a4);
             for i in 0..nb {
-                self.xt[i] = self.x[i] + h2 * self.v[i];
-                self.v2[i] = self.v[i] + h2 * self.a1[i];
-            }
-            lerp(u0, u1, (j + 0.5) / n, &mut self.u);
-            mech.accel(&self.xt, &self.v2, &self.u, &mut self.scratch, &mut self.a2);
-            for i in 0..nb {
-                self.xt[i] = self.x[i] + h2 * self.v2[i];
-                self.v3[i] = self.v[i] + h2 * self.a2[i];
-            }
-            mech.accel(&self.xt, &self.v3, &self.u, &mut self.scratch, &mut self.a3);
-            for i in 0..nb {
-                self.xt[i] = self.x[i] + h * self.v3[i];
-                self.v4[i] = self.v[i] + h * self.a3[i];
-            }
-            lerp(u0, u1, (j + 1.0) / n, &mut self.u);
-            mech.accel(&self.xt, &self.v4, &self.u, &mut self.scratch, &mut self.a4);
-            for i in 0..nb {
-                self.x[i] += h6 * (self.v[i] + 2.0 * self.v2[i] + 2.0 * self.v3[i] + self.v4[i]);
-                self.v[i] += h6 * (self.a1[i] + 2.0 * self.a2[i] + 2.0 * self.a3[i] + self.a4[i]);
+                x[i] += h6 * (v[i] + 2.0 * v2[i] + 2.0 * v3[i] + v4[i]);
+                v[i] += h6 * (a1[i] + 2.0 * a2[i] + 2.0 * a3[i] + a4[i]);
             }
         }
     }
