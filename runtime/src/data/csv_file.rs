@@ -1,6 +1,7 @@
 //! CSV level files: streamed, validated (header, equal field counts, finite numbers,
 //! uniform time step), with an optional binary copy that later passes replay.
 
+use super::csv_parse::{parse_body, parse_number, Layout, Role};
 use super::*;
 
 /// A CSV file bound to a model: validated header, known sample interval; the body is
@@ -52,22 +53,7 @@ fn csv_err(path: &Path, e: csv::Error) -> DataError {
 }
 
 fn parse_cell(path: &Path, line: u64, column: &str, raw: &[u8]) -> Result<f64, DataError> {
-    let s = std::str::from_utf8(raw).unwrap_or("").trim();
-    let v: f64 = s.parse().map_err(|_| DataError::NotANumber {
-        path: path.display().to_string(),
-        line,
-        column: column.to_string(),
-        value: String::from_utf8_lossy(raw).into_owned(),
-    })?;
-    if !v.is_finite() {
-        return Err(DataError::NonFinite {
-            path: path.display().to_string(),
-            line,
-            column: column.to_string(),
-            value: v,
-        });
-    }
-    Ok(v)
+    parse_number(path, line, column, raw)
 }
 
 /// Relative tolerance on the time step (times printed with few digits jitter slightly).
@@ -335,83 +321,66 @@ impl CsvSource {
     ) -> Result<(), DataError> {
         let path = self.path.as_path();
         let p = || path.display().to_string();
-        let mut rdr = Self::reader(path)?;
+        let mut roles = vec![Role::Skip; self.n_fields];
+        for (k, &(_, c)) in self.wanted.iter().enumerate() {
+            roles[c] = Role::Wanted(k);
+        }
+        if let Some(tc) = self.t_col {
+            roles[tc] = Role::Time;
+        }
+        let layout = Layout {
+            path,
+            header: &self.header,
+            roles,
+            n_wanted: self.wanted.len(),
+            ts: self.ts,
+            time_tol: TIME_TOL,
+        };
         let mut bufs: Vec<Vec<f64>> = vec![Vec::new(); self.n_slots];
         for &(s, _) in &self.wanted {
             bufs[s].reserve(max_len);
         }
-        let mut rec = csv::ByteRecord::new();
-        let mut n = 0usize;
+        let mut bytes: Vec<u8> = Vec::new();
         let mut in_chunk = 0usize;
-        let mut t_prev = f64::NAN;
-        let flush =
-            |bufs: &mut Vec<Vec<f64>>, len: &mut usize, sink: &mut dyn FnMut(&[&[f64]], usize)| {
-                if *len > 0 {
-                    let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
-                    sink(&cols, *len);
-                    bufs.iter_mut().for_each(Vec::clear);
-                    *len = 0;
+        let wanted = &self.wanted;
+        let mut flush = |bufs: &mut Vec<Vec<f64>>, len: &mut usize| {
+            if *len == 0 {
+                return;
+            }
+            if let Some(w) = copy {
+                bytes.clear();
+                // Row-major: sample by sample, the wanted columns in order.
+                let cols: Vec<&[f64]> = wanted.iter().map(|&(s, _)| &bufs[s][..*len]).collect();
+                for i in 0..*len {
+                    cols.iter()
+                        .for_each(|c| bytes.extend_from_slice(&c[i].to_le_bytes()));
                 }
-            };
+                if w.write_all(&bytes).is_err() {
+                    *copy = None;
+                }
+            }
+            let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
+            sink(&cols, *len);
+            bufs.iter_mut().for_each(Vec::clear);
+            *len = 0;
+        };
         // Streaming means an error can surface after earlier chunks were handed on; callers
         // discard their partial results on error.
-        loop {
-            match rdr.read_byte_record(&mut rec) {
-                Ok(true) => {}
-                Ok(false) => break,
-                Err(e) => return Err(csv_err(path, e)),
-            }
-            let line = rec.position().map_or(0, |p| p.line());
-            if rec.len() != self.n_fields {
-                // A trailing blank line is not data.
-                if rec.len() == 1 && rec[0].is_empty() {
-                    continue;
+        let mut file = std::fs::File::open(path).map_err(|e| io_err(path, e))?;
+        let n = parse_body(&layout, &mut file, &mut |cols, rows| {
+            let mut done = 0;
+            while done < rows {
+                let take = (max_len - in_chunk).min(rows - done);
+                for (k, &(s, _)) in wanted.iter().enumerate() {
+                    bufs[s].extend_from_slice(&cols[k][done..done + take]);
                 }
-                return Err(DataError::Ragged {
-                    path: p(),
-                    line,
-                    expected: self.n_fields,
-                    found: rec.len(),
-                });
-            }
-            for &(s, c) in &self.wanted {
-                let v = parse_cell(path, line, &self.header[c], &rec[c])?;
-                bufs[s].push(v);
-                if let Some(w) = copy {
-                    if w.write_all(&v.to_le_bytes()).is_err() {
-                        *copy = None;
-                    }
+                in_chunk += take;
+                done += take;
+                if in_chunk == max_len {
+                    flush(&mut bufs, &mut in_chunk);
                 }
             }
-            if let Some(tc) = self.t_col {
-                let t = parse_cell(path, line, &self.header[tc], &rec[tc])?;
-                if n > 0 {
-                    let step = t - t_prev;
-                    if step <= 0.0 {
-                        return Err(DataError::TimeNotIncreasing {
-                            path: p(),
-                            line,
-                            t,
-                            previous: t_prev,
-                        });
-                    }
-                    if (step - self.ts).abs() > TIME_TOL * self.ts + 1e-12 * t.abs() {
-                        return Err(DataError::NonUniformTime {
-                            path: p(),
-                            line,
-                            step,
-                            ts: self.ts,
-                        });
-                    }
-                }
-                t_prev = t;
-            }
-            n += 1;
-            in_chunk += 1;
-            if in_chunk == max_len {
-                flush(&mut bufs, &mut in_chunk, sink);
-            }
-        }
+        })?;
         if n == 0 {
             return Err(DataError::HeaderOnly { path: p() });
         }
@@ -422,7 +391,7 @@ impl CsvSource {
                 need: self.min_samples,
             });
         }
-        flush(&mut bufs, &mut in_chunk, sink);
+        flush(&mut bufs, &mut in_chunk);
         Ok(())
     }
 }

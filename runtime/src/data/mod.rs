@@ -7,6 +7,7 @@
 //! must be present; unmeasured signals are never required and extra columns are ignored.
 
 mod csv_file;
+mod csv_parse;
 #[doc(hidden)]
 pub mod fuzz;
 mod record;

@@ -269,3 +269,94 @@ fn the_csv_readers_survive_thousands_of_mutated_files() {
         fuzz::check_csv_bytes(&path, &b, &ir);
     }
 }
+
+/// A file of `n` rows large enough to be cut into many pieces and blocks.
+fn big_rows(n: usize) -> String {
+    let mut s = String::from("t,m1.x,m1.v,u\n");
+    for k in 0..n {
+        let t = k as f64 * 0.01;
+        // Shortest round-trip text of irregular values, as the simulator writes them.
+        let x = (t * 1.7).sin() * 1e-3 + (k as f64).sqrt() * 1e-9;
+        s.push_str(&format!(
+            "{t:.2},{x},{},{}\n",
+            (t * 0.3).cos(),
+            -(k as f64) / 7.0
+        ));
+    }
+    s
+}
+
+#[test]
+fn a_large_file_parses_to_the_same_numbers_as_the_standard_parser() {
+    // 300 000 rows are about 15 MB: several blocks, each cut into pieces parsed in parallel.
+    let body = big_rows(300_000);
+    let f = file(&body);
+    let ir = sdof_ir(true);
+    let src = CsvSource::open(f.path(), &ir, &CsvOptions::default()).unwrap();
+    let mut got: Vec<Vec<f64>> = vec![Vec::new(); 3];
+    src.stream(10_000, &mut |cols, len| {
+        for (g, c) in got.iter_mut().zip(cols) {
+            g.extend_from_slice(&c[..len]);
+        }
+    })
+    .unwrap();
+    let mut expected: Vec<Vec<f64>> = vec![Vec::new(); 3];
+    for line in body.lines().skip(1) {
+        let v: Vec<f64> = line.split(',').map(|f| f.parse().unwrap()).collect();
+        for (e, &x) in expected.iter_mut().zip(&v[1..]) {
+            e.push(x);
+        }
+    }
+    // Signal order of the model: m1.x, m1.v, u.
+    for (g, e) in got.iter().zip(&expected) {
+        assert_eq!(g.len(), 300_000);
+        assert!(g.iter().zip(e).all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+}
+
+#[test]
+fn errors_deep_in_a_large_file_name_their_line() {
+    let body = big_rows(250_000);
+    let mut lines: Vec<String> = body.lines().map(str::to_string).collect();
+    // A text cell on line 200 001 (after the header), far into a later block.
+    let mut bad = lines.clone();
+    let t = bad[200_000].split(',').next().unwrap().to_string();
+    bad[200_000] = format!("{t},x1,0,0");
+    let broken = bad.join("\n");
+    let err = read(&broken, &CsvOptions::default()).unwrap_err();
+    assert!(err.contains("line 200001"), "{err}");
+    assert!(err.contains("`x1`"), "{err}");
+    // A missing row: the time step doubles at line 123 457.
+    lines.remove(123_456);
+    let err = read(&lines.join("\n"), &CsvOptions::default()).unwrap_err();
+    assert!(err.contains("line 123457"), "{err}");
+    assert!(err.contains("step"), "{err}");
+    // A short row.
+    let mut short = body.lines().map(str::to_string).collect::<Vec<_>>();
+    short[99_999] = "999.99,1,2".into();
+    let err = read(&short.join("\n"), &CsvOptions::default()).unwrap_err();
+    assert!(err.contains("line 100000"), "{err}");
+}
+
+#[test]
+fn crlf_quotes_blank_lines_and_no_final_line_break_are_read() {
+    let mut body = String::from("t,m1.x,m1.v,u\r\n");
+    for k in 0..200 {
+        let t = k as f64 * 0.01;
+        if k == 50 {
+            body.push_str("\r\n  \r\n");
+        }
+        body.push_str(&format!("{t:.2}, \"{}\" ,{},{}\r\n", k, -(k as f64), 0.5));
+    }
+    body.pop();
+    body.pop();
+    let ir = sdof_ir(true);
+    let f = file(&body);
+    let src = CsvSource::open(f.path(), &ir, &CsvOptions::default()).unwrap();
+    let chunks = pass(&src, 1000).unwrap();
+    assert_eq!(chunks.len(), 1);
+    let (len, cols) = &chunks[0];
+    assert_eq!(*len, 200);
+    assert_eq!(cols[0][199], 199.0);
+    assert_eq!(cols[1][199], -199.0);
+}
