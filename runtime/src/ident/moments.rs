@@ -550,7 +550,10 @@ impl<'a> LevelAccumulator<'a> {
                 });
             let clock = Instant::now();
             for (i, t) in tasks.iter().enumerate().take(tasks.len() - 1) {
-                let end = self.work[i].end.take().expect("pass 1 ran");
+                let end = self.work[i]
+                    .end
+                    .take()
+                    .expect("invariant: pass 1 ran for every task");
                 let next = if i == 0 {
                     end
                 } else {
