@@ -225,8 +225,8 @@ fn step<const N: usize>(b: &Block<N>, z: &mut [Lane; N], prev: &Lane, s: &Lane) 
     // triangular).
     for i in (0..N).rev() {
         let mut acc = add(&mul(&b.g0[i], prev), &mul(&b.g1[i], s));
-        for j in 0..=i {
-            acc = add(&acc, &mul(&b.phi[i][j], &z[j]));
+        for (p, zj) in b.phi[i].iter().zip(z.iter()).take(i + 1) {
+            acc = add(&acc, &mul(p, zj));
         }
         z[i] = acc;
     }
@@ -461,8 +461,8 @@ impl FilterBank {
                             _mm256_mul_pd(ld(&b.g0[i]), p),
                             _mm256_mul_pd(ld(&b.g1[i]), sv),
                         );
-                        for j in 0..=i {
-                            acc = _mm256_add_pd(acc, _mm256_mul_pd(ld(&b.phi[i][j]), zb[j]));
+                        for (p, zj) in b.phi[i].iter().zip(zb.iter()).take(i + 1) {
+                            acc = _mm256_add_pd(acc, _mm256_mul_pd(ld(p), *zj));
                         }
                         zb[i] = acc;
                     }
