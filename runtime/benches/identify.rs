@@ -1,8 +1,12 @@
 //! Identification throughput on `models/two_mass.dyn` (cubic stiffness + Coulomb friction):
-//! three levels from memory and from CSV files, at two record lengths.
+//! three levels from memory and from CSV files, at two record lengths; then the scaling of
+//! the filter-and-moment pass with the number of threads on one long level.
 //!
 //! Run: `cargo bench -p dynid-runtime --bench identify`
-//! (`DYNID_BENCH_SAMPLES=100000,1000000` sets the samples per level of each run.)
+//! (`DYNID_BENCH_SAMPLES=100000,1000000` sets the samples per level of each run,
+//! `DYNID_BENCH_SCALING_SAMPLES=10000000` the samples of the one level of the thread table,
+//! 0 to skip it, and `DYNID_BENCH_THREADS=1,2,4,8` its thread counts: by default powers of
+//! two up to the number of cores.)
 //!
 //! Every time is also given as a ratio to a reference measured in the same run on the same
 //! data: from memory, one pass that streams the records and sums every value; from CSV,
@@ -10,6 +14,10 @@
 //! high-water mark (`VmHWM`) above its resident size before the CSV identification, with
 //! the peak reset beforehand (`/proc/self/clear_refs`), so it shows what identification
 //! itself holds — it must not grow with the record length.
+//!
+//! `pass` is the wall time of the streamed filter-and-moment pass alone (all levels), the
+//! part of identification that the time-parallel filter bank speeds up; its ratio to the
+//! reference pass is what the speed targets are stated in.
 
 use dynid_runtime::data::{CsvOptions, CsvSource, LevelSource, RecordSource};
 use dynid_runtime::ident::{identify, IdentifyOptions, PhaseTimes};
@@ -145,9 +153,12 @@ fn run(n: usize) {
     let (t_ref, _) = best_of(3, || black_box(memory_reference(&levels, opts.chunk_len)));
     let (t_mem, id) = best_of(3, || identify(&ir, &levels, &opts).unwrap());
     println!(
-        "memory: {t_mem:.3} s, {:.1} M samples/s, {:.0}× the reference pass ({t_ref:.4} s); {}",
+        "memory: {t_mem:.3} s, {:.1} M samples/s, {:.0}× the reference pass ({t_ref:.4} s); \
+         pass {:.3} s = {:.1}× the reference; {}",
         total / t_mem / 1e6,
         t_mem / t_ref,
+        id.times.pass.as_secs_f64(),
+        id.times.pass.as_secs_f64() / t_ref,
         shares(&id.times)
     );
     let estimates: Vec<String> = id
@@ -210,12 +221,84 @@ fn run(n: usize) {
     );
 }
 
-fn main() {
-    let lengths: Vec<usize> = std::env::var("DYNID_BENCH_SAMPLES")
+/// Thread scaling of identification on one level of `n` samples from memory: per thread
+/// count (a rayon pool of that size), the best of three of the whole identification, of
+/// the filter-and-moment pass inside it, and of the reference pass (one level: one thread
+/// streams it whatever the pool).
+fn scaling(n: usize, threads: &[usize]) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/two_mass.dyn");
+    let ir = dsl_parser::compile_file(&path).expect("models/two_mass.dyn");
+    let ts = 0.01;
+    let cfg = SimConfig {
+        levels: Some(vec![15.0]),
+        duration: n as f64 * ts,
+        sample: ts,
+        seed: 501,
+        ..Default::default()
+    };
+    let t = Instant::now();
+    let rec = sim::simulate(&ir, &cfg)
+        .expect("simulation")
+        .records
+        .remove(0);
+    println!(
+        "\n== thread scaling: two_mass, one level × {} samples (simulated in {:.1} s), {} cores",
+        rec.len(),
+        t.elapsed().as_secs_f64(),
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    );
+    let src = RecordSource::new(&rec, &ir, "level").unwrap();
+    let levels: Vec<&dyn LevelSource> = vec![&src];
+    let opts = IdentifyOptions::default();
+    println!(
+        "threads  identify (s)  pass (s)  pass speed-up  pass / reference  M samples/s (pass)"
+    );
+    let mut base = None;
+    for &k in threads {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(k)
+            .build()
+            .unwrap();
+        let (t_ref, _) =
+            pool.install(|| best_of(3, || black_box(memory_reference(&levels, opts.chunk_len))));
+        let mut t_pass = f64::INFINITY;
+        let (t_id, _) = pool.install(|| {
+            best_of(3, || {
+                let id = identify(&ir, &levels, &opts).unwrap();
+                t_pass = t_pass.min(id.times.pass.as_secs_f64());
+            })
+        });
+        let base = *base.get_or_insert(t_pass);
+        println!(
+            "{k:>7}  {t_id:>12.3}  {t_pass:>8.3}  {:>12.2}×  {:>15.1}×  {:>18.1}",
+            base / t_pass,
+            t_pass / t_ref,
+            rec.len() as f64 / t_pass / 1e6
+        );
+    }
+}
+
+fn env_list(name: &str) -> Option<Vec<usize>> {
+    std::env::var(name)
         .ok()
         .map(|s| s.split(',').filter_map(|v| v.trim().parse().ok()).collect())
-        .unwrap_or_else(|| vec![100_000, 1_000_000]);
+}
+
+fn main() {
+    let lengths = env_list("DYNID_BENCH_SAMPLES").unwrap_or_else(|| vec![100_000, 1_000_000]);
     for n in lengths {
         run(n);
+    }
+    let n = env_list("DYNID_BENCH_SCALING_SAMPLES")
+        .and_then(|v| v.first().copied())
+        .unwrap_or(10_000_000);
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = env_list("DYNID_BENCH_THREADS").unwrap_or_else(|| {
+        std::iter::successors(Some(1), |k| Some(k * 2))
+            .take_while(|&k| k <= cores)
+            .collect()
+    });
+    if n > 0 {
+        scaling(n, &threads);
     }
 }

@@ -138,6 +138,475 @@ impl ChainDisc {
     }
 }
 
+/// Chains of one driver updated together by one vector operation.
+pub const LANES: usize = 4;
+
+/// `LANES` chains side by side.
+type Lane = [f64; LANES];
+
+/// Largest filter order of the bank (the order check of identification enforces it).
+pub const MAX_ORDER: usize = 8;
+
+/// The whole bank in structure-of-arrays form: every driver's chains (one per corner) in
+/// blocks of [`LANES`], so that one sample updates a block with a few straight-line vector
+/// operations whatever the number of corners (a partial last block runs on zero
+/// coefficients and stays zero).
+///
+/// Each chain follows the recursion of [`ChainDisc::run`], with the sums of a step taken
+/// in another order (see [`step`]): the outputs agree to rounding.
+///
+/// Outputs are written sample-major: at sample `k`, row [`FilterBank::row`]`(d, c, i)` of
+/// `out[k · stride ..]` receives state `ζᵢ₊₁` of the chain of driver `d` and corner `c`,
+/// the corners of one driver and state side by side (no padding rows). Sample-major is
+/// what the moment accumulation multiplies with, and stores a sample's states in a few
+/// contiguous runs.
+#[derive(Clone, Debug)]
+pub struct FilterBank {
+    order: usize,
+    n_drivers: usize,
+    n_corners: usize,
+    /// Blocks per driver, `⌈n_corners / LANES⌉`.
+    bpd: usize,
+    /// Per block: `Φ` (full `order × order`, row-major), `Γ₀`, `Γ₁`, each entry a lane.
+    coef: Vec<Lane>,
+    /// `Φ^(2^j)` per block (full `order × order`, row-major), `j = 0, 1, …`: the free
+    /// response over any number of samples by binary powering.
+    pow: Vec<Vec<Lane>>,
+}
+
+/// The state of a [`FilterBank`] after some sample: `ζ` of every chain and the driving
+/// values at that sample (the `s[k]` of the next step).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BankState {
+    /// Per block, per state `i`: one lane.
+    z: Vec<Lane>,
+    prev: Vec<f64>,
+}
+
+impl BankState {
+    /// The state of chain `(d, c)`, `ζ₁ … ζ_order`.
+    pub fn chain(&self, bank: &FilterBank, d: usize, c: usize) -> Vec<f64> {
+        let blk = d * bank.bpd + c / LANES;
+        (0..bank.order)
+            .map(|i| self.z[blk * bank.order + i][c % LANES])
+            .collect()
+    }
+
+    /// The driving values at the sample of this state.
+    pub fn prev(&self) -> &[f64] {
+        &self.prev
+    }
+}
+
+/// One block's coefficients with the order fixed at compile time.
+struct Block<const N: usize> {
+    phi: [[Lane; N]; N],
+    g0: [Lane; N],
+    g1: [Lane; N],
+}
+
+#[inline(always)]
+fn mul(a: &Lane, b: &Lane) -> Lane {
+    std::array::from_fn(|l| a[l] * b[l])
+}
+
+#[inline(always)]
+fn add(a: &Lane, b: &Lane) -> Lane {
+    std::array::from_fn(|l| a[l] + b[l])
+}
+
+/// One step of one block: `ζ ← Φ ζ + Γ₀ s[k−1] + Γ₁ s[k]`. The input part is formed
+/// first, off the path from one sample's state to the next, so each state waits on one
+/// product and `i + 1` sums instead of `i + 3`. (The order of the sums differs from
+/// [`ChainDisc::run`]: the two agree to rounding.)
+#[inline(always)]
+fn step<const N: usize>(b: &Block<N>, z: &mut [Lane; N], prev: &Lane, s: &Lane) {
+    // Downwards, so that the states below `i` are still the old ones (`Φ` is lower
+    // triangular).
+    for i in (0..N).rev() {
+        let mut acc = add(&mul(&b.g0[i], prev), &mul(&b.g1[i], s));
+        for (p, zj) in b.phi[i].iter().zip(z.iter()).take(i + 1) {
+            acc = add(&acc, &mul(p, zj));
+        }
+        z[i] = acc;
+    }
+}
+
+impl FilterBank {
+    /// The bank of `n_drivers × corners.len()` chains of `order` sections (chain `(d, c)`
+    /// driven by driver `d` with corner `corners[c]`).
+    ///
+    /// # Panics
+    /// If `order` is not in `1 ..= MAX_ORDER` (checked with the filter options before).
+    pub fn new(corners: &[f64], n_drivers: usize, order: usize, ts: f64, hold: Hold) -> Self {
+        assert!(
+            (1..=MAX_ORDER).contains(&order),
+            "invariant: filter order {order} checked to lie in 1..={MAX_ORDER}"
+        );
+        let n_corners = corners.len();
+        let bpd = n_corners.div_ceil(LANES);
+        let n = order;
+        let per = n * n + 2 * n;
+        let mut coef = vec![[0.0; LANES]; n_drivers * bpd * per];
+        let mut phi1 = vec![[0.0; LANES]; n_drivers * bpd * n * n];
+        for (c, &lambda) in corners.iter().enumerate() {
+            let disc = ChainDisc::new(lambda, order, ts, hold);
+            for d in 0..n_drivers {
+                let blk = d * bpd + c / LANES;
+                let l = c % LANES;
+                let base = blk * per;
+                for i in 0..n {
+                    for j in 0..=i {
+                        coef[base + i * n + j][l] = disc.phi[i * n + j];
+                        phi1[blk * n * n + i * n + j][l] = disc.phi[i * n + j];
+                    }
+                    coef[base + n * n + i][l] = disc.g0[i];
+                    coef[base + n * n + n + i][l] = disc.g1[i];
+                }
+            }
+        }
+        let mut bank = FilterBank {
+            order,
+            n_drivers,
+            n_corners,
+            bpd,
+            coef,
+            pow: vec![phi1],
+        };
+        bank.extend_powers(1);
+        bank
+    }
+
+    /// Rows written per sample.
+    pub fn n_rows(&self) -> usize {
+        self.n_drivers * self.order * self.n_corners
+    }
+
+    /// The output row of state `ζᵢ₊₁` of chain `(d, c)`.
+    pub fn row(&self, d: usize, c: usize, i: usize) -> usize {
+        (d * self.order + i) * self.n_corners + c
+    }
+
+    /// All chains at rest, with driving values `prev` at the current sample.
+    pub fn state(&self, prev: &[f64]) -> BankState {
+        assert_eq!(prev.len(), self.n_drivers);
+        BankState {
+            z: vec![[0.0; LANES]; self.n_drivers * self.bpd * self.order],
+            prev: prev.to_vec(),
+        }
+    }
+
+    /// Make `Φ^(2^j)` available for every `j` a count below `2^bits` needs.
+    fn extend_powers(&mut self, bits: usize) {
+        let n = self.order;
+        while self.pow.len() < bits.max(1) {
+            let last = self.pow.last().expect("invariant: Φ itself is there");
+            let mut sq = vec![[0.0; LANES]; last.len()];
+            for (dst, src) in sq.chunks_exact_mut(n * n).zip(last.chunks_exact(n * n)) {
+                for i in 0..n {
+                    for j in 0..=i {
+                        for k in j..=i {
+                            for l in 0..LANES {
+                                dst[i * n + j][l] += src[i * n + k][l] * src[k * n + j][l];
+                            }
+                        }
+                    }
+                }
+            }
+            self.pow.push(sq);
+        }
+    }
+
+    /// Make [`Self::propagate`] available for counts up to `max_steps`.
+    pub fn prepare_propagation(&mut self, max_steps: usize) {
+        self.extend_powers((usize::BITS - max_steps.leading_zeros()) as usize);
+    }
+
+    /// The free response: `ζ ← Φ^steps ζ` (the driving values are left alone).
+    ///
+    /// # Panics
+    /// If `steps` exceeds what [`Self::prepare_propagation`] made available.
+    pub fn propagate(&self, state: &mut BankState, steps: usize) {
+        let n = self.order;
+        let mut tmp = vec![[0.0; LANES]; n];
+        let mut m = steps;
+        let mut j = 0;
+        while m > 0 {
+            if m & 1 == 1 {
+                let p = &self.pow[j];
+                for (z, pm) in state.z.chunks_exact_mut(n).zip(p.chunks_exact(n * n)) {
+                    for i in 0..n {
+                        let mut acc = [0.0; LANES];
+                        for k in 0..=i {
+                            for l in 0..LANES {
+                                acc[l] += pm[i * n + k][l] * z[k][l];
+                            }
+                        }
+                        tmp[i] = acc;
+                    }
+                    z.copy_from_slice(&tmp);
+                }
+            }
+            m >>= 1;
+            j += 1;
+        }
+    }
+
+    /// The state after a run of `steps` samples from `start`, given the end state `rest`
+    /// of the same run from rest: `Φ^steps ζ_start + ζ_rest`, with the driving values of
+    /// `rest` (the filter is linear).
+    pub fn compose(&self, start: &BankState, steps: usize, rest: &BankState) -> BankState {
+        let mut s = start.clone();
+        self.propagate(&mut s, steps);
+        self.add(&mut s, rest);
+        s.prev.clone_from(&rest.prev);
+        s
+    }
+
+    /// `state ← state + other` (the states of a linear system add).
+    pub fn add(&self, state: &mut BankState, other: &BankState) {
+        for (a, b) in state.z.iter_mut().zip(&other.z) {
+            for l in 0..LANES {
+                a[l] += b[l];
+            }
+        }
+    }
+
+    /// Advance over `len` samples: `drivers[d][k]` is driver `d` at the `k`-th sample after
+    /// the state's. With `out = Some((buf, stride))`, the states at each sample are written
+    /// to `buf[k · stride + row]` (see [`Self::row`]); `stride ≥ n_rows()`.
+    pub fn advance(
+        &self,
+        state: &mut BankState,
+        drivers: &[&[f64]],
+        len: usize,
+        out: Option<(&mut [f64], usize)>,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: the processor has AVX (checked just above).
+            unsafe { self.advance_avx(state, drivers, len, out) };
+            return;
+        }
+        self.advance_any(state, drivers, len, out);
+    }
+
+    /// [`Self::advance`] with 256-bit vectors: one block (`LANES` = 4 chains) per
+    /// operation, the same products and sums in the same order as [`step`] (no fused
+    /// multiply-add), so the results equal those of the portable path bit for bit.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn advance_avx(
+        &self,
+        state: &mut BankState,
+        drivers: &[&[f64]],
+        len: usize,
+        out: Option<(&mut [f64], usize)>,
+    ) {
+        macro_rules! dispatch {
+            ($($n:literal)*) => {
+                match self.order {
+                    $($n => self.advance_avx_n::<$n>(state, drivers, len, out),)*
+                    o => unreachable!("invariant: filter order {o} checked in FilterBank::new"),
+                }
+            };
+        }
+        dispatch!(1 2 3 4 5 6 7 8)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn advance_avx_n<const N: usize>(
+        &self,
+        state: &mut BankState,
+        drivers: &[&[f64]],
+        len: usize,
+        mut out: Option<(&mut [f64], usize)>,
+    ) {
+        use std::arch::x86_64::{
+            __m256d, __m256i, _mm256_add_pd, _mm256_loadu_pd, _mm256_maskstore_pd, _mm256_mul_pd,
+            _mm256_set1_pd, _mm256_setr_epi64x, _mm256_storeu_pd,
+        };
+        const _: () = assert!(LANES == 4, "one AVX vector per block");
+        // SAFETY: a `Lane` is 4 contiguous f64, exactly what an unaligned load reads.
+        let ld = |x: &Lane| unsafe { _mm256_loadu_pd(x.as_ptr()) };
+        self.check_args(drivers, len, &out);
+        let blocks = self.blocks::<N>();
+        let (bpd, nc) = (self.bpd, self.n_corners);
+        let width = N * nc;
+        // Lanes of each block that are chains (the last block of a driver may be partial).
+        let masks: Vec<(usize, __m256i)> = (0..bpd)
+            .map(|b| {
+                let r = (nc - b * LANES).min(LANES);
+                let on = |l: usize| if l < r { -1 } else { 0 };
+                (r, _mm256_setr_epi64x(on(0), on(1), on(2), on(3)))
+            })
+            .collect();
+        for (d, (bs, &col)) in blocks.chunks_exact(bpd).zip(drivers).enumerate() {
+            let zst = &mut state.z[d * bpd * N..(d + 1) * bpd * N];
+            let mut zs: Vec<[__m256d; N]> = zst
+                .chunks_exact(N)
+                .map(|c| std::array::from_fn(|i| ld(&c[i])))
+                .collect();
+            let col = &col[..len];
+            let mut prev = state.prev[d];
+            let mut rows = out
+                .as_mut()
+                .map(|(buf, stride)| buf.chunks_exact_mut(*stride));
+            for &s in col {
+                let (p, sv) = (_mm256_set1_pd(prev), _mm256_set1_pd(s));
+                for (b, zb) in bs.iter().zip(zs.iter_mut()) {
+                    for i in (0..N).rev() {
+                        let mut acc = _mm256_add_pd(
+                            _mm256_mul_pd(ld(&b.g0[i]), p),
+                            _mm256_mul_pd(ld(&b.g1[i]), sv),
+                        );
+                        for (p, zj) in b.phi[i].iter().zip(zb.iter()).take(i + 1) {
+                            acc = _mm256_add_pd(acc, _mm256_mul_pd(ld(p), *zj));
+                        }
+                        zb[i] = acc;
+                    }
+                }
+                if let Some(rows) = rows.as_mut() {
+                    let row = rows.next().expect("invariant: checked buffer length");
+                    let dst = &mut row[d * width..(d + 1) * width];
+                    for (b, (zb, &(r, mask))) in zs.iter().zip(&masks).enumerate() {
+                        for (i, v) in zb.iter().enumerate() {
+                            let dl = &mut dst[i * nc + b * LANES..i * nc + b * LANES + r];
+                            // SAFETY: `dl` holds the `r` lanes the mask selects (a
+                            // masked-off lane is neither read nor written).
+                            unsafe {
+                                if r == LANES {
+                                    _mm256_storeu_pd(dl.as_mut_ptr(), *v)
+                                } else {
+                                    _mm256_maskstore_pd(dl.as_mut_ptr(), mask, *v)
+                                }
+                            };
+                        }
+                    }
+                }
+                prev = s;
+            }
+            state.prev[d] = prev;
+            for (dst, v) in zst.iter_mut().zip(zs.iter().flatten()) {
+                let mut lane = [0.0; LANES];
+                // SAFETY: `lane` is LANES = 4 contiguous f64.
+                unsafe { _mm256_storeu_pd(lane.as_mut_ptr(), *v) };
+                *dst = lane;
+            }
+        }
+    }
+
+    fn check_args(&self, drivers: &[&[f64]], len: usize, out: &Option<(&mut [f64], usize)>) {
+        assert_eq!(drivers.len(), self.n_drivers);
+        assert!(drivers.iter().all(|c| c.len() >= len));
+        if let Some((buf, stride)) = out {
+            assert!(*stride >= self.n_rows() && buf.len() >= len * stride);
+        }
+    }
+
+    /// The coefficients of every block with the order fixed at compile time.
+    fn blocks<const N: usize>(&self) -> Vec<Block<N>> {
+        let per = N * N + 2 * N;
+        self.coef
+            .chunks_exact(per)
+            .map(|c| Block {
+                phi: std::array::from_fn(|i| std::array::from_fn(|j| c[i * N + j])),
+                g0: std::array::from_fn(|i| c[N * N + i]),
+                g1: std::array::from_fn(|i| c[N * N + N + i]),
+            })
+            .collect()
+    }
+
+    fn advance_any(
+        &self,
+        state: &mut BankState,
+        drivers: &[&[f64]],
+        len: usize,
+        out: Option<(&mut [f64], usize)>,
+    ) {
+        macro_rules! dispatch {
+            ($($n:literal)*) => {
+                match self.order {
+                    $($n => self.advance_n::<$n>(state, drivers, len, out),)*
+                    o => unreachable!("invariant: filter order {o} checked in FilterBank::new"),
+                }
+            };
+        }
+        dispatch!(1 2 3 4 5 6 7 8)
+    }
+
+    fn advance_n<const N: usize>(
+        &self,
+        state: &mut BankState,
+        drivers: &[&[f64]],
+        len: usize,
+        mut out: Option<(&mut [f64], usize)>,
+    ) {
+        self.check_args(drivers, len, &out);
+        let blocks = self.blocks::<N>();
+        let mut z: Vec<[Lane; N]> = state
+            .z
+            .chunks_exact(N)
+            .map(|c| std::array::from_fn(|i| c[i]))
+            .collect();
+        let (bpd, nc) = (self.bpd, self.n_corners);
+        let width = N * nc;
+        // Chains of different drivers are independent: time runs innermost, per driver, so
+        // the block states stay in registers and the driving column is read in order.
+        for (d, ((bs, zs), &col)) in blocks
+            .chunks_exact(bpd)
+            .zip(z.chunks_exact_mut(bpd))
+            .zip(drivers)
+            .enumerate()
+        {
+            let col = &col[..len];
+            let mut prev = state.prev[d];
+            match out.as_mut() {
+                None => {
+                    for &s in col {
+                        let (p, sv) = ([prev; LANES], [s; LANES]);
+                        for (b, zb) in bs.iter().zip(zs.iter_mut()) {
+                            step(b, zb, &p, &sv);
+                        }
+                        prev = s;
+                    }
+                }
+                Some((buf, stride)) => {
+                    for (&s, row) in col.iter().zip(buf.chunks_exact_mut(*stride)) {
+                        let (p, sv) = ([prev; LANES], [s; LANES]);
+                        for (b, zb) in bs.iter().zip(zs.iter_mut()) {
+                            step(b, zb, &p, &sv);
+                        }
+                        let dst = &mut row[d * width..(d + 1) * width];
+                        for (b, zb) in zs.iter().enumerate() {
+                            let (c0, r) = (b * LANES, (nc - b * LANES).min(LANES));
+                            for (i, zi) in zb.iter().enumerate() {
+                                dst[i * nc + c0..i * nc + c0 + r].copy_from_slice(&zi[..r]);
+                            }
+                        }
+                        prev = s;
+                    }
+                }
+            }
+            state.prev[d] = prev;
+        }
+        for (dst, src) in state.z.chunks_exact_mut(N).zip(&z) {
+            dst.copy_from_slice(src);
+        }
+    }
+
+    /// Number of corners (chains per driver).
+    pub fn n_corners(&self) -> usize {
+        self.n_corners
+    }
+
+    /// The filter order.
+    pub fn order(&self) -> usize {
+        self.order
+    }
+}
+
 /// Log-spaced corner frequencies covering the band where the response has power.
 ///
 /// `omegas` are dominant angular frequencies estimated from the data (zero-crossing rates of
@@ -191,6 +660,122 @@ mod tests {
             } else {
                 // ZOH lags by half a sample: error → Tₛ/2 once the transient has decayed.
                 assert!((err - ts / 2.0).abs() < 0.1 * ts, "ZOH error {err}");
+            }
+        }
+    }
+
+    /// A smooth multi-tone driving signal.
+    fn signal(n: usize, phase: f64) -> Vec<f64> {
+        (0..n)
+            .map(|k| {
+                let t = k as f64 * 0.01;
+                (1.3 * t + phase).sin() + 0.4 * (7.1 * t).cos() + 0.05 * (31.0 * t + phase).sin()
+            })
+            .collect()
+    }
+
+    /// The largest difference relative to the largest value.
+    fn rel_diff(a: &[f64], b: &[f64]) -> f64 {
+        let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let err = a
+            .iter()
+            .zip(b)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        err / scale
+    }
+
+    /// The bank (structure of arrays, fed in uneven pieces) against the per-chain recursion
+    /// of `ChainDisc::run`, for every order with an odd number of corners (a padded block),
+    /// to 1e-12 of the largest value of each state.
+    #[test]
+    fn bank_equals_the_per_chain_recursion() {
+        let (ts, n) = (0.01, 3001);
+        let corners = [0.3, 1.1, 2.5, 6.0, 19.0];
+        let drivers = [signal(n, 0.0), signal(n, 1.0), signal(n, 2.5)];
+        for order in 1..=MAX_ORDER {
+            let bank = FilterBank::new(&corners, drivers.len(), order, ts, Hold::FirstOrder);
+            let stride = bank.n_rows() + 3;
+            let prev: Vec<f64> = drivers.iter().map(|s| s[0]).collect();
+            let mut st = bank.state(&prev);
+            let mut out = vec![f64::NAN; (n - 1) * stride];
+            let mut k0 = 1;
+            for piece in [1, 17, 1000, 1981, 1] {
+                let ds: Vec<&[f64]> = drivers.iter().map(|s| &s[k0..k0 + piece]).collect();
+                let o = &mut out[(k0 - 1) * stride..];
+                bank.advance(&mut st, &ds, piece, Some((o, stride)));
+                k0 += piece;
+            }
+            assert_eq!(k0, n);
+            // The portable path (the vector path where the processor has one) gives the
+            // same values bit for bit.
+            let mut st_any = bank.state(&prev);
+            let mut out_any = vec![f64::NAN; (n - 1) * stride];
+            let ds: Vec<&[f64]> = drivers.iter().map(|s| &s[1..]).collect();
+            bank.advance_any(&mut st_any, &ds, n - 1, Some((&mut out_any, stride)));
+            assert_eq!(st_any, st, "order {order}");
+            for (k, (a, b)) in out.iter().zip(&out_any).enumerate() {
+                if k % stride < bank.n_rows() {
+                    assert_eq!(a.to_bits(), b.to_bits(), "order {order}, {k}");
+                }
+            }
+            let mut worst = 0.0f64;
+            for (d, s) in drivers.iter().enumerate() {
+                for (c, &lambda) in corners.iter().enumerate() {
+                    let chain = ChainDisc::new(lambda, order, ts, Hold::FirstOrder);
+                    let mut z = vec![0.0; order];
+                    let mut want = vec![0.0; order * (n - 1)];
+                    chain.run(&mut z, s[0], &s[1..], &mut want, n - 1);
+                    for i in 0..order {
+                        let got: Vec<f64> = (0..n - 1)
+                            .map(|k| out[k * stride + bank.row(d, c, i)])
+                            .collect();
+                        worst = worst.max(rel_diff(&got, &want[i * (n - 1)..(i + 1) * (n - 1)]));
+                    }
+                    worst = worst.max(rel_diff(&st.chain(&bank, d, c), &z));
+                }
+            }
+            assert!(
+                worst <= 1e-12,
+                "order {order}: relative difference {worst:e}"
+            );
+            assert_eq!(
+                st.prev(),
+                &[drivers[0][n - 1], drivers[1][n - 1], drivers[2][n - 1]]
+            );
+        }
+    }
+
+    /// Linearity, as the time-parallel pass uses it: the run from a state equals the run
+    /// from rest plus the free response `Φ^m ζ` of that state.
+    #[test]
+    fn a_run_is_the_run_from_rest_plus_the_free_response() {
+        let (ts, n) = (0.01, 1500);
+        let corners = [0.5, 2.0, 9.0];
+        let s = signal(n + 1, 0.3);
+        for order in [1, 2, 3, 5] {
+            let mut bank = FilterBank::new(&corners, 1, order, ts, Hold::FirstOrder);
+            bank.prepare_propagation(n);
+            // A state reached by running for a while.
+            let mut start = bank.state(&[s[0]]);
+            let warm = signal(400, 2.0);
+            bank.advance(&mut start, &[&warm], warm.len(), None);
+            let start = BankState {
+                prev: vec![s[0]],
+                ..start
+            };
+            for m in [1, 2, 7, 64, 1000, n] {
+                let mut direct = start.clone();
+                bank.advance(&mut direct, &[&s[1..]], m, None);
+                let mut rest = bank.state(&[s[0]]);
+                bank.advance(&mut rest, &[&s[1..]], m, None);
+                let mut composed = start.clone();
+                bank.propagate(&mut composed, m);
+                bank.add(&mut composed, &rest);
+                for c in 0..corners.len() {
+                    let (a, b) = (composed.chain(&bank, 0, c), direct.chain(&bank, 0, c));
+                    let err = rel_diff(&a, &b);
+                    assert!(err <= 1e-12, "order {order}, m = {m}, corner {c}: {err:e}");
+                }
             }
         }
     }

@@ -160,6 +160,7 @@ pub fn measure<'m>(
         })
         .collect();
 
+    let t_pass = Instant::now();
     let results: Vec<(LevelMoments, PhaseTimes)> =
         crate::first_error_in_order(sources.par_iter().zip(&stats).zip(&noise_var).map(
             |((src, st), var)| {
@@ -190,6 +191,7 @@ pub fn measure<'m>(
         ))?;
     let mut times = PhaseTimes {
         read: stats_time,
+        pass: t_pass.elapsed(),
         ..Default::default()
     };
     let mut lm = Vec::new();

@@ -2,7 +2,10 @@
 //!
 //! Per sample the only work is: evaluate the static basis `g`, advance the filter bank `ζ`,
 //! and add `ι wᵀ` (with `ι = [ζ; y]`, `w = [g; y]`) to the sum of the current time block —
-//! done per chunk as one matrix product. Every moment the equations need, including those
+//! done per task of about a thousand samples as one matrix product, right after the task's
+//! filter states and basis values are formed, while they are in cache. Tasks run in
+//! parallel over time: the filter state at a task's start is recovered exactly from the
+//! linearity of the filter (see [`LevelAccumulator`]). Every moment the equations need, including those
 //! with `ζ'` and `ζ''`, is a fixed linear combination of these (see [`super::plan`]).
 //!
 //! Time averages use the trapezoid rule over samples, `∫ f ≈ Tₛ (Σ f − ½ f₀ − ½ f_N)`, which
@@ -33,7 +36,7 @@
 //! exactly (in the discrete trapezoid rule too) to those. Besides the block sums this needs
 //! `Σ s ι wᵀ` per block, `s` the position in the block in samples.
 
-use super::filter::{ChainDisc, Hold};
+use super::filter::{BankState, FilterBank, Hold};
 use super::plan::Plan;
 use crate::basis::BasisEval;
 use faer::{Accum, MatMut, MatRef, Par};
@@ -48,6 +51,10 @@ pub struct PhaseTimes {
     pub evaluate: Duration,
     pub accumulate: Duration,
     pub solve: Duration,
+    /// Wall time (not summed over threads) of the streamed filter-and-moment pass over all
+    /// levels: filtering, evaluation and accumulation together, with the reading they
+    /// wait on.
+    pub pass: Duration,
 }
 
 impl std::ops::AddAssign for PhaseTimes {
@@ -57,6 +64,7 @@ impl std::ops::AddAssign for PhaseTimes {
         self.evaluate += o.evaluate;
         self.accumulate += o.accumulate;
         self.solve += o.solve;
+        self.pass += o.pass;
     }
 }
 
@@ -310,26 +318,83 @@ fn central_velocity_weights() -> Vec<f64> {
     pinv.row(1).iter().map(|w| w / h).collect()
 }
 
+/// Samples per task of the time-parallel pass (see [`LevelAccumulator`]): its filter states
+/// and basis values (about 50 rows of doubles) stay in the second-level cache between
+/// filtering and accumulation, and a default chunk of 8192 samples gives 8 tasks.
+pub(crate) const TASK_LEN: usize = 1024;
+
+/// One contiguous run of samples inside a streamed chunk, within one time block.
+#[derive(Clone, Copy, Debug)]
+struct Task {
+    /// First sample, relative to the chunk.
+    off: usize,
+    len: usize,
+    /// First sample in the record.
+    global: usize,
+    /// The block whose sums it adds to; `None` for the last sample of the record (only a
+    /// snapshot).
+    block: Option<usize>,
+    /// Position of the first sample in its block.
+    tpos: usize,
+}
+
+/// The buffers and results of one task (kept between chunks).
+#[derive(Default)]
+struct TaskWork {
+    /// `ι` sample-major: `iota[k · n_rows + r]`, rows the bank's then the measured signals.
+    iota: Vec<f64>,
+    /// `w` then `(tpos + k) w`, column-major (`w[col · len + k]`).
+    w: Vec<f64>,
+    scratch: Vec<f64>,
+    /// `Σ ι [w, (tpos + k) w]ᵀ` over the task, row-major `n_rows × 2 n_w`.
+    part: Vec<f64>,
+    /// `ι` (in the plan's row order) and `w` at the first sample.
+    first_iota: Vec<f64>,
+    first_w: Vec<f64>,
+    /// Pass 1: the state at the end from a zero start; pass 2: the true end state.
+    end: Option<BankState>,
+    non_finite: Option<(usize, usize, f64)>,
+    filter: Duration,
+    evaluate: Duration,
+    accumulate: Duration,
+}
+
 /// Streams the samples of one level through the filter bank and accumulates moments.
+///
+/// Each streamed chunk is cut into tasks of at most [`TASK_LEN`] samples (and at the block
+/// boundaries), processed in parallel in two passes. The filter is linear, so the state at
+/// the start of task `t + 1` is exactly `Φ^{len_t} ζ_start[t] + ζ⁰_end[t]`, with `ζ⁰_end[t]`
+/// the end state of task `t` run from rest:
+///
+/// 1. every task runs the bank from rest (no output) for `ζ⁰_end` — in parallel;
+/// 2. a serial scan composes the start states (`Φ^m` by binary powering);
+/// 3. every task runs the bank from its true start, writing the states of its samples
+///    next to the basis values, and adds `Σ ι wᵀ` and `Σ s ι wᵀ` by one matrix product —
+///    in parallel, each task's data read once while it is in cache.
+///
+/// The tasks depend only on the chunk length and the blocks, not on the number of
+/// threads, so neither do the results. Against one serial run they differ by rounding
+/// only (the start states and the order of the sums): within 1e-12 relative, see
+/// `time_parallel_pass_matches_the_serial_recursion`. Memory is a few buffers per chunk,
+/// independent of the record length.
 pub(crate) struct LevelAccumulator<'a> {
     plan: &'a Plan,
     eval: &'a dyn BasisEval,
-    chains: Vec<ChainDisc>,
+    bank: FilterBank,
+    task_len: usize,
+    /// Plan row of each row of the bank's output then of the measured signals.
+    row_map: Vec<Option<usize>>,
     ts: f64,
     n_total: usize,
     bounds: Vec<usize>,
     pos: usize,
-    z_state: Vec<f64>,
-    s_prev: Vec<f64>,
+    /// The bank's state at the last sample fed (meaningless before the first).
+    state: Option<BankState>,
     sums: Vec<Vec<f64>>,
     tsums: Vec<Vec<f64>>,
     snaps: Vec<Vec<f64>>,
     tails: Vec<Vec<f64>>,
-    iota: Vec<f64>,
-    wbuf: Vec<f64>,
-    /// `wbuf` weighted by the sample's position in its block.
-    wbuf_t: Vec<f64>,
-    scratch: Vec<f64>,
+    work: Vec<TaskWork>,
     qrow: Vec<f64>,
     /// [`central_velocity_weights`].
     vhat_weights: Vec<f64>,
@@ -353,36 +418,47 @@ impl<'a> LevelAccumulator<'a> {
         let bounds: Vec<usize> = (0..=n_blocks)
             .map(|b| ((b as u128 * (n_total - 1) as u128) / n_blocks as u128) as usize)
             .collect();
-        let chains = plan
-            .corners
-            .iter()
-            .map(|&l| ChainDisc::new(l, plan.order, ts, hold))
-            .collect();
+        let bank = FilterBank::new(&plan.corners, plan.drivers.len(), plan.order, ts, hold);
         let (n_i, n_w, n_q) = (plan.n_i(), plan.n_w(), plan.n_q());
-        LevelAccumulator {
+        let mut row_map = vec![None; bank.n_rows()];
+        for d in 0..plan.drivers.len() {
+            for c in 0..plan.corners.len() {
+                for i in 0..plan.order {
+                    row_map[bank.row(d, c, i)] = Some(plan.state(d, c, i));
+                }
+            }
+        }
+        row_map.extend((plan.n_z()..n_i).map(Some));
+        let mut acc = LevelAccumulator {
             plan,
             eval,
-            chains,
+            bank,
+            task_len: 0,
+            row_map,
             ts,
             n_total,
             bounds,
             pos: 0,
-            z_state: vec![0.0; plan.n_z()],
-            s_prev: vec![0.0; plan.drivers.len()],
+            state: None,
             sums: vec![vec![0.0; n_i * n_w]; n_blocks],
             tsums: vec![vec![0.0; n_i * n_w]; n_blocks],
             snaps: vec![vec![0.0; n_i * n_q]; n_blocks + 1],
             tails: vec![Vec::with_capacity(VHAT_WINDOW); plan.vhat_bodies.len()],
-            iota: Vec::new(),
-            wbuf: Vec::new(),
-            wbuf_t: Vec::new(),
-            scratch: Vec::new(),
+            work: Vec::new(),
             qrow: vec![0.0; n_q],
             vhat_weights: central_velocity_weights(),
             extra_width: vec![1.0; plan.extra.len()],
             non_finite: None,
             times: PhaseTimes::default(),
-        }
+        };
+        acc.set_task_len(TASK_LEN);
+        acc
+    }
+
+    /// Samples per task of the time-parallel pass (at least 1; [`TASK_LEN`] by default).
+    pub fn set_task_len(&mut self, task_len: usize) {
+        self.task_len = task_len.max(1);
+        self.bank.prepare_propagation(self.task_len);
     }
 
     /// Set the kernel widths of the plan's extra columns for this level.
@@ -391,11 +467,12 @@ impl<'a> LevelAccumulator<'a> {
         self.extra_width = widths;
     }
 
-    /// Feed the next `len` samples; `cols[s]` is signal `s` (by `SignalId`).
-    pub fn push(&mut self, cols: &[&[f64]], len: usize) {
+    /// The pieces of the next `len` samples between block boundaries: `(offset, length)`.
+    fn pieces(&self, len: usize) -> Vec<(usize, usize)> {
+        let mut out = Vec::new();
         let mut off = 0;
         while off < len {
-            let p0 = self.pos;
+            let p0 = self.pos + off;
             // Split at the next block boundary strictly after p0 (and at the last sample).
             let next_bound = self
                 .bounds
@@ -404,178 +481,184 @@ impl<'a> LevelAccumulator<'a> {
                 .find(|&b| b > p0)
                 .unwrap_or(self.n_total);
             let piece = (len - off).min(next_bound - p0);
-            self.piece(cols, off, piece);
+            out.push((off, piece));
             off += piece;
         }
+        out
     }
 
-    fn piece(&mut self, cols: &[&[f64]], off: usize, len: usize) {
+    /// Feed the next `len` samples; `cols[s]` is signal `s` (by `SignalId`).
+    pub fn push(&mut self, cols: &[&[f64]], len: usize) {
+        use rayon::prelude::*;
+        if len == 0 {
+            return;
+        }
         let plan = self.plan;
-        let (n_z, n_i, n_w, n_q) = (plan.n_z(), plan.n_i(), plan.n_w(), plan.n_q());
-        let n_g = plan.roots.len();
-        let p0 = self.pos;
-        self.iota.resize(n_i * len, 0.0);
-        self.wbuf.resize(n_w * len, 0.0);
-        let view: Vec<&[f64]> = cols
-            .iter()
-            .map(|c| if c.is_empty() { *c } else { &c[off..off + len] })
-            .collect();
-
-        let (iota_z, iota_y) = self.iota.split_at_mut(n_z * len);
-        let (w_g, w_y) = self.wbuf.split_at_mut(n_g * len);
-        for (k, s) in plan.y.iter().enumerate() {
-            iota_y[k * len..(k + 1) * len].copy_from_slice(view[s.index()]);
-            w_y[k * len..(k + 1) * len].copy_from_slice(view[s.index()]);
-        }
-        if !plan.extra.is_empty() {
-            let ny = plan.y.len();
-            let ys: Vec<&[f64]> = plan.y.iter().map(|s| view[s.index()]).collect();
-            super::noise::fill_extra(
-                &plan.extra,
-                &self.extra_width,
-                &ys,
-                len,
-                &mut w_y[ny * len..],
-            );
-        }
-        let eval = self.eval;
-        let scratch = &mut self.scratch;
-        let chains = &self.chains;
-        let order = plan.order;
-        let n_c = plan.corners.len();
-        let z_state = &mut self.z_state;
-        let s_prev = &mut self.s_prev;
-        let first = p0 == 0;
-        let (t_eval, t_filter) = rayon::join(
-            || {
-                let t = Instant::now();
-                if n_g > 0 {
-                    eval.eval_block(&view, len, w_g, scratch);
-                }
-                t.elapsed()
-            },
-            || {
-                use rayon::prelude::*;
-                let t = Instant::now();
-                iota_z
-                    .par_chunks_mut(order * len)
-                    .zip(z_state.par_chunks_mut(order))
-                    .enumerate()
-                    .for_each(|(ch, (out, st))| {
-                        let d = ch / n_c;
-                        let s = view[plan.drivers[d].index()];
-                        if first {
-                            // ζ(0) = 0: the filters start at rest with the record.
-                            for i in 0..order {
-                                out[i * len] = 0.0;
-                            }
-                            chains[ch % n_c].run(st, s[0], &s[1..], &mut out[1..], len);
-                        } else {
-                            chains[ch % n_c].run(st, s_prev[d], s, out, len);
-                        }
-                    });
-                for (d, sp) in s_prev.iter_mut().enumerate() {
-                    *sp = view[plan.drivers[d].index()][len - 1];
-                }
-                t.elapsed()
-            },
-        );
-        self.times.evaluate += t_eval;
-        self.times.filter += t_filter;
-        if self.non_finite.is_none() {
-            // A finite sum means every value is finite: one pass, no branch per sample.
-            self.non_finite = self.wbuf[..n_g * len]
-                .chunks_exact(len)
-                .enumerate()
-                .find(|(_, c)| !c.iter().sum::<f64>().is_finite())
-                .and_then(|(r, c)| {
-                    let i = c.iter().position(|v| !v.is_finite())?;
-                    Some((r, p0 + i, c[i]))
+        let pieces = self.pieces(len);
+        let mut tasks = Vec::new();
+        for &(off, plen) in &pieces {
+            let global = self.pos + off;
+            let block = self.bounds.iter().rposition(|&b| b <= global).unwrap_or(0);
+            let block = (block < self.sums.len()).then_some(block);
+            let b0 = block.map_or(global, |b| self.bounds[b]);
+            let mut o = 0;
+            while o < plen {
+                let tl = (plen - o).min(self.task_len);
+                tasks.push(Task {
+                    off: off + o,
+                    len: tl,
+                    global: global + o,
+                    block,
+                    tpos: global + o - b0,
                 });
+                o += tl;
+            }
+        }
+        if self.work.len() < tasks.len() {
+            self.work.resize_with(tasks.len(), TaskWork::default);
+        }
+        let drivers: Vec<&[f64]> = plan.drivers.iter().map(|d| cols[d.index()]).collect();
+        let bank = &self.bank;
+        let at = |k: usize| -> Vec<f64> { drivers.iter().map(|c| c[k]).collect() };
+        // The state before each task's first sample; the record's first task starts at rest
+        // at its own first sample.
+        let start_of = |t: &Task, carried: Option<&BankState>| match (t.global, carried) {
+            (0, _) => bank.state(&at(t.off)),
+            (_, Some(s)) if t.off == 0 => s.clone(),
+            _ => bank.state(&at(t.off - 1)),
+        };
+        let carried = self.state.take();
+        let mut starts = vec![start_of(&tasks[0], carried.as_ref())];
+        if tasks.len() > 1 {
+            // Pass 1: each task from rest (the first from its true start).
+            let work = &mut self.work[..tasks.len()];
+            let first = &starts[0];
+            tasks
+                .par_iter()
+                .zip(work.par_iter_mut())
+                .enumerate()
+                .for_each(|(i, (t, wk))| {
+                    let clock = Instant::now();
+                    let mut st = if i == 0 {
+                        first.clone()
+                    } else {
+                        start_of(t, None)
+                    };
+                    run_filter(bank, &mut st, &drivers, t, None);
+                    wk.end = Some(st);
+                    wk.filter += clock.elapsed();
+                });
+            let clock = Instant::now();
+            for (i, t) in tasks.iter().enumerate().take(tasks.len() - 1) {
+                let end = self.work[i]
+                    .end
+                    .take()
+                    .expect("invariant: pass 1 ran for every task");
+                let next = if i == 0 {
+                    end
+                } else {
+                    bank.compose(&starts[i], t.len, &end)
+                };
+                starts.push(next);
+            }
+            self.times.filter += clock.elapsed();
         }
 
-        let t = Instant::now();
-        // Snapshot at a block boundary (the first sample of this piece).
-        if let Some(b) = self.bounds.iter().position(|&b| b == p0) {
-            for k in 0..n_w {
-                self.qrow[k] = self.wbuf[k * len];
+        // Pass 2: from the true starts, with the moments.
+        let (n_w, n_rows) = (plan.n_w(), self.row_map.len());
+        let ctx = TaskCtx {
+            plan,
+            eval: self.eval,
+            bank,
+            row_map: &self.row_map,
+            extra_width: &self.extra_width,
+            cols,
+            drivers: &drivers,
+        };
+        tasks
+            .par_iter()
+            .zip(self.work[..tasks.len()].par_iter_mut())
+            .zip(starts.into_par_iter())
+            .for_each(|((t, wk), st)| ctx.run(t, wk, st));
+
+        // In order: snapshots, block sums, velocity tails.
+        let mut ti = 0;
+        for &(off, plen) in &pieces {
+            let p0 = self.pos + off;
+            let clock = Instant::now();
+            if let Some(b) = self.bounds.iter().position(|&b| b == p0) {
+                self.snapshot(b, ti, cols, off, plen);
             }
+            while ti < tasks.len() && tasks[ti].off < off + plen {
+                let (t, wk) = (&tasks[ti], &mut self.work[ti]);
+                if self.non_finite.is_none() {
+                    self.non_finite = wk.non_finite;
+                }
+                if let Some(b) = t.block {
+                    let (sums, tsums) = (&mut self.sums[b], &mut self.tsums[b]);
+                    for (r, part) in wk.part.chunks_exact(2 * n_w).enumerate().take(n_rows) {
+                        if let Some(m) = self.row_map[r] {
+                            let (ps, pt) = part.split_at(n_w);
+                            for (d, p) in sums[m * n_w..(m + 1) * n_w].iter_mut().zip(ps) {
+                                *d += p;
+                            }
+                            for (d, p) in tsums[m * n_w..(m + 1) * n_w].iter_mut().zip(pt) {
+                                *d += p;
+                            }
+                        }
+                    }
+                }
+                self.times.filter += std::mem::take(&mut wk.filter);
+                self.times.evaluate += std::mem::take(&mut wk.evaluate);
+                self.times.accumulate += std::mem::take(&mut wk.accumulate);
+                ti += 1;
+            }
+            // Keep the most recent positions for end-point velocity estimates.
             for (k, body) in plan.vhat_bodies.iter().enumerate() {
-                let x = view[self.plan_position(*body)];
-                let tail = &self.tails[k];
-                // Interior boundary with enough samples on both sides in hand: centred fit.
-                // (A boundary within a few samples of a chunk end keeps the one-sided fit.)
-                if tail.len() >= VHAT_HALF && x.len() > VHAT_HALF {
-                    let win = tail[tail.len() - VHAT_HALF..]
-                        .iter()
-                        .chain(&x[..=VHAT_HALF]);
-                    self.qrow[n_w + k] =
-                        win.zip(&self.vhat_weights).map(|(x, w)| x * w).sum::<f64>() / self.ts;
-                } else {
-                    let mut win: Vec<f64> = tail.clone();
-                    win.push(x[0]);
-                    self.qrow[n_w + k] = end_velocity(&win, self.ts);
-                }
+                let x = &cols[plan_position(*body)][off..off + plen];
+                let tail = &mut self.tails[k];
+                let take = x.len().min(VHAT_WINDOW - 1);
+                let keep = (VHAT_WINDOW - 1 - take).min(tail.len());
+                tail.drain(..tail.len() - keep);
+                tail.extend_from_slice(&x[x.len() - take..]);
             }
-            let snap = &mut self.snaps[b];
-            for i in 0..n_i {
-                let ii = self.iota[i * len];
-                for k in 0..n_q {
-                    snap[i * n_q + k] = ii * self.qrow[k];
-                }
-            }
+            self.times.accumulate += clock.elapsed();
         }
-        // Sums over the half-open block range; the last sample only enters the snapshot.
-        let block = self.bounds.iter().rposition(|&b| b <= p0).unwrap_or(0);
-        if block < self.sums.len() {
-            // Position of each sample in its block, for the hat contributions.
-            let off = (p0 - self.bounds[block]) as f64;
-            self.wbuf_t.resize(n_w * len, 0.0);
-            for (dst, src) in self
-                .wbuf_t
-                .chunks_exact_mut(len)
-                .zip(self.wbuf.chunks_exact(len))
-            {
-                for (k, (d, s)) in dst.iter_mut().zip(src).enumerate() {
-                    *d = (off + k as f64) * s;
-                }
-            }
-            let half = n_i / 2;
-            let iota = &self.iota;
-            let wt = MatRef::from_column_major_slice(&self.wbuf[..], len, n_w);
-            let wt_t = MatRef::from_column_major_slice(&self.wbuf_t[..], len, n_w);
-            let (s_top, s_bot) = self.sums[block].split_at_mut(half * n_w);
-            let (t_top, t_bot) = self.tsums[block].split_at_mut(half * n_w);
-            // Fixed halves so the result does not depend on the number of threads.
-            let run = |rows: std::ops::Range<usize>, s: &mut [f64], t: &mut [f64]| {
-                let nr = rows.len();
-                let a =
-                    MatRef::from_row_major_slice(&iota[rows.start * len..rows.end * len], nr, len);
-                let dst = MatMut::from_row_major_slice_mut(s, nr, n_w);
-                faer::linalg::matmul::matmul(dst, Accum::Add, a, wt, 1.0, Par::Seq);
-                let dst = MatMut::from_row_major_slice_mut(t, nr, n_w);
-                faer::linalg::matmul::matmul(dst, Accum::Add, a, wt_t, 1.0, Par::Seq);
-            };
-            rayon::join(
-                || run(0..half, s_top, t_top),
-                || run(half..n_i, s_bot, t_bot),
-            );
-        }
-        // Keep the most recent positions for end-point velocity estimates.
-        for (k, body) in plan.vhat_bodies.iter().enumerate() {
-            let x = view[self.plan_position(*body)];
-            let tail = &mut self.tails[k];
-            let take = x.len().min(VHAT_WINDOW - 1);
-            let keep = (VHAT_WINDOW - 1 - take).min(tail.len());
-            tail.drain(..tail.len() - keep);
-            tail.extend_from_slice(&x[x.len() - take..]);
-        }
-        self.times.accumulate += t.elapsed();
+        self.state = self.work[tasks.len() - 1].end.take();
         self.pos += len;
     }
 
-    fn plan_position(&self, b: dynid_ir::ir::BodyId) -> usize {
-        2 * b.index()
+    /// The snapshot `ι qᵀ` at block boundary `b`, the first sample of the piece
+    /// `cols[..][off .. off + plen]`, whose first task is `self.work[task]`.
+    fn snapshot(&mut self, b: usize, task: usize, cols: &[&[f64]], off: usize, plen: usize) {
+        let plan = self.plan;
+        let (n_i, n_w, n_q) = (plan.n_i(), plan.n_w(), plan.n_q());
+        let wk = &self.work[task];
+        self.qrow[..n_w].copy_from_slice(&wk.first_w);
+        for (k, body) in plan.vhat_bodies.iter().enumerate() {
+            let x = &cols[plan_position(*body)][off..off + plen];
+            let tail = &self.tails[k];
+            // Interior boundary with enough samples on both sides in hand: centred fit.
+            // (A boundary within a few samples of a chunk end keeps the one-sided fit.)
+            if tail.len() >= VHAT_HALF && x.len() > VHAT_HALF {
+                let win = tail[tail.len() - VHAT_HALF..]
+                    .iter()
+                    .chain(&x[..=VHAT_HALF]);
+                self.qrow[n_w + k] =
+                    win.zip(&self.vhat_weights).map(|(x, w)| x * w).sum::<f64>() / self.ts;
+            } else {
+                let mut win: Vec<f64> = tail.clone();
+                win.push(x[0]);
+                self.qrow[n_w + k] = end_velocity(&win, self.ts);
+            }
+        }
+        let snap = &mut self.snaps[b];
+        for i in 0..n_i {
+            let ii = wk.first_iota[i];
+            for k in 0..n_q {
+                snap[i * n_q + k] = ii * self.qrow[k];
+            }
+        }
     }
 
     pub fn finish(self) -> (LevelMoments, PhaseTimes) {
@@ -594,6 +677,140 @@ impl<'a> LevelAccumulator<'a> {
             },
             self.times,
         )
+    }
+}
+
+/// The column of body `b`'s position.
+fn plan_position(b: dynid_ir::ir::BodyId) -> usize {
+    2 * b.index()
+}
+
+/// Advance the bank over task `t` from `st` (for the record's first task: at rest at its
+/// first sample, whose output is the rest state).
+fn run_filter(
+    bank: &FilterBank,
+    st: &mut BankState,
+    drivers: &[&[f64]],
+    t: &Task,
+    out: Option<(&mut [f64], usize)>,
+) {
+    let skip = usize::from(t.global == 0);
+    let out = match out {
+        Some((buf, stride)) if skip == 1 => {
+            buf[..bank.n_rows()].fill(0.0);
+            Some((&mut buf[stride..], stride))
+        }
+        o => o,
+    };
+    let ds: Vec<&[f64]> = drivers
+        .iter()
+        .map(|c| &c[t.off + skip..t.off + t.len])
+        .collect();
+    bank.advance(st, &ds, t.len - skip, out);
+}
+
+/// What pass 2 of every task reads.
+struct TaskCtx<'c> {
+    plan: &'c Plan,
+    eval: &'c dyn BasisEval,
+    bank: &'c FilterBank,
+    row_map: &'c [Option<usize>],
+    extra_width: &'c [f64],
+    cols: &'c [&'c [f64]],
+    drivers: &'c [&'c [f64]],
+}
+
+impl TaskCtx<'_> {
+    /// Pass 2 of one task: filter from the true start `st`, evaluate the basis, and form
+    /// the task's moment sums.
+    fn run(&self, t: &Task, wk: &mut TaskWork, mut st: BankState) {
+        let plan = self.plan;
+        let (n_w, n_g, n_y) = (plan.n_w(), plan.roots.len(), plan.y.len());
+        let (len, n_rows, n_zr) = (t.len, self.row_map.len(), self.bank.n_rows());
+        let view: Vec<&[f64]> = self
+            .cols
+            .iter()
+            .map(|c| {
+                if c.is_empty() {
+                    *c
+                } else {
+                    &c[t.off..t.off + len]
+                }
+            })
+            .collect();
+
+        let clock = Instant::now();
+        wk.iota.resize(n_rows * len, 0.0);
+        run_filter(
+            self.bank,
+            &mut st,
+            self.drivers,
+            t,
+            Some((&mut wk.iota[..], n_rows)),
+        );
+        wk.end = Some(st);
+        for (j, s) in plan.y.iter().enumerate() {
+            for (row, &v) in wk.iota.chunks_exact_mut(n_rows).zip(view[s.index()]) {
+                row[n_zr + j] = v;
+            }
+        }
+        wk.filter += clock.elapsed();
+
+        let clock = Instant::now();
+        wk.w.resize(2 * n_w * len, 0.0);
+        let (w_g, w_rest) = wk.w.split_at_mut(n_g * len);
+        if n_g > 0 {
+            self.eval.eval_block(&view, len, w_g, &mut wk.scratch);
+        }
+        for (k, s) in plan.y.iter().enumerate() {
+            w_rest[k * len..(k + 1) * len].copy_from_slice(view[s.index()]);
+        }
+        if !plan.extra.is_empty() {
+            let ys: Vec<&[f64]> = plan.y.iter().map(|s| view[s.index()]).collect();
+            super::noise::fill_extra(
+                &plan.extra,
+                self.extra_width,
+                &ys,
+                len,
+                &mut w_rest[n_y * len..(n_w - n_g) * len],
+            );
+        }
+        // A finite sum means every value is finite: one pass, no branch per sample.
+        wk.non_finite = w_g
+            .chunks_exact(len)
+            .enumerate()
+            .find(|(_, c)| !c.iter().sum::<f64>().is_finite())
+            .and_then(|(r, c)| {
+                let i = c.iter().position(|v| !v.is_finite())?;
+                Some((r, t.global + i, c[i]))
+            });
+        wk.evaluate += clock.elapsed();
+
+        let clock = Instant::now();
+        wk.first_w.clear();
+        wk.first_w
+            .extend(wk.w.chunks_exact(len).take(n_w).map(|c| c[0]));
+        wk.first_iota.resize(plan.n_i(), 0.0);
+        for (r, m) in self.row_map.iter().enumerate() {
+            if let Some(m) = m {
+                wk.first_iota[*m] = wk.iota[r];
+            }
+        }
+        if t.block.is_some() {
+            // Position of each sample in its block, for the hat contributions.
+            let (w, w_t) = wk.w.split_at_mut(n_w * len);
+            for (dst, src) in w_t.chunks_exact_mut(len).zip(w.chunks_exact(len)) {
+                for (k, (d, s)) in dst.iter_mut().zip(src).enumerate() {
+                    *d = (t.tpos + k) as f64 * s;
+                }
+            }
+            wk.part.resize(n_rows * 2 * n_w, 0.0);
+            let a = MatRef::from_column_major_slice(&wk.iota[..], n_rows, len);
+            let b = MatRef::from_column_major_slice(&wk.w[..], len, 2 * n_w);
+            let dst = MatMut::from_row_major_slice_mut(&mut wk.part[..], n_rows, 2 * n_w);
+            faer::linalg::matmul::matmul(dst, Accum::Replace, a, b, 1.0, Par::Seq);
+        }
+        wk.accumulate += clock.elapsed();
     }
 }
 
