@@ -47,6 +47,7 @@ mod measure;
 mod moments;
 pub mod noise;
 mod plan;
+mod restrict;
 pub mod print;
 mod screen;
 pub mod shape;
