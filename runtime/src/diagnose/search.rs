@@ -275,12 +275,15 @@ fn score_of(
     n: usize,
 ) -> (CandidateScore, Vec<Identification>, Identification) {
     let all = m.identify_pooled();
-    let est = all.param(p).cloned().unwrap_or(crate::ident::ParamEstimate {
-        name: p.to_string(),
-        value: f64::NAN,
-        stderr: f64::NAN,
-        significant: false,
-    });
+    let est = all
+        .param(p)
+        .cloned()
+        .unwrap_or(crate::ident::ParamEstimate {
+            name: p.to_string(),
+            value: f64::NAN,
+            stderr: f64::NAN,
+            significant: false,
+        });
     let (cv, fits) = cross_validate(m, cir, n);
     let t = if est.value.is_finite() {
         est.value.abs() / est.stderr.max(f64::MIN_POSITIVE)
@@ -397,11 +400,20 @@ mod tests {
     /// estimates, standard errors and residuals agree to rounding (the moments of a column
     /// are the same sums, accumulated beside other columns).
     fn assert_same(a: &Diagnosis, b: &Diagnosis) {
-        assert_eq!(a.verdict, b.verdict, "{}\n---\n{}", a.summary(), b.summary());
+        assert_eq!(
+            a.verdict,
+            b.verdict,
+            "{}\n---\n{}",
+            a.summary(),
+            b.summary()
+        );
         let close = |x: f64, y: f64| {
             (x.is_nan() && y.is_nan()) || x == y || (x - y).abs() <= 1e-7 * x.abs().max(y.abs())
         };
-        for (ra, rb) in [(&a.ranking, &b.ranking), (&a.residual_ranking, &b.residual_ranking)] {
+        for (ra, rb) in [
+            (&a.ranking, &b.ranking),
+            (&a.residual_ranking, &b.residual_ranking),
+        ] {
             assert_eq!(ra.len(), rb.len());
             for (x, y) in ra.iter().zip(rb.iter()) {
                 let what = format!("{} at {}", x.effect.name(), x.location.label());
@@ -409,8 +421,18 @@ mod tests {
                 assert_eq!(x.location, y.location, "{what}");
                 assert_eq!(x.note, y.note, "{what}");
                 assert_eq!(x.accepted, y.accepted, "{what}");
-                assert!(close(x.value, y.value), "{what}: {} vs {}", x.value, y.value);
-                assert!(close(x.stderr, y.stderr), "{what}: {} vs {}", x.stderr, y.stderr);
+                assert!(
+                    close(x.value, y.value),
+                    "{what}: {} vs {}",
+                    x.value,
+                    y.value
+                );
+                assert!(
+                    close(x.stderr, y.stderr),
+                    "{what}: {} vs {}",
+                    x.stderr,
+                    y.stderr
+                );
                 assert!(
                     close(x.cv_residual, y.cv_residual),
                     "{what}: {} vs {}",
@@ -418,7 +440,10 @@ mod tests {
                     y.cv_residual
                 );
                 let (ga, gb) = (x.gap.unwrap_or(0.0), y.gap.unwrap_or(0.0));
-                assert!((ga - gb).abs() <= 1e-3 * ga.abs().max(1.0), "{what}: {ga} vs {gb}");
+                assert!(
+                    (ga - gb).abs() <= 1e-3 * ga.abs().max(1.0),
+                    "{what}: {ga} vs {gb}"
+                );
             }
         }
         assert_eq!(a.found.len(), b.found.len());
@@ -427,7 +452,10 @@ mod tests {
             assert_eq!(x.param, y.param);
             assert!(close(x.value, y.value), "{} vs {}", x.value, y.value);
         }
-        assert_eq!(a.fixed_source.lines().count(), b.fixed_source.lines().count());
+        assert_eq!(
+            a.fixed_source.lines().count(),
+            b.fixed_source.lines().count()
+        );
     }
 
     #[test]

@@ -71,7 +71,10 @@ impl<'m> Moments<'m> {
         }
         // Columns of `w` kept: the used roots, then every measured signal; the noise
         // columns (already applied) are dropped.
-        let keep_w: Vec<usize> = (0..n_g).filter(|&w| used[w]).chain(n_g..n_g + n_y).collect();
+        let keep_w: Vec<usize> = (0..n_g)
+            .filter(|&w| used[w])
+            .chain(n_g..n_g + n_y)
+            .collect();
         let new_n_w = keep_w.len();
         let mut map = vec![usize::MAX; n_w];
         for (k, &w) in keep_w.iter().enumerate() {
