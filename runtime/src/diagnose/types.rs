@@ -61,6 +61,12 @@ pub struct DiagnoseOptions {
     /// Required shrink of the withheld gap: relative and absolute (percentage points).
     pub min_rel_shrink: f64,
     pub min_abs_shrink: f64,
+    /// Measure the moments of all candidates of a search step in one pass over the data
+    /// (one model holding every candidate term) and solve each candidate from its columns;
+    /// `false` measures every candidate on its own (one pass each: the reference the shared
+    /// pass is tested against). The shared pass falls back to one pass per candidate when
+    /// the model with every candidate cannot be measured (e.g. more columns than rows).
+    pub shared_pass: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -74,6 +80,7 @@ impl Default for DiagnoseOptions {
             t_min: 4.0,
             min_rel_shrink: 0.2,
             min_abs_shrink: 1.0,
+            shared_pass: true,
         }
     }
 }

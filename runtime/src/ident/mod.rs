@@ -48,6 +48,7 @@ mod moments;
 pub mod noise;
 mod plan;
 pub mod print;
+mod restrict;
 mod screen;
 pub mod shape;
 mod solve;

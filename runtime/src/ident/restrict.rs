@@ -1,0 +1,169 @@
+//! The moments of a sub-model read from those of a larger one: a structure search measures
+//! one model that holds every candidate term at once, then solves each candidate as that
+//! model with the other candidates left out.
+//!
+//! Leaving out a term whose coefficient is an unknown changes neither the instruments nor
+//! the rows of a level: the filters are driven by the measured signals, the designed
+//! corners come from the data, and a static term is computable with every instrument
+//! (filter states of relative degree ≥ 2 and the balance signals) and never brings white
+//! noise of the same sample into a row, so `Plan::set_corners` keeps the same rows with or
+//! without it. Each moment `⟨ι w⟩` is accumulated column by column, so the columns of the
+//! sub-model are those of the large one. The sub-model's least-squares problem is
+//! therefore the large one's with the left-out columns removed — solved on its own (row
+//! normalisation, SVD, standard errors), never through normal equations.
+
+use super::moments::LevelMoments;
+use super::plan::{BasisMoment, TermCoef};
+use super::Moments;
+use dynid_ir::ir::ModelIr;
+
+impl<'m> Moments<'m> {
+    /// The least-squares column of the unknown parameter `name`, if it is one.
+    pub fn column(&self, name: &str) -> Option<usize> {
+        self.plan
+            .unknowns
+            .iter()
+            .position(|&p| self.ir.params[p].name == name)
+    }
+
+    /// The moments of a sub-model `ir`: this model with only the unknown columns `cols`
+    /// kept (the terms of every other unknown removed; known terms stay). `ir` must be that
+    /// sub-model: its unknowns, in order, are the parameters of `cols`, in that order
+    /// (names may differ: they are reported with `ir`'s names), and its equations are this
+    /// model's without the removed terms. Noise corrections, already applied to the moments,
+    /// carry over; the velocity estimates reported are those the kept terms use.
+    ///
+    /// Returns `None` when `ir` has a different number of unknowns or of equations, or a
+    /// column is out of range.
+    pub fn restricted<'c>(&self, ir: &'c ModelIr, cols: &[usize]) -> Option<Moments<'c>> {
+        let plan = &self.plan;
+        let unknowns = ir.unknowns();
+        if unknowns.len() != cols.len()
+            || ir.equations.len() != plan.equations.len()
+            || cols.iter().any(|&c| c >= plan.unknowns.len())
+        {
+            return None;
+        }
+        let n_g = plan.roots.len();
+        let n_y = plan.y.len();
+        let n_w = plan.n_w();
+        // Kept terms, and the static roots they use.
+        let mut equations = plan.equations.clone();
+        for eq in &mut equations {
+            eq.retain_mut(|t| match t.coef {
+                TermCoef::Known(_) => true,
+                TermCoef::Unknown { col, scale } => match cols.iter().position(|&c| c == col) {
+                    Some(k) => {
+                        t.coef = TermCoef::Unknown { col: k, scale };
+                        true
+                    }
+                    None => false,
+                },
+            });
+        }
+        let mut used = vec![false; n_g];
+        for t in equations.iter().flatten() {
+            if let BasisMoment::Static(w) = t.basis {
+                if w < n_g {
+                    used[w] = true;
+                }
+            }
+        }
+        // Columns of `w` kept: the used roots, then every measured signal; the noise
+        // columns (already applied) are dropped.
+        let keep_w: Vec<usize> = (0..n_g)
+            .filter(|&w| used[w])
+            .chain(n_g..n_g + n_y)
+            .collect();
+        let new_n_w = keep_w.len();
+        let mut map = vec![usize::MAX; n_w];
+        for (k, &w) in keep_w.iter().enumerate() {
+            map[w] = k;
+        }
+        let q_of = |q: usize| new_n_w + (q - n_w);
+        for t in equations.iter_mut().flatten() {
+            t.basis = match t.basis {
+                BasisMoment::Static(w) => BasisMoment::Static(map[w]),
+                BasisMoment::D1Pos(x) => BasisMoment::D1Pos(map[x]),
+                BasisMoment::D2Vel(v, b) => BasisMoment::D2Vel(map[v], b),
+                BasisMoment::D2Pos(x, q) => BasisMoment::D2Pos(map[x], q_of(q)),
+            };
+        }
+        let keep_q: Vec<usize> = keep_w
+            .iter()
+            .copied()
+            .chain(n_w..n_w + plan.vhat_bodies.len())
+            .collect();
+        let roots: Vec<_> = keep_w[..new_n_w - n_y]
+            .iter()
+            .map(|&w| plan.roots[w])
+            .collect();
+        // Velocity estimates still used by a kept root.
+        let kept_estimates: Vec<bool> = plan
+            .estimated
+            .iter()
+            .map(|(v, _)| roots.iter().any(|&r| self.ir.expr_signals(r).contains(v)))
+            .collect();
+        let mut sub = plan.clone();
+        sub.estimated = plan
+            .estimated
+            .iter()
+            .zip(&kept_estimates)
+            .filter(|(_, k)| **k)
+            .map(|(e, _)| *e)
+            .collect();
+        sub.roots = roots;
+        sub.unknowns = unknowns.iter().map(|p| p.index()).collect();
+        sub.equations = equations;
+        sub.constant = cols.iter().map(|&c| plan.constant[c]).collect();
+        sub.extra = Vec::new();
+        sub.fixes = Vec::new();
+        sub.linear_roots = Vec::new();
+        let levels = self
+            .levels
+            .iter()
+            .map(|lm| select_columns(lm, &keep_w, &keep_q))
+            .collect();
+        Some(Moments {
+            ir,
+            plan: sub,
+            levels,
+            infos: self.infos.clone(),
+            centred: self.centred.clone(),
+            // Aligned with `plan.estimated` (one report per estimated velocity).
+            estimated: self
+                .estimated
+                .iter()
+                .zip(&kept_estimates)
+                .filter(|(_, k)| **k)
+                .map(|(e, _)| e.clone())
+                .collect(),
+            rcond: self.rcond,
+            times: self.times,
+            prune_t: self.prune_t,
+            noise: self.noise.clone(),
+        })
+    }
+}
+
+/// The moments of the columns `keep_w` of `w` and `keep_q` of the snapshots `q`.
+fn select_columns(lm: &LevelMoments, keep_w: &[usize], keep_q: &[usize]) -> LevelMoments {
+    let pick = |m: &Vec<f64>, n: usize, keep: &[usize]| -> Vec<f64> {
+        let mut out = Vec::with_capacity(lm.n_i * keep.len());
+        for i in 0..lm.n_i {
+            let row = &m[i * n..(i + 1) * n];
+            out.extend(keep.iter().map(|&k| row[k]));
+        }
+        out
+    };
+    LevelMoments {
+        n_i: lm.n_i,
+        n_w: keep_w.len(),
+        n_q: keep_q.len(),
+        ts: lm.ts,
+        sums: lm.sums.iter().map(|m| pick(m, lm.n_w, keep_w)).collect(),
+        tsums: lm.tsums.iter().map(|m| pick(m, lm.n_w, keep_w)).collect(),
+        lens: lm.lens.clone(),
+        snaps: lm.snaps.iter().map(|m| pick(m, lm.n_q, keep_q)).collect(),
+    }
+}
