@@ -219,6 +219,12 @@ type LevelArg<'py> = (
     Option<f64>,
 );
 
+/// One simulated level: signal names, columns, sample interval, start time.
+type SimLevel<'py> = (Vec<String>, Vec<Bound<'py, PyArray1<f64>>>, f64, f64);
+
+/// A detection: JSON, the table, warnings and `(element, verdict)` in words.
+type DetectOut = (String, String, Vec<String>, Vec<(String, String)>);
+
 /// A level streamed from NumPy's buffers (no copy).
 struct ArraySource<'a> {
     origin: String,
@@ -507,7 +513,8 @@ impl CompiledModel {
 
     /// Simulate every level: `([(names, columns, ts, t0)], truth_json)`.
     #[pyo3(signature = (levels=None, duration=2000.0, seed=1, sample=0.01, noise=0.0, burn_in=100.0))]
-    #[allow(clippy::type_complexity)]
+    // The keyword arguments of `Model.simulate`, one each.
+    #[allow(clippy::too_many_arguments)]
     fn simulate<'py>(
         &self,
         py: Python<'py>,
@@ -517,10 +524,7 @@ impl CompiledModel {
         sample: f64,
         noise: f64,
         burn_in: f64,
-    ) -> PyResult<(
-        Vec<(Vec<String>, Vec<Bound<'py, PyArray1<f64>>>, f64, f64)>,
-        String,
-    )> {
+    ) -> PyResult<(Vec<SimLevel<'py>>, String)> {
         let cfg = SimConfig {
             levels,
             duration,
@@ -643,7 +647,7 @@ fn detect(
     model: &CompiledModel,
     levels: Vec<LevelArg<'_>>,
     alpha: f64,
-) -> PyResult<(String, String, Vec<String>, Vec<(String, String)>)> {
+) -> PyResult<DetectOut> {
     if !(alpha > 0.0 && alpha < 1.0) {
         return Err(raise(
             py,
