@@ -431,7 +431,8 @@ class Model:
 
         Returns one level each: a DataFrame with ``t`` and the measured signals (a dict
         of NumPy arrays without pandas). ``noise`` is measurement noise as a fraction of
-        each signal's standard deviation."""
+        each signal's standard deviation. What was simulated (parameter values, levels,
+        settings: the ``truth.json`` of ``dynid simulate``) is kept in ``last_truth``."""
         lv = None if levels is None else [float(x) for x in levels]
         records, truth = self._m.simulate(lv, float(duration), int(seed), float(sample), float(noise), float(burn_in))
         self.last_truth = _json.loads(truth)
