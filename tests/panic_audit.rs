@@ -12,6 +12,7 @@ const ROOTS: &[&str] = &[
     "dsl-parser/src",
     "dsl-parser/ir/src",
     "codegen-macros/src",
+    "python/src",
 ];
 
 /// Files of test code inside the source trees.

@@ -1,0 +1,730 @@
+//! `dynid._dynid`: the native half of the Python package `dynid`.
+//!
+//! A thin layer over the same crates as the `dynid` command line: models are compiled by
+//! `dsl-parser`, and simulation, identification, detection and diagnosis are the runtime's
+//! functions. The Python half (`dynid/__init__.py`) turns DataFrames and dicts into the
+//! level tuples taken here and wraps the JSON results in small classes.
+//!
+//! Data cross over without a copy where NumPy's layout allows: each column arrives as a
+//! contiguous `float64` array and is streamed by [`ArraySource`] straight from NumPy's
+//! buffer (diagnosis alone copies the records, as the command line does, because its free
+//! runs hold whole trajectories). The interpreter lock is released while the runtime works.
+//!
+//! Errors become the exceptions of `dynid.errors`: `CompileError` (with the rendered
+//! diagnostic, line and column), `DataError` (a `ValueError` naming the level, column and
+//! sample) and `DynidError` for everything else, each with the runtime's code and help.
+
+use dynid::dsl_parser::{self, ir::ModelIr, CompileErrors};
+use dynid::runtime::data::{DataError as RtDataError, LevelSource, MIN_SAMPLES};
+use dynid::runtime::detect::{detect_from_data, levels_too_alike, DetectOptions};
+use dynid::runtime::diagnose::{self as rt_diagnose, DiagnoseOptions};
+use dynid::runtime::ident::print::format_equations;
+use dynid::runtime::sim::{self, SimConfig};
+use dynid::runtime::{identify, IdentifyError, IdentifyOptions};
+use miette::Diagnostic;
+use numpy::{PyArray1, PyReadonlyArray1};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use pyo3::BoundObject;
+use std::path::Path;
+
+/// Relative tolerance on the time step of a `t` column (as for CSV files).
+const TIME_TOL: f64 = 1e-3;
+
+/// An exception of `dynid.errors` with `message` and the given attributes.
+fn raise(py: Python<'_>, class: &str, message: String, attrs: Vec<(&str, Py<PyAny>)>) -> PyErr {
+    let build = || -> PyResult<PyErr> {
+        let cls = py.import("dynid.errors")?.getattr(class)?;
+        let exc = cls.call1((message.clone(),))?;
+        for (k, v) in attrs {
+            exc.setattr(k, v)?;
+        }
+        Ok(PyErr::from_value(exc))
+    };
+    build().unwrap_or_else(|e| e)
+}
+
+fn obj<'py, T: IntoPyObject<'py>>(py: Python<'py>, v: T) -> Py<PyAny> {
+    match v.into_pyobject(py) {
+        Ok(b) => b.into_any().unbind(),
+        Err(_) => py.None(),
+    }
+}
+
+/// The level number in a label `level N`, if it is one.
+fn level_of(origin: &str) -> Option<usize> {
+    origin
+        .strip_prefix("level ")?
+        .split(|c: char| !c.is_ascii_digit())
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// A runtime error as a Python exception: `DataError` (a `ValueError`) for problems with
+/// the data (codes `dynid::data::…`), `DynidError` otherwise; the message carries the help
+/// line and the code, as the command line prints them.
+fn runtime_error(py: Python<'_>, e: &dyn Diagnostic) -> PyErr {
+    runtime_error_at(py, e, None, None, None)
+}
+
+fn runtime_error_at(
+    py: Python<'_>,
+    e: &dyn Diagnostic,
+    level: Option<usize>,
+    column: Option<String>,
+    sample: Option<usize>,
+) -> PyErr {
+    let code = e.code().map(|c| c.to_string()).unwrap_or_default();
+    let help = e.help().map(|h| h.to_string()).unwrap_or_default();
+    let mut message = e.to_string();
+    if !help.is_empty() {
+        message.push_str(&format!("\n  help: {help}"));
+    }
+    if !code.is_empty() {
+        message.push_str(&format!("\n  [{code}]"));
+    }
+    let text = e.to_string();
+    let level = level.or_else(|| level_of(&text));
+    let class = if code.starts_with("dynid::data::") {
+        "DataError"
+    } else {
+        "DynidError"
+    };
+    raise(
+        py,
+        class,
+        message,
+        vec![
+            ("code", obj(py, code)),
+            ("help", obj(py, help)),
+            ("level", obj(py, level)),
+            ("column", obj(py, column)),
+            ("sample", obj(py, sample)),
+        ],
+    )
+}
+
+/// An identification error; an outlier names its column and sample.
+fn identify_error(py: Python<'_>, e: &IdentifyError) -> PyErr {
+    match e {
+        IdentifyError::Outlier { at, column, .. } => {
+            let sample = at
+                .strip_prefix("sample ")
+                .and_then(|s| s.split(' ').next())
+                .and_then(|s| s.parse().ok());
+            runtime_error_at(py, e, None, Some(column.clone()), sample)
+        }
+        _ => runtime_error(py, e),
+    }
+}
+
+/// A data problem found here, before the runtime sees the level.
+fn data_error(
+    py: Python<'_>,
+    level: usize,
+    column: Option<&str>,
+    sample: Option<usize>,
+    message: String,
+    help: &str,
+    code: &str,
+) -> PyErr {
+    raise(
+        py,
+        "DataError",
+        format!("{message}\n  help: {help}\n  [{code}]"),
+        vec![
+            ("code", obj(py, code)),
+            ("help", obj(py, help)),
+            ("level", obj(py, level)),
+            ("column", obj(py, column)),
+            ("sample", obj(py, sample)),
+        ],
+    )
+}
+
+/// Line and column (1-based, in characters) of byte offset `at` in `src`.
+fn line_column(src: &str, at: usize) -> (usize, usize) {
+    let at = (0..=at.min(src.len()))
+        .rev()
+        .find(|&i| src.is_char_boundary(i))
+        .unwrap_or(0);
+    let before = &src[..at];
+    let line = before.matches('\n').count() + 1;
+    let column = before[before.rfind('\n').map_or(0, |i| i + 1)..]
+        .chars()
+        .count()
+        + 1;
+    (line, column)
+}
+
+/// Compile errors as `CompileError`: the rendered diagnostics (all of them), and the code,
+/// message, help, line and column of the first.
+fn compile_error(py: Python<'_>, e: &CompileErrors, src: &str) -> PyErr {
+    let rendered = e.render_plain(100);
+    let mut errors = Vec::new();
+    for err in &e.errors {
+        let d = PyDict::new(py);
+        let (line, column) = match err.span() {
+            Some(s) => {
+                let (l, c) = line_column(src, s.start);
+                (Some(l), Some(c))
+            }
+            None => (None, None),
+        };
+        let items: [(&str, Py<PyAny>); 5] = [
+            ("code", obj(py, err.kind().code())),
+            ("message", obj(py, err.message())),
+            ("help", obj(py, err.help_text())),
+            ("line", obj(py, line)),
+            ("column", obj(py, column)),
+        ];
+        for (k, v) in items {
+            if let Err(e) = d.set_item(k, v) {
+                return e;
+            }
+        }
+        errors.push(d.into_any().unbind());
+    }
+    let first = |k: &str| -> Py<PyAny> {
+        errors
+            .first()
+            .and_then(|d| d.bind(py).get_item(k).ok())
+            .map_or_else(|| py.None(), |v| v.unbind())
+    };
+    let attrs = vec![
+        ("rendered", obj(py, rendered.clone())),
+        ("line", first("line")),
+        ("column", first("column")),
+        ("code", first("code")),
+        ("help", first("help")),
+        ("errors", obj(py, errors)),
+    ];
+    raise(py, "CompileError", rendered, attrs)
+}
+
+/// A compiled model (the IR), immutable.
+#[pyclass(module = "dynid._dynid", frozen)]
+struct CompiledModel {
+    ir: ModelIr,
+}
+
+/// One level as the Python half hands it over: label, names, columns (contiguous
+/// `float64`), an optional time column and an optional sample interval.
+type LevelArg<'py> = (
+    String,
+    Vec<String>,
+    Vec<PyReadonlyArray1<'py, f64>>,
+    Option<PyReadonlyArray1<'py, f64>>,
+    Option<f64>,
+);
+
+/// One simulated level: signal names, columns, sample interval, start time.
+type SimLevel<'py> = (Vec<String>, Vec<Bound<'py, PyArray1<f64>>>, f64, f64);
+
+/// A detection: JSON, the table, warnings and `(element, verdict)` in words.
+type DetectOut = (String, String, Vec<String>, Vec<(String, String)>);
+
+/// A level streamed from NumPy's buffers (no copy).
+struct ArraySource<'a> {
+    origin: String,
+    ts: f64,
+    /// By signal index: the column of a measured signal, `None` for the others.
+    cols: Vec<Option<&'a [f64]>>,
+    n: usize,
+}
+
+impl LevelSource for ArraySource<'_> {
+    fn origin(&self) -> String {
+        self.origin.clone()
+    }
+    fn ts(&self) -> f64 {
+        self.ts
+    }
+    fn stream(
+        &self,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+    ) -> Result<(), RtDataError> {
+        let mut start = 0;
+        let mut cols: Vec<&[f64]> = vec![&[]; self.cols.len()];
+        while start < self.n {
+            let len = max_len.min(self.n - start);
+            for (out, c) in cols.iter_mut().zip(&self.cols) {
+                *out = match c {
+                    Some(c) => &c[start..start + len],
+                    None => &[],
+                };
+            }
+            sink(&cols, len);
+            start += len;
+        }
+        Ok(())
+    }
+}
+
+fn fmt_t(t: f64) -> String {
+    dsl_parser::num::sig(t, 9, false)
+}
+
+/// Check the levels against the model and bind them as [`ArraySource`]s: every measured
+/// signal present, columns of one length, finite values, a uniform time column or a
+/// positive sample interval, enough samples.
+fn bind<'a>(
+    py: Python<'_>,
+    ir: &ModelIr,
+    levels: &'a [LevelArg<'_>],
+) -> PyResult<Vec<ArraySource<'a>>> {
+    let mut out = Vec::with_capacity(levels.len());
+    for (i, (label, names, arrays, t, ts)) in levels.iter().enumerate() {
+        let level = i + 1;
+        let mut slices: Vec<&[f64]> = Vec::with_capacity(arrays.len());
+        for (name, a) in names.iter().zip(arrays) {
+            slices.push(a.as_slice().map_err(|_| {
+                data_error(
+                    py,
+                    level,
+                    Some(name),
+                    None,
+                    format!("{label}, column `{name}`: the array is not contiguous"),
+                    "pass a contiguous float64 array (numpy.ascontiguousarray)",
+                    "dynid::data::layout",
+                )
+            })?);
+        }
+        let n = slices.first().map_or(0, |s| s.len());
+        for (name, s) in names.iter().zip(&slices) {
+            if s.len() != n {
+                return Err(data_error(
+                    py,
+                    level,
+                    Some(name),
+                    None,
+                    format!(
+                        "{label}, column `{name}`: {} samples, but `{}` has {n}",
+                        s.len(),
+                        names[0]
+                    ),
+                    "all columns of a level must have the same length",
+                    "dynid::data::ragged_record",
+                ));
+            }
+        }
+        let t = match t {
+            Some(a) => Some(a.as_slice().map_err(|_| {
+                data_error(
+                    py,
+                    level,
+                    Some("t"),
+                    None,
+                    format!("{label}, column `t`: the array is not contiguous"),
+                    "pass a contiguous float64 array (numpy.ascontiguousarray)",
+                    "dynid::data::layout",
+                )
+            })?),
+            None => None,
+        };
+        if let Some(t) = t {
+            if t.len() != n {
+                return Err(data_error(
+                    py,
+                    level,
+                    Some("t"),
+                    None,
+                    format!(
+                        "{label}, column `t`: {} samples, but the signals have {n}",
+                        t.len()
+                    ),
+                    "all columns of a level must have the same length",
+                    "dynid::data::ragged_record",
+                ));
+            }
+        }
+        let check_finite = |name: &str, s: &[f64]| -> PyResult<()> {
+            if let Some(k) = s.iter().position(|v| !v.is_finite()) {
+                return Err(data_error(
+                    py,
+                    level,
+                    Some(name),
+                    Some(k + 1),
+                    format!(
+                        "{label}, column `{name}`, sample {}: {} is not a finite number",
+                        k + 1,
+                        s[k]
+                    ),
+                    "remove or repair samples with NaN or infinite values (cut the record into clean pieces)",
+                    "dynid::data::non_finite",
+                ));
+            }
+            Ok(())
+        };
+        let ts = match (t, ts) {
+            (Some(t), _) if n >= 2 => {
+                check_finite("t", t)?;
+                let ts = t[1] - t[0];
+                for k in 1..n {
+                    let step = t[k] - t[k - 1];
+                    if step <= 0.0 {
+                        return Err(data_error(
+                            py,
+                            level,
+                            Some("t"),
+                            Some(k + 1),
+                            format!(
+                                "{label}, column `t`, sample {}: the time stamp {} s does not increase (the sample before has {} s)",
+                                k + 1,
+                                fmt_t(t[k]),
+                                fmt_t(t[k - 1])
+                            ),
+                            "the samples must be in time order without repeats: sort by `t` and drop repeated samples",
+                            "dynid::data::non_uniform_time",
+                        ));
+                    }
+                    if (step - ts).abs() > TIME_TOL * ts + 1e-12 * t[k].abs() {
+                        return Err(data_error(
+                            py,
+                            level,
+                            Some("t"),
+                            Some(k + 1),
+                            format!(
+                                "{label}, column `t`, sample {}: the time step is {} s, but the sample interval is {} s",
+                                k + 1,
+                                fmt_t(step),
+                                fmt_t(ts)
+                            ),
+                            "identification needs uniformly sampled data; resample the record, or drop `t` and give `sample=TS`",
+                            "dynid::data::non_uniform_time",
+                        ));
+                    }
+                }
+                ts
+            }
+            (Some(_), _) => f64::NAN,
+            (None, Some(ts)) => *ts,
+            (None, None) => {
+                return Err(data_error(
+                    py,
+                    level,
+                    None,
+                    None,
+                    format!("{label}: no sample interval: the data have no `t` column"),
+                    "add a `t` column or give the interval with `sample=TS` (seconds)",
+                    "dynid::data::no_sample_interval",
+                ))
+            }
+        };
+        let mut cols = vec![None; ir.signals.len()];
+        for s in ir.measured_signals() {
+            let name = &ir.signal(s).name;
+            match names.iter().position(|n| n == name) {
+                Some(k) => cols[s.index()] = Some(slices[k]),
+                None => {
+                    return Err(data_error(
+                        py,
+                        level,
+                        Some(name),
+                        None,
+                        format!(
+                            "{label}: no column for the measured signal `{name}` (columns: {})",
+                            names.join(", ")
+                        ),
+                        &format!("name a column `{name}`, rename one to it, or declare `{name}` unmeasured in the model"),
+                        "dynid::data::missing_column",
+                    ))
+                }
+            }
+        }
+        for s in ir.measured_signals() {
+            if let Some(c) = cols[s.index()] {
+                check_finite(&ir.signal(s).name, c)?;
+            }
+        }
+        if n < MIN_SAMPLES {
+            return Err(data_error(
+                py,
+                level,
+                None,
+                None,
+                format!("{label}: only {n} samples; at least {MIN_SAMPLES} are needed"),
+                "record a longer run (the slowest identification filter needs many time constants)",
+                "dynid::data::too_few_samples",
+            ));
+        }
+        if !(ts.is_finite() && ts > 0.0) {
+            return Err(data_error(
+                py,
+                level,
+                None,
+                None,
+                format!("{label}: invalid sample interval {ts}"),
+                "the sample interval is a positive number of seconds",
+                "dynid::data::bad_sample_interval",
+            ));
+        }
+        out.push(ArraySource {
+            origin: label.clone(),
+            ts,
+            cols,
+            n,
+        });
+    }
+    Ok(out)
+}
+
+fn json<T: serde::Serialize>(v: &T) -> PyResult<String> {
+    serde_json::to_string(v).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))
+}
+
+#[pymethods]
+impl CompiledModel {
+    /// The model's name.
+    #[getter]
+    fn name(&self) -> String {
+        self.ir.name.clone()
+    }
+    /// The equations of motion, one line per body.
+    fn equations(&self) -> String {
+        dsl_parser::print::render_equations(&self.ir)
+    }
+    /// The unknown parameters, in declaration order.
+    fn unknowns(&self) -> Vec<String> {
+        self.ir
+            .unknowns()
+            .iter()
+            .map(|p| self.ir.params[p.index()].name.clone())
+            .collect()
+    }
+    /// The measured signals (the columns a level needs).
+    fn measured(&self) -> Vec<String> {
+        self.ir
+            .measured_signals()
+            .iter()
+            .map(|s| self.ir.signal(*s).name.clone())
+            .collect()
+    }
+    /// The model as `.dyn` source.
+    fn source(&self) -> String {
+        dsl_parser::print::to_source(&self.ir)
+    }
+    /// The compiled model as JSON (`dynid compile --emit json`).
+    fn to_json(&self) -> PyResult<String> {
+        json(&self.ir)
+    }
+
+    /// Simulate every level: `([(names, columns, ts, t0)], truth_json)`.
+    #[pyo3(signature = (levels=None, duration=2000.0, seed=1, sample=0.01, noise=0.0, burn_in=100.0))]
+    // The keyword arguments of `Model.simulate`, one each.
+    #[allow(clippy::too_many_arguments)]
+    fn simulate<'py>(
+        &self,
+        py: Python<'py>,
+        levels: Option<Vec<f64>>,
+        duration: f64,
+        seed: u64,
+        sample: f64,
+        noise: f64,
+        burn_in: f64,
+    ) -> PyResult<(Vec<SimLevel<'py>>, String)> {
+        let cfg = SimConfig {
+            levels,
+            duration,
+            seed,
+            sample,
+            noise,
+            burn_in,
+            ..SimConfig::default()
+        };
+        let ir = &self.ir;
+        let out = py
+            .detach(|| sim::simulate(ir, &cfg))
+            .map_err(|e| runtime_error(py, &e))?;
+        let truth = json(&out.truth)?;
+        let records = out
+            .records
+            .into_iter()
+            .map(|r| {
+                let cols = r
+                    .columns
+                    .into_iter()
+                    .map(|c| PyArray1::from_vec(py, c))
+                    .collect();
+                (r.names, cols, r.ts, r.t0)
+            })
+            .collect();
+        Ok((records, truth))
+    }
+
+    /// Identify the unknown parameters from all levels pooled: `(json, equations)`.
+    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false))]
+    fn identify(
+        &self,
+        py: Python<'_>,
+        levels: Vec<LevelArg<'_>>,
+        corners: Option<Vec<f64>>,
+        noise_correction: bool,
+        balance: bool,
+    ) -> PyResult<(String, String)> {
+        let ir = &self.ir;
+        let sources = bind(py, ir, &levels)?;
+        let opts = IdentifyOptions {
+            corners,
+            balance: Some(balance),
+            noise_correction,
+            ..Default::default()
+        };
+        let id = py
+            .detach(|| {
+                let refs: Vec<&dyn LevelSource> =
+                    sources.iter().map(|s| s as &dyn LevelSource).collect();
+                identify(ir, &refs, &opts)
+            })
+            .map_err(|e| identify_error(py, &e))?;
+        Ok((json(&id)?, format_equations(ir, &id)))
+    }
+}
+
+fn read_source(path: &Path) -> String {
+    std::fs::read(path)
+        .map(|b| String::from_utf8_lossy(&b).into_owned())
+        .unwrap_or_default()
+}
+
+/// Compile `.dyn` source text; `name` is the file name shown in diagnostics.
+#[pyfunction]
+#[pyo3(signature = (source, name="<source>"))]
+fn compile_source(py: Python<'_>, source: &str, name: &str) -> PyResult<CompiledModel> {
+    dsl_parser::compile_str(name, source)
+        .map(|ir| CompiledModel { ir })
+        .map_err(|e| compile_error(py, &e, source))
+}
+
+/// Compile a `.dyn` file, or load a `.json` compiled model (`dynid compile --emit json`).
+#[pyfunction]
+fn compile_file(py: Python<'_>, path: std::path::PathBuf) -> PyResult<CompiledModel> {
+    if path.extension().is_some_and(|e| e == "json") {
+        let fail = |message: String, help: &str| {
+            raise(
+                py,
+                "DynidError",
+                format!("{message}\n  help: {help}\n  [dynid::model::json]"),
+                vec![
+                    ("code", obj(py, "dynid::model::json")),
+                    ("help", obj(py, help)),
+                ],
+            )
+        };
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            fail(
+                format!("cannot read the model `{}`: {e}", path.display()),
+                "check the path and the file permissions (a compiled model is UTF-8 JSON)",
+            )
+        })?;
+        let ir: ModelIr = serde_json::from_str(&text).map_err(|e| {
+            fail(
+                format!("`{}` is not a compiled model (JSON IR): {e}", path.display()),
+                "a `.json` model is the output of `dynid compile M.dyn --emit json`; give the `.dyn` file instead",
+            )
+        })?;
+        ir.check_invariants().map_err(|e| {
+            fail(
+                format!("`{}` is not a consistent model: {e}", path.display()),
+                "write the model as .dyn and compile it instead of editing the JSON",
+            )
+        })?;
+        return Ok(CompiledModel { ir });
+    }
+    dsl_parser::compile_file(&path)
+        .map(|ir| CompiledModel { ir })
+        .map_err(|e| compile_error(py, &e, &read_source(&path)))
+}
+
+/// Detect nonlinear elements of a linear model: `(json, table, warnings, verdicts)`, the
+/// verdicts as `(element, verdict)` in words.
+#[pyfunction]
+#[pyo3(signature = (model, levels, alpha=1e-3))]
+fn detect(
+    py: Python<'_>,
+    model: &CompiledModel,
+    levels: Vec<LevelArg<'_>>,
+    alpha: f64,
+) -> PyResult<DetectOut> {
+    if !(alpha > 0.0 && alpha < 1.0) {
+        return Err(raise(
+            py,
+            "DynidError",
+            format!("alpha = {alpha} is not between 0 and 1\n  help: a probability such as 1e-3"),
+            vec![("code", obj(py, "dynid::detect::option"))],
+        ));
+    }
+    let ir = &model.ir;
+    let sources = bind(py, ir, &levels)?;
+    let mut dopts = DetectOptions {
+        alpha,
+        ..Default::default()
+    };
+    let (det, fits) = py
+        .detach(|| {
+            let refs: Vec<&dyn LevelSource> =
+                sources.iter().map(|s| s as &dyn LevelSource).collect();
+            detect_from_data(ir, &refs, &IdentifyOptions::default(), &dopts, &[])
+        })
+        .map_err(|e| runtime_error(py, &e))?;
+    dopts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
+    let warnings: Vec<String> = levels_too_alike(&det, &dopts)
+        .iter()
+        .map(|w| w.message.clone())
+        .collect();
+    let value = serde_json::json!({
+        "detection": det,
+        "intensities": fits.input.elements,
+        "sigma_v_source": fits.sigma_v_source,
+        "jackknife_blocks": fits.n_blocks,
+        "warnings": warnings,
+    });
+    let verdicts = det
+        .elements
+        .iter()
+        .map(|e| (e.element.clone(), e.verdict.to_string()))
+        .collect();
+    Ok((json(&value)?, det.render_table(), warnings, verdicts))
+}
+
+/// Diagnose the gap between a model and the levels: `(json, summary, html report)`.
+#[pyfunction]
+fn diagnose(
+    py: Python<'_>,
+    model: &CompiledModel,
+    levels: Vec<LevelArg<'_>>,
+) -> PyResult<(String, String, String)> {
+    let ir = &model.ir;
+    let sources = bind(py, ir, &levels)?;
+    let mut records = Vec::with_capacity(sources.len());
+    for s in &sources {
+        records.push(rt_diagnose::read_record(s, ir).map_err(|e| runtime_error(py, &e))?);
+    }
+    let origins: Vec<String> = sources.iter().map(|s| s.origin.clone()).collect();
+    let d = py
+        .detach(|| {
+            rt_diagnose::diagnose(
+                ir,
+                &records,
+                &origins,
+                &DiagnoseOptions::default(),
+                &|_, _| {},
+            )
+        })
+        .map_err(|e| runtime_error(py, &e))?;
+    let html = dynid::plot::render_html(&d);
+    Ok((json(&d)?, d.summary(), html))
+}
+
+#[pymodule]
+fn _dynid(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<CompiledModel>()?;
+    m.add_function(wrap_pyfunction!(compile_source, m)?)?;
+    m.add_function(wrap_pyfunction!(compile_file, m)?)?;
+    m.add_function(wrap_pyfunction!(detect, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnose, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
