@@ -78,6 +78,7 @@ fn silverbox_segments_and_free_run_errors() {
         identify: silverbox::default_options(&lin),
         substeps: 4,
         upsample: 4,
+        refine: None,
     };
     let r = silverbox::run(&lin, &data, &opts).expect("procedure runs");
     // Measured: arrow 14.3 mV, multisine test 7.0 mV (the published best linear

@@ -23,6 +23,7 @@ pub mod diagnose;
 mod fft;
 pub mod ident;
 pub mod record;
+pub mod refine;
 pub mod silverbox;
 pub mod sim;
 pub mod tape;

@@ -85,6 +85,9 @@ pub enum SilverboxError {
     #[error(transparent)]
     #[diagnostic(transparent)]
     Data(#[from] DataError),
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Refine(#[from] crate::refine::RefineError),
 }
 
 /// The measurement after mean removal.
@@ -490,6 +493,16 @@ pub struct SilverboxReport {
     /// RMS of the output over the same ranges (mV), for scale.
     pub arrow_output_rms_mv: f64,
     pub multisine_test_output_rms_mv: f64,
+    /// The output-error refinement started from the covariance estimate, if asked for.
+    pub refined: Option<RefinedReport>,
+}
+
+/// The refined estimate and its free-run errors (same simulations as the covariance ones).
+#[derive(Clone, Debug, Serialize)]
+pub struct RefinedReport {
+    pub refinement: crate::refine::Refinement,
+    pub arrow_rms_mv: f64,
+    pub multisine_test_rms_mv: f64,
 }
 
 /// Settings of [`run`].
@@ -501,6 +514,10 @@ pub struct RunOptions {
     /// Band-limited interpolation factor applied before identification and simulation
     /// (1: the measured samples with linear interpolation in between).
     pub upsample: usize,
+    /// Refine the covariance estimate on the estimation parts (output error, one
+    /// sub-record per part started from its fitted initial state); `substeps` of these
+    /// options is replaced by [`RunOptions::substeps`].
+    pub refine: Option<crate::refine::RefineOptions>,
 }
 
 /// The whole procedure for one model.
@@ -512,8 +529,61 @@ pub fn run(
     let split = split(data)?;
     let (id, point) = identify_estimation(ir, data, &split, &opts.identify, opts.upsample)?;
     let fitted = with_estimates(ir, &point);
+    let (arrow, test, test_out) = scores(&fitted, data, &split, opts)?;
+    let refined = match &opts.refine {
+        Some(ropts) => {
+            let records = split
+                .estimation
+                .iter()
+                .map(|s| record_upsampled(ir, data, *s, opts.upsample))
+                .collect::<Result<Vec<_>, _>>()?;
+            let start: Vec<f64> = point.iter().map(|(_, v)| *v).collect();
+            let ropts = crate::refine::RefineOptions {
+                substeps: opts.substeps,
+                ..ropts.clone()
+            };
+            let r = crate::refine::refine(ir, &records, &start, &ropts)?;
+            let fitted = ir.with_nominals(&r.values());
+            let (arrow, test, _) = scores(&fitted, data, &split, opts)?;
+            Some(RefinedReport {
+                refinement: r,
+                arrow_rms_mv: 1e3 * arrow,
+                multisine_test_rms_mv: 1e3 * test,
+            })
+        }
+        None => None,
+    };
+    let arrow_out =
+        (data.y[..ARROW_LEN].iter().map(|v| v * v).sum::<f64>() / ARROW_LEN as f64).sqrt();
+    Ok(SilverboxReport {
+        model: ir.name.clone(),
+        n_params: ir.unknowns().len(),
+        params: id.params.clone(),
+        unidentifiable: id.unidentifiable.clone(),
+        simulated: point,
+        condition: id.condition,
+        filter_corners: id.filter.corners.clone(),
+        filter_order: id.filter.order,
+        split,
+        substeps: opts.substeps,
+        arrow_rms_mv: 1e3 * arrow,
+        multisine_test_rms_mv: 1e3 * test,
+        arrow_output_rms_mv: 1e3 * arrow_out,
+        multisine_test_output_rms_mv: 1e3 * test_out,
+        refined,
+    })
+}
+
+/// Free-run RMS errors (V) of `fitted` on the arrow and on the multisine test, and the
+/// output RMS over the multisine test.
+fn scores(
+    fitted: &ModelIr,
+    data: &SilverboxData,
+    split: &Split,
+    opts: &RunOptions,
+) -> Result<(f64, f64, f64), SilverboxError> {
     let (arrow, _) = free_run_rms(
-        &fitted,
+        fitted,
         data,
         split.arrow,
         split.arrow,
@@ -533,7 +603,7 @@ pub fn run(
             .copied()
             .expect("invariant: test part inside a realisation");
         let (rms, _) = free_run_rms(
-            &fitted,
+            fitted,
             data,
             Segment {
                 start: r.start,
@@ -547,24 +617,7 @@ pub fn run(
         n += t.len();
         o2 += data.y[t.start..t.end].iter().map(|v| v * v).sum::<f64>();
     }
-    let arrow_out =
-        (data.y[..ARROW_LEN].iter().map(|v| v * v).sum::<f64>() / ARROW_LEN as f64).sqrt();
-    Ok(SilverboxReport {
-        model: ir.name.clone(),
-        n_params: ir.unknowns().len(),
-        params: id.params.clone(),
-        unidentifiable: id.unidentifiable.clone(),
-        simulated: point,
-        condition: id.condition,
-        filter_corners: id.filter.corners.clone(),
-        filter_order: id.filter.order,
-        split,
-        substeps: opts.substeps,
-        arrow_rms_mv: 1e3 * arrow,
-        multisine_test_rms_mv: 1e3 * (s2 / n as f64).sqrt(),
-        arrow_output_rms_mv: 1e3 * arrow_out,
-        multisine_test_output_rms_mv: 1e3 * (o2 / n as f64).sqrt(),
-    })
+    Ok((arrow, (s2 / n as f64).sqrt(), (o2 / n as f64).sqrt()))
 }
 
 /// One excitation level cut from the arrow, with the per-level linear fit.

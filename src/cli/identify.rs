@@ -3,10 +3,14 @@
 
 use super::common::{check_outputs, inputs, write_atomically, CsvArgs};
 use dsl_parser::ir::ModelIr;
+use dynid_runtime::data::read_record;
 use dynid_runtime::data::{CsvSource, LevelSource};
 use dynid_runtime::ident::{print, Identification};
+use dynid_runtime::record::Record;
+use dynid_runtime::refine::{self, FreeRunError, RefineOptions, Refinement};
+use dynid_runtime::sim::DEFAULT_SUBSTEPS;
 use dynid_runtime::{identify, IdentifyOptions};
-use miette::IntoDiagnostic;
+use miette::{miette, IntoDiagnostic};
 use std::path::PathBuf;
 
 const LONG_HELP: &str = "\
@@ -36,7 +40,15 @@ Standard errors come from a batch-means sandwich over time blocks. A value withi
 standard errors of zero is kept in the fit and marked `(n.s.)`: the data do not show
 that term. A parameter the data cannot resolve (never excited, or collinear with partners)
 is named and given no number. A negative mass, damping, friction coefficient or spring
-stiffness is reported on stderr. Columns with other names: `--map disp=m1.x`.";
+stiffness is reported on stderr. Columns with other names: `--map disp=m1.x`.
+
+With --refine the covariance estimate starts an output-error refinement: Levenberg-Marquardt
+on the free-run (simulation) error of all levels, with the Jacobian from forward
+sensitivities of the simulation. Both estimates are printed side by side with their
+free-run RMS errors on the estimation files and on the --test files:
+  dynid identify models/sdof_duffing.dyn data/level_*.csv --refine --test test/level_1.csv
+Long records: --segment SECONDS cuts them into sub-records, each started from its own
+fitted initial state (multiple shooting). --weight m1.x=2 weighs a compared signal.";
 
 /// Arguments of `dynid identify`.
 #[derive(clap::Args, Debug)]
@@ -70,24 +82,202 @@ pub struct Args {
     /// they are de-biased where the estimated noise is significant).
     #[arg(long = "no-noise-correction")]
     pub no_noise_correction: bool,
+    /// Refine the covariance estimate by minimising the free-run simulation error.
+    #[arg(long)]
+    pub refine: bool,
+    /// Records (CSV, one per level) on which to report the free-run errors of both
+    /// estimates; not used for fitting.
+    #[arg(long = "test", value_name = "CSV", num_args = 1.., requires = "refine")]
+    pub test: Vec<PathBuf>,
+    /// Weight of a compared signal in the refinement (repeatable), e.g. `--weight m1.x=2`.
+    #[arg(long = "weight", value_name = "SIGNAL=W", requires = "refine")]
+    pub weight: Vec<String>,
+    /// Longest sub-record of the refinement in seconds (multiple shooting); default: whole
+    /// records.
+    #[arg(long = "segment", value_name = "SECONDS", requires = "refine")]
+    pub segment: Option<f64>,
+    /// RK4 sub-steps per sample interval of the refinement's simulations.
+    #[arg(long, default_value_t = DEFAULT_SUBSTEPS, value_parser = super::common::at_least_one, requires = "refine")]
+    pub substeps: usize,
+}
+
+/// The refinement and the free-run errors of both estimates.
+#[derive(Debug, serde::Serialize)]
+pub struct RefineReport {
+    pub refinement: Refinement,
+    /// Free-run errors on the estimation files: covariance estimate, refined estimate.
+    pub estimation: (Vec<FreeRunError>, Vec<FreeRunError>),
+    /// The same on the `--test` files (empty without them).
+    pub test: (Vec<FreeRunError>, Vec<FreeRunError>),
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
     check_outputs(
         [(args.json.as_deref(), "the JSON output")],
-        inputs(&args.model, &args.data),
+        inputs(&args.model, &args.data).chain(args.test.iter().map(PathBuf::as_path)),
     )?;
     let ir = super::common::load_model(&args.model)?;
+    let opts = refine_options(&args)?;
     let id = identify_files(&ir, &args)?;
     print!("{}", render(&ir, &id));
     for w in &id.warnings {
         eprintln!("warning: {w}");
     }
+    let refined = match &opts {
+        Some(o) => {
+            let r = refine_files(&ir, &args, &id, o)?;
+            print!("{}", render_refined(&r));
+            Some(r)
+        }
+        None => None,
+    };
     if let Some(out) = &args.json {
-        let text = serde_json::to_string_pretty(&to_json(&id)).into_diagnostic()?;
+        let mut v = to_json(&id);
+        if let Some(r) = &refined {
+            v["refined"] = serde_json::to_value(r).into_diagnostic()?;
+        }
+        let text = serde_json::to_string_pretty(&v).into_diagnostic()?;
         write_atomically(out, text.as_bytes())?;
     }
     Ok(())
+}
+
+/// The refinement settings of `args` (`None` without `--refine`); weights are checked
+/// against the model by the refinement itself.
+fn refine_options(args: &Args) -> miette::Result<Option<RefineOptions>> {
+    if !args.refine {
+        return Ok(None);
+    }
+    let mut weights = Vec::new();
+    for spec in &args.weight {
+        let parsed = spec.split_once('=').and_then(|(n, w)| {
+            w.trim()
+                .parse::<f64>()
+                .ok()
+                .map(|w| (n.trim().to_string(), w))
+        });
+        weights.push(parsed.ok_or_else(|| {
+            miette!(
+                code = "dynid::refine::weight",
+                help = "write `--weight SIGNAL=W`, e.g. `--weight m1.x=2`",
+                "cannot read the weight `{spec}`"
+            )
+        })?);
+    }
+    if let Some(s) = args.segment {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(miette!(
+                code = "dynid::refine::segment",
+                help = "give the longest sub-record in seconds, e.g. `--segment 20`",
+                "--segment {s} is not a positive duration"
+            ));
+        }
+    }
+    Ok(Some(RefineOptions {
+        substeps: args.substeps,
+        weights,
+        ..Default::default()
+    }))
+}
+
+/// Read every file of `paths` whole (the refinement simulates whole records).
+fn read_all(ir: &ModelIr, args: &Args, paths: &[PathBuf]) -> miette::Result<Vec<Record>> {
+    let csv = args.csv.options(ir)?;
+    Ok(paths
+        .iter()
+        .map(|p| read_record(p, &csv))
+        .collect::<Result<Vec<_>, _>>()?)
+}
+
+/// Refine the covariance estimate `id` on the estimation files and score both estimates.
+pub fn refine_files(
+    ir: &ModelIr,
+    args: &Args,
+    id: &Identification,
+    opts: &RefineOptions,
+) -> miette::Result<RefineReport> {
+    let est = read_all(ir, args, &args.data)?;
+    let mut opts = opts.clone();
+    if let (Some(s), Some(r)) = (args.segment, est.first()) {
+        opts.segment = Some(((s / r.ts).round() as usize).max(3));
+    }
+    let start = refine::start_from(ir, id);
+    let r = refine::refine(ir, &est, &start, &opts)?;
+    let score = |recs: &[Record]| -> miette::Result<(Vec<FreeRunError>, Vec<FreeRunError>)> {
+        if recs.is_empty() {
+            return Ok((Vec::new(), Vec::new()));
+        }
+        Ok((
+            refine::free_run_errors(ir, &start, recs, opts.substeps)?,
+            refine::free_run_errors(ir, &r.values(), recs, opts.substeps)?,
+        ))
+    };
+    let estimation = score(&est)?;
+    let test = score(&read_all(ir, args, &args.test)?)?;
+    Ok(RefineReport {
+        refinement: r,
+        estimation,
+        test,
+    })
+}
+
+/// Both estimates side by side, and their free-run errors.
+pub fn render_refined(rep: &RefineReport) -> String {
+    let r = &rep.refinement;
+    let mut s = format!(
+        "\noutput-error refinement: {} iterations ({}), {} sub-records, {} samples, \
+         mean-square weighted error {:.3e} -> {:.3e}\n",
+        r.iterations,
+        if r.converged {
+            "converged"
+        } else {
+            "iteration limit"
+        },
+        r.segments,
+        r.samples,
+        r.cost_start,
+        r.cost_end
+    );
+    s.push_str(&format!(
+        "{:<12} {:>14} {:>14} {:>12} {:>9}\n",
+        "parameter", "covariance", "refined", "std. error", "change"
+    ));
+    for p in &r.params {
+        let change = if p.start != 0.0 {
+            format!("{:>+8.2}%", 100.0 * (p.value / p.start - 1.0))
+        } else {
+            format!("{:>9}", "-")
+        };
+        s.push_str(&format!(
+            "{:<12} {:>14} {:>14} {:>12} {change}\n",
+            p.name,
+            print::fmt_num(p.start),
+            print::fmt_num(p.value),
+            print::fmt_num(p.stderr),
+        ));
+    }
+    s.push_str(
+        "(std. error of the refined values from the final Jacobian, white residuals assumed: \
+         a lower bound)\n",
+    );
+    s.push_str(&format!(
+        "\n{:<28} {:>14} {:>14}\n",
+        "free-run RMS error", "covariance", "refined"
+    ));
+    for (what, (cov, refd)) in [("estimation", &rep.estimation), ("test", &rep.test)] {
+        for (c, f) in cov.iter().zip(refd) {
+            s.push_str(&format!(
+                "{:<28} {:>14} {:>14}   ({:.2}% -> {:.2}% of the signal std)\n",
+                format!("{what} {}", c.signal),
+                print::fmt_num(c.rms),
+                print::fmt_num(f.rms),
+                100.0 * c.relative,
+                100.0 * f.relative
+            ));
+        }
+    }
+    s.push_str("(each record simulated from its measured initial state, driven by its inputs)\n");
+    s
 }
 
 /// Identify from the CSV files named in `args`.
@@ -311,6 +501,11 @@ mod tests {
             no_balance: false,
             balance: false,
             no_noise_correction: false,
+            refine: false,
+            test: Vec::new(),
+            weight: Vec::new(),
+            segment: None,
+            substeps: DEFAULT_SUBSTEPS,
         };
         let id = identify_files(&ir, &args).unwrap();
         for (n, t) in [("d", 0.4), ("k", 4.0), ("k3", 2.0), ("r", 0.3)] {
@@ -353,6 +548,11 @@ mod tests {
             no_balance: false,
             balance: false,
             no_noise_correction: false,
+            refine: false,
+            test: Vec::new(),
+            weight: Vec::new(),
+            segment: None,
+            substeps: DEFAULT_SUBSTEPS,
         };
         let e = format!("{:?}", identify_files(&ir, &args).unwrap_err());
         assert!(e.contains("bad.csv") && e.contains("`m1.v`"), "{e}");

@@ -4,6 +4,7 @@
 
 use dynid::output::{stage_csv, Staged};
 use dynid_runtime::record::Record;
+use dynid_runtime::refine::RefineOptions;
 use dynid_runtime::silverbox::{self, RunOptions, SilverboxReport, PUBLISHED};
 use dynid_runtime::sim::level_file_names;
 use miette::{miette, IntoDiagnostic, WrapErr};
@@ -73,6 +74,10 @@ pub struct Args {
     /// Number of arrow levels for `--export-levels`.
     #[arg(long = "levels", default_value_t = 4, value_name = "N")]
     pub n_levels: usize,
+    /// Also refine each covariance estimate by minimising the free-run error on the
+    /// estimation parts, and report the refined figures beside the covariance ones.
+    #[arg(long, conflicts_with_all = ["export_levels", "export_estimation"])]
+    pub refine: bool,
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
@@ -140,6 +145,7 @@ pub fn run(args: Args) -> miette::Result<()> {
                 identify: id,
                 substeps: args.substeps,
                 upsample: args.upsample,
+                refine: args.refine.then(RefineOptions::default),
             },
         )
         .wrap_err_with(|| format!("model `{}`", path.display()))?;
@@ -178,21 +184,58 @@ fn print_params(r: &SilverboxReport) {
         .map(|(n, v)| format!("{n} = {v:.6e}"))
         .collect();
     println!("  simulated with {}", sim.join(", "));
+    if let Some(f) = &r.refined {
+        let x = &f.refinement;
+        println!(
+            "  refined (output error, {} iterations, {}): mean-square error {:.3e} -> {:.3e}",
+            x.iterations,
+            if x.converged {
+                "converged"
+            } else {
+                "iteration limit"
+            },
+            x.cost_start,
+            x.cost_end
+        );
+        for p in &x.params {
+            println!(
+                "  {:<6} {:>13.6e} -> {:>13.6e} ± {:.2e}",
+                p.name, p.start, p.value, p.stderr
+            );
+        }
+    }
 }
 
 /// The results table next to the published figures.
 pub fn table(reports: &[SilverboxReport]) -> String {
-    let mut s = String::from(
-        "\n| model | params | arrow RMS (mV) | multisine test RMS (mV) |\n|---|---:|---:|---:|\n",
-    );
+    let refined = reports.iter().any(|r| r.refined.is_some());
+    let mut s = if refined {
+        String::from(
+            "\n| model | params | arrow RMS (mV) | multisine test RMS (mV) | refined arrow RMS (mV) | refined multisine test RMS (mV) |\n|---|---:|---:|---:|---:|---:|\n",
+        )
+    } else {
+        String::from(
+            "\n| model | params | arrow RMS (mV) | multisine test RMS (mV) |\n|---|---:|---:|---:|\n",
+        )
+    };
     for r in reports {
         s.push_str(&format!(
-            "| {} | {} | {:.3} | {:.3} |\n",
+            "| {} | {} | {:.3} | {:.3} |",
             r.model, r.n_params, r.arrow_rms_mv, r.multisine_test_rms_mv
         ));
+        if let Some(f) = &r.refined {
+            s.push_str(&format!(
+                " {:.3} | {:.3} |",
+                f.arrow_rms_mv, f.multisine_test_rms_mv
+            ));
+        } else if refined {
+            s.push_str(" | |");
+        }
+        s.push('\n');
     }
+    let pad = if refined { " | |" } else { "" };
     for (name, v) in PUBLISHED {
-        s.push_str(&format!("| published: {name} | | {v:.2} | |\n"));
+        s.push_str(&format!("| published: {name} | | {v:.2} | |{pad}\n"));
     }
     if let Some(r) = reports.first() {
         s.push_str(&format!(
