@@ -210,6 +210,9 @@ struct Segment {
 }
 
 /// The fixed part of the problem: data columns, segments and weights.
+/// A compared signal of one record: `(state index, is velocity, column, weight)`.
+type Compared<'a> = (usize, bool, &'a [f64], f64);
+
 struct Problem<'a> {
     ir: &'a ModelIr,
     nb: usize,
@@ -217,7 +220,7 @@ struct Problem<'a> {
     /// Per record: input columns (model input order).
     inputs: Vec<Vec<&'a [f64]>>,
     /// Per record: `(state index, is velocity, column, weight)` of the compared signals.
-    outputs: Vec<Vec<(usize, bool, &'a [f64], f64)>>,
+    outputs: Vec<Vec<Compared<'a>>>,
     ts: Vec<f64>,
     t0: Vec<f64>,
     segments: Vec<Segment>,

@@ -42,10 +42,11 @@ impl RowQr {
             let h = a.hypot(b);
             let (c, s) = (a / h, b / h);
             self.r[i * n + i] = h;
-            for k in i + 1..n {
-                let (rk, jk) = (self.r[i * n + k], j[k]);
-                self.r[i * n + k] = c * rk + s * jk;
-                j[k] = c * jk - s * rk;
+            let row = &mut self.r[i * n + i + 1..(i + 1) * n];
+            for (rk, jk) in row.iter_mut().zip(&mut j[i + 1..n]) {
+                let (r0, j0) = (*rk, *jk);
+                *rk = c * r0 + s * j0;
+                *jk = c * j0 - s * r0;
             }
             let zi = self.z[i];
             self.z[i] = c * zi + s * res;
@@ -199,7 +200,7 @@ mod tests {
     fn local_unknowns_are_eliminated_exactly() {
         // Two blocks y = c_b + p t with an offset per block and a shared slope.
         let truth = [(2.0, 0.7), (-1.0, 0.7)];
-        let mut qrs = vec![RowQr::new(2), RowQr::new(2)];
+        let mut qrs = [RowQr::new(2), RowQr::new(2)];
         for (qr, (c, p)) in qrs.iter_mut().zip(truth) {
             for k in 0..20 {
                 let t = k as f64;

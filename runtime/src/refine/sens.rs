@@ -17,6 +17,9 @@ use crate::tape::{Op, Operand, Tape};
 use dynid_ir::ir::{deadzone, saturate, BinaryOp, ModelIr, UnaryOp};
 
 /// The equations of motion of a model with derivatives in `q` directions.
+/// `(equation, root or body, coefficient value, Some((direction, ∂coef/∂param)))`.
+type SensTerm = (usize, usize, f64, Option<(usize, f64)>);
+
 #[derive(Clone, Debug)]
 pub(super) struct SensModel {
     pub(super) nb: usize,
@@ -25,9 +28,9 @@ pub(super) struct SensModel {
     pub(super) q: usize,
     tape: Tape,
     /// `(equation, root, coefficient value, Some((direction, ∂coef/∂param)))`.
-    expr_terms: Vec<(usize, usize, f64, Option<(usize, f64)>)>,
+    expr_terms: Vec<SensTerm>,
     /// The same for `Deriv{body, 1}` terms: `(equation, body, …)`.
-    vel_terms: Vec<(usize, usize, f64, Option<(usize, f64)>)>,
+    vel_terms: Vec<SensTerm>,
     /// Mass terms that depend on a refined parameter: `(equation, body, direction, scale)`.
     mass_terms: Vec<(usize, usize, usize, f64)>,
     minv: Vec<f64>,
