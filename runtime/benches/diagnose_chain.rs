@@ -23,6 +23,9 @@ use dynid_runtime::sim::{self, SimConfig};
 use std::path::Path;
 use std::time::Instant;
 
+mod common;
+use common::{memory, reset_peak};
+
 /// The chain of `n` masses (m = 1), springs from 6 at the wall down to 3 at the free end,
 /// dampers 0.3, the input at the free end.
 fn chain_source(n: usize) -> String {
@@ -58,24 +61,6 @@ fn truth_source(n: usize) -> String {
     let src = chain_source(n);
     let k = src.rfind('}').expect("closing brace");
     format!("{}{TRUTH_LINE}{}", &src[..k], &src[k..])
-}
-
-/// `VmHWM` and `VmRSS` in MiB (Linux), `None` elsewhere.
-fn memory() -> Option<(f64, f64)> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let field = |name: &str| {
-        s.lines()
-            .find(|l| l.starts_with(name))
-            .and_then(|l| l.split_whitespace().nth(1))
-            .and_then(|v| v.parse::<f64>().ok())
-            .map(|kb| kb / 1024.0)
-    };
-    Some((field("VmHWM:")?, field("VmRSS:")?))
-}
-
-/// Reset the high-water mark to the current resident size (Linux ≥ 4.0).
-fn reset_peak() -> bool {
-    std::fs::write("/proc/self/clear_refs", "5").is_ok()
 }
 
 fn right(d: &Diagnosis) -> bool {

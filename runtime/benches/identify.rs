@@ -28,6 +28,9 @@ use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+mod common;
+use common::{best_of, memory, reset_peak};
+
 fn shares(t: &PhaseTimes) -> String {
     let parts = [
         ("read/parse", t.read),
@@ -42,36 +45,6 @@ fn shares(t: &PhaseTimes) -> String {
         .map(|(n, d)| format!("{n} {:.0}%", 100.0 * d.as_secs_f64() / total))
         .collect::<Vec<_>>()
         .join(", ")
-}
-
-/// `VmHWM` and `VmRSS` in MiB (Linux), `None` elsewhere.
-fn memory() -> Option<(f64, f64)> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let field = |name: &str| {
-        s.lines()
-            .find(|l| l.starts_with(name))
-            .and_then(|l| l.split_whitespace().nth(1))
-            .and_then(|v| v.parse::<f64>().ok())
-            .map(|kb| kb / 1024.0)
-    };
-    Some((field("VmHWM:")?, field("VmRSS:")?))
-}
-
-/// Reset the high-water mark to the current resident size (Linux ≥ 4.0).
-fn reset_peak() -> bool {
-    std::fs::write("/proc/self/clear_refs", "5").is_ok()
-}
-
-fn best_of<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut best = f64::INFINITY;
-    let mut last = None;
-    for _ in 0..runs {
-        let t = Instant::now();
-        let v = f();
-        best = best.min(t.elapsed().as_secs_f64());
-        last = Some(v);
-    }
-    (best, last.unwrap())
 }
 
 fn write_csvs(recs: &[Record], dir: &Path) -> Vec<PathBuf> {

@@ -13,19 +13,9 @@ use dynid_runtime::sim::{self, CsvSink, SampleSink, SimConfig, DEFAULT_SUBSTEPS}
 use std::hint::black_box;
 use std::io::BufWriter;
 use std::path::Path;
-use std::time::Instant;
 
-fn best_of<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut best = f64::INFINITY;
-    let mut last = None;
-    for _ in 0..runs {
-        let t = Instant::now();
-        let v = f();
-        best = best.min(t.elapsed().as_secs_f64());
-        last = Some(v);
-    }
-    (best, last.expect("at least one run"))
-}
+mod common;
+use common::best_of;
 
 /// two_mass written out by hand: m1 = 1, m2 = 2, k1 = 4, d1 = 0.4, k2 = 3, d2 = 0.2,
 /// k3 = 1.5, r = 0.2; the input `u` on m1.
