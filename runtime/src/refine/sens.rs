@@ -108,31 +108,8 @@ impl SensModel {
                 }
             }
         }
-        // The same inverse as the simulator's `Mechanics::new`.
-        let diagonal_mass = (0..nb).all(|i| (0..nb).all(|j| i == j || mass[(i, j)] == 0.0));
-        let singular = |i: usize| SimError::SingularMass {
-            body: ir.bodies[i].name.clone(),
-        };
-        let minv = if diagonal_mass {
-            let mut m = nalgebra::DMatrix::zeros(nb, nb);
-            for i in 0..nb {
-                let d = mass[(i, i)];
-                if d == 0.0 || !d.is_finite() {
-                    return Err(singular(i));
-                }
-                m[(i, i)] = 1.0 / d;
-            }
-            m
-        } else {
-            let svd = mass.clone().svd(false, false);
-            let smax = svd.singular_values.max();
-            if svd.singular_values.min().partial_cmp(&(1e-12 * smax))
-                != Some(std::cmp::Ordering::Greater)
-            {
-                return Err(singular(0));
-            }
-            mass.try_inverse().ok_or_else(|| singular(0))?
-        };
+        // The simulator's inverse (the same values, the same errors).
+        let (minv, diagonal_mass) = crate::sim::mech::inverse_mass(ir, mass)?;
         Ok(SensModel {
             nb,
             n_inputs: ir.inputs.len(),
@@ -141,10 +118,7 @@ impl SensModel {
             expr_terms,
             vel_terms,
             mass_terms,
-            minv: (0..nb)
-                .flat_map(|i| (0..nb).map(move |j| (i, j)))
-                .map(|(i, j)| minv[(i, j)])
-                .collect(),
+            minv,
             diagonal_mass,
         })
     }

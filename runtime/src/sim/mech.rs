@@ -77,49 +77,12 @@ impl Mechanics {
                 }
             }
         }
-        let diagonal_mass = (0..nb).all(|i| (0..nb).all(|j| i == j || mass[(i, j)] == 0.0));
-        let minv = if diagonal_mass {
-            let mut m = nalgebra::DMatrix::zeros(nb, nb);
-            for i in 0..nb {
-                let d = mass[(i, i)];
-                if d == 0.0 || !d.is_finite() {
-                    return Err(SimError::SingularMass {
-                        body: ir.bodies[i].name.clone(),
-                    });
-                }
-                m[(i, i)] = 1.0 / d;
-            }
-            m
-        } else {
-            let svd = mass.clone().svd(false, false);
-            let smax = svd.singular_values.max();
-            if svd.singular_values.min().partial_cmp(&(1e-12 * smax))
-                != Some(std::cmp::Ordering::Greater)
-            {
-                let body = (0..nb)
-                    .min_by(|&a, &b| mass[(a, a)].abs().total_cmp(&mass[(b, b)].abs()))
-                    .unwrap_or(0);
-                return Err(SimError::SingularMass {
-                    body: ir.bodies[body].name.clone(),
-                });
-            }
-            mass.try_inverse()
-                .expect("invariant: well-conditioned mass matrix")
-        };
-        let minv = (0..nb)
-            .flat_map(|i| (0..nb).map(move |j| (i, j)))
-            .map(|(i, j)| minv[(i, j)])
-            .collect();
+        let (minv, diagonal_mass) = inverse_mass(ir, mass)?;
         let point = PointTape::new(&Tape::compile(ir, &roots));
         let mut terms = Vec::with_capacity(expr_terms.len() + vel_terms.len());
         let mut starts = Vec::with_capacity(nb + 1);
         for eq in 0..nb {
             starts.push(terms.len());
-            // What `accel`'s unchecked reads rely on.
-            assert!(
-                terms.iter().all(|&(slot, _)| slot < point.memory_len()),
-                "invariant: every term reads the tape's memory"
-            );
             terms.extend(
                 expr_terms
                     .iter()
@@ -200,6 +163,49 @@ impl Mechanics {
             }
         }
     }
+}
+
+/// `M⁻¹` row-major, and whether `M` is diagonal; an error naming a body when `M` is
+/// singular (a zero or non-finite diagonal, or a condition number above 10¹²).
+pub(crate) fn inverse_mass(
+    ir: &ModelIr,
+    mass: nalgebra::DMatrix<f64>,
+) -> Result<(Vec<f64>, bool), SimError> {
+    let nb = mass.nrows();
+    let diagonal = (0..nb).all(|i| (0..nb).all(|j| i == j || mass[(i, j)] == 0.0));
+    let minv = if diagonal {
+        let mut m = nalgebra::DMatrix::zeros(nb, nb);
+        for i in 0..nb {
+            let d = mass[(i, i)];
+            if d == 0.0 || !d.is_finite() {
+                return Err(SimError::SingularMass {
+                    body: ir.bodies[i].name.clone(),
+                });
+            }
+            m[(i, i)] = 1.0 / d;
+        }
+        m
+    } else {
+        let svd = mass.clone().svd(false, false);
+        let smax = svd.singular_values.max();
+        if svd.singular_values.min().partial_cmp(&(1e-12 * smax))
+            != Some(std::cmp::Ordering::Greater)
+        {
+            let body = (0..nb)
+                .min_by(|&a, &b| mass[(a, a)].abs().total_cmp(&mass[(b, b)].abs()))
+                .unwrap_or(0);
+            return Err(SimError::SingularMass {
+                body: ir.bodies[body].name.clone(),
+            });
+        }
+        mass.try_inverse()
+            .expect("invariant: well-conditioned mass matrix")
+    };
+    let rows = (0..nb)
+        .flat_map(|i| (0..nb).map(move |j| (i, j)))
+        .map(|(i, j)| minv[(i, j)])
+        .collect();
+    Ok((rows, diagonal))
 }
 
 /// Classical RK4 state and stage buffers (allocated once per run).

@@ -72,7 +72,7 @@ mod driven;
 mod error;
 pub(crate) mod excite;
 mod law;
-mod mech;
+pub(crate) mod mech;
 mod output;
 mod stream;
 #[doc(hidden)]
