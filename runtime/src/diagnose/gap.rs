@@ -218,28 +218,28 @@ pub(super) fn cov_residual(
     w: usize,
     equation: Option<&str>,
 ) -> Option<f64> {
-    let sys = m.system();
-    let n_levels = m.levels().len();
-    let per = sys.rows / n_levels;
+    let (c, rhs) = m.level_system(w);
+    let cols = if rhs.is_empty() {
+        0
+    } else {
+        c.len() / rhs.len()
+    };
     let (mut num, mut den) = (0.0, 0.0);
-    for r in w * per..(w + 1) * per {
-        if let Some(eq) = equation {
-            if !sys.row_labels[r].ends_with(&format!("→ {eq}")) {
-                continue;
-            }
+    for (r, &b) in rhs.iter().enumerate() {
+        if equation.is_some_and(|eq| m.row_body(r) != eq) {
+            continue;
         }
-        let row = &sys.c_matrix[r * sys.cols..(r + 1) * sys.cols];
-        let norm = (row.iter().map(|x| x * x).sum::<f64>() + sys.rhs[r] * sys.rhs[r]).sqrt();
+        let row = &c[r * cols..(r + 1) * cols];
+        let norm = (row.iter().map(|x| x * x).sum::<f64>() + b * b).sqrt();
         if norm == 0.0 {
             continue;
         }
         let cp = row.iter().zip(p).map(|(a, b)| a * b).sum::<f64>();
-        let e = cp - sys.rhs[r];
+        let e = cp - b;
         num += (e / norm).powi(2);
         // Relative to the size of the individual terms: an equation without input has a
         // zero right-hand side, so `c` alone is no scale.
-        let terms: f64 =
-            row.iter().zip(p).map(|(a, b)| (a * b).powi(2)).sum::<f64>() + sys.rhs[r] * sys.rhs[r];
+        let terms: f64 = row.iter().zip(p).map(|(a, b)| (a * b).powi(2)).sum::<f64>() + b * b;
         den += terms / (norm * norm);
     }
     let r = 100.0 * (num / den).sqrt();

@@ -126,12 +126,7 @@ pub(super) fn search_step(
         let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress(k, total);
     };
-    let run = |cands: &[(Effect, Location)]| -> Vec<Scored> {
-        if opts.shared_pass {
-            if let Some(r) = shared_pass(base, cands, data, opts, &tick) {
-                return r;
-            }
-        }
+    let own_passes = |cands: &[(Effect, Location)]| -> Vec<Scored> {
         cands
             .par_iter()
             .filter_map(|(eff, loc)| {
@@ -147,6 +142,19 @@ pub(super) fn search_step(
                 out
             })
             .collect()
+    };
+    let run = |cands: &[(Effect, Location)]| -> Vec<Scored> {
+        if !opts.shared_pass {
+            return own_passes(cands);
+        }
+        let mut out = Vec::with_capacity(cands.len());
+        for group in cands.chunks(SHARED_PASS_GROUP) {
+            match shared_pass(base, group, data, opts, &tick) {
+                Some(r) => out.extend(r),
+                None => out.extend(own_passes(group)),
+            }
+        }
+        out
     };
     let mut results = run(&cands);
     // Refine the backlash gap around the best grid point of each location.
@@ -306,7 +314,14 @@ fn score_of(
     (score, fits, all)
 }
 
-/// Every candidate scored from ONE measuring pass: the model `base` with all candidate
+/// Candidates measured together in one shared pass. The moments held grow with every
+/// candidate's column — `levels × (3 n_blocks + 1) × n_i × 8` bytes each, ≈ 0.35 MB for the
+/// 16-mass chain of `benches/diagnose_chain.rs` (238 instruments, 3 levels) — so a large
+/// model's candidates are measured in groups: each group costs one more pass over the data,
+/// and the memory stays that of one group.
+const SHARED_PASS_GROUP: usize = 64;
+
+/// Every candidate of a group scored from ONE measuring pass: the model `base` with all candidate
 /// terms added is measured once, and each candidate is solved from its own columns of
 /// those moments ([`Moments::restricted`]), exactly the problem its own pass would give.
 /// `None` when that model cannot be measured (the caller then measures every candidate on
@@ -335,6 +350,8 @@ fn shared_pass(
         .iter()
         .map(|p| m.column(&ir.params[p.index()].name))
         .collect::<Option<_>>()?;
+    // Every candidate reads the base model's columns: form them once.
+    m.keep_columns(&base_cols);
     let out = cands
         .par_iter()
         .zip(&in_all)

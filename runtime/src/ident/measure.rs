@@ -232,8 +232,9 @@ pub fn measure<'m>(
         .collect();
     Ok(Moments {
         ir,
+        store: Arc::new(ColumnStore::new(plan.clone(), lm)),
+        cols: None,
         plan,
-        levels: lm,
         infos,
         centred,
         estimated,

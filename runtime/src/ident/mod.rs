@@ -41,6 +41,7 @@
 //! moments; the first pass estimates each signal's noise level and the moments of such
 //! terms are de-biased where it is significant (see [`noise`]).
 
+mod columns;
 pub mod design;
 pub mod filter;
 mod measure;
@@ -80,19 +81,26 @@ pub use noise::NoiseSummary;
 use crate::basis::BasisEval;
 use crate::data::{DataError, LevelSource};
 use crate::tape::Tape;
+use columns::{gather, Column, ColumnStore};
 use dynid_ir::ir::{ModelIr, SignalId, SignalKind};
-use moments::{LevelAccumulator, LevelMoments, MomentView};
-use plan::{BankChoice, BasisMoment, Instrument, Plan, TermCoef};
+use moments::{LevelAccumulator, LevelMoments};
+use plan::{BankChoice, Plan};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Moments of all levels of one model, ready to be solved pooled or per level.
 pub struct Moments<'m> {
     ir: &'m ModelIr,
     plan: Plan,
-    levels: Vec<LevelMoments>,
+    /// The measured model's moments and the columns of its rows (shared with the
+    /// sub-models read from it).
+    store: Arc<ColumnStore>,
+    /// A sub-model's columns: its unknowns' in order, then the right-hand side. `None`:
+    /// the measured model itself (its columns are the store's, kept once formed).
+    cols: Option<Vec<Arc<Column>>>,
     infos: Vec<LevelInfo>,
     /// Per level: every signal driving the filters has zero mean (see [`CENTRED_REL`]).
     centred: Vec<bool>,
@@ -192,25 +200,6 @@ impl<'m> Moments<'m> {
         }
     }
 
-    /// Rows `(C, c)` of one level from a moment view.
-    fn level_rows(&self, view: &MomentView) -> (Vec<f64>, Vec<f64>) {
-        let p = &self.plan;
-        let cols = p.unknowns.len();
-        let mut c = vec![0.0; p.rows.len() * cols];
-        let mut rhs = vec![0.0; p.rows.len()];
-        for (r, &(k, l)) in p.rows.iter().enumerate() {
-            let ins = &p.instruments[k];
-            for t in &p.equations[l] {
-                let m = term_moment(ins, &t.basis, view);
-                match t.coef {
-                    TermCoef::Unknown { col, scale } => c[r * cols + col] += scale * m,
-                    TermCoef::Known(v) => rhs[r] -= v * m,
-                }
-            }
-        }
-        (c, rhs)
-    }
-
     /// The stacked system of all levels.
     pub fn system(&self) -> LinearSystem {
         let cols = self.plan.unknowns.len();
@@ -221,8 +210,8 @@ impl<'m> Moments<'m> {
             cols,
             row_labels: vec![],
         };
-        for (i, lm) in self.levels.iter().enumerate() {
-            let (c, r) = self.level_rows(&lm.view());
+        for i in 0..self.store.levels.len() {
+            let (c, r) = self.level_system(i);
             out.c_matrix.extend(c);
             out.rhs.extend(r);
             for &(k, l) in &self.plan.rows {
@@ -240,7 +229,7 @@ impl<'m> Moments<'m> {
 
     /// Pool all levels into one least-squares problem.
     pub fn identify_pooled(&self) -> Identification {
-        let all: Vec<usize> = (0..self.levels.len()).collect();
+        let all: Vec<usize> = (0..self.store.levels.len()).collect();
         self.solve_levels(&all)
     }
 
@@ -276,17 +265,26 @@ impl<'m> Moments<'m> {
         self.solve_levels_holding(which, &[])
     }
 
-    /// Rows of one level with the held columns moved to the right-hand side.
-    fn level_rows_holding(&self, view: &MomentView, held: &[(usize, f64)]) -> (Vec<f64>, Vec<f64>) {
-        let (mut c, mut rhs) = self.level_rows(view);
-        let ncol = self.plan.unknowns.len();
-        for (r, b) in rhs.iter_mut().enumerate() {
-            for &(j, v) in held {
-                *b -= v * c[r * ncol + j];
-                c[r * ncol + j] = 0.0;
-            }
+    /// This model's columns (its unknowns in order, then the right-hand side).
+    fn columns(&self) -> Vec<Arc<Column>> {
+        match &self.cols {
+            Some(cols) => cols.clone(),
+            None => (0..=self.store.rhs())
+                .into_par_iter()
+                .map(|c| self.store.column(c))
+                .collect(),
         }
-        (c, rhs)
+    }
+
+    /// The unweighted rows `(C, c)` of level `i` (row-major, one column per unknown).
+    pub fn level_system(&self, i: usize) -> (Vec<f64>, Vec<f64>) {
+        gather(&self.columns(), i, None, &[])
+    }
+
+    /// The body whose equation row `r` of a level is (rows are in the same order at
+    /// every level).
+    pub fn row_body(&self, r: usize) -> &str {
+        &self.ir.bodies[self.plan.rows[r].1].name
     }
 
     /// Per unknown column: a constant-force column at levels whose filter drivers all have
@@ -306,9 +304,10 @@ impl<'m> Moments<'m> {
         let plan = &self.plan;
         let ncol = plan.unknowns.len();
         let nr = plan.rows.len();
+        let columns = self.columns();
         let full: Vec<(Vec<f64>, Vec<f64>)> = which
             .iter()
-            .map(|&i| self.level_rows_holding(&self.levels[i].view(), held))
+            .map(|&i| gather(&columns, i, None, held))
             .collect();
         let mut c_full = Vec::with_capacity(which.len() * nr * ncol);
         let mut r_full = Vec::with_capacity(which.len() * nr);
@@ -331,17 +330,6 @@ impl<'m> Moments<'m> {
                 1.0 / n
             })
             .collect();
-        // Rows of the hat contributions of every level (for the standard errors).
-        let hats: Vec<Vec<(Vec<f64>, Vec<f64>)>> = which
-            .par_iter()
-            .map(|&i| {
-                let lm = &self.levels[i];
-                (0..=lm.n_blocks())
-                    .map(|j| self.level_rows_holding(&lm.hat(j), held))
-                    .collect()
-            })
-            .collect();
-
         let names: Vec<String> = plan
             .unknowns
             .iter()
@@ -423,11 +411,12 @@ impl<'m> Moments<'m> {
             let se = stats::sandwich_stderr(
                 &sol,
                 &active,
-                ncol,
+                held,
                 nr,
                 &weights,
-                &hats,
-                which.iter().map(|&i| &self.levels[i]),
+                &columns,
+                which,
+                &self.store.levels,
             );
             if self.prune_t > 0.0 {
                 let worst = (0..active.len())
@@ -514,37 +503,6 @@ impl<'m> Moments<'m> {
             rows,
             noise: self.noise.clone(),
             times,
-        }
-    }
-}
-
-/// Invariant: a row is formed only where its instrument has the derivatives its terms need
-/// (`Plan::set_corners` keeps only computable rows).
-const ROW_NEEDS_DERIVATIVES: &str = "invariant: the row's instrument has the derivatives it needs";
-
-/// The moment `⟨φ ι basis⟩` of an instrument from a view (`φ ≡ 1` for the whole record;
-/// the `φ'` terms of a hat window vanish there, see the `moments` module).
-fn term_moment(ins: &Instrument, basis: &BasisMoment, v: &MomentView) -> f64 {
-    let a = &ins.a;
-    match *basis {
-        BasisMoment::Static(w) => v.mean(a, w),
-        BasisMoment::D1Pos(x) => {
-            -v.mean(ins.a1.as_ref().expect(ROW_NEEDS_DERIVATIVES), x) + v.bnd(a, x) - v.mean_d(a, x)
-        }
-        BasisMoment::D2Vel(w, body) => {
-            if ins.power == Some(body) {
-                0.5 * (v.bnd(a, w) - v.mean_d(a, w))
-            } else {
-                -v.mean(ins.a1.as_ref().expect(ROW_NEEDS_DERIVATIVES), w) + v.bnd(a, w)
-                    - v.mean_d(a, w)
-            }
-        }
-        BasisMoment::D2Pos(x, q) => {
-            let a1 = ins.a1.as_ref().expect(ROW_NEEDS_DERIVATIVES);
-            v.mean(ins.a2.as_ref().expect(ROW_NEEDS_DERIVATIVES), x) - v.bnd(a1, x)
-                + v.bnd(a, q)
-                + 2.0 * v.mean_d(a1, x)
-                - v.bnd_d(a, x)
         }
     }
 }

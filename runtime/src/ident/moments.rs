@@ -101,19 +101,29 @@ pub(crate) struct MomentView {
     pub bnd_d: Vec<f64>,
 }
 
-impl MomentView {
+/// The moments an estimating equation reads from a weight `φ`'s view of a level: `⟨φ ι w⟩`,
+/// the boundary terms `[φ ι q]/T` and the `φ'` terms, each for an instrument given as a
+/// combination `a` of filter states `(i, coefficient)` and a column of `w` (or `q`).
+pub(crate) trait Window {
+    fn mean(&self, a: &[(usize, f64)], col: usize) -> f64;
+    fn bnd(&self, a: &[(usize, f64)], col: usize) -> f64;
+    fn mean_d(&self, a: &[(usize, f64)], col: usize) -> f64;
+    fn bnd_d(&self, a: &[(usize, f64)], col: usize) -> f64;
+}
+
+impl Window for MomentView {
     #[inline]
-    pub fn mean(&self, a: &[(usize, f64)], col: usize) -> f64 {
+    fn mean(&self, a: &[(usize, f64)], col: usize) -> f64 {
         a.iter().map(|&(i, c)| c * self.m[i * self.n_w + col]).sum()
     }
     #[inline]
-    pub fn bnd(&self, a: &[(usize, f64)], col: usize) -> f64 {
+    fn bnd(&self, a: &[(usize, f64)], col: usize) -> f64 {
         a.iter()
             .map(|&(i, c)| c * self.bnd[i * self.n_q + col])
             .sum()
     }
     #[inline]
-    pub fn mean_d(&self, a: &[(usize, f64)], col: usize) -> f64 {
+    fn mean_d(&self, a: &[(usize, f64)], col: usize) -> f64 {
         if self.m_d.is_empty() {
             return 0.0;
         }
@@ -122,13 +132,106 @@ impl MomentView {
             .sum()
     }
     #[inline]
-    pub fn bnd_d(&self, a: &[(usize, f64)], col: usize) -> f64 {
+    fn bnd_d(&self, a: &[(usize, f64)], col: usize) -> f64 {
         if self.bnd_d.is_empty() {
             return 0.0;
         }
         a.iter()
             .map(|&(i, c)| c * self.bnd_d[i * self.n_q + col])
             .sum()
+    }
+}
+
+/// The contribution of hat `j` to a level, read entry by entry from the block sums: the
+/// same numbers, operation for operation, as [`LevelMoments::hat`] forms as whole matrices
+/// (the tests compare them bit for bit), without forming the `n_i × n_w` matrices a
+/// row needs only a few entries of.
+pub(crate) struct Hat<'a> {
+    lm: &'a LevelMoments,
+    j: usize,
+    intervals: f64,
+    t: f64,
+}
+
+impl<'a> Hat<'a> {
+    pub fn new(lm: &'a LevelMoments, j: usize) -> Self {
+        let intervals = lm.intervals() as f64;
+        Hat {
+            lm,
+            j,
+            intervals,
+            t: lm.ts * intervals,
+        }
+    }
+
+    /// `(m, m_d)` at `(i, k)`, normalised.
+    #[inline]
+    fn m_entry(&self, i: usize, k: usize) -> (f64, f64) {
+        let lm = self.lm;
+        let (n_w, n_q) = (lm.n_w, lm.n_q);
+        let (mut m, mut m_d) = (0.0, 0.0);
+        let mut add = |b: usize, rising: bool| {
+            let len = lm.lens[b] as f64;
+            let (e0, e1) = (lm.snaps[b][i * n_q + k], lm.snaps[b + 1][i * n_q + k]);
+            let sign = if rising { 1.0 } else { -1.0 };
+            let full = lm.sums[b][i * n_w + k] + 0.5 * (e1 - e0);
+            let rise = lm.tsums[b][i * n_w + k] / len + 0.5 * e1;
+            m += if rising { rise } else { full - rise };
+            m_d += sign * full / len;
+        };
+        if self.j > 0 {
+            add(self.j - 1, true);
+        }
+        if self.j < lm.n_blocks() {
+            add(self.j, false);
+        }
+        (m / self.intervals, m_d / self.t)
+    }
+
+    /// `(bnd, bnd_d)` at `(i, k)`, normalised.
+    #[inline]
+    fn q_entry(&self, i: usize, k: usize) -> (f64, f64) {
+        let lm = self.lm;
+        let (n_q, nb) = (lm.n_q, lm.n_blocks());
+        let mut bnd_d = 0.0;
+        let mut add = |b: usize, rising: bool| {
+            let len = lm.lens[b] as f64;
+            let sign = if rising { 1.0 } else { -1.0 };
+            bnd_d += sign * (lm.snaps[b + 1][i * n_q + k] - lm.snaps[b][i * n_q + k]) / len;
+        };
+        if self.j > 0 {
+            add(self.j - 1, true);
+        }
+        if self.j < nb {
+            add(self.j, false);
+        }
+        let mut bnd = 0.0;
+        if self.j == 0 {
+            bnd -= lm.snaps[0][i * n_q + k];
+        }
+        if self.j == nb {
+            bnd += lm.snaps[nb][i * n_q + k];
+        }
+        (bnd / self.t, bnd_d / (self.t * lm.ts))
+    }
+}
+
+impl Window for Hat<'_> {
+    #[inline]
+    fn mean(&self, a: &[(usize, f64)], col: usize) -> f64 {
+        a.iter().map(|&(i, c)| c * self.m_entry(i, col).0).sum()
+    }
+    #[inline]
+    fn bnd(&self, a: &[(usize, f64)], col: usize) -> f64 {
+        a.iter().map(|&(i, c)| c * self.q_entry(i, col).0).sum()
+    }
+    #[inline]
+    fn mean_d(&self, a: &[(usize, f64)], col: usize) -> f64 {
+        a.iter().map(|&(i, c)| c * self.m_entry(i, col).1).sum()
+    }
+    #[inline]
+    fn bnd_d(&self, a: &[(usize, f64)], col: usize) -> f64 {
+        a.iter().map(|&(i, c)| c * self.q_entry(i, col).1).sum()
     }
 }
 
@@ -182,7 +285,9 @@ impl LevelMoments {
         w / self.intervals() as f64
     }
 
-    /// The contribution of hat `j` (`0 ..= n_blocks`), see the module doc.
+    /// The contribution of hat `j` (`0 ..= n_blocks`), see the module doc, as whole
+    /// matrices (the reference for [`Hat`], which reads the same entries one by one).
+    #[cfg(test)]
     pub fn hat(&self, j: usize) -> MomentView {
         let (n_i, n_w, n_q) = (self.n_i, self.n_w, self.n_q);
         let nb = self.n_blocks();

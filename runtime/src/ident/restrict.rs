@@ -10,12 +10,16 @@
 //! without it. Each moment `⟨ι w⟩` is accumulated column by column, so the columns of the
 //! sub-model are those of the large one. The sub-model's least-squares problem is
 //! therefore the large one's with the left-out columns removed — solved on its own (row
-//! normalisation, SVD, standard errors), never through normal equations.
+//! normalisation, SVD, standard errors), never through normal equations. The large model's
+//! rows (of each level and of each of its hat windows) are formed once and shared; a
+//! sub-model reads its columns of them, so a search over hundreds of candidates forms rows
+//! once, not once per candidate and per fold.
 
-use super::moments::LevelMoments;
 use super::plan::{BasisMoment, TermCoef};
 use super::Moments;
 use dynid_ir::ir::ModelIr;
+use rayon::prelude::*;
+use std::sync::Arc;
 
 impl<'m> Moments<'m> {
     /// The least-squares column of the unknown parameter `name`, if it is one.
@@ -26,12 +30,25 @@ impl<'m> Moments<'m> {
             .position(|&p| self.ir.params[p].name == name)
     }
 
+    /// Form and keep the columns `cols` of the rows now: a structure search keeps the
+    /// columns every candidate shares (the base model's), so that each candidate forms
+    /// only its own.
+    pub fn keep_columns(&self, cols: &[usize]) {
+        cols.par_iter().for_each(|&c| match &self.cols {
+            None if c < self.store.rhs() => drop(self.store.column(c)),
+            _ => {}
+        });
+    }
+
     /// The moments of a sub-model `ir`: this model with only the unknown columns `cols`
     /// kept (the terms of every other unknown removed; known terms stay). `ir` must be that
     /// sub-model: its unknowns, in order, are the parameters of `cols`, in that order
     /// (names may differ: they are reported with `ir`'s names), and its equations are this
     /// model's without the removed terms. Noise corrections, already applied to the moments,
     /// carry over; the velocity estimates reported are those the kept terms use.
+    ///
+    /// The sub-model's columns are read from this model's kept columns where they are
+    /// formed ([`Self::keep_columns`]), else formed for the sub-model alone.
     ///
     /// Returns `None` when `ir` has a different number of unknowns or of equations, or a
     /// column is out of range.
@@ -89,11 +106,6 @@ impl<'m> Moments<'m> {
                 BasisMoment::D2Pos(x, q) => BasisMoment::D2Pos(map[x], q_of(q)),
             };
         }
-        let keep_q: Vec<usize> = keep_w
-            .iter()
-            .copied()
-            .chain(n_w..n_w + plan.vhat_bodies.len())
-            .collect();
         let roots: Vec<_> = keep_w[..new_n_w - n_y]
             .iter()
             .map(|&w| plan.roots[w])
@@ -119,15 +131,25 @@ impl<'m> Moments<'m> {
         sub.extra = Vec::new();
         sub.fixes = Vec::new();
         sub.linear_roots = Vec::new();
-        let levels = self
-            .levels
-            .iter()
-            .map(|lm| select_columns(lm, &keep_w, &keep_q))
-            .collect();
+        // The sub-model's rows are columns of the measured model's rows; the right-hand
+        // side (the known terms) is the same.
+        let cols = match &self.cols {
+            None => cols
+                .iter()
+                .map(|&c| self.store.column_unkept(c))
+                .chain([self.store.column(self.store.rhs())])
+                .collect(),
+            Some(mine) => cols
+                .iter()
+                .map(|&c| Arc::clone(&mine[c]))
+                .chain([Arc::clone(&mine[mine.len() - 1])])
+                .collect(),
+        };
         Some(Moments {
             ir,
             plan: sub,
-            levels,
+            store: Arc::clone(&self.store),
+            cols: Some(cols),
             infos: self.infos.clone(),
             centred: self.centred.clone(),
             // Aligned with `plan.estimated` (one report per estimated velocity).
@@ -143,27 +165,5 @@ impl<'m> Moments<'m> {
             prune_t: self.prune_t,
             noise: self.noise.clone(),
         })
-    }
-}
-
-/// The moments of the columns `keep_w` of `w` and `keep_q` of the snapshots `q`.
-fn select_columns(lm: &LevelMoments, keep_w: &[usize], keep_q: &[usize]) -> LevelMoments {
-    let pick = |m: &Vec<f64>, n: usize, keep: &[usize]| -> Vec<f64> {
-        let mut out = Vec::with_capacity(lm.n_i * keep.len());
-        for i in 0..lm.n_i {
-            let row = &m[i * n..(i + 1) * n];
-            out.extend(keep.iter().map(|&k| row[k]));
-        }
-        out
-    };
-    LevelMoments {
-        n_i: lm.n_i,
-        n_w: keep_w.len(),
-        n_q: keep_q.len(),
-        ts: lm.ts,
-        sums: lm.sums.iter().map(|m| pick(m, lm.n_w, keep_w)).collect(),
-        tsums: lm.tsums.iter().map(|m| pick(m, lm.n_w, keep_w)).collect(),
-        lens: lm.lens.clone(),
-        snaps: lm.snaps.iter().map(|m| pick(m, lm.n_q, keep_q)).collect(),
     }
 }

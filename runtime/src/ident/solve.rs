@@ -1,7 +1,8 @@
 //! Least squares by SVD of the row-weighted, column-scaled matrix (never the normal
 //! equations), with the singular values kept for conditioning and rank diagnostics.
 
-use faer::Mat;
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatMut, Par};
 
 /// Solution of `min ‖A x − b‖` for a dense row-major `A` (`rows × cols`).
 #[derive(Clone, Debug)]
@@ -71,24 +72,29 @@ pub(crate) fn lstsq(
     let sv: Vec<f64> = (0..k).map(|i| s[i]).collect();
     let smax = sv.first().copied().unwrap_or(0.0);
     let mut y = vec![0.0; cols];
-    let mut pinv = vec![0.0; cols * rows];
+    // A⁺ = V' Uᵀ with V'[j, r] = v[j, r] · scale[j] / σ_r over the kept directions.
+    let mut vs = Mat::<f64>::zeros(cols, k);
     for r in 0..k {
         if sv[r] <= rcond * smax || sv[r] == 0.0 {
             continue;
         }
-        let mut ub = 0.0;
-        for i in 0..rows {
-            ub += u[(i, r)] * b[i];
-        }
+        let ur = u.col(r);
+        let ub: f64 = (0..rows).map(|i| ur[i] * b[i]).sum();
         let c = ub / sv[r];
         for (j, yj) in y.iter_mut().enumerate() {
             *yj += v[(j, r)] * c;
-            let vj = v[(j, r)] * scale[j] / sv[r];
-            for (i, pv) in pinv[j * rows..(j + 1) * rows].iter_mut().enumerate() {
-                *pv += vj * u[(i, r)];
-            }
+            vs[(j, r)] = v[(j, r)] * scale[j] / sv[r];
         }
     }
+    let mut pinv = vec![0.0; cols * rows];
+    matmul(
+        MatMut::from_row_major_slice_mut(&mut pinv[..], cols, rows),
+        Accum::Replace,
+        vs.as_ref(),
+        u.transpose(),
+        1.0,
+        Par::Seq,
+    );
     let x = y.iter().zip(&scale).map(|(y, s)| y * s).collect();
     let v_min = (0..cols).map(|j| v[(j, k - 1)]).collect();
     Ok(LsSolution {

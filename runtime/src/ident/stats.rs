@@ -32,66 +32,87 @@
 //! [`SIGNIFICANCE_T`] standard errors below zero, else as a negative estimate consistent
 //! with zero — the term is not shown by the data, which is not a contradiction.
 
+use super::columns::Column;
 use super::moments::LevelMoments;
 use super::solve::LsSolution;
 use super::{ParamEstimate, SIGNIFICANCE_T};
 use dynid_ir::ir::{ElementKind, ExprNode, ModelIr, UnaryOp};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef, Par};
 use serde::Serialize;
+use std::sync::Arc;
 
-/// Standard errors of the active columns of `sol` (see the module doc). `hats[pos]` holds
-/// the unweighted rows `(C, c)` (all `ncol` columns, held ones already moved) of every hat
-/// window of the `pos`-th level; `levels` are the matching moments.
-pub(crate) fn sandwich_stderr<'a>(
+/// Standard errors of the active columns of `sol` (see the module doc). The rows of the
+/// hat windows are read from the model's `columns` (its unknowns, then the right-hand
+/// side) at the levels `which` (moments `levels`), with the `held` columns at their
+/// values; `weights` are the row weights of the stacked problem (`nr` rows per level).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn sandwich_stderr(
     sol: &LsSolution,
     active: &[usize],
-    ncol: usize,
+    held: &[(usize, f64)],
     nr: usize,
     weights: &[f64],
-    hats: &[Vec<(Vec<f64>, Vec<f64>)>],
-    levels: impl Iterator<Item = &'a LevelMoments>,
+    columns: &[Arc<Column>],
+    which: &[usize],
+    levels: &[LevelMoments],
 ) -> Vec<f64> {
     let na = active.len();
     let rows = weights.len();
+    let rhs = &columns[columns.len() - 1];
     let mut var = vec![0.0; na];
     let mut var_bartlett = vec![0.0; na];
-    for (pos, (lm, hat_rows)) in levels.zip(hats).enumerate() {
-        let h: Vec<Vec<f64>> = hat_rows
-            .iter()
-            .map(|(c, r)| {
-                (0..nr)
-                    .map(|i| {
-                        let fit: f64 = active
-                            .iter()
-                            .enumerate()
-                            .map(|(k, &j)| c[i * ncol + j] * sol.x[k])
-                            .sum();
-                        weights[pos * nr + i] * (fit - r[i])
-                    })
-                    .collect()
-            })
-            .collect();
-        let e: Vec<f64> = (0..nr).map(|i| h.iter().map(|hj| hj[i]).sum()).collect();
-        let u: Vec<Vec<f64>> = h
-            .iter()
-            .enumerate()
-            .map(|(j, hj)| {
-                let wj = lm.hat_weight(j);
-                (0..na)
-                    .map(|k| {
-                        let p = &sol.pinv[k * rows + pos * nr..k * rows + (pos + 1) * nr];
-                        p.iter()
-                            .zip(hj.iter().zip(&e))
-                            .map(|(p, (h, e))| p * (h - wj * e))
-                            .sum()
-                    })
-                    .collect()
-            })
-            .collect();
+    let mut d = Vec::new();
+    for (pos, &i) in which.iter().enumerate() {
+        let lm = &levels[i];
+        let nh = lm.n_blocks() + 1;
+        let w = &weights[pos * nr..(pos + 1) * nr];
+        // d_j = h_j − w_j e, h_j = W (C_j p − c_j): one row per hat window.
+        d.clear();
+        d.resize(nh * nr, 0.0);
+        for (j, dj) in d.chunks_exact_mut(nr).enumerate() {
+            dj.iter_mut()
+                .zip(&rhs[i].hats[j])
+                .for_each(|(x, c)| *x = -c);
+            let terms = active
+                .iter()
+                .enumerate()
+                .map(|(k, &c)| (c, sol.x[k]))
+                .chain(held.iter().copied());
+            for (c, v) in terms {
+                dj.iter_mut()
+                    .zip(&columns[c][i].hats[j])
+                    .for_each(|(x, a)| *x += v * a);
+            }
+            dj.iter_mut().zip(w).for_each(|(x, w)| *x *= w);
+        }
+        let mut e = vec![0.0; nr];
+        for dj in d.chunks_exact(nr) {
+            e.iter_mut().zip(dj).for_each(|(e, h)| *e += h);
+        }
+        for (j, dj) in d.chunks_exact_mut(nr).enumerate() {
+            let wj = lm.hat_weight(j);
+            dj.iter_mut().zip(&e).for_each(|(x, e)| *x -= wj * e);
+        }
+        // u_j = A⁺_l d_j for every window at once: U = D A⁺_lᵀ (`nh × na`).
+        let mut u = Mat::<f64>::zeros(nh, na);
+        if na > 0 && nr > 0 {
+            let dm = MatRef::from_row_major_slice(&d[..], nh, nr);
+            let pl = MatRef::from_row_major_slice_with_stride(&sol.pinv[pos * nr..], na, nr, rows);
+            matmul(
+                u.as_mut(),
+                Accum::Replace,
+                dm,
+                pl.transpose(),
+                1.0,
+                Par::Seq,
+            );
+        }
         let nb = lm.n_blocks() as f64;
         let dof = nb / (nb - 1.0).max(1.0);
         for k in 0..na {
-            let s0: f64 = u.iter().map(|x| x[k] * x[k]).sum();
-            let s1: f64 = u.windows(2).map(|w| w[0][k] * w[1][k]).sum();
+            let s0: f64 = (0..nh).map(|j| u[(j, k)] * u[(j, k)]).sum();
+            let s1: f64 = (1..nh).map(|j| u[(j - 1, k)] * u[(j, k)]).sum();
             var[k] += dof * (s0 + 2.0 * s1);
             var_bartlett[k] += dof * (s0 + s1);
         }

@@ -1,5 +1,8 @@
 //! Recovery and identity tests of the covariance method (fixed seeds).
 
+use super::columns::term_moment;
+use super::moments::{Hat, MomentView};
+use super::plan::BasisMoment;
 use super::*;
 use crate::data::RecordSource;
 use crate::record::Record;
@@ -309,6 +312,11 @@ fn check_identity(corners: &[f64], n_blocks: usize) -> f64 {
             for (j, hv) in hats.iter().enumerate() {
                 let h1 = term_moment(ins, &BasisMoment::D1Pos(xw), hv);
                 let h2 = term_moment(ins, &BasisMoment::D2Pos(xw, q), hv);
+                // Read entry by entry (as the rows are formed), bit for bit the same.
+                let lazy = Hat::new(&lm, j);
+                let l1 = term_moment(ins, &BasisMoment::D1Pos(xw), &lazy);
+                let l2 = term_moment(ins, &BasisMoment::D2Pos(xw, q), &lazy);
+                assert_eq!((l1.to_bits(), l2.to_bits()), (h1.to_bits(), h2.to_bits()));
                 s1 += h1;
                 s2 += h2;
                 let e1 = trap(&|k| phi(j, k) * z[k] * xd(k as f64 * ts));
