@@ -16,6 +16,9 @@
 //! Time is wall time on the threads rayon has. Peak memory is the process's high-water
 //! mark (`VmHWM`) above its resident size before the diagnosis, with the peak reset
 //! beforehand (`/proc/self/clear_refs`): what the diagnosis holds on top of the records.
+//! Each (n, path) runs in a process of its own (the bench starts itself again), as the
+//! command line does: a diagnosis after another in one process would find the allocator's
+//! and the thread pool's memory already there and report less.
 //! "verdict" is yes when the diagnosis names exactly the withheld effect at its location.
 
 use dynid_runtime::diagnose::{diagnose, DiagnoseOptions, Diagnosis, Verdict};
@@ -115,14 +118,39 @@ fn main() {
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|_| tmp.path().to_path_buf());
     std::fs::create_dir_all(&dir).expect("output directory");
-    println!(
-        "\n== diagnose on a chain of n masses, cubic at (m1, m2) withheld; 3 levels × {duration} s \
-         at Ts = 0.01 s; {} threads; models in {}",
-        rayon::current_num_threads(),
-        dir.display()
-    );
-    println!("| n | path | time | peak memory | verdict right | found |");
-    println!("|---|---|---|---|---|---|");
+    // A child process runs one (n, path) and prints its row only.
+    let child = std::env::var("DYNID_BENCH_CHILD").ok();
+    let paths: Vec<bool> = match child.as_deref() {
+        Some(p) => vec![p == "shared"],
+        None if reference => vec![true, false],
+        None => vec![true],
+    };
+    if child.is_none() {
+        print_header(duration, &dir);
+    }
+    if child.is_none() && ns.len() * paths.len() > 1 {
+        for &n in &ns {
+            for &shared in &paths {
+                let out = std::process::Command::new(std::env::current_exe().expect("own path"))
+                    .args(std::env::args().skip(1))
+                    .env("DYNID_BENCH_CHAIN", n.to_string())
+                    .env("DYNID_BENCH_CHILD", if shared { "shared" } else { "own" })
+                    .env("DYNID_BENCH_KEEP", &dir)
+                    .output()
+                    .expect("runs the bench for one chain");
+                let text = String::from_utf8_lossy(&out.stdout);
+                for line in text.lines().filter(|l| l.starts_with(&format!("| {n} |"))) {
+                    println!("{line}");
+                }
+                assert!(
+                    out.status.success(),
+                    "{}",
+                    String::from_utf8_lossy(&out.stderr)
+                );
+            }
+        }
+        return;
+    }
     for n in ns {
         let (src, truth) = (chain_source(n), truth_source(n));
         let model_path = dir.join(format!("chain{n}_linear.dyn"));
@@ -142,8 +170,7 @@ fn main() {
         for (k, r) in recs.iter().enumerate() {
             write_level(&level_dir.join(format!("level_{}.csv", k + 1)), r);
         }
-        let paths = [true, false];
-        for shared in paths.iter().filter(|s| **s || reference) {
+        for shared in &paths {
             let (secs, peak, ok, found) = timed(&model, &recs, *shared);
             println!(
                 "| {n} | {} | {secs:.1} s | {peak} | {} | {} |",
@@ -157,6 +184,17 @@ fn main() {
             );
         }
     }
+}
+
+fn print_header(duration: f64, dir: &Path) {
+    println!(
+        "\n== diagnose on a chain of n masses, cubic at (m1, m2) withheld; 3 levels × {duration} s \
+         at Ts = 0.01 s; {} threads; models in {}",
+        rayon::current_num_threads(),
+        dir.display()
+    );
+    println!("| n | path | time | peak memory | verdict right | found |");
+    println!("|---|---|---|---|---|---|");
 }
 
 fn write_level(p: &Path, r: &dynid_runtime::record::Record) {

@@ -1,8 +1,14 @@
-//! What the benches share: best-of timing and the process's peak memory (Linux).
+//! What the benches share: the tool's allocator, best-of timing and the process's peak
+//! memory (Linux).
 // Each bench uses a part of it.
 #![allow(dead_code)]
 
 use std::time::Instant;
+
+/// The allocator of the `dynid` binary (see `src/main.rs`), so that peak memory and times
+/// here are those of the tool.
+#[global_allocator]
+static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 /// `VmHWM` and `VmRSS` in MiB (Linux), `None` elsewhere.
 pub fn memory() -> Option<(f64, f64)> {

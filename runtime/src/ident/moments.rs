@@ -443,14 +443,20 @@ struct Task {
     tpos: usize,
 }
 
-/// The buffers and results of one task (kept between chunks).
+/// The working buffers of a task in pass 2, one set per parallel worker (not per task: for
+/// a wide model they are megabytes each).
 #[derive(Default)]
-struct TaskWork {
+struct TaskScratch {
     /// `ι` sample-major: `iota[k · n_rows + r]`, rows the bank's then the measured signals.
     iota: Vec<f64>,
     /// `w` then `(tpos + k) w`, column-major (`w[col · len + k]`).
     w: Vec<f64>,
     scratch: Vec<f64>,
+}
+
+/// The results of one task (kept between chunks).
+#[derive(Default)]
+struct TaskWork {
     /// `Σ ι [w, (tpos + k) w]ᵀ` over the task, row-major `n_rows × 2 n_w`.
     part: Vec<f64>,
     /// `ι` (in the plan's row order) and `w` at the first sample.
@@ -684,7 +690,9 @@ impl<'a> LevelAccumulator<'a> {
             .par_iter()
             .zip(self.work[..tasks.len()].par_iter_mut())
             .zip(starts.into_par_iter())
-            .for_each(|((t, wk), st)| ctx.run(t, wk, st));
+            .for_each_init(TaskScratch::default, |sc, ((t, wk), st)| {
+                ctx.run(t, wk, sc, st)
+            });
 
         // In order: snapshots, block sums, velocity tails.
         let mut ti = 0;
@@ -828,7 +836,7 @@ struct TaskCtx<'c> {
 impl TaskCtx<'_> {
     /// Pass 2 of one task: filter from the true start `st`, evaluate the basis, and form
     /// the task's moment sums.
-    fn run(&self, t: &Task, wk: &mut TaskWork, mut st: BankState) {
+    fn run(&self, t: &Task, wk: &mut TaskWork, sc: &mut TaskScratch, mut st: BankState) {
         let plan = self.plan;
         let (n_w, n_g, n_y) = (plan.n_w(), plan.roots.len(), plan.y.len());
         let (len, n_rows, n_zr) = (t.len, self.row_map.len(), self.bank.n_rows());
@@ -845,27 +853,27 @@ impl TaskCtx<'_> {
             .collect();
 
         let clock = Instant::now();
-        wk.iota.resize(n_rows * len, 0.0);
+        sc.iota.resize(n_rows * len, 0.0);
         run_filter(
             self.bank,
             &mut st,
             self.drivers,
             t,
-            Some((&mut wk.iota[..], n_rows)),
+            Some((&mut sc.iota[..], n_rows)),
         );
         wk.end = Some(st);
         for (j, s) in plan.y.iter().enumerate() {
-            for (row, &v) in wk.iota.chunks_exact_mut(n_rows).zip(view[s.index()]) {
+            for (row, &v) in sc.iota.chunks_exact_mut(n_rows).zip(view[s.index()]) {
                 row[n_zr + j] = v;
             }
         }
         wk.filter += clock.elapsed();
 
         let clock = Instant::now();
-        wk.w.resize(2 * n_w * len, 0.0);
-        let (w_g, w_rest) = wk.w.split_at_mut(n_g * len);
+        sc.w.resize(2 * n_w * len, 0.0);
+        let (w_g, w_rest) = sc.w.split_at_mut(n_g * len);
         if n_g > 0 {
-            self.eval.eval_block(&view, len, w_g, &mut wk.scratch);
+            self.eval.eval_block(&view, len, w_g, &mut sc.scratch);
         }
         for (k, s) in plan.y.iter().enumerate() {
             w_rest[k * len..(k + 1) * len].copy_from_slice(view[s.index()]);
@@ -894,24 +902,24 @@ impl TaskCtx<'_> {
         let clock = Instant::now();
         wk.first_w.clear();
         wk.first_w
-            .extend(wk.w.chunks_exact(len).take(n_w).map(|c| c[0]));
+            .extend(sc.w.chunks_exact(len).take(n_w).map(|c| c[0]));
         wk.first_iota.resize(plan.n_i(), 0.0);
         for (r, m) in self.row_map.iter().enumerate() {
             if let Some(m) = m {
-                wk.first_iota[*m] = wk.iota[r];
+                wk.first_iota[*m] = sc.iota[r];
             }
         }
         if t.block.is_some() {
             // Position of each sample in its block, for the hat contributions.
-            let (w, w_t) = wk.w.split_at_mut(n_w * len);
+            let (w, w_t) = sc.w.split_at_mut(n_w * len);
             for (dst, src) in w_t.chunks_exact_mut(len).zip(w.chunks_exact(len)) {
                 for (k, (d, s)) in dst.iter_mut().zip(src).enumerate() {
                     *d = (t.tpos + k) as f64 * s;
                 }
             }
             wk.part.resize(n_rows * 2 * n_w, 0.0);
-            let a = MatRef::from_column_major_slice(&wk.iota[..], n_rows, len);
-            let b = MatRef::from_column_major_slice(&wk.w[..], len, 2 * n_w);
+            let a = MatRef::from_column_major_slice(&sc.iota[..], n_rows, len);
+            let b = MatRef::from_column_major_slice(&sc.w[..], len, 2 * n_w);
             let dst = MatMut::from_row_major_slice_mut(&mut wk.part[..], n_rows, 2 * n_w);
             faer::linalg::matmul::matmul(dst, Accum::Replace, a, b, 1.0, Par::Seq);
         }
