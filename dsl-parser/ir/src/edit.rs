@@ -69,6 +69,7 @@ impl ModelIr {
             || self.elements.iter().any(|e| e.name == name)
             || self.bodies.iter().any(|b| b.name == name)
             || self.inputs.iter().any(|i| i.name == name)
+            || self.shapes.iter().any(|s| s.name == name)
     }
 
     /// `stem` if it is free, else the first free `stem_2`, `stem_3`, …

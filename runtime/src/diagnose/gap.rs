@@ -286,10 +286,22 @@ pub(super) fn cv_gap(
     opts: &DiagnoseOptions,
     label: &str,
 ) -> ModelGap {
+    cv_gap_by(&|_| ir, fits, data, opts, label)
+}
+
+/// As [`cv_gap`] with a model per withheld level (`ir_of(w)`): a shape parameter profiled
+/// on each fold's training levels gives each fold its own model.
+pub(super) fn cv_gap_by<'i>(
+    ir_of: &(dyn Fn(usize) -> &'i ModelIr + Sync),
+    fits: &[Identification],
+    data: &Data,
+    opts: &DiagnoseOptions,
+    label: &str,
+) -> ModelGap {
     let levels: Vec<LevelGap> = fits
         .par_iter()
         .enumerate()
-        .map(|(w, fit)| level_gap(&with_values(ir, fit), data, w, opts, false).0)
+        .map(|(w, fit)| level_gap(&with_values(ir_of(w), fit), data, w, opts, false).0)
         .collect();
     model_gap(label, levels)
 }

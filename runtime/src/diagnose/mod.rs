@@ -14,6 +14,7 @@
 pub mod effects;
 mod gap;
 pub mod metrics;
+mod profile;
 mod search;
 mod summary;
 pub mod types;
@@ -239,16 +240,39 @@ pub fn diagnose(
             residual_ranking = s.ranking;
         }
         let Some(search::Accepted {
-            score: c,
-            variant: v,
-            gap: g,
-            fit,
-            fits,
+            score: mut c,
+            variant: mut v,
+            gap: mut g,
+            mut fit,
+            mut fits,
         }) = s.best
         else {
             break;
         };
         let param = v.added.last().cloned().unwrap_or_default();
+        let mut shape_stderr = None;
+        if let (Effect::Backlash { gap: grid }, true) = (c.effect, opts.profile_shapes) {
+            match profile::profile_gap(&v.ir, grid, &data, opts, &g.label) {
+                Ok(p) => {
+                    // The profile's estimate: its error carries the gap's along the profile.
+                    if let Some(e) = p.profile_fit.param(&param) {
+                        (c.value, c.stderr) = (e.value, e.stderr);
+                    }
+                    // Five significant digits, as the corrected model's values.
+                    c.effect = Effect::Backlash {
+                        gap: num::round_sig(p.gap, 5),
+                    };
+                    shape_stderr = p.stderr;
+                    v.ir = p.ir;
+                    (g, fit, fits) = (p.model_gap, p.fit, p.fits);
+                }
+                Err(why) => notes.push(format!(
+                    "the backlash gap at {} was not profiled ({why}); the grid value {} is kept",
+                    c.location.label(),
+                    num::exact(grid)
+                )),
+            }
+        }
         let element =
             v.ir.elements
                 .iter()
@@ -263,6 +287,7 @@ pub fn diagnose(
             param,
             value: c.value,
             stderr: c.stderr,
+            shape_stderr,
             gap_before: current_gap.gap,
             gap_after: g.gap,
             pathwise_gap_before: current_gap.pathwise,
@@ -281,6 +306,12 @@ pub fn diagnose(
         // An unknown of the model by construction; a non-finite value keeps the nominal.
         let _ = fixed_ir.set_nominal(&e.name, num::round_sig(e.value, 5));
     }
+    let shapes: Vec<f64> = fixed_ir
+        .shapes
+        .iter()
+        .map(|sh| num::round_sig(sh.nominal, 5))
+        .collect();
+    let fixed_ir = fixed_ir.with_shapes(&shapes);
     let fixed = dynid_ir::print::to_source(&fixed_ir);
     let corrected = ModelGap {
         label: "corrected".into(),

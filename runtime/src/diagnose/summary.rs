@@ -1,6 +1,7 @@
 //! The diagnosis as text: verdict, location, effect, gaps and the evidence behind them.
 
 use super::types::{Diagnosis, ModelGap, MovedParam, Verdict};
+use super::Effect;
 use super::{fmt_gap, fmt_num, fmt_opt_gap, shrink};
 
 /// A shrink as "N % `word`" (e.g. "N % smaller"), "N % larger" when the gap grew, or
@@ -139,6 +140,22 @@ impl Diagnosis {
                         fmt_gap(f.pathwise_gap_after),
                         conf
                     );
+                    if let Effect::Backlash { gap } = f.effect {
+                        let _ = writeln!(
+                            s,
+                            "  gap {} ± {} (profiled over the covariance least squares, grid start {})",
+                            fmt_num(gap),
+                            f.shape_stderr.map_or("n/a (flat profile)".into(), fmt_num),
+                            self.ranking
+                                .iter()
+                                .filter(|c| c.location == f.location)
+                                .find_map(|c| match c.effect {
+                                    Effect::Backlash { gap } => Some(fmt_num(gap)),
+                                    _ => None,
+                                })
+                                .unwrap_or_else(|| "–".into()),
+                        );
+                    }
                 }
                 let _ = writeln!(
                     s,

@@ -67,6 +67,9 @@ pub struct DiagnoseOptions {
     /// pass is tested against). The shared pass falls back to one pass per candidate when
     /// the model with every candidate cannot be measured (e.g. more columns than rows).
     pub shared_pass: bool,
+    /// Profile the gap of an accepted backlash over the covariance least squares (its
+    /// standard error included); `false` keeps the search's grid value (for comparison).
+    pub profile_shapes: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -81,6 +84,7 @@ impl Default for DiagnoseOptions {
             min_rel_shrink: 0.2,
             min_abs_shrink: 1.0,
             shared_pass: true,
+            profile_shapes: true,
         }
     }
 }
@@ -193,6 +197,9 @@ pub struct FoundEffect {
     pub param: String,
     pub value: f64,
     pub stderr: f64,
+    /// A backlash's gap is profiled once the backlash is accepted (the value is in
+    /// `effect`): its standard error, `None` when the profile is flat at its minimum.
+    pub shape_stderr: Option<f64>,
     /// Withheld statistical gap before and after adding this effect (in %).
     pub gap_before: f64,
     pub gap_after: f64,

@@ -76,6 +76,7 @@ pub fn profile(
             let var = (n - 1.0) / n * leave_out.iter().map(|v| (v[k] - mean).powi(2)).sum::<f64>();
             let jack = var.sqrt();
             let sh = &mut id.shapes[k];
+            sh.leave_out = leave_out.iter().map(|v| v[k]).collect();
             let before = sh.stderr.unwrap_or(0.0);
             if jack.is_finite() && jack > before {
                 // Carry the larger error into the linear estimates as well.
@@ -238,6 +239,7 @@ pub fn profile_with<E>(
                 stderr,
                 profile: std::mem::take(&mut trials[k]),
                 slopes: slopes.last().cloned().unwrap_or_default(),
+                leave_out: Vec::new(),
             }
         })
         .collect();

@@ -241,6 +241,10 @@ pub struct ShapeEstimate {
     /// `∂p̂/∂g` of every linear estimate along the profile (in `params` order).
     #[serde(skip)]
     pub slopes: Vec<f64>,
+    /// The value profiled with each level left out in turn (level order); empty when the
+    /// jackknife did not run (fewer than three levels) or one of its profiles failed.
+    #[serde(skip)]
+    pub leave_out: Vec<f64>,
 }
 
 impl Identification {
