@@ -2,10 +2,12 @@
 //! unmodelled effect explains the gap, and how far it shrinks once that effect is added.
 
 use super::common::{check_outputs, inputs, CsvArgs, SplitArgs, Staged};
+use super::identify::{render_refined, RefineReport};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::{CsvSource, RecordSource, Split};
 use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
 use dynid_runtime::record::Record;
+use dynid_runtime::refine::{self, RefineOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use miette::IntoDiagnostic;
 use std::path::{Path, PathBuf};
@@ -44,6 +46,11 @@ goes to stderr and into the JSON (`segments`):
 
   dynid diagnose models/sdof_linear.dyn run_up.csv --segments 3
 
+With --refine the corrected model's values start an output-error refinement on all levels
+(Levenberg-Marquardt on the free-run error, as `identify --refine`): both sets of values and
+their free-run errors are printed side by side (in-sample: the levels the refinement fitted),
+the JSON gets `refined`, and --write-model writes the refined values.
+
 The corrected model (fixed.dyn) is ordinary .dyn text, compiled before it is written.
 Outputs are written all or nothing. Metrics and thresholds: docs/diagnosis.md.";
 
@@ -70,6 +77,10 @@ pub struct Args {
     pub csv: CsvArgs,
     #[command(flatten)]
     pub split: SplitArgs,
+    /// Refine the corrected model's values by output-error minimisation on all levels (see
+    /// below); --write-model then writes the refined values.
+    #[arg(long)]
+    pub refine: bool,
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -110,13 +121,56 @@ pub fn run(args: Args) -> miette::Result<()> {
     };
     let d = run_diagnosis(&ir, &records, &origins, args.quiet)?;
     print!("{}", d.summary());
+    let refined = if args.refine {
+        let r = refine_corrected(&d, &records)?;
+        print!("{}", render_refined(&r.0));
+        Some(r)
+    } else {
+        None
+    };
     write_outputs_with(
         &d,
         args.report.as_deref(),
         args.json.as_deref(),
         args.write_model.as_deref(),
-        split.as_ref().map(|s| &s.split),
+        Extras {
+            segments: split.as_ref().map(|s| &s.split),
+            refined: refined.as_ref().map(|r| &r.0),
+            model_text: refined.as_ref().map(|r| r.1.as_str()),
+        },
     )
+}
+
+/// The corrected model refined on every level: the report (start: its covariance values)
+/// and the model's text with the refined values.
+fn refine_corrected(d: &Diagnosis, records: &[Record]) -> miette::Result<(RefineReport, String)> {
+    let fixed = dsl_parser::compile_str(&d.model, &d.fixed_source)
+        .map_err(|e| miette::miette!("the corrected model does not compile: {e}"))?;
+    let start: Vec<f64> = fixed
+        .unknowns()
+        .iter()
+        .map(|p| fixed.params[p.index()].nominal().unwrap_or(0.0))
+        .collect();
+    let opts = RefineOptions::default();
+    let r = refine::refine(&fixed, records, &start, &opts)?;
+    let estimation = (
+        refine::free_run_errors(&fixed, &start, records, opts.substeps)?,
+        refine::free_run_errors(&fixed, &r.values(), records, opts.substeps)?,
+    );
+    let mut out = fixed.clone();
+    for p in &r.params {
+        // An unknown of the model by construction (five significant digits, as diagnose).
+        let _ = out.set_nominal(&p.name, dsl_parser::num::round_sig(p.value, 5));
+    }
+    let text = dsl_parser::print::to_source(&out);
+    Ok((
+        RefineReport {
+            refinement: r,
+            estimation,
+            test: (Vec::new(), Vec::new()),
+        },
+        text,
+    ))
 }
 
 /// Run the diagnosis with a progress bar on stderr.
@@ -155,36 +209,49 @@ pub fn write_outputs(
     json: Option<&Path>,
     model: Option<&Path>,
 ) -> miette::Result<()> {
-    write_outputs_with(d, report, json, model, None)
+    write_outputs_with(d, report, json, model, Extras::default())
 }
 
-/// The JSON of a diagnosis on a split record.
+/// What a diagnosis' outputs may carry besides the diagnosis.
+#[derive(Default)]
+pub struct Extras<'a> {
+    /// The segments of a split record (JSON `segments`).
+    pub segments: Option<&'a Split>,
+    /// The refinement of the corrected model (JSON `refined`).
+    pub refined: Option<&'a RefineReport>,
+    /// The model to write instead of the corrected one (the refined values).
+    pub model_text: Option<&'a str>,
+}
+
+/// The JSON of a diagnosis: its fields, with the extras next to them.
 #[derive(serde::Serialize)]
-struct WithSegments<'a> {
+struct WithExtras<'a> {
     #[serde(flatten)]
     diagnosis: &'a Diagnosis,
-    segments: &'a Split,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    segments: Option<&'a Split>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    refined: Option<&'a RefineReport>,
 }
 
-/// [`write_outputs`], with the segments of a split record added to the JSON (`segments`).
+/// [`write_outputs`], with the extras.
 pub fn write_outputs_with(
     d: &Diagnosis,
     report: Option<&Path>,
     json: Option<&Path>,
     model: Option<&Path>,
-    segments: Option<&Split>,
+    extras: Extras,
 ) -> miette::Result<()> {
     let html = report.map(|_| dynid::plot::render_html(d));
     let js = match json {
-        Some(_) => Some(match segments {
-            None => serde_json::to_string_pretty(d).into_diagnostic()?,
-            // The diagnosis' fields flattened next to the segments.
-            Some(s) => serde_json::to_string_pretty(&WithSegments {
+        Some(_) => Some(
+            serde_json::to_string_pretty(&WithExtras {
                 diagnosis: d,
-                segments: s,
+                segments: extras.segments,
+                refined: extras.refined,
             })
             .into_diagnostic()?,
-        }),
+        ),
         None => None,
     };
     let mut staged = Staged::new();
@@ -195,7 +262,8 @@ pub fn write_outputs_with(
         staged.write(p, j.as_bytes())?;
     }
     if let Some(p) = model {
-        staged.write(p, d.fixed_source.as_bytes())?;
+        let text = extras.model_text.unwrap_or(&d.fixed_source);
+        staged.write(p, text.as_bytes())?;
     }
     staged.commit()?;
     if let Some(p) = report {
