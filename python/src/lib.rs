@@ -108,12 +108,9 @@ fn runtime_error_at(
 /// An identification error; an outlier names its column and sample.
 fn identify_error(py: Python<'_>, e: &IdentifyError) -> PyErr {
     match e {
-        IdentifyError::Outlier { at, column, .. } => {
-            let sample = at
-                .strip_prefix("sample ")
-                .and_then(|s| s.split(' ').next())
-                .and_then(|s| s.parse().ok());
-            runtime_error_at(py, e, None, Some(column.clone()), sample)
+        // Samples count from 1 in Python's errors, as in the messages.
+        IdentifyError::Outlier { sample, column, .. } => {
+            runtime_error_at(py, e, None, Some(column.clone()), Some(sample + 1))
         }
         _ => runtime_error(py, e),
     }

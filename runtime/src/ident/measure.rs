@@ -493,6 +493,7 @@ fn screen_level(
             return Err(IdentifyError::Outlier {
                 origin: src.origin(),
                 at: src.locate(o.sample),
+                sample: o.sample,
                 column: ir_name(k),
                 detail: format!(
                     "{} lies {:.1e} robust standard deviations from the column's median \

@@ -120,6 +120,8 @@ pub enum IdentifyError {
         origin: String,
         /// Where: the sample and its time.
         at: String,
+        /// The sample's index in the level (from 0; `at` counts from 1).
+        sample: usize,
         column: String,
         /// The value and how far out it lies.
         detail: String,
