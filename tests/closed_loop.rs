@@ -12,6 +12,9 @@
 //! of the re-identified gap 0.88–0.98); pathwise 10.2–10.6 % → 0.8–0.9 %. The nominal gap is
 //! small because the loop hides the plant: the nominal mass and viscous friction are
 //! right, and the controller pushes the position onto the set point whatever the friction.
+//! The true model's own gap on the same data (the floor: the force's content between
+//! samples) is 0.57–0.58 %; the corrected model reaches 96–105 % of the shrink the floor
+//! allows (`DYNID_SEED_OFFSET=0..2`).
 
 mod common;
 
@@ -70,6 +73,34 @@ fn diagnose_names_the_friction_of_a_closed_loop_axis_from_encoder_data() {
     assert!(num("shrink") >= 0.6, "{text}");
     assert!(num("gap_after") < 1.2, "{text}");
     assert!(num("pathwise_gap_after") < 2.0, "{text}");
+
+    // The floor: the true model itself (`servo_axis.dyn`, its exact values) misses these
+    // data by a statistical gap of its own — the controller ran ten times per recorded
+    // sample, and a free run driven by the recorded set point cannot reproduce the force's
+    // content between samples. An overall shrink of 80 % is out of reach when the floor is
+    // a quarter of the nominal gap; the corrected model must reach the floor.
+    let truth_json = dir.path().join("truth.json");
+    let out = dynid()
+        .arg("diagnose")
+        .arg(model_path("servo_axis.dyn"))
+        .args((1..=3).map(|k| data.join(format!("level_{k}.csv"))))
+        .arg("--json")
+        .arg(&truth_json)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let t: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&truth_json).unwrap()).unwrap();
+    let floor = t["gap_before"].as_f64().unwrap();
+    let (before, after) = (num("gap_before"), num("gap_after"));
+    let of_attainable = (before - after) / (before - floor);
+    eprintln!(
+        "floor (true model) {floor:.3} %, nominal {before:.3} % → corrected {after:.3} %: \
+         {:.0} % of the attainable shrink",
+        100.0 * of_attainable
+    );
+    assert!(of_attainable >= 0.9, "{text}");
 }
 
 #[test]
