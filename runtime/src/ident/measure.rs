@@ -380,6 +380,58 @@ struct LevelStats {
     noise_flat: Vec<bool>,
 }
 
+/// The first pass's statistics of one measured signal, accumulated chunk by chunk.
+#[derive(Default)]
+struct SignalPass {
+    /// The first sample: sums are taken about it (no cancellation for a large mean).
+    shift: f64,
+    s1: f64,
+    s2: f64,
+    /// Hysteresis zero-crossing count about a reference (mean, band) from the first chunk.
+    reference: (f64, f64),
+    side: i8,
+    crossings: usize,
+    floor: noise::NoiseFloor,
+    screen: screen::ColumnScreen,
+}
+
+impl SignalPass {
+    fn push(&mut self, c: &[f64], first: bool) {
+        if first {
+            self.shift = c[0];
+            let mean = c.iter().sum::<f64>() / c.len() as f64;
+            let var = c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / c.len() as f64;
+            self.reference = (mean, 0.25 * var.sqrt());
+        }
+        let (mut a, mut b) = (0.0, 0.0);
+        for &v in c {
+            let d = v - self.shift;
+            a += d;
+            b += d * d;
+        }
+        self.s1 += a;
+        self.s2 += b;
+        self.floor.push(c);
+        self.screen.push(c);
+        let (mid, h) = self.reference;
+        for &v in c {
+            let now = if v > mid + h {
+                1
+            } else if v < mid - h {
+                -1
+            } else {
+                0
+            };
+            if now != 0 && now != self.side {
+                if self.side != 0 {
+                    self.crossings += 1;
+                }
+                self.side = now;
+            }
+        }
+    }
+}
+
 fn level_stats(
     ir: &ModelIr,
     plan: &Plan,
@@ -388,56 +440,21 @@ fn level_stats(
 ) -> Result<LevelStats, IdentifyError> {
     let ny = plan.y.len();
     let mut n = 0usize;
-    let mut shift = vec![0.0; ny];
-    let mut s1 = vec![0.0; ny];
-    let mut s2 = vec![0.0; ny];
-    // Hysteresis zero-crossing counts about a reference from the first chunk.
-    let mut reference: Vec<(f64, f64)> = Vec::new();
-    let mut side = vec![0i8; ny];
-    let mut crossings = vec![0usize; ny];
-    let mut floors = vec![noise::NoiseFloor::default(); ny];
-    let mut screens = vec![screen::ColumnScreen::default(); ny];
+    // Each signal on its own (in parallel: a level's signals balance the threads when the
+    // levels alone do not).
+    let mut sigs: Vec<SignalPass> = (0..ny).map(|_| SignalPass::default()).collect();
     src.stream(chunk, &mut |cols, len| {
-        if n == 0 {
-            for (k, s) in plan.y.iter().enumerate() {
-                let c = &cols[s.index()][..len];
-                shift[k] = c[0];
-                let mean = c.iter().sum::<f64>() / len as f64;
-                let var = c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / len as f64;
-                reference.push((mean, 0.25 * var.sqrt()));
-            }
-        }
-        for (k, s) in plan.y.iter().enumerate() {
-            let c = &cols[s.index()][..len];
-            let (mut a, mut b) = (0.0, 0.0);
-            for &v in c {
-                let d = v - shift[k];
-                a += d;
-                b += d * d;
-            }
-            s1[k] += a;
-            s2[k] += b;
-            floors[k].push(c);
-            screens[k].push(c);
-            let (mid, h) = reference[k];
-            for &v in c {
-                let now = if v > mid + h {
-                    1
-                } else if v < mid - h {
-                    -1
-                } else {
-                    0
-                };
-                if now != 0 && now != side[k] {
-                    if side[k] != 0 {
-                        crossings[k] += 1;
-                    }
-                    side[k] = now;
-                }
-            }
-        }
+        sigs.par_iter_mut()
+            .zip(&plan.y)
+            .for_each(|(st, s)| st.push(&cols[s.index()][..len], n == 0));
         n += len;
     })?;
+    let shift: Vec<f64> = sigs.iter().map(|st| st.shift).collect();
+    let s1: Vec<f64> = sigs.iter().map(|st| st.s1).collect();
+    let s2: Vec<f64> = sigs.iter().map(|st| st.s2).collect();
+    let crossings: Vec<usize> = sigs.iter().map(|st| st.crossings).collect();
+    let (floors, screens): (Vec<noise::NoiseFloor>, Vec<screen::ColumnScreen>) =
+        sigs.into_iter().map(|st| (st.floor, st.screen)).unzip();
     screen_level(ir, plan, src, &screens)?;
     let ts = src.ts();
     let std = (0..ny)
