@@ -19,6 +19,23 @@
 mod common;
 
 use common::{dynid, model_path, seed, stderr};
+use std::path::Path;
+
+/// `dynid diagnose MODEL DATA/level_{1,2,3}.csv --json JSON`: its stdout and the JSON.
+fn diagnose_json(model: &str, data: &Path, json: &Path) -> (String, serde_json::Value) {
+    let out = dynid()
+        .arg("diagnose")
+        .arg(model_path(model))
+        .args((1..=3).map(|k| data.join(format!("level_{k}.csv"))))
+        .arg("--json")
+        .arg(json)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let d = serde_json::from_slice(&std::fs::read(json).unwrap()).unwrap();
+    (String::from_utf8_lossy(&out.stdout).into_owned(), d)
+}
 
 #[test]
 fn diagnose_names_the_friction_of_a_closed_loop_axis_from_encoder_data() {
@@ -49,20 +66,9 @@ fn diagnose_names_the_friction_of_a_closed_loop_axis_from_encoder_data() {
     let header = std::fs::read_to_string(data.join("level_1.csv")).unwrap();
     assert_eq!(header.lines().next(), Some("t,m.x,u,xr"));
 
-    let json = dir.path().join("d.json");
-    let out = dynid()
-        .arg("diagnose")
-        .arg(model_path("servo_axis_linear.dyn"))
-        .args((1..=3).map(|k| data.join(format!("level_{k}.csv"))))
-        .arg("--json")
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", stderr(&out));
-    let text = String::from_utf8_lossy(&out.stdout);
+    let (text, d) = diagnose_json("servo_axis_linear.dyn", &data, &dir.path().join("d.json"));
     eprintln!("{text}");
     assert!(text.contains("response signals: m.x, u"), "{text}");
-    let d: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let found = d["found"].as_array().unwrap();
     assert_eq!(found.len(), 1, "{text}");
     assert_eq!(found[0]["effect"]["kind"], "coulomb", "{text}");
@@ -79,19 +85,7 @@ fn diagnose_names_the_friction_of_a_closed_loop_axis_from_encoder_data() {
     // sample, and a free run driven by the recorded set point cannot reproduce the force's
     // content between samples. An overall shrink of 80 % is out of reach when the floor is
     // a quarter of the nominal gap; the corrected model must reach the floor.
-    let truth_json = dir.path().join("truth.json");
-    let out = dynid()
-        .arg("diagnose")
-        .arg(model_path("servo_axis.dyn"))
-        .args((1..=3).map(|k| data.join(format!("level_{k}.csv"))))
-        .arg("--json")
-        .arg(&truth_json)
-        .arg("--quiet")
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", stderr(&out));
-    let t: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&truth_json).unwrap()).unwrap();
+    let (_, t) = diagnose_json("servo_axis.dyn", &data, &dir.path().join("truth.json"));
     let floor = t["gap_before"].as_f64().unwrap();
     let (before, after) = (num("gap_before"), num("gap_after"));
     let of_attainable = (before - after) / (before - floor);

@@ -77,13 +77,6 @@ fn runtime_error_at(
 ) -> PyErr {
     let code = e.code().map(|c| c.to_string()).unwrap_or_default();
     let help = e.help().map(|h| h.to_string()).unwrap_or_default();
-    let mut message = e.to_string();
-    if !help.is_empty() {
-        message.push_str(&format!("\n  help: {help}"));
-    }
-    if !code.is_empty() {
-        message.push_str(&format!("\n  [{code}]"));
-    }
     let text = e.to_string();
     let level = level.or_else(|| level_of(&text));
     let class = if code.starts_with("dynid::data::") {
@@ -91,6 +84,29 @@ fn runtime_error_at(
     } else {
         "DynidError"
     };
+    raise_located(py, class, text, &help, &code, level, column.as_deref(), sample)
+}
+
+/// Raise `class` with the message followed by its help line and code (each when given), as
+/// the command line prints them, and the attributes `code`, `help`, `level`, `column`,
+/// `sample`.
+#[allow(clippy::too_many_arguments)]
+fn raise_located(
+    py: Python<'_>,
+    class: &str,
+    mut message: String,
+    help: &str,
+    code: &str,
+    level: Option<usize>,
+    column: Option<&str>,
+    sample: Option<usize>,
+) -> PyErr {
+    if !help.is_empty() {
+        message.push_str(&format!("\n  help: {help}"));
+    }
+    if !code.is_empty() {
+        message.push_str(&format!("\n  [{code}]"));
+    }
     raise(
         py,
         class,
@@ -126,18 +142,7 @@ fn data_error(
     help: &str,
     code: &str,
 ) -> PyErr {
-    raise(
-        py,
-        "DataError",
-        format!("{message}\n  help: {help}\n  [{code}]"),
-        vec![
-            ("code", obj(py, code)),
-            ("help", obj(py, help)),
-            ("level", obj(py, level)),
-            ("column", obj(py, column)),
-            ("sample", obj(py, sample)),
-        ],
-    )
+    raise_located(py, "DataError", message, help, code, Some(level), column, sample)
 }
 
 /// Line and column (1-based, in characters) of byte offset `at` in `src`.

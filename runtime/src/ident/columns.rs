@@ -158,28 +158,22 @@ pub(crate) fn term_moment(ins: &Instrument, basis: &BasisMoment, v: &impl Window
     }
 }
 
-/// The row-major rows `(C, c)` of level `i` for the weight `hat` (`None`: the whole
-/// record) from the columns `cols` (the unknowns in order, then the right-hand side), with
-/// the `held` columns moved to the right-hand side.
+/// The row-major whole-record rows `(C, c)` of level `i` from the columns `cols` (the
+/// unknowns in order, then the right-hand side), with the `held` columns moved to the
+/// right-hand side. (The hat windows' rows are read from the columns directly, see
+/// [`super::stats::sandwich_stderr`].)
 pub(crate) fn gather(
     cols: &[Arc<Column>],
     i: usize,
-    hat: Option<usize>,
     held: &[(usize, f64)],
 ) -> (Vec<f64>, Vec<f64>) {
-    fn pick(col: &Column, i: usize, hat: Option<usize>) -> &[f64] {
-        match hat {
-            None => &col[i].view,
-            Some(j) => &col[i].hats[j],
-        }
-    }
     let (unknowns, rhs) = cols.split_at(cols.len() - 1);
     let ncol = unknowns.len();
-    let mut rhs = pick(&rhs[0], i, hat).to_vec();
+    let mut rhs = rhs[0][i].view.clone();
     let nr = rhs.len();
     let mut c = vec![0.0; nr * ncol];
     for (j, col) in unknowns.iter().enumerate() {
-        for (r, &v) in pick(col, i, hat).iter().enumerate() {
+        for (r, &v) in col[i].view.iter().enumerate() {
             c[r * ncol + j] = v;
         }
     }

@@ -449,40 +449,33 @@ fn level_stats(
             .for_each(|(st, s)| st.push(&cols[s.index()][..len], n == 0));
         n += len;
     })?;
-    let shift: Vec<f64> = sigs.iter().map(|st| st.shift).collect();
-    let s1: Vec<f64> = sigs.iter().map(|st| st.s1).collect();
-    let s2: Vec<f64> = sigs.iter().map(|st| st.s2).collect();
-    let crossings: Vec<usize> = sigs.iter().map(|st| st.crossings).collect();
-    let (floors, screens): (Vec<noise::NoiseFloor>, Vec<screen::ColumnScreen>) =
-        sigs.into_iter().map(|st| (st.floor, st.screen)).unzip();
+    let screens: Vec<screen::ColumnScreen> = sigs
+        .iter_mut()
+        .map(|st| std::mem::take(&mut st.screen))
+        .collect();
     screen_level(ir, plan, src, &screens)?;
     let ts = src.ts();
-    let std = (0..ny)
-        .map(|k| {
-            let m = s1[k] / n.max(1) as f64;
-            (s2[k] / n.max(1) as f64 - m * m).max(0.0).sqrt()
-        })
-        .collect();
-    let mean = (0..ny)
-        .map(|k| shift[k] + s1[k] / n.max(1) as f64)
-        .collect();
+    let nf = n.max(1) as f64;
     let duration = (n.max(2) - 1) as f64 * ts;
-    let omegas = plan
-        .y
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| plan.drivers.contains(s))
-        .filter(|(k, _)| crossings[*k] > 0)
-        .map(|(k, _)| std::f64::consts::PI * crossings[k] as f64 / duration)
-        .collect();
     Ok(LevelStats {
         n,
         ts,
-        std,
-        mean,
-        omegas,
-        noise_var: floors.iter().map(|f| f.variance()).collect(),
-        noise_flat: floors.iter().map(|f| f.flat()).collect(),
+        std: sigs
+            .iter()
+            .map(|st| {
+                let m = st.s1 / nf;
+                (st.s2 / nf - m * m).max(0.0).sqrt()
+            })
+            .collect(),
+        mean: sigs.iter().map(|st| st.shift + st.s1 / nf).collect(),
+        omegas: sigs
+            .iter()
+            .zip(&plan.y)
+            .filter(|(st, s)| plan.drivers.contains(s) && st.crossings > 0)
+            .map(|(st, _)| std::f64::consts::PI * st.crossings as f64 / duration)
+            .collect(),
+        noise_var: sigs.iter().map(|st| st.floor.variance()).collect(),
+        noise_flat: sigs.iter().map(|st| st.floor.flat()).collect(),
     })
 }
 

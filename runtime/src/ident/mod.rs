@@ -278,7 +278,7 @@ impl<'m> Moments<'m> {
 
     /// The unweighted rows `(C, c)` of level `i` (row-major, one column per unknown).
     pub fn level_system(&self, i: usize) -> (Vec<f64>, Vec<f64>) {
-        gather(&self.columns(), i, None, &[])
+        gather(&self.columns(), i, &[])
     }
 
     /// The body whose equation row `r` of a level is (rows are in the same order at
@@ -305,10 +305,8 @@ impl<'m> Moments<'m> {
         let ncol = plan.unknowns.len();
         let nr = plan.rows.len();
         let columns = self.columns();
-        let full: Vec<(Vec<f64>, Vec<f64>)> = which
-            .iter()
-            .map(|&i| gather(&columns, i, None, held))
-            .collect();
+        let full: Vec<(Vec<f64>, Vec<f64>)> =
+            which.iter().map(|&i| gather(&columns, i, held)).collect();
         let mut c_full = Vec::with_capacity(which.len() * nr * ncol);
         let mut r_full = Vec::with_capacity(which.len() * nr);
         for (c, r) in &full {

@@ -32,12 +32,13 @@ impl<'m> Moments<'m> {
 
     /// Form and keep the columns `cols` of the rows now: a structure search keeps the
     /// columns every candidate shares (the base model's), so that each candidate forms
-    /// only its own.
+    /// only its own. A sub-model's columns are already its own: nothing to keep.
     pub fn keep_columns(&self, cols: &[usize]) {
-        cols.par_iter().for_each(|&c| match &self.cols {
-            None if c < self.store.rhs() => drop(self.store.column(c)),
-            _ => {}
-        });
+        if self.cols.is_none() {
+            cols.par_iter()
+                .filter(|&&c| c < self.store.rhs())
+                .for_each(|&c| drop(self.store.column(c)));
+        }
     }
 
     /// The moments of a sub-model `ir`: this model with only the unknown columns `cols`
@@ -61,10 +62,8 @@ impl<'m> Moments<'m> {
         {
             return None;
         }
-        let n_g = plan.roots.len();
-        let n_y = plan.y.len();
-        let n_w = plan.n_w();
-        // Kept terms, and the static roots they use.
+        // Kept terms, their unknowns renumbered. The moments stay the measured model's (the
+        // levels are shared), so the terms keep its columns of `w`.
         let mut equations = plan.equations.clone();
         for eq in &mut equations {
             eq.retain_mut(|t| match t.coef {
@@ -78,43 +77,24 @@ impl<'m> Moments<'m> {
                 },
             });
         }
-        let mut used = vec![false; n_g];
-        for t in equations.iter().flatten() {
-            if let BasisMoment::Static(w) = t.basis {
-                if w < n_g {
-                    used[w] = true;
-                }
-            }
-        }
-        // Columns of `w` kept: the used roots, then every measured signal; the noise
-        // columns (already applied) are dropped.
-        let keep_w: Vec<usize> = (0..n_g)
-            .filter(|&w| used[w])
-            .chain(n_g..n_g + n_y)
-            .collect();
-        let new_n_w = keep_w.len();
-        let mut map = vec![usize::MAX; n_w];
-        for (k, &w) in keep_w.iter().enumerate() {
-            map[w] = k;
-        }
-        let q_of = |q: usize| new_n_w + (q - n_w);
-        for t in equations.iter_mut().flatten() {
-            t.basis = match t.basis {
-                BasisMoment::Static(w) => BasisMoment::Static(map[w]),
-                BasisMoment::D1Pos(x) => BasisMoment::D1Pos(map[x]),
-                BasisMoment::D2Vel(v, b) => BasisMoment::D2Vel(map[v], b),
-                BasisMoment::D2Pos(x, q) => BasisMoment::D2Pos(map[x], q_of(q)),
-            };
-        }
-        let roots: Vec<_> = keep_w[..new_n_w - n_y]
+        // Velocity estimates still used by a kept static term.
+        let n_g = plan.roots.len();
+        let used_roots: Vec<_> = equations
             .iter()
-            .map(|&w| plan.roots[w])
+            .flatten()
+            .filter_map(|t| match t.basis {
+                BasisMoment::Static(w) if w < n_g => Some(plan.roots[w]),
+                _ => None,
+            })
             .collect();
-        // Velocity estimates still used by a kept root.
         let kept_estimates: Vec<bool> = plan
             .estimated
             .iter()
-            .map(|(v, _)| roots.iter().any(|&r| self.ir.expr_signals(r).contains(v)))
+            .map(|(v, _)| {
+                used_roots
+                    .iter()
+                    .any(|&r| self.ir.expr_signals(r).contains(v))
+            })
             .collect();
         let mut sub = plan.clone();
         sub.estimated = plan
@@ -124,13 +104,9 @@ impl<'m> Moments<'m> {
             .filter(|(_, k)| **k)
             .map(|(e, _)| *e)
             .collect();
-        sub.roots = roots;
         sub.unknowns = unknowns.iter().map(|p| p.index()).collect();
         sub.equations = equations;
         sub.constant = cols.iter().map(|&c| plan.constant[c]).collect();
-        sub.extra = Vec::new();
-        sub.fixes = Vec::new();
-        sub.linear_roots = Vec::new();
         // The sub-model's rows are columns of the measured model's rows; the right-hand
         // side (the known terms) is the same.
         let cols = match &self.cols {

@@ -12,6 +12,7 @@
 //! [`crate::sim::simulate_driven_from`] bit for bit (test
 //! `values_match_the_driven_simulation`).
 
+use crate::sim::mech::{lerp, max_magnitude};
 use crate::sim::SimError;
 use crate::tape::{Op, Operand, Tape};
 use dynid_ir::ir::{deadzone, saturate, BinaryOp, ModelIr, UnaryOp};
@@ -388,24 +389,12 @@ impl SensRk4 {
 
     /// Largest magnitude of the state values, infinity if one is not finite.
     pub(super) fn magnitude(&self, w: usize) -> f64 {
-        self.x
-            .iter()
-            .step_by(w)
-            .chain(self.v.iter().step_by(w))
-            .map(|s| {
-                if s.is_finite() {
-                    s.abs()
-                } else {
-                    f64::INFINITY
-                }
-            })
-            .fold(0.0, f64::max)
-    }
-}
-
-#[inline]
-fn lerp(u0: &[f64], u1: &[f64], f: f64, out: &mut [f64]) {
-    for ((o, &a), &b) in out.iter_mut().zip(u0).zip(u1) {
-        *o = a + f * (b - a);
+        max_magnitude(
+            self.x
+                .iter()
+                .step_by(w)
+                .chain(self.v.iter().step_by(w))
+                .copied(),
+        )
     }
 }

@@ -284,22 +284,26 @@ impl Rk4 {
 
     /// The largest magnitude of the state, or infinity if any entry is not finite.
     pub(crate) fn magnitude(&self) -> f64 {
-        self.x
-            .iter()
-            .chain(&self.v)
-            .map(|&s| {
-                if s.is_finite() {
-                    s.abs()
-                } else {
-                    f64::INFINITY
-                }
-            })
-            .fold(0.0, f64::max)
+        max_magnitude(self.x.iter().chain(&self.v).copied())
     }
 }
 
+/// The largest magnitude of `values`, or infinity if one is not finite.
+pub(crate) fn max_magnitude(values: impl Iterator<Item = f64>) -> f64 {
+    values
+        .map(|s| {
+            if s.is_finite() {
+                s.abs()
+            } else {
+                f64::INFINITY
+            }
+        })
+        .fold(0.0, f64::max)
+}
+
+/// `out = u0 + f · (u1 − u0)`, element by element.
 #[inline]
-fn lerp(u0: &[f64], u1: &[f64], f: f64, out: &mut [f64]) {
+pub(crate) fn lerp(u0: &[f64], u1: &[f64], f: f64, out: &mut [f64]) {
     for ((o, &a), &b) in out.iter_mut().zip(u0).zip(u1) {
         *o = a + f * (b - a);
     }
