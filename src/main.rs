@@ -7,8 +7,8 @@ use clap::Parser;
 
 /// mimalloc, not the system allocator: a structure search frees and allocates many
 /// multi-megabyte buffers on several threads, which fragmented glibc's arenas (peak memory
-/// of `diagnose` on the 16-mass chain of `runtime/benches/diagnose_chain.rs`: 489 MiB with
-/// glibc's allocator, 184 MiB with mimalloc, same code and time).
+/// of `diagnose` on the 16-mass chain of `runtime/benches/diagnose_chain.rs`, run back to
+/// back: 480 MiB with glibc's allocator, 181 MiB with mimalloc, same code, similar time).
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

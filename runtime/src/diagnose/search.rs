@@ -315,8 +315,8 @@ fn score_of(
 }
 
 /// Candidates measured together in one shared pass. The moments held grow with every
-/// candidate's column — `levels × (3 n_blocks + 1) × n_i × 8` bytes each, ≈ 0.35 MB for the
-/// 16-mass chain of `benches/diagnose_chain.rs` (238 instruments, 3 levels) — so a large
+/// candidate's column — `levels × (3 n_blocks + 1) × n_i × 8` bytes each, about 0.35 MB
+/// for the 16-mass chain of `benches/diagnose_chain.rs` (≈ 240 instruments, 3 levels) — so a large
 /// model's candidates are measured in groups: each group costs one more pass over the data,
 /// and the memory stays that of one group.
 const SHARED_PASS_GROUP: usize = 64;
