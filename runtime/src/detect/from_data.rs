@@ -24,8 +24,8 @@
 //!   ±2.5 % of the measured σ_v on a linear oscillator, up to −12 % where friction or a
 //!   hardening spring makes the motion non-Gaussian (tests/detect_models.rs).
 //! * **Errors.** Per-level standard errors are the identification's batch-means sandwich
-//!   over `n_blocks` time blocks, so [`DetectOptions::se_dof`] is set to `n_blocks − 1`
-//!   unless the caller chose a value.
+//!   over `n_blocks` time blocks (the fewest of any level), so [`DetectOptions::se_dof`]
+//!   is set to `n_blocks − 1` unless the caller chose a value.
 
 use dynid_ir::ir::{Basis, ElementKind, ModelIr, ParamId};
 use serde::Serialize;
@@ -75,7 +75,8 @@ pub struct LevelFits {
     pub fits: Vec<Identification>,
     /// Per grouped element, in the order of `input.elements`.
     pub sigma_v_source: Vec<SigmaVSource>,
-    /// Time blocks of the jackknife (the dof of the standard errors is this minus one).
+    /// Time blocks of the standard errors, fewest over the levels (their degrees of freedom
+    /// are this minus one).
     pub n_blocks: usize,
 }
 
@@ -401,6 +402,11 @@ pub fn level_fits(
     let fits: Vec<Identification> = (0..levels.len())
         .map(|i| moments.identify_level_holding(i, &held_values))
         .collect();
+    let n_blocks = fits
+        .iter()
+        .flat_map(|f| f.levels.iter().map(|l| l.blocks))
+        .min()
+        .unwrap_or(2);
 
     let v_measured: Vec<bool> = groups
         .iter()
@@ -475,7 +481,7 @@ pub fn level_fits(
                 }
             })
             .collect(),
-        n_blocks: opts.n_blocks,
+        n_blocks,
     })
 }
 

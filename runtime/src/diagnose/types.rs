@@ -75,7 +75,14 @@ pub struct DiagnoseOptions {
 impl Default for DiagnoseOptions {
     fn default() -> Self {
         DiagnoseOptions {
-            ident: IdentifyOptions::default(),
+            // 20 time blocks, not chosen from the record: a structure search holds every
+            // candidate's hat-window rows (memory in proportion to the blocks), and its
+            // pruning and verdicts were measured with 20. Their standard errors run up to
+            // about a fifth low on long records (see `ident::design::blocks`).
+            ident: IdentifyOptions {
+                n_blocks: Some(20),
+                ..IdentifyOptions::default()
+            },
             discard: 0.1,
             substeps: DEFAULT_SUBSTEPS,
             top_k: 6,

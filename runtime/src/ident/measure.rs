@@ -17,7 +17,7 @@ pub fn measure<'m>(
     if ir.unknowns().is_empty() {
         return Err(IdentifyError::NoUnknowns);
     }
-    if opts.chunk_len < 2 || opts.n_blocks < 2 {
+    if opts.chunk_len < 2 || opts.n_blocks.is_some_and(|b| b < 2) {
         return Err(IdentifyError::BadOption {
             message: "chunk length and number of blocks must be at least 2".into(),
             help: "use the defaults".into(),
@@ -85,12 +85,16 @@ pub fn measure<'m>(
     // The slowest section must forget its start within a small part of the record.
     let tau = bank.order as f64 / lam_min;
     let settle = design::min_duration(&corners, bank.order);
+    let min_samples = stats.iter().map(|s| s.n).min().unwrap_or(0);
+    let n_blocks = opts
+        .n_blocks
+        .unwrap_or_else(|| design::blocks(min_duration, tau, min_samples));
     for (s, src) in stats.iter().zip(levels) {
         let duration = (s.n.saturating_sub(1)) as f64 * s.ts;
-        if duration < settle * (1.0 - 1e-9) || s.n < 4 * opts.n_blocks {
-            let need = ((settle / s.ts).ceil() as usize + 1).max(4 * opts.n_blocks);
+        if duration < settle * (1.0 - 1e-9) || s.n < 4 * n_blocks {
+            let need = ((settle / s.ts).ceil() as usize + 1).max(4 * n_blocks);
             let advice = match &designed {
-                Some(c) if s.n >= 4 * opts.n_blocks => format!(
+                Some(c) if s.n >= 4 * n_blocks => format!(
                     "record at least {need} samples, or use filter corners that fit this \
                      record (the lowest at least {:.4} rad/s), e.g. `--filter-corners {}`",
                     design::min_corner(min_duration, bank.order),
@@ -164,8 +168,7 @@ pub fn measure<'m>(
     let results: Vec<(LevelMoments, PhaseTimes)> =
         crate::first_error_in_order(sources.par_iter().zip(&stats).zip(&noise_var).map(
             |((src, st), var)| {
-                let mut acc =
-                    LevelAccumulator::new(&plan, eval, st.ts, st.n, opts.n_blocks, opts.hold);
+                let mut acc = LevelAccumulator::new(&plan, eval, st.ts, st.n, n_blocks, opts.hold);
                 acc.set_extra_widths(noise::extra_widths(&plan, &st.noise_var, &st.std));
                 let mut read = Duration::ZERO;
                 let mut t_read = Instant::now();
@@ -218,6 +221,7 @@ pub fn measure<'m>(
                 .zip(&s.noise_var)
                 .map(|(sig, v)| (ir.signal(*sig).name.clone(), v.sqrt()))
                 .collect(),
+            blocks: n_blocks,
         })
         .collect();
     let centred = stats

@@ -242,7 +242,7 @@ fn check_identity(corners: &[f64], n_blocks: usize) -> f64 {
     };
     let opts = IdentifyOptions {
         corners: Some(corners.to_vec()),
-        n_blocks,
+        n_blocks: Some(n_blocks),
         chunk_len: 777,
         ..Default::default()
     };
@@ -552,14 +552,16 @@ fn unphysical_estimates_are_warned_about_by_kind() {
 
 /// Coverage of the standard errors: over 20 seeds (three levels of 200 s, 5 % noise on
 /// every channel) the error of each parameter should be within two standard errors in about
-/// 95 % of the cases. Measured (this test, `-- --nocapture`, with the noise correction):
-/// 71 of 80 (89 %), per parameter (d, k, k3, r) 17, 18, 18, 18 of 20; rms z 1.31, 1.19,
-/// 1.22, 1.30. (Without the noise correction `k3` kept about one standard error of
-/// errors-in-variables bias: 65 of 80, k3 13 of 20, rms z 1.77.) A bias first order in `Tₛ`
-/// remains noise-free (d −0.10 %, r −0.09 %, k −0.02 %, k3 −0.03 % at Tₛ = 0.01 s; −0.06 %,
-/// −0.04 %, −0.007 %, −0.010 % at 0.005 s; unchanged with 80 instead of 20 simulator
-/// sub-steps), and the batch-means standard errors run about a fifth low at this record
-/// length (rms z ≈ 1.2–1.3). The bounds sit just below the measured figures.
+/// 95 % of the cases. Measured (this test, `-- --nocapture`): 76 of 80 (95 %), per
+/// parameter (d, k, k3, r) 20, 18, 19, 19 of 20; rms z 1.04, 1.04, 1.04, 1.05. The blocks
+/// are chosen from the record (80 of 2.5 s here, [`design::blocks`]); with the former fixed
+/// 20 blocks of 10 s the same seeds gave 71 of 80 (89 %), rms z 1.19–1.31, and two other
+/// sets of 20 seeds (`100 + seed` replaced by `300 + seed`, `600 + seed`) 91 → 95 % and
+/// 88 → 91 %. (Without the noise correction `k3` kept about one standard error of
+/// errors-in-variables bias: 65 of 80 with 20 blocks, k3 13 of 20, rms z 1.77.) A bias
+/// first order in `Tₛ` remains noise-free (d −0.10 %, r −0.09 %, k −0.02 %, k3 −0.03 % at
+/// Tₛ = 0.01 s; −0.06 %, −0.04 %, −0.007 %, −0.010 % at 0.005 s; unchanged with 80 instead
+/// of 20 simulator sub-steps), well inside these standard errors (0.2–1.5 %).
 #[test]
 fn standard_errors_cover_the_error() {
     let ir = sdof_model("");
@@ -570,6 +572,7 @@ fn standard_errors_cover_the_error() {
     for seed in 0..seeds {
         let recs = simulate_short(&ir, &[6.0, 15.0, 40.0], 200.0, 0.05, 100 + seed);
         let id = run(&ir, &recs, &IdentifyOptions::default());
+        assert!(id.levels.iter().all(|l| l.blocks == design::MAX_BLOCKS));
         for (k, (n, t)) in truth.iter().enumerate() {
             let p = id.param(n).unwrap();
             let z = (p.value - t) / p.stderr;
@@ -589,15 +592,15 @@ fn standard_errors_cover_the_error() {
             .map(|v| format!("{:.2}", (v / seeds as f64).sqrt()))
             .collect::<Vec<_>>()
     );
-    assert!(frac >= 0.8, "coverage {frac}");
+    assert!(frac >= 0.9, "coverage {frac}");
     for (k, n) in inside.iter().enumerate() {
-        assert!(*n >= 15, "{}: {n} of {seeds}", truth[k].0);
+        assert!(*n >= 17, "{}: {n} of {seeds}", truth[k].0);
     }
     // Standard errors of the right order: a jackknife that was erratic by a factor of up
     // to ten, or an uncorrected noise bias, would fail this.
     for (k, v) in z2.iter().enumerate() {
         let rms = (v / seeds as f64).sqrt();
-        assert!(rms < 1.6, "{}: rms z {rms}", truth[k].0);
+        assert!(rms < 1.25, "{}: rms z {rms}", truth[k].0);
     }
 }
 
@@ -704,7 +707,7 @@ fn time_parallel_pass_matches_the_serial_recursion() {
     let n_blocks = 7;
     let opts = IdentifyOptions {
         corners: Some(corners.to_vec()),
-        n_blocks,
+        n_blocks: Some(n_blocks),
         ..Default::default()
     };
     let bank = measure::choose_bank(&ir, &opts).unwrap();

@@ -19,8 +19,9 @@ pub struct IdentifyOptions {
     /// Add virial and power-balance rows where velocities are measured. `None`: off — they
     /// were measured not to improve the pooled estimate (see the crate tests).
     pub balance: Option<bool>,
-    /// Time blocks per level for the standard errors (hat windows span two blocks).
-    pub n_blocks: usize,
+    /// Time blocks per level for the standard errors (hat windows span two blocks). `None`:
+    /// chosen from the record ([`design::blocks`]: between 20 and 80).
+    pub n_blocks: Option<usize>,
     /// Samples per chunk of streamed work (memory use is proportional to this, not to the
     /// record length).
     pub chunk_len: usize,
@@ -41,7 +42,7 @@ impl Default for IdentifyOptions {
             order: None,
             drivers: None,
             balance: None,
-            n_blocks: 20,
+            n_blocks: None,
             chunk_len: 8192,
             rcond: 1e-10,
             hold: Hold::FirstOrder,
@@ -184,6 +185,8 @@ pub struct LevelInfo {
     pub std: BTreeMap<String, f64>,
     /// Estimated white measurement-noise standard deviation per measured signal.
     pub noise: BTreeMap<String, f64>,
+    /// Time blocks of the standard errors over this level.
+    pub blocks: usize,
 }
 
 /// The filter bank that was used.
