@@ -23,6 +23,8 @@ pub(crate) struct ColumnScreen {
     kept: Vec<f64>,
     stride: usize,
     seen: usize,
+    /// The next sample index that is a multiple of `stride`.
+    next: usize,
     /// (value, sample) of the smallest and the largest value.
     min: (f64, usize),
     max: (f64, usize),
@@ -34,6 +36,7 @@ impl Default for ColumnScreen {
             kept: Vec::with_capacity(KEEP),
             stride: 1,
             seen: 0,
+            next: 0,
             min: (f64::INFINITY, 0),
             max: (f64::NEG_INFINITY, 0),
         }
@@ -58,7 +61,7 @@ impl ColumnScreen {
             if v > self.max.0 {
                 self.max = (v, self.seen);
             }
-            if self.seen.is_multiple_of(self.stride) {
+            if self.seen == self.next {
                 if self.kept.len() == KEEP {
                     // Keep every other value and double the stride.
                     let mut i = 0;
@@ -71,6 +74,7 @@ impl ColumnScreen {
                 if self.seen.is_multiple_of(self.stride) {
                     self.kept.push(v);
                 }
+                self.next = (self.seen / self.stride + 1) * self.stride;
             }
             self.seen += 1;
         }
