@@ -403,11 +403,17 @@ impl FilterBank {
         len: usize,
         out: Option<(&mut [f64], usize)>,
     ) {
+        // The order and the blocks per driver fixed at compile time: the states of a driver's
+        // blocks then live in registers across samples.
         macro_rules! dispatch {
             ($($n:literal)*) => {
-                match self.order {
-                    $($n => self.advance_avx_n::<$n>(state, drivers, len, out),)*
-                    o => unreachable!("invariant: filter order {o} checked in FilterBank::new"),
+                match (self.order, self.bpd) {
+                    $(
+                        ($n, 1) => self.advance_avx_n::<$n, 1>(state, drivers, len, out),
+                        ($n, 2) => self.advance_avx_n::<$n, 2>(state, drivers, len, out),
+                        ($n, 3) => self.advance_avx_n::<$n, 3>(state, drivers, len, out),
+                    )*
+                    _ => self.advance_any(state, drivers, len, out),
                 }
             };
         }
@@ -416,7 +422,7 @@ impl FilterBank {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
-    fn advance_avx_n<const N: usize>(
+    fn advance_avx_n<const N: usize, const B: usize>(
         &self,
         state: &mut BankState,
         drivers: &[&[f64]],
@@ -424,36 +430,30 @@ impl FilterBank {
         mut out: Option<(&mut [f64], usize)>,
     ) {
         use std::arch::x86_64::{
-            __m256d, __m256i, _mm256_add_pd, _mm256_loadu_pd, _mm256_maskstore_pd, _mm256_mul_pd,
-            _mm256_set1_pd, _mm256_setr_epi64x, _mm256_storeu_pd,
+            __m256d, _mm256_add_pd, _mm256_castpd256_pd128, _mm256_extractf128_pd, _mm256_loadu_pd,
+            _mm256_mul_pd, _mm256_set1_pd, _mm256_storeu_pd, _mm_storel_pd, _mm_storeu_pd,
         };
         const _: () = assert!(LANES == 4, "one AVX vector per block");
         // SAFETY: a `Lane` is 4 contiguous f64, exactly what an unaligned load reads.
         let ld = |x: &Lane| unsafe { _mm256_loadu_pd(x.as_ptr()) };
         self.check_args(drivers, len, &out);
+        assert_eq!(
+            self.bpd, B,
+            "invariant: dispatched on the blocks per driver"
+        );
         let blocks = self.blocks::<N>();
-        let (bpd, nc) = (self.bpd, self.n_corners);
+        let nc = self.n_corners;
         let width = N * nc;
-        // Lanes of each block that are chains (the last block of a driver may be partial).
-        let masks: Vec<(usize, __m256i)> = (0..bpd)
-            .map(|b| {
-                let r = (nc - b * LANES).min(LANES);
-                let on = |l: usize| if l < r { -1 } else { 0 };
-                (r, _mm256_setr_epi64x(on(0), on(1), on(2), on(3)))
-            })
-            .collect();
-        for (d, (bs, &col)) in blocks.chunks_exact(bpd).zip(drivers).enumerate() {
-            let zst = &mut state.z[d * bpd * N..(d + 1) * bpd * N];
-            let mut zs: Vec<[__m256d; N]> = zst
-                .chunks_exact(N)
-                .map(|c| std::array::from_fn(|i| ld(&c[i])))
-                .collect();
+        // Lanes of the last block that are chains (it may be partial).
+        let last = nc - (B - 1) * LANES;
+        for (d, (bs, &col)) in blocks.chunks_exact(B).zip(drivers).enumerate() {
+            let bs: &[Block<N>; B] = bs.try_into().expect("invariant: B blocks per driver");
+            let zst = &mut state.z[d * B * N..(d + 1) * B * N];
+            let mut zs: [[__m256d; N]; B] =
+                std::array::from_fn(|b| std::array::from_fn(|i| ld(&zst[b * N + i])));
             let col = &col[..len];
             let mut prev = state.prev[d];
-            let mut rows = out
-                .as_mut()
-                .map(|(buf, stride)| buf.chunks_exact_mut(*stride));
-            for &s in col {
+            for (k, &s) in col.iter().enumerate() {
                 let (p, sv) = (_mm256_set1_pd(prev), _mm256_set1_pd(s));
                 for (b, zb) in bs.iter().zip(zs.iter_mut()) {
                     for i in (0..N).rev() {
@@ -467,21 +467,29 @@ impl FilterBank {
                         zb[i] = acc;
                     }
                 }
-                if let Some(rows) = rows.as_mut() {
-                    let row = rows.next().expect("invariant: checked buffer length");
-                    let dst = &mut row[d * width..(d + 1) * width];
-                    for (b, (zb, &(r, mask))) in zs.iter().zip(&masks).enumerate() {
+                if let Some((buf, stride)) = out.as_mut() {
+                    let row = &mut buf[k * *stride + d * width..k * *stride + (d + 1) * width];
+                    let base = row.as_mut_ptr();
+                    for (b, zb) in zs.iter().enumerate() {
                         for (i, v) in zb.iter().enumerate() {
-                            let dl = &mut dst[i * nc + b * LANES..i * nc + b * LANES + r];
-                            // SAFETY: `dl` holds the `r` lanes the mask selects (a
-                            // masked-off lane is neither read nor written).
+                            // SAFETY: lanes `i·nc + b·LANES ..+ r` of `row` (r = LANES, or
+                            // `last` for the last block) lie inside its `N · nc` values.
                             unsafe {
-                                if r == LANES {
-                                    _mm256_storeu_pd(dl.as_mut_ptr(), *v)
+                                let at = base.add(i * nc + b * LANES);
+                                if b + 1 < B || last == LANES {
+                                    _mm256_storeu_pd(at, *v);
                                 } else {
-                                    _mm256_maskstore_pd(dl.as_mut_ptr(), mask, *v)
+                                    let lo = _mm256_castpd256_pd128(*v);
+                                    match last {
+                                        1 => _mm_storel_pd(at, lo),
+                                        2 => _mm_storeu_pd(at, lo),
+                                        _ => {
+                                            _mm_storeu_pd(at, lo);
+                                            _mm_storel_pd(at.add(2), _mm256_extractf128_pd(*v, 1));
+                                        }
+                                    }
                                 }
-                            };
+                            }
                         }
                     }
                 }
@@ -690,9 +698,13 @@ mod tests {
     #[test]
     fn bank_equals_the_per_chain_recursion() {
         let (ts, n) = (0.01, 3001);
-        let corners = [0.3, 1.1, 2.5, 6.0, 19.0];
         let drivers = [signal(n, 0.0), signal(n, 1.0), signal(n, 2.5)];
-        for order in 1..=MAX_ORDER {
+        // Every count of chains per driver up to 13: whole and partial last blocks, one to
+        // three blocks per driver (the vector path's sizes) and four (the portable path).
+        let many: Vec<f64> = (0..13).map(|c| 0.3 * 1.35f64.powi(c)).collect();
+        let cases = (1..=13).map(|nc| (MAX_ORDER, many[..nc].to_vec()));
+        let cases = cases.chain((1..=MAX_ORDER).map(|o| (o, vec![0.3, 1.1, 2.5, 6.0, 19.0])));
+        for (order, corners) in cases {
             let bank = FilterBank::new(&corners, drivers.len(), order, ts, Hold::FirstOrder);
             let stride = bank.n_rows() + 3;
             let prev: Vec<f64> = drivers.iter().map(|s| s[0]).collect();
@@ -716,6 +728,8 @@ mod tests {
             for (k, (a, b)) in out.iter().zip(&out_any).enumerate() {
                 if k % stride < bank.n_rows() {
                     assert_eq!(a.to_bits(), b.to_bits(), "order {order}, {k}");
+                } else {
+                    assert!(a.is_nan(), "written past the rows: {k}");
                 }
             }
             let mut worst = 0.0f64;
