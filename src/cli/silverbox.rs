@@ -19,6 +19,7 @@ to the published figures.
 Examples:
   dynid silverbox                                     # the cubic model, default data path
   dynid silverbox --model models/silverbox_linear.dyn --model models/silverbox_cubic.dyn
+  dynid silverbox --refine --model models/silverbox_damping.dyn   # 0.339 mV refined, 8 params
   dynid silverbox --model models/silverbox_linear.dyn --export-levels arrow/
   dynid diagnose models/silverbox_linear.dyn arrow/level_*.csv   # names the cubic spring
 
