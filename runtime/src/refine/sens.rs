@@ -12,10 +12,10 @@
 //! [`crate::sim::simulate_driven_from`] bit for bit (test
 //! `values_match_the_driven_simulation`).
 
-use crate::sim::mech::{lerp, max_magnitude};
+use crate::sim::mech::{lerp, max_magnitude, EquationTerms};
 use crate::sim::SimError;
 use crate::tape::{Op, Operand, Tape};
-use dynid_ir::ir::{deadzone, saturate, BinaryOp, ModelIr, UnaryOp};
+use dynid_ir::ir::{deadzone, saturate, BinaryOp, Coef, ModelIr, UnaryOp};
 
 /// The equations of motion of a model with derivatives in `q` directions.
 /// `(equation, root or body, coefficient value, Some((direction, ∂coef/∂param)))`.
@@ -60,55 +60,32 @@ impl SensModel {
         let n_dir = direction.iter().flatten().count();
         let q = 2 * nb + n_dir;
         let roots = ir.eval_roots();
-        let root_index = |e| {
-            roots
-                .iter()
-                .position(|&r| r == e)
-                .expect("invariant: root of a term")
-        };
-        let value = |c: dynid_ir::ir::Coef| c.scale * c.param.map_or(1.0, |p| params[p.index()]);
-        let dir = |c: dynid_ir::ir::Coef| {
+        let split = EquationTerms::of(ir, &roots)?;
+        let value = |c: Coef| c.scale * c.param.map_or(1.0, |p| params[p.index()]);
+        let dir = |c: Coef| {
             c.param
                 .and_then(|p| direction[p.index()])
                 .map(|d| (2 * nb + d, c.scale))
         };
         let mut mass = nalgebra::DMatrix::<f64>::zeros(nb, nb);
-        let (mut expr_terms, mut vel_terms, mut mass_terms) = (Vec::new(), Vec::new(), Vec::new());
-        for (i, eq) in ir.equations.iter().enumerate() {
-            let body_name = || ir.bodies[eq.body.index()].name.clone();
-            if eq.body.index() != i {
-                return Err(SimError::UnsupportedTerm {
-                    body: body_name(),
-                    what: "equations are not in body order".into(),
-                });
-            }
-            for t in &eq.terms {
-                let c = value(t.coef);
-                match t.basis {
-                    dynid_ir::ir::Basis::Expr(e) => {
-                        expr_terms.push((i, root_index(e), c, dir(t.coef)))
-                    }
-                    dynid_ir::ir::Basis::Deriv { body, order: 1 } => {
-                        vel_terms.push((i, body.index(), c, dir(t.coef)))
-                    }
-                    dynid_ir::ir::Basis::Deriv { body, order: 2 } => {
-                        mass[(i, body.index())] += c;
-                        if let Some((d, s)) = dir(t.coef) {
-                            mass_terms.push((i, body.index(), d, s));
-                        }
-                    }
-                    dynid_ir::ir::Basis::Deriv { body, order } => {
-                        return Err(SimError::UnsupportedTerm {
-                            body: body_name(),
-                            what: format!(
-                                "derivative of order {order} of `{}`",
-                                ir.bodies[body.index()].name
-                            ),
-                        })
-                    }
-                }
-            }
+        for &(i, body, c) in &split.mass {
+            mass[(i, body)] += value(c);
         }
+        let mass_terms = split
+            .mass
+            .iter()
+            .filter_map(|&(i, body, c)| dir(c).map(|(d, s)| (i, body, d, s)))
+            .collect();
+        let expr_terms = split
+            .expr
+            .iter()
+            .map(|&(i, r, c)| (i, r, value(c), dir(c)))
+            .collect();
+        let vel_terms = split
+            .vel
+            .iter()
+            .map(|&(i, b, c)| (i, b, value(c), dir(c)))
+            .collect();
         // The simulator's inverse (the same values, the same errors).
         let (minv, diagonal_mass) = crate::sim::mech::inverse_mass(ir, mass)?;
         Ok(SensModel {

@@ -6,7 +6,7 @@
 
 use super::SimError;
 use crate::tape::{PointTape, Tape};
-use dynid_ir::ir::{Basis, ModelIr};
+use dynid_ir::ir::{Basis, Coef, ExprId, ModelIr};
 
 /// Precomputed, allocation-free acceleration function of a model.
 #[derive(Clone, Debug)]
@@ -36,21 +36,31 @@ pub(crate) struct MechScratch {
     force: Vec<f64>,
 }
 
-impl Mechanics {
-    /// `params[p]` is the value of parameter `p`.
-    pub(crate) fn new(ir: &ModelIr, params: &[f64]) -> Result<Self, SimError> {
-        let nb = ir.bodies.len();
-        let roots = ir.eval_roots();
+/// The terms of a model's equations by kind, in declaration order: `(equation, root
+/// index into `ir.eval_roots()`, coefficient)` for expression terms, `(equation, body,
+/// coefficient)` for velocity and acceleration (mass) terms. Shared by the simulator and
+/// the refinement's sensitivity model, so both read a model the same way.
+pub(crate) struct EquationTerms {
+    pub(crate) expr: Vec<(usize, usize, Coef)>,
+    pub(crate) vel: Vec<(usize, usize, Coef)>,
+    pub(crate) mass: Vec<(usize, usize, Coef)>,
+}
+
+impl EquationTerms {
+    /// The terms of `ir`, whose expression terms are among `roots`; an error naming the
+    /// body for equations out of body order or derivatives above the second.
+    pub(crate) fn of(ir: &ModelIr, roots: &[ExprId]) -> Result<Self, SimError> {
         let root_index = |e| {
             roots
                 .iter()
                 .position(|&r| r == e)
                 .expect("invariant: root of a term")
         };
-        let value = |c: dynid_ir::ir::Coef| c.scale * c.param.map_or(1.0, |p| params[p.index()]);
-        let mut mass = nalgebra::DMatrix::<f64>::zeros(nb, nb);
-        let mut expr_terms = Vec::new();
-        let mut vel_terms = Vec::new();
+        let mut t = EquationTerms {
+            expr: Vec::new(),
+            vel: Vec::new(),
+            mass: Vec::new(),
+        };
         for (i, eq) in ir.equations.iter().enumerate() {
             let body_name = || ir.bodies[eq.body.index()].name.clone();
             if eq.body.index() != i {
@@ -59,12 +69,11 @@ impl Mechanics {
                     what: "equations are not in body order".into(),
                 });
             }
-            for t in &eq.terms {
-                let c = value(t.coef);
-                match t.basis {
-                    Basis::Expr(e) => expr_terms.push((i, root_index(e), c)),
-                    Basis::Deriv { body, order: 1 } => vel_terms.push((i, body.index(), c)),
-                    Basis::Deriv { body, order: 2 } => mass[(i, body.index())] += c,
+            for term in &eq.terms {
+                match term.basis {
+                    Basis::Expr(e) => t.expr.push((i, root_index(e), term.coef)),
+                    Basis::Deriv { body, order: 1 } => t.vel.push((i, body.index(), term.coef)),
+                    Basis::Deriv { body, order: 2 } => t.mass.push((i, body.index(), term.coef)),
                     Basis::Deriv { body, order } => {
                         return Err(SimError::UnsupportedTerm {
                             body: body_name(),
@@ -77,6 +86,31 @@ impl Mechanics {
                 }
             }
         }
+        Ok(t)
+    }
+}
+
+impl Mechanics {
+    /// `params[p]` is the value of parameter `p`.
+    pub(crate) fn new(ir: &ModelIr, params: &[f64]) -> Result<Self, SimError> {
+        let nb = ir.bodies.len();
+        let roots = ir.eval_roots();
+        let split = EquationTerms::of(ir, &roots)?;
+        let value = |c: Coef| c.scale * c.param.map_or(1.0, |p| params[p.index()]);
+        let mut mass = nalgebra::DMatrix::<f64>::zeros(nb, nb);
+        for &(i, body, c) in &split.mass {
+            mass[(i, body)] += value(c);
+        }
+        let expr_terms: Vec<_> = split
+            .expr
+            .iter()
+            .map(|&(i, r, c)| (i, r, value(c)))
+            .collect();
+        let vel_terms: Vec<_> = split
+            .vel
+            .iter()
+            .map(|&(i, b, c)| (i, b, value(c)))
+            .collect();
         let (minv, diagonal_mass) = inverse_mass(ir, mass)?;
         let point = PointTape::new(&Tape::compile(ir, &roots));
         let mut terms = Vec::with_capacity(expr_terms.len() + vel_terms.len());
