@@ -101,33 +101,25 @@ impl Mechanics {
         for &(i, body, c) in &split.mass {
             mass[(i, body)] += value(c);
         }
-        let expr_terms: Vec<_> = split
-            .expr
-            .iter()
-            .map(|&(i, r, c)| (i, r, value(c)))
-            .collect();
-        let vel_terms: Vec<_> = split
-            .vel
-            .iter()
-            .map(|&(i, b, c)| (i, b, value(c)))
-            .collect();
         let (minv, diagonal_mass) = inverse_mass(ir, mass)?;
         let point = PointTape::new(&Tape::compile(ir, &roots));
-        let mut terms = Vec::with_capacity(expr_terms.len() + vel_terms.len());
+        let mut terms = Vec::with_capacity(split.expr.len() + split.vel.len());
         let mut starts = Vec::with_capacity(nb + 1);
         for eq in 0..nb {
             starts.push(terms.len());
             terms.extend(
-                expr_terms
+                split
+                    .expr
                     .iter()
                     .filter(|t| t.0 == eq)
-                    .map(|&(_, root, c)| (point.root_slot(root), c)),
+                    .map(|&(_, root, c)| (point.root_slot(root), value(c))),
             );
             terms.extend(
-                vel_terms
+                split
+                    .vel
                     .iter()
                     .filter(|t| t.0 == eq)
-                    .map(|&(_, body, c)| (2 * body + 1, c)),
+                    .map(|&(_, body, c)| (2 * body + 1, value(c))),
             );
         }
         starts.push(terms.len());
