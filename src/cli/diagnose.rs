@@ -7,7 +7,7 @@ use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::{CsvSource, RecordSource, Split};
 use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
 use dynid_runtime::record::Record;
-use dynid_runtime::refine::{self, RefineOptions};
+use dynid_runtime::refine::RefineOptions;
 use indicatif::{ProgressBar, ProgressStyle};
 use miette::IntoDiagnostic;
 use std::path::{Path, PathBuf};
@@ -151,26 +151,13 @@ fn refine_corrected(d: &Diagnosis, records: &[Record]) -> miette::Result<(Refine
         .iter()
         .map(|p| fixed.params[p.index()].nominal().unwrap_or(0.0))
         .collect();
-    let opts = RefineOptions::default();
-    let r = refine::refine(&fixed, records, &start, &opts)?;
-    let estimation = (
-        refine::free_run_errors(&fixed, &start, records, opts.substeps)?,
-        refine::free_run_errors(&fixed, &r.values(), records, opts.substeps)?,
-    );
+    let report = RefineReport::compute(&fixed, &start, records, &[], &RefineOptions::default())?;
     let mut out = fixed.clone();
-    for p in &r.params {
+    for p in &report.refinement.params {
         // An unknown of the model by construction (five significant digits, as diagnose).
         let _ = out.set_nominal(&p.name, dsl_parser::num::round_sig(p.value, 5));
     }
-    let text = dsl_parser::print::to_source(&out);
-    Ok((
-        RefineReport {
-            refinement: r,
-            estimation,
-            test: (Vec::new(), Vec::new()),
-        },
-        text,
-    ))
+    Ok((report, dsl_parser::print::to_source(&out)))
 }
 
 /// Run the diagnosis with a progress bar on stderr.

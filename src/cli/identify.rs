@@ -201,24 +201,36 @@ pub fn refine_files(
     if let (Some(s), Some(r)) = (args.segment, est.first()) {
         opts.segment = Some(((s / r.ts).round() as usize).max(3));
     }
-    let start = refine::start_from(ir, id);
-    let r = refine::refine(ir, &est, &start, &opts)?;
-    let score = |recs: &[Record]| -> miette::Result<(Vec<FreeRunError>, Vec<FreeRunError>)> {
-        if recs.is_empty() {
-            return Ok((Vec::new(), Vec::new()));
-        }
-        Ok((
-            refine::free_run_errors(ir, &start, recs, opts.substeps)?,
-            refine::free_run_errors(ir, &r.values(), recs, opts.substeps)?,
-        ))
-    };
-    let estimation = score(&est)?;
-    let test = score(&read_all(ir, args, &args.test)?)?;
-    Ok(RefineReport {
-        refinement: r,
-        estimation,
-        test,
-    })
+    let test = read_all(ir, args, &args.test)?;
+    RefineReport::compute(ir, &refine::start_from(ir, id), &est, &test, &opts)
+}
+
+impl RefineReport {
+    /// Refine `start` on the estimation records `est` and score both value sets on `est`
+    /// and on the `test` records.
+    pub fn compute(
+        ir: &ModelIr,
+        start: &[f64],
+        est: &[Record],
+        test: &[Record],
+        opts: &RefineOptions,
+    ) -> miette::Result<Self> {
+        let r = refine::refine(ir, est, start, opts)?;
+        let score = |recs: &[Record]| -> miette::Result<(Vec<FreeRunError>, Vec<FreeRunError>)> {
+            if recs.is_empty() {
+                return Ok((Vec::new(), Vec::new()));
+            }
+            Ok((
+                refine::free_run_errors(ir, start, recs, opts.substeps)?,
+                refine::free_run_errors(ir, &r.values(), recs, opts.substeps)?,
+            ))
+        };
+        Ok(RefineReport {
+            estimation: score(est)?,
+            test: score(test)?,
+            refinement: r,
+        })
+    }
 }
 
 /// Both estimates side by side, and their free-run errors.
