@@ -80,8 +80,9 @@ pub const MAX_BLOCKS: usize = 80;
 /// 5 % noise, 20 seeds; `ident::tests::standard_errors_cover_the_error`) 20 blocks of
 /// 10 s gave standard errors about a fifth low (rms z 1.19–1.31), 80 blocks within 1 % of
 /// 160 (rms z 1.03–1.05). Blocks much shorter than the slowest chain's time constant
-/// overstated them on the closed-loop servo record (25 s, τ = 2.5 s; 12 seeds, rms z of d
-/// and r 0.58–0.66 with 80 blocks of 0.31 s, 0.81–0.83 with 20 of 1.25 s).
+/// overstated them on the closed-loop servo record (25 s, τ = 2.5 s; the 12 seeds of
+/// `tests/servo.rs`, rms z of d and r 0.58–0.66 with 80 blocks of 0.31 s, 0.81–0.83 with
+/// 20 of 1.25 s). Both comparisons force the count through `IdentifyOptions::n_blocks`.
 pub fn blocks(duration: f64, tau: f64, samples: usize) -> usize {
     let by_memory = if tau > 0.0 && duration.is_finite() {
         (2.0 * duration / tau).floor().min(MAX_BLOCKS as f64) as usize
