@@ -265,94 +265,122 @@ pub struct PointTape {
     n_signals: usize,
 }
 
+/// One instruction: 12 bytes, operands as indices into `mem` (for `Deadzone` and
+/// `Saturate`, `b` is the slot of the gap or limit among the constants; for `Powi`, the
+/// exponent's bits).
 #[derive(Clone, Copy, Debug)]
 struct PointOp {
     kind: PointKind,
-    a: usize,
-    b: usize,
+    a: u32,
+    b: u32,
 }
 
+/// The operation of a [`PointOp`], flat: one dispatch per instruction.
 #[derive(Clone, Copy, Debug)]
+#[repr(u8)]
 enum PointKind {
-    Unary(UnaryOp),
-    Binary(BinaryOp),
+    Neg,
+    Abs,
+    Sign,
+    Tanh,
+    Sqrt,
+    Exp,
+    Add,
+    Sub,
+    Mul,
+    Div,
     Square,
     Cube,
-    Powi(i32),
-    Deadzone(f64),
-    Saturate(f64),
+    Powi,
+    Deadzone,
+    Saturate,
 }
 
 impl PointTape {
     pub fn new(tape: &Tape) -> PointTape {
         let n_signals = tape.n_signals;
-        // Distinct constants (by bits), in order of first use; the registers follow them.
+        // Distinct constants (by bits), in order of first use, the dead zones' gaps and the
+        // limits among them; the registers follow them.
         let mut consts: Vec<f64> = Vec::new();
-        for o in tape
-            .ops
-            .iter()
-            .flat_map(op_operands)
-            .chain(tape.roots.iter().copied())
-        {
-            if let Operand::Const(c) = o {
-                if !consts.iter().any(|x| x.to_bits() == c.to_bits()) {
-                    consts.push(c);
+        let mut keep = |c: f64| {
+            if !consts.iter().any(|x| x.to_bits() == c.to_bits()) {
+                consts.push(c);
+            }
+        };
+        for op in &tape.ops {
+            for o in op_operands(op) {
+                if let Operand::Const(c) = o {
+                    keep(c);
                 }
+            }
+            if let Op::Deadzone(_, c) | Op::Saturate(_, c) = *op {
+                keep(c);
+            }
+        }
+        for o in &tape.roots {
+            if let Operand::Const(c) = *o {
+                keep(c);
             }
         }
         let base = n_signals + consts.len();
+        let constant = |c: f64| {
+            n_signals
+                + consts
+                    .iter()
+                    .position(|x| x.to_bits() == c.to_bits())
+                    .expect("invariant: every constant was collected above")
+        };
         let slot = |o: Operand| match o {
             Operand::Reg(r) => base + r as usize,
             Operand::Sig(s) => s as usize,
-            Operand::Const(c) => {
-                n_signals
-                    + consts
-                        .iter()
-                        .position(|x| x.to_bits() == c.to_bits())
-                        .expect("invariant: every constant was collected above")
-            }
+            Operand::Const(c) => constant(c),
         };
+        let index = |i: usize| u32::try_from(i).expect("a tape of fewer than 2³² values");
         let ops: Vec<PointOp> = tape
             .ops
             .iter()
-            .map(|op| match *op {
-                Op::Unary(u, a) => PointOp {
-                    kind: PointKind::Unary(u),
-                    a: slot(a),
-                    b: 0,
-                },
-                Op::Binary(b, x, y) => PointOp {
-                    kind: PointKind::Binary(b),
-                    a: slot(x),
-                    b: slot(y),
-                },
-                Op::Powi(a, k) => PointOp {
-                    kind: match k {
-                        2 => PointKind::Square,
-                        3 => PointKind::Cube,
-                        _ => PointKind::Powi(k),
-                    },
-                    a: slot(a),
-                    b: 0,
-                },
-                Op::Deadzone(a, g) => PointOp {
-                    kind: PointKind::Deadzone(g),
-                    a: slot(a),
-                    b: 0,
-                },
-                Op::Saturate(a, l) => PointOp {
-                    kind: PointKind::Saturate(l),
-                    a: slot(a),
-                    b: 0,
-                },
+            .map(|op| {
+                let (kind, a, b) = match *op {
+                    Op::Unary(u, a) => {
+                        let kind = match u {
+                            UnaryOp::Neg => PointKind::Neg,
+                            UnaryOp::Abs => PointKind::Abs,
+                            UnaryOp::Sign => PointKind::Sign,
+                            UnaryOp::Tanh => PointKind::Tanh,
+                            UnaryOp::Sqrt => PointKind::Sqrt,
+                            UnaryOp::Exp => PointKind::Exp,
+                        };
+                        (kind, slot(a), 0)
+                    }
+                    Op::Binary(b, x, y) => {
+                        let kind = match b {
+                            BinaryOp::Add => PointKind::Add,
+                            BinaryOp::Sub => PointKind::Sub,
+                            BinaryOp::Mul => PointKind::Mul,
+                            BinaryOp::Div => PointKind::Div,
+                        };
+                        (kind, slot(x), slot(y))
+                    }
+                    Op::Powi(a, 2) => (PointKind::Square, slot(a), 0),
+                    Op::Powi(a, 3) => (PointKind::Cube, slot(a), 0),
+                    Op::Powi(a, k) => (PointKind::Powi, slot(a), k as u32 as usize),
+                    Op::Deadzone(a, g) => (PointKind::Deadzone, slot(a), constant(g)),
+                    Op::Saturate(a, l) => (PointKind::Saturate, slot(a), constant(l)),
+                };
+                PointOp {
+                    kind,
+                    a: index(a),
+                    b: index(b),
+                }
             })
             .collect();
         let roots = tape.roots.iter().map(|&o| slot(o)).collect();
         // What `eval`'s unchecked reads rely on: operands are signals, constants or
-        // earlier registers (the tape is in topological order).
+        // earlier registers (the tape is in topological order); `Powi`'s `b` is no slot.
         for (i, op) in ops.iter().enumerate() {
+            let reads_b = !matches!(op.kind, PointKind::Powi);
             assert!(
-                op.a < base + i && op.b < base + i,
+                (op.a as usize) < base + i && (!reads_b || (op.b as usize) < base + i),
                 "invariant: operands precede their instruction"
             );
         }
@@ -387,7 +415,7 @@ impl PointTape {
     }
 
     /// Evaluate every instruction on `mem` (from [`PointTape::memory`], signals written).
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, mem: &mut [f64]) {
         let base = self.n_signals + self.consts.len();
         assert!(
@@ -396,19 +424,27 @@ impl PointTape {
         );
         for (i, op) in self.ops.iter().enumerate() {
             // SAFETY: `new` makes every operand index smaller than `base + i` (signals,
-            // constants, or an earlier register), and `mem` holds `base + ops.len()` values
-            // (asserted above).
-            let a = unsafe { *mem.get_unchecked(op.a) };
+            // constants, or an earlier register; `b` of every kind but `Powi`), and `mem`
+            // holds `base + ops.len()` values (asserted above).
+            let a = unsafe { *mem.get_unchecked(op.a as usize) };
+            let b = || unsafe { *mem.get_unchecked(op.b as usize) };
             let v = match op.kind {
-                PointKind::Unary(u) => u.apply(a),
-                // SAFETY: as for `a`.
-                PointKind::Binary(b) => b.apply(a, unsafe { *mem.get_unchecked(op.b) }),
+                PointKind::Neg => UnaryOp::Neg.apply(a),
+                PointKind::Abs => UnaryOp::Abs.apply(a),
+                PointKind::Sign => UnaryOp::Sign.apply(a),
+                PointKind::Tanh => UnaryOp::Tanh.apply(a),
+                PointKind::Sqrt => UnaryOp::Sqrt.apply(a),
+                PointKind::Exp => UnaryOp::Exp.apply(a),
+                PointKind::Add => BinaryOp::Add.apply(a, b()),
+                PointKind::Sub => BinaryOp::Sub.apply(a, b()),
+                PointKind::Mul => BinaryOp::Mul.apply(a, b()),
+                PointKind::Div => BinaryOp::Div.apply(a, b()),
                 // `powi` by repeated squaring gives these same products.
                 PointKind::Square => a * a,
                 PointKind::Cube => a * a * a,
-                PointKind::Powi(k) => a.powi(k),
-                PointKind::Deadzone(g) => deadzone(a, g),
-                PointKind::Saturate(l) => saturate(a, l),
+                PointKind::Powi => a.powi(op.b as i32),
+                PointKind::Deadzone => deadzone(a, b()),
+                PointKind::Saturate => saturate(a, b()),
             };
             // SAFETY: `base + i < base + ops.len() <= mem.len()`.
             unsafe { *mem.get_unchecked_mut(base + i) = v };

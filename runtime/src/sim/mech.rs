@@ -146,44 +146,52 @@ impl Mechanics {
         }
     }
 
-    /// Accelerations `a` at positions `x`, velocities `v` and inputs `u`.
+    /// Write body `i`'s position and velocity where [`Mechanics::accel`] reads them.
     #[inline(always)]
-    pub(crate) fn accel(
-        &self,
-        x: &[f64],
-        v: &[f64],
-        u: &[f64],
-        s: &mut MechScratch,
-        a: &mut [f64],
-    ) {
+    fn put_body(s: &mut MechScratch, i: usize, x: f64, v: f64) {
+        s.mem[2 * i] = x;
+        s.mem[2 * i + 1] = v;
+    }
+
+    /// Write the inputs at fraction `f` of the sample interval, `u0 + f · (u1 − u0)` (as
+    /// [`lerp`]), where [`Mechanics::accel`] reads them.
+    #[inline(always)]
+    fn put_inputs(&self, s: &mut MechScratch, u0: &[f64], u1: &[f64], f: f64) {
         let nb = self.n_bodies;
+        lerp(u0, u1, f, &mut s.mem[2 * nb..2 * nb + self.n_inputs]);
+    }
+
+    /// Accelerations `a` at the positions, velocities and inputs written into `s` by
+    /// [`Mechanics::put_body`] and [`Mechanics::put_inputs`] (straight into the tape's
+    /// memory: the state takes no extra trip through memory on its way to the tape).
+    #[inline(always)]
+    pub(crate) fn accel<const NB: usize>(&self, s: &mut MechScratch, a: &mut [f64]) {
+        // `NB` bodies known at compile time (0: any number).
+        let nb = if NB == 0 { self.n_bodies } else { NB };
         let mem = &mut s.mem[..];
-        for (i, (&x, &v)) in x.iter().zip(v).enumerate().take(nb) {
-            mem[2 * i] = x;
-            mem[2 * i + 1] = v;
-        }
-        for (m, &u) in mem[2 * nb..2 * nb + self.n_inputs].iter_mut().zip(u) {
-            *m = u;
-        }
         self.point.eval(mem);
         let mem = &s.mem[..];
         assert!(
             mem.len() >= self.point.memory_len(),
             "invariant: scratch of this model"
         );
-        for (f, w) in s.force.iter_mut().zip(self.starts.windows(2)) {
+        let force = |w: &[usize]| {
             let mut sum = 0.0;
             for &(slot, c) in &self.terms[w[0]..w[1]] {
                 // SAFETY: `new` checks every slot against `memory_len` (asserted above).
                 sum += c * unsafe { *mem.get_unchecked(slot) };
             }
-            *f = sum;
-        }
+            sum
+        };
         if self.diagonal_mass {
-            for (i, (a, f)) in a.iter_mut().zip(&s.force).enumerate() {
-                *a = -self.minv[i * nb + i] * f;
+            // Each force straight into its acceleration (no round trip through memory).
+            for (i, (a, w)) in a[..nb].iter_mut().zip(self.starts.windows(2)).enumerate() {
+                *a = -self.minv[i * nb + i] * force(w);
             }
         } else {
+            for (f, w) in s.force[..nb].iter_mut().zip(self.starts.windows(2)) {
+                *f = force(w);
+            }
             for (a, row) in a.iter_mut().zip(self.minv.chunks_exact(nb)) {
                 *a = -row.iter().zip(&s.force).map(|(m, f)| m * f).sum::<f64>();
             }
@@ -239,10 +247,9 @@ pub(crate) fn inverse_mass(
 pub(crate) struct Rk4 {
     pub(crate) x: Vec<f64>,
     pub(crate) v: Vec<f64>,
-    /// The stages `a1 a2 a3 a4 v2 v3 v4 xt`, `n_bodies` values each, in one buffer so that
+    /// The stages `a1 a2 a3 a4 v2 v3 v4`, `n_bodies` values each, in one buffer so that
     /// `advance` works on slices of one known length.
     stages: Vec<f64>,
-    u: Vec<f64>,
     scratch: MechScratch,
 }
 
@@ -253,8 +260,7 @@ impl Rk4 {
         Rk4 {
             x: vec![0.0; nb],
             v: vec![0.0; nb],
-            stages: vec![0.0; 8 * nb],
-            u: vec![0.0; mech.n_inputs],
+            stages: vec![0.0; 7 * nb],
             scratch: mech.scratch(),
         }
     }
@@ -270,37 +276,64 @@ impl Rk4 {
         ts: f64,
         substeps: usize,
     ) {
+        // Small models with their number of bodies known at compile time: every loop over
+        // the bodies unrolled (the same operations in the same order).
+        match mech.n_bodies {
+            1 => self.advance_n::<1>(mech, u0, u1, ts, substeps),
+            2 => self.advance_n::<2>(mech, u0, u1, ts, substeps),
+            3 => self.advance_n::<3>(mech, u0, u1, ts, substeps),
+            4 => self.advance_n::<4>(mech, u0, u1, ts, substeps),
+            _ => self.advance_n::<0>(mech, u0, u1, ts, substeps),
+        }
+    }
+
+    /// [`Rk4::advance`] for `NB` bodies (`0`: any number).
+    #[inline(always)]
+    fn advance_n<const NB: usize>(
+        &mut self,
+        mech: &Mechanics,
+        u0: &[f64],
+        u1: &[f64],
+        ts: f64,
+        substeps: usize,
+    ) {
+        let nb = if NB == 0 { mech.n_bodies } else { NB };
+        debug_assert_eq!(nb, mech.n_bodies);
         let h = ts / substeps as f64;
         let (h2, h6) = (0.5 * h, h / 6.0);
         let n = substeps as f64;
-        let nb = mech.n_bodies;
         let (x, v) = (&mut self.x[..nb], &mut self.v[..nb]);
+        let scratch = &mut self.scratch;
+        // Each stage's state goes straight into the tape's memory; the velocities are also
+        // kept for the final combination.
         let mut parts = self.stages.chunks_exact_mut(nb);
-        let mut next = || parts.next().expect("invariant: eight stages");
+        let mut next = || parts.next().expect("invariant: seven stages");
         let (a1, a2, a3, a4) = (next(), next(), next(), next());
-        let (v2, v3, v4, xt) = (next(), next(), next(), next());
-        let (u, scratch) = (&mut self.u, &mut self.scratch);
-        // `out = base + f · d`, element by element.
-        let step = |out: &mut [f64], base: &[f64], f: f64, d: &[f64]| {
-            for ((o, &b), &d) in out.iter_mut().zip(base).zip(d) {
-                *o = b + f * d;
-            }
-        };
+        let (v2, v3, v4) = (next(), next(), next());
         for j in 0..substeps {
             let j = j as f64;
-            lerp(u0, u1, j / n, u);
-            mech.accel(x, v, u, scratch, a1);
-            step(xt, x, h2, v);
-            step(v2, v, h2, a1);
-            lerp(u0, u1, (j + 0.5) / n, u);
-            mech.accel(xt, v2, u, scratch, a2);
-            step(xt, x, h2, v2);
-            step(v3, v, h2, a2);
-            mech.accel(xt, v3, u, scratch, a3);
-            step(xt, x, h, v3);
-            step(v4, v, h, a3);
-            lerp(u0, u1, (j + 1.0) / n, u);
-            mech.accel(xt, v4, u, scratch, a4);
+            mech.put_inputs(scratch, u0, u1, j / n);
+            for i in 0..nb {
+                Mechanics::put_body(scratch, i, x[i], v[i]);
+            }
+            mech.accel::<NB>(scratch, a1);
+            mech.put_inputs(scratch, u0, u1, (j + 0.5) / n);
+            for i in 0..nb {
+                v2[i] = v[i] + h2 * a1[i];
+                Mechanics::put_body(scratch, i, x[i] + h2 * v[i], v2[i]);
+            }
+            mech.accel::<NB>(scratch, a2);
+            for i in 0..nb {
+                v3[i] = v[i] + h2 * a2[i];
+                Mechanics::put_body(scratch, i, x[i] + h2 * v2[i], v3[i]);
+            }
+            mech.accel::<NB>(scratch, a3);
+            mech.put_inputs(scratch, u0, u1, (j + 1.0) / n);
+            for i in 0..nb {
+                v4[i] = v[i] + h * a3[i];
+                Mechanics::put_body(scratch, i, x[i] + h * v3[i], v4[i]);
+            }
+            mech.accel::<NB>(scratch, a4);
             for i in 0..nb {
                 x[i] += h6 * (v[i] + 2.0 * v2[i] + 2.0 * v3[i] + v4[i]);
                 v[i] += h6 * (a1[i] + 2.0 * a2[i] + 2.0 * a3[i] + a4[i]);
