@@ -443,7 +443,7 @@ struct Task {
     tpos: usize,
 }
 
-/// The working buffers of a task in pass 2, one set per parallel worker (not per task: for
+/// The working buffers of a task in pass 2, one set per worker thread (not per task: for
 /// a wide model they are megabytes each).
 #[derive(Default)]
 struct TaskScratch {
@@ -506,6 +506,10 @@ pub(crate) struct LevelAccumulator<'a> {
     snaps: Vec<Vec<f64>>,
     tails: Vec<Vec<f64>>,
     work: Vec<TaskWork>,
+    /// Pass 2's buffers, one set per worker thread.
+    scratch: Vec<std::sync::Mutex<TaskScratch>>,
+    /// `0, 1, 2, …, task_len − 1` as floating-point numbers.
+    ramp: Vec<f64>,
     qrow: Vec<f64>,
     /// [`central_velocity_weights`].
     vhat_weights: Vec<f64>,
@@ -556,6 +560,10 @@ impl<'a> LevelAccumulator<'a> {
             snaps: vec![vec![0.0; n_i * n_q]; n_blocks + 1],
             tails: vec![Vec::with_capacity(VHAT_WINDOW); plan.vhat_bodies.len()],
             work: Vec::new(),
+            scratch: (0..rayon::current_num_threads().max(1))
+                .map(|_| Default::default())
+                .collect(),
+            ramp: Vec::new(),
             qrow: vec![0.0; n_q],
             vhat_weights: central_velocity_weights(),
             extra_width: vec![1.0; plan.extra.len()],
@@ -569,6 +577,7 @@ impl<'a> LevelAccumulator<'a> {
     /// Samples per task of the time-parallel pass (at least 1; [`TASK_LEN`] by default).
     pub fn set_task_len(&mut self, task_len: usize) {
         self.task_len = task_len.max(1);
+        self.ramp = (0..self.task_len).map(|k| k as f64).collect();
         self.bank.prepare_propagation(self.task_len);
     }
 
@@ -685,13 +694,22 @@ impl<'a> LevelAccumulator<'a> {
             extra_width: &self.extra_width,
             cols,
             drivers: &drivers,
+            ramp: &self.ramp,
         };
+        let pool = &self.scratch;
         tasks
             .par_iter()
             .zip(self.work[..tasks.len()].par_iter_mut())
             .zip(starts.into_par_iter())
-            .for_each_init(TaskScratch::default, |sc, ((t, wk), st)| {
-                ctx.run(t, wk, sc, st)
+            .for_each(|((t, wk), st)| {
+                // The worker's own buffers, kept between tasks and chunks (grown once, never
+                // zeroed again). Another thread of a pool larger than the one the
+                // accumulator was made for may find them taken: it then uses its own.
+                let slot = rayon::current_thread_index().unwrap_or(0) % pool.len();
+                match pool[slot].try_lock() {
+                    Ok(mut sc) => ctx.run(t, wk, &mut sc, st),
+                    Err(_) => ctx.run(t, wk, &mut TaskScratch::default(), st),
+                }
             });
 
         // In order: snapshots, block sums, velocity tails.
@@ -822,6 +840,22 @@ fn run_filter(
     bank.advance(st, &ds, t.len - skip, out);
 }
 
+/// Whether every value is finite: `v · 0` is zero for a finite `v` and NaN otherwise, summed
+/// in eight independent lanes (one pass, no branch per value, vectorised).
+fn all_finite(c: &[f64]) -> bool {
+    let mut acc = [0.0f64; 8];
+    let mut chunks = c.chunks_exact(8);
+    for ch in &mut chunks {
+        for (a, v) in acc.iter_mut().zip(ch) {
+            *a += v * 0.0;
+        }
+    }
+    for (a, v) in acc.iter_mut().zip(chunks.remainder()) {
+        *a += v * 0.0;
+    }
+    acc.iter().sum::<f64>() == 0.0
+}
+
 /// What pass 2 of every task reads.
 struct TaskCtx<'c> {
     plan: &'c Plan,
@@ -831,6 +865,8 @@ struct TaskCtx<'c> {
     extra_width: &'c [f64],
     cols: &'c [&'c [f64]],
     drivers: &'c [&'c [f64]],
+    /// `0, 1, 2, …` up to the task length, as floating-point numbers.
+    ramp: &'c [f64],
 }
 
 impl TaskCtx<'_> {
@@ -862,9 +898,11 @@ impl TaskCtx<'_> {
             Some((&mut sc.iota[..], n_rows)),
         );
         wk.end = Some(st);
-        for (j, s) in plan.y.iter().enumerate() {
-            for (row, &v) in sc.iota.chunks_exact_mut(n_rows).zip(view[s.index()]) {
-                row[n_zr + j] = v;
+        // The measured signals after the bank's rows, all in one sweep over the samples.
+        let ys: Vec<&[f64]> = plan.y.iter().map(|s| view[s.index()]).collect();
+        for (k, row) in sc.iota.chunks_exact_mut(n_rows).enumerate() {
+            for (d, y) in row[n_zr..n_zr + ys.len()].iter_mut().zip(&ys) {
+                *d = y[k];
             }
         }
         wk.filter += clock.elapsed();
@@ -888,11 +926,10 @@ impl TaskCtx<'_> {
                 &mut w_rest[n_y * len..(n_w - n_g) * len],
             );
         }
-        // A finite sum means every value is finite: one pass, no branch per sample.
         wk.non_finite = w_g
             .chunks_exact(len)
             .enumerate()
-            .find(|(_, c)| !c.iter().sum::<f64>().is_finite())
+            .find(|(_, c)| !all_finite(c))
             .and_then(|(r, c)| {
                 let i = c.iter().position(|v| !v.is_finite())?;
                 Some((r, t.global + i, c[i]))
@@ -910,11 +947,13 @@ impl TaskCtx<'_> {
             }
         }
         if t.block.is_some() {
-            // Position of each sample in its block, for the hat contributions.
+            // Position of each sample in its block, for the hat contributions: `tpos + k`
+            // as the sum of two floating-point integers (exact), so the loop vectorises.
             let (w, w_t) = sc.w.split_at_mut(n_w * len);
+            let (t0, ramp) = (t.tpos as f64, &self.ramp[..len]);
             for (dst, src) in w_t.chunks_exact_mut(len).zip(w.chunks_exact(len)) {
-                for (k, (d, s)) in dst.iter_mut().zip(src).enumerate() {
-                    *d = (t.tpos + k) as f64 * s;
+                for ((d, s), r) in dst.iter_mut().zip(src).zip(ramp) {
+                    *d = (t0 + r) * s;
                 }
             }
             wk.part.resize(n_rows * 2 * n_w, 0.0);
@@ -930,6 +969,21 @@ impl TaskCtx<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn all_finite_finds_every_kind_of_non_finite_value_anywhere() {
+        for len in [0, 1, 7, 8, 9, 23, 1024] {
+            let c: Vec<f64> = (0..len).map(|k| (k as f64 - 3.0) * 1e300).collect();
+            assert!(all_finite(&c), "len {len}");
+            for at in 0..len {
+                for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                    let mut d = c.clone();
+                    d[at] = bad;
+                    assert!(!all_finite(&d), "len {len}, {bad} at {at}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn central_velocity_is_exact_to_degree_five_and_sharp_on_sinusoids() {
