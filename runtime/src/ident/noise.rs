@@ -93,6 +93,11 @@ pub const SIGNIFICANT: f64 = 0.02;
 /// `V₂ ≤ FLAT · V₁`: the third-difference floor counts as flat (white noise dominates).
 const FLAT: f64 = 1.1;
 
+/// Lanes of the floor's sums: sample `k` of the record adds to lane `k mod LANES`, so the
+/// sums are independent chains (no wait on the previous addition) and still do not depend
+/// on how the record is cut into chunks.
+const LANES: usize = 4;
+
 /// Streaming estimate of the white-noise variance of one signal from its high-frequency
 /// floor (see the module documentation).
 #[derive(Clone, Debug, Default)]
@@ -100,7 +105,8 @@ pub struct NoiseFloor {
     /// The last 10 samples, newest first.
     tail: [f64; 10],
     seen: usize,
-    sums: [f64; 3],
+    /// Per stride, the sums of squared third differences per lane.
+    sums: [[f64; LANES]; 3],
     counts: [usize; 3],
 }
 
@@ -108,35 +114,68 @@ impl NoiseFloor {
     /// Feed the next samples.
     pub fn push(&mut self, x: &[f64]) {
         // The first nine samples of the chunk reach back into the previous chunk (`tail`);
-        // the rest read the chunk itself. The sums are taken sample by sample in order, so
-        // the result does not depend on how the record is cut into chunks.
+        // the rest read the chunk itself. Each lane's sum is taken sample by sample in
+        // order, so the result does not depend on how the record is cut into chunks.
         let head = x.len().min(9);
         for &v in &x[..head] {
             self.tail.copy_within(0..9, 1);
             self.tail[0] = v;
+            let lane = self.seen % LANES;
             self.seen += 1;
             for h in 1..=3 {
                 if self.seen > 3 * h {
                     let t = &self.tail;
                     let d = t[0] - 3.0 * t[h] + 3.0 * t[2 * h] - t[3 * h];
-                    self.sums[h - 1] += d * d;
+                    self.sums[h - 1][lane] += d * d;
                     self.counts[h - 1] += 1;
                 }
             }
         }
         if x.len() > head {
             // Ten samples or more have been seen from here on: every difference is taken.
-            let [mut s1, mut s2, mut s3] = self.sums;
-            for i in head..x.len() {
-                let d1 = x[i] - 3.0 * x[i - 1] + 3.0 * x[i - 2] - x[i - 3];
-                let d2 = x[i] - 3.0 * x[i - 2] + 3.0 * x[i - 4] - x[i - 6];
-                let d3 = x[i] - 3.0 * x[i - 3] + 3.0 * x[i - 6] - x[i - 9];
-                s1 += d1 * d1;
-                s2 += d2 * d2;
-                s3 += d3 * d3;
+            // The lanes rotated so that `acc[j]` takes samples `head + j, head + j + 4, …`.
+            let phase = self.seen % LANES;
+            let mut acc = [[0.0; LANES]; 3];
+            for (a, s) in acc.iter_mut().zip(&self.sums) {
+                for (j, v) in a.iter_mut().enumerate() {
+                    *v = s[(phase + j) % LANES];
+                }
+            }
+            let d3 = |i: usize, h: usize| x[i] - 3.0 * x[i - h] + 3.0 * x[i - 2 * h] - x[i - 3 * h];
+            let body = &x[head..];
+            let full = body.len() / LANES * LANES;
+            for q in (0..full).step_by(LANES) {
+                // Samples `i0 − 9 ..= i0 + 3` as an array: fixed offsets, no bounds checks,
+                // the four lanes side by side.
+                let i0 = head + q;
+                let w: &[f64; 9 + LANES] = x[i0 - 9..i0 + LANES]
+                    .try_into()
+                    .expect("invariant: a window of 13 samples");
+                for j in 0..LANES {
+                    let at = |m: usize| w[9 + j - m];
+                    let (d1, d2, d3) = (
+                        at(0) - 3.0 * at(1) + 3.0 * at(2) - at(3),
+                        at(0) - 3.0 * at(2) + 3.0 * at(4) - at(6),
+                        at(0) - 3.0 * at(3) + 3.0 * at(6) - at(9),
+                    );
+                    acc[0][j] += d1 * d1;
+                    acc[1][j] += d2 * d2;
+                    acc[2][j] += d3 * d3;
+                }
+            }
+            for j in 0..body.len() - full {
+                let i = head + full + j;
+                for (h, a) in acc.iter_mut().enumerate() {
+                    let d = d3(i, h + 1);
+                    a[j] += d * d;
+                }
+            }
+            for (a, s) in acc.iter().zip(&mut self.sums) {
+                for (j, v) in a.iter().enumerate() {
+                    s[(phase + j) % LANES] = *v;
+                }
             }
             let n = x.len() - head;
-            self.sums = [s1, s2, s3];
             self.counts.iter_mut().for_each(|c| *c += n);
             self.seen += n;
             for (k, t) in self.tail.iter_mut().enumerate() {
@@ -147,7 +186,8 @@ impl NoiseFloor {
 
     /// Mean square of the third difference at stride `h` (1, 2 or 3).
     pub fn mean_square(&self, h: usize) -> f64 {
-        self.sums[h - 1] / self.counts[h - 1].max(1) as f64
+        let l = &self.sums[h - 1];
+        ((l[0] + l[1]) + (l[2] + l[3])) / self.counts[h - 1].max(1) as f64
     }
 
     /// Whether the floor is flat (`V₂ ≤ 1.1 V₁`): white noise dominates the third
@@ -603,18 +643,19 @@ mod tests {
             }
             assert_eq!(one.variance().to_bits(), many.variance().to_bits());
         }
-        // Sample by sample, as the definition reads.
-        let mut sums = [0.0; 3];
+        // Sample by sample, as the definition reads: sample `i` adds to lane `i mod 4`.
+        let mut sums = [[0.0; LANES]; 3];
         for i in 0..x.len() {
             for h in 1..=3 {
                 if i >= 3 * h {
                     let d = x[i] - 3.0 * x[i - h] + 3.0 * x[i - 2 * h] - x[i - 3 * h];
-                    sums[h - 1] += d * d;
+                    sums[h - 1][i % LANES] += d * d;
                 }
             }
         }
         for h in 1..=3 {
-            let want = sums[h - 1] / (x.len() - 3 * h) as f64;
+            let l = &sums[h - 1];
+            let want = ((l[0] + l[1]) + (l[2] + l[3])) / (x.len() - 3 * h) as f64;
             assert_eq!(one.mean_square(h).to_bits(), want.to_bits(), "stride {h}");
         }
         let sd = one.variance().sqrt();

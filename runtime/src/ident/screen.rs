@@ -43,6 +43,31 @@ impl Default for ColumnScreen {
     }
 }
 
+/// The smallest and the largest of `c` (infinities for an empty slice; NaN is never
+/// either), in eight lanes so the comparisons vectorise.
+fn extremes(c: &[f64]) -> (f64, f64) {
+    let mut lo = [f64::INFINITY; 8];
+    let mut hi = [f64::NEG_INFINITY; 8];
+    let mut chunks = c.chunks_exact(8);
+    for ch in &mut chunks {
+        for j in 0..8 {
+            lo[j] = if ch[j] < lo[j] { ch[j] } else { lo[j] };
+            hi[j] = if ch[j] > hi[j] { ch[j] } else { hi[j] };
+        }
+    }
+    for (j, &v) in chunks.remainder().iter().enumerate() {
+        lo[j] = if v < lo[j] { v } else { lo[j] };
+        hi[j] = if v > hi[j] { v } else { hi[j] };
+    }
+    let lo = lo
+        .iter()
+        .fold(f64::INFINITY, |a, &b| if b < a { b } else { a });
+    let hi = hi
+        .iter()
+        .fold(f64::NEG_INFINITY, |a, &b| if b > a { b } else { a });
+    (lo, hi)
+}
+
 /// A sample far out: its index, value, the column's median and robust standard deviation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Outlier {
@@ -54,30 +79,38 @@ pub(crate) struct Outlier {
 
 impl ColumnScreen {
     pub fn push(&mut self, c: &[f64]) {
-        for &v in c {
-            if v < self.min.0 {
-                self.min = (v, self.seen);
-            }
-            if v > self.max.0 {
-                self.max = (v, self.seen);
-            }
-            if self.seen == self.next {
-                if self.kept.len() == KEEP {
-                    // Keep every other value and double the stride.
-                    let mut i = 0;
-                    self.kept.retain(|_| {
-                        i += 1;
-                        i % 2 == 1
-                    });
-                    self.stride *= 2;
-                }
-                if self.seen.is_multiple_of(self.stride) {
-                    self.kept.push(v);
-                }
-                self.next = (self.seen / self.stride + 1) * self.stride;
-            }
-            self.seen += 1;
+        // The chunk's extremes in independent lanes (no branch per sample); the first
+        // sample at an extreme is looked up only when it beats the record's so far, so
+        // each is the first sample of the record at its value, as a sample-by-sample scan
+        // finds it.
+        let (lo, hi) = extremes(c);
+        if lo < self.min.0 {
+            let k = c.iter().position(|&v| v == lo).unwrap_or(0);
+            self.min = (c[k], self.seen + k);
         }
+        if hi > self.max.0 {
+            let k = c.iter().position(|&v| v == hi).unwrap_or(0);
+            self.max = (c[k], self.seen + k);
+        }
+        // Only the samples at multiples of the stride are visited.
+        let end = self.seen + c.len();
+        while self.next < end {
+            let at = self.next;
+            if self.kept.len() == KEEP {
+                // Keep every other value and double the stride.
+                let mut i = 0;
+                self.kept.retain(|_| {
+                    i += 1;
+                    i % 2 == 1
+                });
+                self.stride *= 2;
+            }
+            if at.is_multiple_of(self.stride) {
+                self.kept.push(c[at - self.seen]);
+            }
+            self.next = (at / self.stride + 1) * self.stride;
+        }
+        self.seen = end;
     }
 
     /// Whether every value was the same.
@@ -130,6 +163,55 @@ mod tests {
             s.push(c);
         }
         s
+    }
+
+    /// The screen's state as a sample-by-sample scan defines it.
+    fn scan(values: &[f64]) -> (Vec<f64>, usize, (f64, usize), (f64, usize)) {
+        let (mut kept, mut stride) = (Vec::new(), 1);
+        let (mut min, mut max) = ((f64::INFINITY, 0), (f64::NEG_INFINITY, 0));
+        for (k, &v) in values.iter().enumerate() {
+            if v < min.0 {
+                min = (v, k);
+            }
+            if v > max.0 {
+                max = (v, k);
+            }
+            if k.is_multiple_of(stride) {
+                if kept.len() == KEEP {
+                    kept = kept.iter().copied().step_by(2).collect();
+                    stride *= 2;
+                }
+                if k.is_multiple_of(stride) {
+                    kept.push(v);
+                }
+            }
+        }
+        (kept, stride, min, max)
+    }
+
+    #[test]
+    fn any_chunking_gives_the_sample_by_sample_scan() {
+        // Ties at both extremes (first occurrence wins), signed zeros, enough samples to
+        // halve the kept values twice.
+        let x: Vec<f64> = (0..20_000)
+            .map(|i| match i % 997 {
+                13 => 5.0,
+                14 => -5.0,
+                500 => -0.0,
+                _ => ((i * 7919) % 1000) as f64 / 1000.0 - 0.5,
+            })
+            .collect();
+        let want = scan(&x);
+        for chunk in [1, 3, 8, 9, 100, 4096, 20_000] {
+            let s = screen(&x, chunk);
+            assert_eq!(
+                (s.kept.clone(), s.stride, s.min, s.max),
+                want,
+                "chunks of {chunk}"
+            );
+            assert_eq!(s.seen, x.len());
+        }
+        assert_eq!((want.2 .1, want.3 .1), (14, 13));
     }
 
     #[test]
