@@ -335,7 +335,9 @@ impl PointTape {
             Operand::Sig(s) => s as usize,
             Operand::Const(c) => constant(c),
         };
-        let index = |i: usize| u32::try_from(i).expect("a tape of fewer than 2³² values");
+        let index = |i: usize| {
+            u32::try_from(i).expect("invariant: fewer than 2³² values (each a parsed node)")
+        };
         let ops: Vec<PointOp> = tape
             .ops
             .iter()
