@@ -184,6 +184,55 @@ impl NoiseFloor {
         }
     }
 
+    /// A floor with no sums that continues after the samples `before` (oldest first, at
+    /// least nine, the last being sample `seen − 1` of the record): its sums over the next
+    /// samples are those [`NoiseFloor::push`] adds after `before`, so pieces of a record
+    /// can be taken apart and joined with [`NoiseFloor::absorb`].
+    pub fn resume(before: &[f64], seen: usize) -> Self {
+        assert!(
+            before.len() >= 9 && seen >= before.len(),
+            "nine samples before"
+        );
+        let mut tail = [0.0; 10];
+        for (t, v) in tail.iter_mut().zip(before.iter().rev()) {
+            *t = *v;
+        }
+        NoiseFloor {
+            tail,
+            seen,
+            ..Default::default()
+        }
+    }
+
+    /// The same floor with its sums and counts set to zero (to take the next piece apart).
+    pub fn emptied(&self) -> Self {
+        NoiseFloor {
+            tail: self.tail,
+            seen: self.seen,
+            ..Default::default()
+        }
+    }
+
+    /// Add the sums of the piece that `part` took after this floor's samples (from
+    /// [`NoiseFloor::resume`] or [`NoiseFloor::emptied`]), lane by lane.
+    pub fn absorb(&mut self, part: &NoiseFloor) {
+        for (s, p) in self.sums.iter_mut().zip(&part.sums) {
+            for (a, b) in s.iter_mut().zip(p) {
+                *a += b;
+            }
+        }
+        for (c, p) in self.counts.iter_mut().zip(&part.counts) {
+            *c += p;
+        }
+        self.tail = part.tail;
+        self.seen = part.seen;
+    }
+
+    /// Samples seen.
+    pub fn seen(&self) -> usize {
+        self.seen
+    }
+
     /// Mean square of the third difference at stride `h` (1, 2 or 3).
     pub fn mean_square(&self, h: usize) -> f64 {
         let l = &self.sums[h - 1];
