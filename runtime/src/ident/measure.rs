@@ -486,11 +486,10 @@ impl SignalPass {
         // The pieces in parallel: the first continues this signal's floor, every other one
         // starts after the nine samples before it in the chunk (`PIECE` ≥ 9).
         let base = &self.floor;
-        let parts: Vec<PiecePass> = (0..c.len())
-            .step_by(PIECE)
-            .collect::<Vec<_>>()
+        let parts: Vec<PiecePass> = (0..c.len().div_ceil(PIECE))
             .into_par_iter()
-            .map(|a| {
+            .map(|p| {
+                let a = p * PIECE;
                 let piece = &c[a..(a + PIECE).min(c.len())];
                 let floor = if a == 0 {
                     base.emptied()
