@@ -214,7 +214,9 @@ impl NoiseFloor {
     }
 
     /// Add the sums of the piece that `part` took after this floor's samples (from
-    /// [`NoiseFloor::resume`] or [`NoiseFloor::emptied`]), lane by lane.
+    /// [`NoiseFloor::resume`] or [`NoiseFloor::emptied`]), lane by lane. Pieces joined in
+    /// order give the sums of one [`NoiseFloor::push`] over them to rounding (the additions
+    /// are grouped by piece).
     pub fn absorb(&mut self, part: &NoiseFloor) {
         for (s, p) in self.sums.iter_mut().zip(&part.sums) {
             for (a, b) in s.iter_mut().zip(p) {
