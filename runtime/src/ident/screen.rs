@@ -23,8 +23,6 @@ pub(crate) struct ColumnScreen {
     kept: Vec<f64>,
     stride: usize,
     seen: usize,
-    /// The next sample index that is a multiple of `stride`.
-    next: usize,
     /// (value, sample) of the smallest and the largest value.
     min: (f64, usize),
     max: (f64, usize),
@@ -36,7 +34,6 @@ impl Default for ColumnScreen {
             kept: Vec::with_capacity(KEEP),
             stride: 1,
             seen: 0,
-            next: 0,
             min: (f64::INFINITY, 0),
             max: (f64::NEG_INFINITY, 0),
         }
@@ -94,8 +91,8 @@ impl ColumnScreen {
         }
         // Only the samples at multiples of the stride are visited.
         let end = self.seen + c.len();
-        while self.next < end {
-            let at = self.next;
+        let mut at = self.seen.next_multiple_of(self.stride);
+        while at < end {
             if self.kept.len() == KEEP {
                 // Keep every other value and double the stride.
                 let mut i = 0;
@@ -108,7 +105,7 @@ impl ColumnScreen {
             if at.is_multiple_of(self.stride) {
                 self.kept.push(c[at - self.seen]);
             }
-            self.next = (at / self.stride + 1) * self.stride;
+            at = (at / self.stride + 1) * self.stride;
         }
         self.seen = end;
     }
