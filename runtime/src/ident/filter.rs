@@ -153,7 +153,10 @@ pub const MAX_ORDER: usize = 8;
 /// coefficients and stays zero).
 ///
 /// Each chain follows the recursion of [`ChainDisc::run`], with the sums of a step taken
-/// in another order (see [`step`]): the outputs agree to rounding.
+/// in another order and fused (see [`step`]): the outputs agree to rounding. Where the
+/// processor has them, 512-bit (eight chains) or 256-bit (four chains, one block) vector
+/// instructions do the work ([`FilterBank::advance`]), with the same operations in the same
+/// order as the portable code: the outputs are the same bit for bit on every processor.
 ///
 /// Outputs are written sample-major: at sample `k`, row [`FilterBank::row`]`(d, c, i)` of
 /// `out[k · stride ..]` receives state `ζᵢ₊₁` of the chain of driver `d` and corner `c`,
@@ -210,23 +213,27 @@ fn mul(a: &Lane, b: &Lane) -> Lane {
     std::array::from_fn(|l| a[l] * b[l])
 }
 
+/// `a · b + c` per lane, rounded once.
 #[inline(always)]
-fn add(a: &Lane, b: &Lane) -> Lane {
-    std::array::from_fn(|l| a[l] + b[l])
+fn fma(a: &Lane, b: &Lane, c: &Lane) -> Lane {
+    std::array::from_fn(|l| a[l].mul_add(b[l], c[l]))
 }
 
-/// One step of one block: `ζ ← Φ ζ + Γ₀ s[k−1] + Γ₁ s[k]`. The input part is formed
-/// first, off the path from one sample's state to the next, so each state waits on one
-/// product and `i + 1` sums instead of `i + 3`. (The order of the sums differs from
-/// [`ChainDisc::run`]: the two agree to rounding.)
+/// One step of one block: `ζ ← Φ ζ + Γ₀ s[k−1] + Γ₁ s[k]`, as one product and fused
+/// multiply-adds (one rounding each): `Γ₀ s[k−1]`, then `+ Γ₁ s[k]`, then `+ Φᵢⱼ ζⱼ` for
+/// `j = 0 … i`. The input part is formed first, off the path from one sample's state to
+/// the next, and each state's own term comes last, so a state waits on one fused operation
+/// of its own previous value. Every vector path does the same operations in the same
+/// order: the bank's outputs are the same bit for bit on every processor. (The order of
+/// the sums and the roundings differ from [`ChainDisc::run`]: the two agree to rounding.)
 #[inline(always)]
 fn step<const N: usize>(b: &Block<N>, z: &mut [Lane; N], prev: &Lane, s: &Lane) {
     // Downwards, so that the states below `i` are still the old ones (`Φ` is lower
     // triangular).
     for i in (0..N).rev() {
-        let mut acc = add(&mul(&b.g0[i], prev), &mul(&b.g1[i], s));
+        let mut acc = fma(&b.g1[i], s, &mul(&b.g0[i], prev));
         for (p, zj) in b.phi[i].iter().zip(z.iter()).take(i + 1) {
-            acc = add(&acc, &mul(p, zj));
+            acc = fma(p, zj, &acc);
         }
         z[i] = acc;
     }
@@ -375,6 +382,10 @@ impl FilterBank {
     /// Advance over `len` samples: `drivers[d][k]` is driver `d` at the `k`-th sample after
     /// the state's. With `out = Some((buf, stride))`, the states at each sample are written
     /// to `buf[k · stride + row]` (see [`Self::row`]); `stride ≥ n_rows()`.
+    ///
+    /// Runs the AVX-512 path where the processor has it, else the AVX + FMA path, else the
+    /// portable one (on an x86-64 processor without FMA, made before 2013, its fused
+    /// multiply-adds are computed in software: the same numbers, many times slower).
     pub fn advance(
         &self,
         state: &mut BankState,
@@ -383,19 +394,27 @@ impl FilterBank {
         out: Option<(&mut [f64], usize)>,
     ) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx") {
-            // SAFETY: the processor has AVX (checked just above).
-            unsafe { self.advance_avx(state, drivers, len, out) };
-            return;
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the processor has AVX-512F (checked just above).
+                unsafe { self.advance_avx512(state, drivers, len, out) };
+                return;
+            }
+            if std::arch::is_x86_feature_detected!("avx")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                // SAFETY: the processor has AVX and FMA (checked just above).
+                unsafe { self.advance_avx(state, drivers, len, out) };
+                return;
+            }
         }
         self.advance_any(state, drivers, len, out);
     }
 
-    /// [`Self::advance`] with 256-bit vectors: one block (`LANES` = 4 chains) per
-    /// operation, the same products and sums in the same order as [`step`] (no fused
-    /// multiply-add), so the results equal those of the portable path bit for bit.
+    /// [`Self::advance`] with 256-bit vectors (four chains each), up to 16 corners; more
+    /// take the portable path, compiled here with fused multiply-add.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx,fma")]
     fn advance_avx(
         &self,
         state: &mut BankState,
@@ -403,105 +422,144 @@ impl FilterBank {
         len: usize,
         out: Option<(&mut [f64], usize)>,
     ) {
-        // The order and the blocks per driver fixed at compile time: the states of a driver's
-        // blocks then live in registers across samples.
+        use std::arch::x86_64::__m256d;
         macro_rules! dispatch {
             ($($n:literal)*) => {
-                match (self.order, self.bpd) {
+                match (self.order, self.n_corners.div_ceil(4)) {
                     $(
-                        ($n, 1) => self.advance_avx_n::<$n, 1>(state, drivers, len, out),
-                        ($n, 2) => self.advance_avx_n::<$n, 2>(state, drivers, len, out),
-                        ($n, 3) => self.advance_avx_n::<$n, 3>(state, drivers, len, out),
+                        ($n, 1) => self.advance_simd::<__m256d, $n, 1>(state, drivers, len, out),
+                        ($n, 2) => self.advance_simd::<__m256d, $n, 2>(state, drivers, len, out),
+                        ($n, 3) => self.advance_simd::<__m256d, $n, 3>(state, drivers, len, out),
+                        ($n, 4) => self.advance_simd::<__m256d, $n, 4>(state, drivers, len, out),
                     )*
                     _ => self.advance_any(state, drivers, len, out),
                 }
             };
         }
-        dispatch!(1 2 3 4 5 6 7 8)
+        // SAFETY: AVX and FMA are enabled here.
+        unsafe { dispatch!(1 2 3 4 5 6 7 8) }
     }
 
+    /// [`Self::advance`] with 512-bit vectors (eight chains each: the default six corners of
+    /// a driver take one vector instead of two half-filled ones), up to 16 corners.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn advance_avx_n<const N: usize, const B: usize>(
+    #[target_feature(enable = "avx512f")]
+    fn advance_avx512(
+        &self,
+        state: &mut BankState,
+        drivers: &[&[f64]],
+        len: usize,
+        out: Option<(&mut [f64], usize)>,
+    ) {
+        use std::arch::x86_64::__m512d;
+        macro_rules! dispatch {
+            ($($n:literal)*) => {
+                match (self.order, self.n_corners.div_ceil(8)) {
+                    $(
+                        ($n, 1) => self.advance_simd::<__m512d, $n, 1>(state, drivers, len, out),
+                        ($n, 2) => self.advance_simd::<__m512d, $n, 2>(state, drivers, len, out),
+                    )*
+                    _ => self.advance_any(state, drivers, len, out),
+                }
+            };
+        }
+        // SAFETY: AVX-512F is enabled here.
+        unsafe { dispatch!(1 2 3 4 5 6 7 8) }
+    }
+
+    /// The vector paths: `V` vectors of `S::W` chains per driver (vector `v` holds the
+    /// driver's corners `v·W …`, zero coefficients past the last). Where the registers
+    /// allow, drivers go in pairs (an odd last one alone), both advanced at each sample:
+    /// two independent recursions to overlap, two driving columns read side by side, and a
+    /// sample's outputs of the pair written together (they are adjacent in the row).
+    ///
+    /// # Safety
+    /// The processor has the instructions of `S`; called from a function that enables
+    /// them, into which this is inlined.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn advance_simd<S: simd::Vector, const N: usize, const V: usize>(
         &self,
         state: &mut BankState,
         drivers: &[&[f64]],
         len: usize,
         mut out: Option<(&mut [f64], usize)>,
     ) {
-        use std::arch::x86_64::{
-            __m256d, _mm256_add_pd, _mm256_castpd256_pd128, _mm256_extractf128_pd, _mm256_loadu_pd,
-            _mm256_mul_pd, _mm256_set1_pd, _mm256_storeu_pd, _mm_storel_pd, _mm_storeu_pd,
-        };
-        const _: () = assert!(LANES == 4, "one AVX vector per block");
-        // SAFETY: a `Lane` is 4 contiguous f64, exactly what an unaligned load reads.
-        let ld = |x: &Lane| unsafe { _mm256_loadu_pd(x.as_ptr()) };
         self.check_args(drivers, len, &out);
+        let (bpd, nc) = (self.bpd, self.n_corners);
         assert_eq!(
-            self.bpd, B,
-            "invariant: dispatched on the blocks per driver"
+            nc.div_ceil(S::W),
+            V,
+            "invariant: dispatched on the vectors per driver"
         );
-        let blocks = self.blocks::<N>();
-        let nc = self.n_corners;
-        let width = N * nc;
-        // Lanes of the last block that are chains (it may be partial).
-        let last = nc - (B - 1) * LANES;
-        for (d, (bs, &col)) in blocks.chunks_exact(B).zip(drivers).enumerate() {
-            let bs: &[Block<N>; B] = bs.try_into().expect("invariant: B blocks per driver");
-            let zst = &mut state.z[d * B * N..(d + 1) * B * N];
-            let mut zs: [[__m256d; N]; B] =
-                std::array::from_fn(|b| std::array::from_fn(|i| ld(&zst[b * N + i])));
-            let col = &col[..len];
-            let mut prev = state.prev[d];
-            for (k, &s) in col.iter().enumerate() {
-                let (p, sv) = (_mm256_set1_pd(prev), _mm256_set1_pd(s));
-                for (b, zb) in bs.iter().zip(zs.iter_mut()) {
-                    for i in (0..N).rev() {
-                        let mut acc = _mm256_add_pd(
-                            _mm256_mul_pd(ld(&b.g0[i]), p),
-                            _mm256_mul_pd(ld(&b.g1[i]), sv),
-                        );
-                        for (p, zj) in b.phi[i].iter().zip(zb.iter()).take(i + 1) {
-                            acc = _mm256_add_pd(acc, _mm256_mul_pd(ld(p), *zj));
-                        }
-                        zb[i] = acc;
-                    }
+        // The lanes of vector `v`: blocks `v·W/LANES …` of `lanes[at + block · stride]`,
+        // zeros past the driver's last block.
+        let gather = |lanes: &[Lane], v: usize, stride: usize| -> S {
+            let mut x = [0.0; simd::MAX_W];
+            for h in 0..S::W / LANES {
+                let blk = v * S::W / LANES + h;
+                if blk < bpd {
+                    x[h * LANES..(h + 1) * LANES].copy_from_slice(&lanes[blk * stride]);
                 }
-                if let Some((buf, stride)) = out.as_mut() {
-                    let row = &mut buf[k * *stride + d * width..k * *stride + (d + 1) * width];
-                    let base = row.as_mut_ptr();
-                    for (b, zb) in zs.iter().enumerate() {
-                        for (i, v) in zb.iter().enumerate() {
-                            // SAFETY: lanes `i·nc + b·LANES ..+ r` of `row` (r = LANES, or
-                            // `last` for the last block) lie inside its `N · nc` values.
-                            unsafe {
-                                let at = base.add(i * nc + b * LANES);
-                                if b + 1 < B || last == LANES {
-                                    _mm256_storeu_pd(at, *v);
-                                } else {
-                                    let lo = _mm256_castpd256_pd128(*v);
-                                    match last {
-                                        1 => _mm_storel_pd(at, lo),
-                                        2 => _mm_storeu_pd(at, lo),
-                                        _ => {
-                                            _mm_storeu_pd(at, lo);
-                                            _mm_storel_pd(at.add(2), _mm256_extractf128_pd(*v, 1));
-                                        }
-                                    }
-                                }
+            }
+            // SAFETY: `x` holds at least `S::W` values; the caller has `S`.
+            unsafe { S::load(x.as_ptr()) }
+        };
+        // Every driver's chains have the same coefficients: the first driver's serve all.
+        let per = N * N + 2 * N;
+        let c = |j: usize, v: usize| gather(&self.coef[j..], v, per);
+        let coef = simd::Coef::<S, N, V> {
+            phi: std::array::from_fn(|v| {
+                std::array::from_fn(|i| std::array::from_fn(|j| c(i * N + j, v)))
+            }),
+            g0: std::array::from_fn(|v| std::array::from_fn(|i| c(N * N + i, v))),
+            g1: std::array::from_fn(|v| std::array::from_fn(|i| c(N * N + N + i, v))),
+            lanes: std::array::from_fn(|v| (nc - v * S::W).min(S::W)),
+        };
+        // Drivers in pairs where the coefficients, both drivers' states and the driving
+        // values fit in the registers (otherwise the states would go through memory).
+        let pairs = V * (N * (N + 1) / 2 + 2 * N) + 2 * V * N + 4 <= S::REGISTERS;
+        let mut d = 0;
+        while d < drivers.len() {
+            let group = (drivers.len() - d).min(if pairs { 2 } else { 1 });
+            let zst = &mut state.z[d * bpd * N..(d + group) * bpd * N];
+            let load = |zst: &[Lane], g: usize| -> [[S; N]; V] {
+                std::array::from_fn(|v| {
+                    std::array::from_fn(|i| gather(&zst[g * bpd * N + i..], v, N))
+                })
+            };
+            let mut zs = [load(zst, 0), load(zst, group - 1)];
+            let out = out.as_mut().map(|(buf, stride)| (&mut **buf, *stride));
+            let prev = &mut state.prev[d..d + group];
+            // SAFETY: the caller has `S`.
+            unsafe {
+                if group == 2 {
+                    simd::advance_group::<S, N, V, 2>(
+                        &coef, &mut zs, prev, drivers, d, len, nc, out,
+                    );
+                } else {
+                    simd::advance_group::<S, N, V, 1>(
+                        &coef, &mut zs, prev, drivers, d, len, nc, out,
+                    );
+                }
+            }
+            for (g, zg) in zs.iter().enumerate().take(group) {
+                for (v, zv) in zg.iter().enumerate() {
+                    for (i, z) in zv.iter().enumerate() {
+                        let mut x = [0.0; simd::MAX_W];
+                        // SAFETY: `x` holds at least `S::W` values; the caller has `S`.
+                        unsafe { z.store(x.as_mut_ptr()) };
+                        for h in 0..S::W / LANES {
+                            let blk = v * S::W / LANES + h;
+                            if blk < bpd {
+                                zst[(g * bpd + blk) * N + i]
+                                    .copy_from_slice(&x[h * LANES..(h + 1) * LANES]);
                             }
                         }
                     }
                 }
-                prev = s;
             }
-            state.prev[d] = prev;
-            for (dst, v) in zst.iter_mut().zip(zs.iter().flatten()) {
-                let mut lane = [0.0; LANES];
-                // SAFETY: `lane` is LANES = 4 contiguous f64.
-                unsafe { _mm256_storeu_pd(lane.as_mut_ptr(), *v) };
-                *dst = lane;
-            }
+            d += group;
         }
     }
 
@@ -526,6 +584,7 @@ impl FilterBank {
             .collect()
     }
 
+    #[inline(always)]
     fn advance_any(
         &self,
         state: &mut BankState,
@@ -544,6 +603,7 @@ impl FilterBank {
         dispatch!(1 2 3 4 5 6 7 8)
     }
 
+    #[inline(always)]
     fn advance_n<const N: usize>(
         &self,
         state: &mut BankState,
@@ -612,6 +672,188 @@ impl FilterBank {
     /// The filter order.
     pub fn order(&self) -> usize {
         self.order
+    }
+}
+
+/// What the vector paths of [`FilterBank::advance`] need of an instruction set, and the
+/// kernel they share.
+#[cfg(target_arch = "x86_64")]
+mod simd {
+    use std::arch::x86_64::{
+        __m256d, __m512d, _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_maskstore_pd, _mm256_mul_pd,
+        _mm256_set1_pd, _mm256_setr_epi64x, _mm256_storeu_pd, _mm512_fmadd_pd, _mm512_loadu_pd,
+        _mm512_mask_storeu_pd, _mm512_mul_pd, _mm512_set1_pd, _mm512_storeu_pd, _mm_prefetch,
+        _MM_HINT_T0,
+    };
+
+    /// The most lanes of any vector.
+    pub const MAX_W: usize = 8;
+
+    /// A vector of `W` chains. Every method needs the processor to have the instructions:
+    /// they are called only from functions that enable them.
+    pub trait Vector: Copy {
+        /// Lanes.
+        const W: usize;
+        /// Vector registers of the instruction set.
+        const REGISTERS: usize;
+        unsafe fn splat(x: f64) -> Self;
+        /// `W` values from `at`.
+        unsafe fn load(at: *const f64) -> Self;
+        /// `W` values to `at`.
+        unsafe fn store(self, at: *mut f64);
+        /// The first `lanes` values to `at`.
+        unsafe fn store_first(self, at: *mut f64, lanes: usize);
+        unsafe fn mul(self, b: Self) -> Self;
+        /// `self · b + c`, rounded once.
+        unsafe fn mul_add(self, b: Self, c: Self) -> Self;
+    }
+
+    impl Vector for __m256d {
+        const W: usize = 4;
+        const REGISTERS: usize = 16;
+        #[inline(always)]
+        unsafe fn splat(x: f64) -> Self {
+            unsafe { _mm256_set1_pd(x) }
+        }
+        #[inline(always)]
+        unsafe fn load(at: *const f64) -> Self {
+            unsafe { _mm256_loadu_pd(at) }
+        }
+        #[inline(always)]
+        unsafe fn store(self, at: *mut f64) {
+            unsafe { _mm256_storeu_pd(at, self) }
+        }
+        #[inline(always)]
+        unsafe fn store_first(self, at: *mut f64, lanes: usize) {
+            // A lane is stored where its mask has the sign bit set.
+            let on = |l: usize| if l < lanes { -1 } else { 0 };
+            unsafe { _mm256_maskstore_pd(at, _mm256_setr_epi64x(on(0), on(1), on(2), on(3)), self) }
+        }
+        #[inline(always)]
+        unsafe fn mul(self, b: Self) -> Self {
+            unsafe { _mm256_mul_pd(self, b) }
+        }
+        #[inline(always)]
+        unsafe fn mul_add(self, b: Self, c: Self) -> Self {
+            unsafe { _mm256_fmadd_pd(self, b, c) }
+        }
+    }
+
+    impl Vector for __m512d {
+        const W: usize = 8;
+        const REGISTERS: usize = 32;
+        #[inline(always)]
+        unsafe fn splat(x: f64) -> Self {
+            unsafe { _mm512_set1_pd(x) }
+        }
+        #[inline(always)]
+        unsafe fn load(at: *const f64) -> Self {
+            unsafe { _mm512_loadu_pd(at) }
+        }
+        #[inline(always)]
+        unsafe fn store(self, at: *mut f64) {
+            unsafe { _mm512_storeu_pd(at, self) }
+        }
+        #[inline(always)]
+        unsafe fn store_first(self, at: *mut f64, lanes: usize) {
+            let mask = ((1u16 << lanes.min(8)) - 1) as u8;
+            unsafe { _mm512_mask_storeu_pd(at, mask, self) }
+        }
+        #[inline(always)]
+        unsafe fn mul(self, b: Self) -> Self {
+            unsafe { _mm512_mul_pd(self, b) }
+        }
+        #[inline(always)]
+        unsafe fn mul_add(self, b: Self, c: Self) -> Self {
+            unsafe { _mm512_fmadd_pd(self, b, c) }
+        }
+    }
+
+    /// The bank's coefficients as vectors, and the lanes of each vector that are chains.
+    pub struct Coef<S, const N: usize, const V: usize> {
+        pub phi: [[[S; N]; N]; V],
+        pub g0: [[S; N]; V],
+        pub g1: [[S; N]; V],
+        pub lanes: [usize; V],
+    }
+
+    /// Samples ahead of the one being filtered that each driving column is prefetched:
+    /// the columns come from memory (the first pass read them long before), and the
+    /// recursion reads them slower than the processor's own prefetching expects.
+    const PREFETCH: usize = 256;
+
+    /// `D` drivers from `first` on, advanced together over `len` samples; `zs[g]` and
+    /// `prev[g]` are driver `first + g`'s. The operations of [`super::step`] in its order.
+    ///
+    /// # Safety
+    /// The processor has the instructions of `S`; called from a function that enables
+    /// them, into which this is inlined.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub unsafe fn advance_group<S: Vector, const N: usize, const V: usize, const D: usize>(
+        coef: &Coef<S, N, V>,
+        zs: &mut [[[S; N]; V]; 2],
+        prev: &mut [f64],
+        drivers: &[&[f64]],
+        first: usize,
+        len: usize,
+        nc: usize,
+        out: Option<(&mut [f64], usize)>,
+    ) {
+        let cols: [&[f64]; D] = std::array::from_fn(|g| &drivers[first + g][..len]);
+        let mut p: [f64; D] = std::array::from_fn(|g| prev[g]);
+        let width = N * nc;
+        // No closures here: a closure would not inherit the instruction set of the function
+        // this is inlined into, and its vector operations would become calls.
+        let mut out = out;
+        for k in 0..len {
+            if k % 8 == 0 {
+                for c in &cols {
+                    // SAFETY: a prefetch only hints (no fault, nothing read).
+                    unsafe {
+                        _mm_prefetch::<_MM_HINT_T0>(c.as_ptr().wrapping_add(k + PREFETCH).cast())
+                    };
+                }
+            }
+            for g in 0..D {
+                // SAFETY: the caller has `S`.
+                unsafe {
+                    let (pv, sv) = (S::splat(p[g]), S::splat(cols[g][k]));
+                    for (v, zv) in zs[g].iter_mut().enumerate() {
+                        for i in (0..N).rev() {
+                            let mut acc = coef.g1[v][i].mul_add(sv, coef.g0[v][i].mul(pv));
+                            for (phi, z) in coef.phi[v][i].iter().zip(zv.iter()).take(i + 1) {
+                                acc = phi.mul_add(*z, acc);
+                            }
+                            zv[i] = acc;
+                        }
+                    }
+                }
+                p[g] = cols[g][k];
+            }
+            if let Some((buf, stride)) = out.as_mut() {
+                let row = &mut buf[k * *stride + first * width..k * *stride + (first + D) * width];
+                let base = row.as_mut_ptr();
+                for (g, zg) in zs.iter().enumerate().take(D) {
+                    for (v, zv) in zg.iter().enumerate() {
+                        for (i, z) in zv.iter().enumerate() {
+                            // SAFETY: lanes `g·width + i·nc + v·W ..+ r` of `row` (r the
+                            // chains of vector `v`) lie inside its `D · width` values; the
+                            // caller has `S`.
+                            unsafe {
+                                let at = base.add(g * width + i * nc + v * S::W);
+                                if coef.lanes[v] == S::W {
+                                    z.store(at);
+                                } else {
+                                    z.store_first(at, coef.lanes[v]);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        prev[..D].copy_from_slice(&p);
     }
 }
 
@@ -692,6 +934,30 @@ mod tests {
         err / scale
     }
 
+    type Path = fn(&FilterBank, &mut BankState, &[&[f64]], usize, Option<(&mut [f64], usize)>);
+
+    /// The vector paths of [`FilterBank::advance`] this processor can run.
+    fn vector_paths() -> Vec<(&'static str, Path)> {
+        #[allow(unused_mut)]
+        let mut paths: Vec<(&'static str, Path)> = Vec::new();
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                // SAFETY: the processor has AVX and FMA (checked just above).
+                paths.push(("avx", |b, s, d, l, o| unsafe { b.advance_avx(s, d, l, o) }));
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the processor has AVX-512F (checked just above).
+                paths.push(("avx512", |b, s, d, l, o| unsafe {
+                    b.advance_avx512(s, d, l, o)
+                }));
+            }
+        }
+        paths
+    }
+
     /// The bank (structure of arrays, fed in uneven pieces) against the per-chain recursion
     /// of `ChainDisc::run`, for every order with an odd number of corners (a padded block),
     /// to 1e-12 of the largest value of each state.
@@ -708,22 +974,39 @@ mod tests {
             let bank = FilterBank::new(&corners, drivers.len(), order, ts, Hold::FirstOrder);
             let stride = bank.n_rows() + 3;
             let prev: Vec<f64> = drivers.iter().map(|s| s[0]).collect();
-            let mut st = bank.state(&prev);
-            let mut out = vec![f64::NAN; (n - 1) * stride];
-            let mut k0 = 1;
-            for piece in [1, 17, 1000, 1981, 1] {
-                let ds: Vec<&[f64]> = drivers.iter().map(|s| &s[k0..k0 + piece]).collect();
-                let o = &mut out[(k0 - 1) * stride..];
-                bank.advance(&mut st, &ds, piece, Some((o, stride)));
-                k0 += piece;
-            }
-            assert_eq!(k0, n);
-            // The portable path (the vector path where the processor has one) gives the
-            // same values bit for bit.
+            // Every path this processor has, fed in uneven pieces.
+            let run = |path: Path| {
+                let mut st = bank.state(&prev);
+                let mut out = vec![f64::NAN; (n - 1) * stride];
+                let mut k0 = 1;
+                for piece in [1, 17, 1000, 1981, 1] {
+                    let ds: Vec<&[f64]> = drivers.iter().map(|s| &s[k0..k0 + piece]).collect();
+                    let o = Some((&mut out[(k0 - 1) * stride..], stride));
+                    path(&bank, &mut st, &ds, piece, o);
+                    k0 += piece;
+                }
+                assert_eq!(k0, n);
+                (st, out)
+            };
+            let (st, out) = run(FilterBank::advance);
+            // The portable path, in one piece, and every vector path give the same values
+            // bit for bit.
             let mut st_any = bank.state(&prev);
             let mut out_any = vec![f64::NAN; (n - 1) * stride];
             let ds: Vec<&[f64]> = drivers.iter().map(|s| &s[1..]).collect();
             bank.advance_any(&mut st_any, &ds, n - 1, Some((&mut out_any, stride)));
+            for (name, path) in vector_paths() {
+                let (st_v, out_v) = run(path);
+                assert_eq!(st_v, st_any, "{name}, order {order}");
+                assert!(
+                    out_v
+                        .iter()
+                        .zip(&out_any)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{name}, order {order}, {} corners",
+                    corners.len()
+                );
+            }
             assert_eq!(st_any, st, "order {order}");
             for (k, (a, b)) in out.iter().zip(&out_any).enumerate() {
                 if k % stride < bank.n_rows() {
