@@ -3,7 +3,7 @@
 //! the filter-and-moment pass with the number of threads on one long level.
 //!
 //! Run: `cargo bench -p dynid-runtime --bench identify`
-//! (`DYNID_BENCH_SAMPLES=100000,1000000` sets the samples per level of each run,
+//! (`DYNID_BENCH_SAMPLES=100000,1000000` sets the samples per level of each run, 0 none,
 //! `DYNID_BENCH_SCALING_SAMPLES=10000000` the samples of the one level of the thread table,
 //! 0 to skip it, and `DYNID_BENCH_THREADS=1,2,4,8` its thread counts: by default powers of
 //! two up to the number of cores.)
@@ -259,7 +259,8 @@ fn env_list(name: &str) -> Option<Vec<usize>> {
 
 fn main() {
     let lengths = env_list("DYNID_BENCH_SAMPLES").unwrap_or_else(|| vec![100_000, 1_000_000]);
-    for n in lengths {
+    // A length of 0 skips the runs (e.g. to take only the thread-scaling table).
+    for n in lengths.into_iter().filter(|&n| n > 0) {
         run(n);
     }
     let n = env_list("DYNID_BENCH_SCALING_SAMPLES")
