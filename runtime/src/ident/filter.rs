@@ -682,8 +682,7 @@ mod simd {
     use std::arch::x86_64::{
         __m256d, __m512d, _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_maskstore_pd, _mm256_mul_pd,
         _mm256_set1_pd, _mm256_setr_epi64x, _mm256_storeu_pd, _mm512_fmadd_pd, _mm512_loadu_pd,
-        _mm512_mask_storeu_pd, _mm512_mul_pd, _mm512_set1_pd, _mm512_storeu_pd, _mm_prefetch,
-        _MM_HINT_T0,
+        _mm512_mask_storeu_pd, _mm512_mul_pd, _mm512_set1_pd, _mm512_storeu_pd,
     };
 
     /// The most lanes of any vector.
@@ -777,11 +776,6 @@ mod simd {
         pub lanes: [usize; V],
     }
 
-    /// Samples ahead of the one being filtered that each driving column is prefetched:
-    /// the columns come from memory (the first pass read them long before), and the
-    /// recursion reads them slower than the processor's own prefetching expects.
-    const PREFETCH: usize = 256;
-
     /// `D` drivers from `first` on, advanced together over `len` samples; `zs[g]` and
     /// `prev[g]` are driver `first + g`'s. The operations of [`super::step`] in its order.
     ///
@@ -808,11 +802,11 @@ mod simd {
         let mut out = out;
         for k in 0..len {
             if k % 8 == 0 {
+                // The columns come from memory (the first pass read them long before), and
+                // the recursion reads them slower than the processor's own prefetching
+                // expects.
                 for c in &cols {
-                    // SAFETY: a prefetch only hints (no fault, nothing read).
-                    unsafe {
-                        _mm_prefetch::<_MM_HINT_T0>(c.as_ptr().wrapping_add(k + PREFETCH).cast())
-                    };
+                    crate::prefetch::ahead(c, k);
                 }
             }
             for g in 0..D {

@@ -421,7 +421,12 @@ impl PiecePass {
         // Sums in four independent lanes (no wait on the previous addition).
         let (mut a, mut b) = ([0.0; 4], [0.0; 4]);
         let mut chunks = c.chunks_exact(4);
-        for ch in &mut chunks {
+        for (q, ch) in (&mut chunks).enumerate() {
+            if q % 2 == 0 {
+                // The piece comes from memory, and is too short for the processor's own
+                // prefetching to lock on.
+                crate::prefetch::ahead(c, 4 * q);
+            }
             for j in 0..4 {
                 let d = ch[j] - shift;
                 a[j] += d;
