@@ -5,8 +5,9 @@
 //! Run: `cargo bench -p dynid-runtime --bench identify`
 //! (`DYNID_BENCH_SAMPLES=100000,1000000` sets the samples per level of each run, 0 none,
 //! `DYNID_BENCH_SCALING_SAMPLES=10000000` the samples of the one level of the thread table,
-//! 0 to skip it, and `DYNID_BENCH_THREADS=1,2,4,8` its thread counts: by default powers of
-//! two up to the number of cores.)
+//! 0 to skip it, `DYNID_BENCH_THREADS=1,2,4,8` its thread counts: by default powers of
+//! two up to the number of cores, and `DYNID_BENCH_CHUNK=8192` the samples per streamed
+//! chunk of every identification.)
 //!
 //! Every time is also given as a ratio to a reference measured in the same run on the same
 //! data: from memory, one pass that streams the records and sums every value; from CSV,
@@ -115,7 +116,7 @@ fn run(n: usize) {
         t.elapsed().as_secs_f64(),
         rayon::current_num_threads()
     );
-    let opts = IdentifyOptions::default();
+    let opts = options();
 
     let srcs: Vec<RecordSource> = recs
         .iter()
@@ -222,7 +223,7 @@ fn scaling(n: usize, threads: &[usize]) {
     );
     let src = RecordSource::new(&rec, &ir, "level").unwrap();
     let levels: Vec<&dyn LevelSource> = vec![&src];
-    let opts = IdentifyOptions::default();
+    let opts = options();
     println!(
         "threads  identify (s)  pass (s)  pass speed-up  pass / reference  M samples/s (pass)"
     );
@@ -249,6 +250,19 @@ fn scaling(n: usize, threads: &[usize]) {
             rec.len() as f64 / t_pass / 1e6
         );
     }
+}
+
+/// The identification's options, with `DYNID_BENCH_CHUNK` (samples per streamed chunk)
+/// where it is set.
+fn options() -> IdentifyOptions {
+    let mut opts = IdentifyOptions::default();
+    if let Some(&c) = env_list("DYNID_BENCH_CHUNK")
+        .as_deref()
+        .and_then(|v| v.first())
+    {
+        opts.chunk_len = c.max(1);
+    }
+    opts
 }
 
 fn env_list(name: &str) -> Option<Vec<usize>> {
