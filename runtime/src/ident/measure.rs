@@ -395,7 +395,8 @@ struct SignalPass {
     shift: f64,
     s1: f64,
     s2: f64,
-    /// Hysteresis zero-crossing count about a reference (mean, band) from the first chunk.
+    /// Hysteresis zero-crossing count about a reference (mean, band) from the record's
+    /// first [`REFERENCE_LEN`] samples.
     reference: (f64, f64),
     side: i8,
     crossings: usize,
@@ -477,12 +478,18 @@ impl PiecePass {
     }
 }
 
+/// Samples at the start of a record that give the zero-crossing count its reference (the
+/// first chunk where a chunk is shorter), so that the count, and the filter corners
+/// designed from it, do not depend on the chunk length above it.
+const REFERENCE_LEN: usize = 8192;
+
 impl SignalPass {
     fn push(&mut self, c: &[f64], first: bool) {
         if first {
             self.shift = c[0];
-            let mean = c.iter().sum::<f64>() / c.len() as f64;
-            let var = c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / c.len() as f64;
+            let r = &c[..c.len().min(REFERENCE_LEN)];
+            let mean = r.iter().sum::<f64>() / r.len() as f64;
+            let var = r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / r.len() as f64;
             self.reference = (mean, 0.25 * var.sqrt());
         }
         let (mid, h) = self.reference;
@@ -682,10 +689,16 @@ mod tests {
             f.push(&x);
             f
         };
+        let mut long_chunks = None;
         for chunk in [50_000, 8192, 4097, 2048, 300, 7] {
             let mut sp = SignalPass::default();
             for (i, c) in x.chunks(chunk).enumerate() {
                 sp.push(c, i == 0);
+            }
+            // Chunks of at least REFERENCE_LEN samples: one reference, so one count.
+            if chunk >= REFERENCE_LEN {
+                let got = (sp.reference, sp.crossings);
+                assert_eq!(*long_chunks.get_or_insert(got), got, "chunks of {chunk}");
             }
             // The hysteresis count of a sample-by-sample scan about the same reference.
             let (mid, h) = sp.reference;

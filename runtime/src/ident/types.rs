@@ -23,7 +23,10 @@ pub struct IdentifyOptions {
     /// chosen from the record ([`design::blocks`]: between 20 and 80).
     pub n_blocks: Option<usize>,
     /// Samples per chunk of streamed work (memory use is proportional to this, not to the
-    /// record length).
+    /// record length). Each chunk is one round of parallel work in tasks of about a
+    /// thousand samples: on a machine with many cores a longer chunk gives every thread
+    /// several tasks per round. Results do not depend on it beyond rounding from 8192
+    /// samples up.
     pub chunk_len: usize,
     /// Singular values below `rcond · σ_max` count as rank loss.
     pub rcond: f64,
