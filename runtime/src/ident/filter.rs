@@ -395,15 +395,13 @@ impl FilterBank {
     ) {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the processor has AVX-512F (checked just above).
+            if simd::has_avx512() {
+                // SAFETY: the processor has what the path needs (checked just above).
                 unsafe { self.advance_avx512(state, drivers, len, out) };
                 return;
             }
-            if std::arch::is_x86_feature_detected!("avx")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                // SAFETY: the processor has AVX and FMA (checked just above).
+            if simd::has_avx_fma() {
+                // SAFETY: the processor has what the path needs (checked just above).
                 unsafe { self.advance_avx(state, drivers, len, out) };
                 return;
             }
@@ -688,6 +686,16 @@ mod simd {
     /// The most lanes of any vector.
     pub const MAX_W: usize = 8;
 
+    /// Whether the processor can run [`super::FilterBank::advance_avx512`].
+    pub fn has_avx512() -> bool {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+
+    /// Whether the processor can run [`super::FilterBank::advance_avx`].
+    pub fn has_avx_fma() -> bool {
+        std::arch::is_x86_feature_detected!("avx") && std::arch::is_x86_feature_detected!("fma")
+    }
+
     /// A vector of `W` chains. Every method needs the processor to have the instructions:
     /// they are called only from functions that enable them.
     pub trait Vector: Copy {
@@ -936,14 +944,12 @@ mod tests {
         let mut paths: Vec<(&'static str, Path)> = Vec::new();
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                // SAFETY: the processor has AVX and FMA (checked just above).
+            if simd::has_avx_fma() {
+                // SAFETY: the processor has what the path needs (checked just above).
                 paths.push(("avx", |b, s, d, l, o| unsafe { b.advance_avx(s, d, l, o) }));
             }
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the processor has AVX-512F (checked just above).
+            if simd::has_avx512() {
+                // SAFETY: the processor has what the path needs (checked just above).
                 paths.push(("avx512", |b, s, d, l, o| unsafe {
                     b.advance_avx512(s, d, l, o)
                 }));
