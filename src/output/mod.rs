@@ -1,32 +1,48 @@
 //! Writing output files, all or nothing. The numerics format (into any `io::Write`); only
-//! this crate opens files.
+//! this crate opens files for writing.
 //!
-//! [`Staged`] is the one atomic writer: every file of a command goes to a temporary file
-//! beside its target (`tempfile`, keeping the extension, which some writers use to pick a
-//! format) and all are moved into place by [`Staged::commit`]. Dropping an uncommitted set
-//! deletes its temporaries, so an error never leaves a partial output behind.
+//! [`Staged`] is the one writer: every file of a command goes to a temporary file
+//! (`tempfile`, keeping the extension, which some writers use to pick a format) and all are
+//! put in place by [`Staged::commit`]. Dropping an uncommitted set deletes its temporaries,
+//! so an error never leaves a partial output behind, and so does an interrupt
+//! ([`cleanup`]). What "in place" means depends on what the path names ([`target`]): a
+//! regular file is replaced by a rename of a temporary made beside it (through symbolic
+//! links: the link stays); a device, FIFO or descriptor path (`/dev/null`, `/dev/stdout`,
+//! `>(jq .)`) is written through, from a temporary in the system's temporary directory. A
+//! new file gets the mode of the user's umask (0644 under `umask 022`); a replaced file
+//! keeps its mode, and its owner and group where the process may set them.
 
-use dsl_parser::ir::ModelIr;
-use dynid_runtime::record::Record;
-use dynid_runtime::sim::{
-    self, level_file_names, write_csv, CsvSink, SampleSink, SimConfig, SimOutput, Truth,
+pub mod cleanup;
+mod sim;
+pub mod target;
+
+pub use sim::{
+    csv_bytes, run_files, run_outputs, simulate_to_dir, stage_driven, stage_levels,
+    write_simulation, LevelWritten,
 };
-use miette::{miette, IntoDiagnostic};
+pub use target::{check_out_dir, check_output, check_space, parent_dir, resolve, Target};
+
+use dynid_runtime::record::Record;
+use dynid_runtime::sim::write_csv;
+use miette::miette;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use tempfile::TempPath;
 
+/// One staged output: its temporary, where it goes, and its registration for removal on an
+/// interrupt (declared after the temporary, so it is dropped after the file is deleted).
+struct Entry {
+    tmp: TempPath,
+    target: Target,
+    shown: PathBuf,
+    _registered: cleanup::Registered,
+}
+
 /// A set of output files written all or nothing.
 #[derive(Default)]
 pub struct Staged {
-    files: Vec<(TempPath, PathBuf)>,
-}
-
-/// The directory a file is written in (`.` for a bare file name).
-pub fn parent_dir(path: &Path) -> &Path {
-    path.parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."))
+    files: Vec<Entry>,
+    stale: Vec<PathBuf>,
 }
 
 impl Staged {
@@ -36,30 +52,40 @@ impl Staged {
 
     /// Create the (empty) temporary file for `target` and return its path; the caller
     /// writes it.
-    pub fn temp_for(&mut self, target: &Path) -> miette::Result<PathBuf> {
-        let name = target
+    pub fn temp_for(&mut self, path: &Path) -> miette::Result<PathBuf> {
+        let name = path
             .file_name()
             .ok_or_else(|| {
                 miette!(
                     code = "dynid::output::is_directory",
                     help = "give the path of a file",
                     "`{}` is not a file name",
-                    target.display()
+                    path.display()
                 )
             })?
             .to_string_lossy();
-        let ext = target
+        let ext = path
             .extension()
             .map(|e| format!(".{}", e.to_string_lossy()))
             .unwrap_or_default();
+        let target = target::target(path);
+        let dir = match &target {
+            Target::File(f) => parent_dir(f).to_path_buf(),
+            Target::Stream(_) => std::env::temp_dir(),
+        };
         let file = tempfile::Builder::new()
             .prefix(&format!(".{name}."))
             .suffix(&format!(".tmp{ext}"))
-            .tempfile_in(parent_dir(target))
-            .map_err(|e| write_error(target, e))?;
-        let path = file.into_temp_path();
-        let p = path.to_path_buf();
-        self.files.push((path, target.to_path_buf()));
+            .tempfile_in(&dir)
+            .map_err(|e| write_error(path, e))?;
+        let tmp = file.into_temp_path();
+        let p = tmp.to_path_buf();
+        self.files.push(Entry {
+            _registered: cleanup::register_file(&p),
+            tmp,
+            target,
+            shown: path.to_path_buf(),
+        });
         Ok(p)
     }
 
@@ -84,24 +110,99 @@ impl Staged {
         .map_err(|e| write_error(target, e))
     }
 
-    /// Move every staged file to its target. If one move fails, the files not yet moved
-    /// are deleted (those already moved stay: a rename cannot be undone).
+    /// Remove `paths` (files of an earlier run that this set replaces) once every staged
+    /// file is in place. A path that is missing by then is no error.
+    pub fn remove_on_commit(&mut self, paths: impl IntoIterator<Item = PathBuf>) {
+        self.stale.extend(paths);
+    }
+
+    /// Put every staged file in place: a file by a rename, a stream by writing it through.
+    /// If one fails, the files not yet in place are deleted (those already in place stay:
+    /// a rename cannot be undone).
     pub fn commit(mut self) -> miette::Result<()> {
-        for (tmp, target) in std::mem::take(&mut self.files) {
-            tmp.persist(&target)
-                .map_err(|e| write_error(&target, e.error))?;
+        for e in std::mem::take(&mut self.files) {
+            match &e.target {
+                Target::File(f) => {
+                    set_mode(&e.tmp, f);
+                    std::fs::rename(&e.tmp, f).map_err(|err| write_error(&e.shown, err))?;
+                    // The file is in place: nothing left to delete.
+                    let _ = e.tmp.keep();
+                }
+                Target::Stream(s) => {
+                    write_through(&e.tmp, s).map_err(|err| write_error(&e.shown, err))?;
+                }
+            }
+        }
+        for p in std::mem::take(&mut self.stale) {
+            match std::fs::remove_file(&p) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(miette!(
+                        code = "dynid::output::write",
+                        help = "remove it by hand: it belongs to the run these files replaced",
+                        "cannot remove `{}`: {e}",
+                        p.display()
+                    ))
+                }
+                _ => {}
+            }
         }
         Ok(())
     }
 }
 
-fn write_error(target: &Path, e: std::io::Error) -> miette::Report {
+/// Copy the temporary `tmp` into the stream `path` (opened for writing as it is: nothing
+/// created, nothing truncated). Standard output is flushed first, so text printed before
+/// stays before.
+fn write_through(tmp: &Path, path: &Path) -> std::io::Result<()> {
+    std::io::stdout().flush()?;
+    let mut src = std::fs::File::open(tmp)?;
+    let mut dst = std::fs::OpenOptions::new().write(true).open(path)?;
+    std::io::copy(&mut src, &mut dst)?;
+    dst.flush()
+}
+
+/// Give the temporary `tmp` the mode it should have as `target`: the mode of the file it
+/// replaces (and its owner and group, where the process may set them), else the user's
+/// umask's. Best effort: a file that cannot be given them keeps tempfile's 0600.
+fn set_mode(tmp: &Path, target: &Path) {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::{MetadataExt, PermissionsExt};
+        let mode = match std::fs::metadata(target) {
+            Ok(old) => {
+                if std::os::unix::fs::chown(tmp, Some(old.uid()), Some(old.gid())).is_err() {
+                    let _ = std::os::unix::fs::chown(tmp, None, Some(old.gid()));
+                }
+                old.mode() & 0o7777
+            }
+            Err(_) => target::new_file_mode(),
+        };
+        let _ = std::fs::set_permissions(tmp, std::fs::Permissions::from_mode(mode));
+    }
+    #[cfg(not(unix))]
+    let _ = (tmp, target);
+}
+
+/// The error of a failed write of `target`; a full disk is said so.
+pub(crate) fn write_error(target: &Path, e: std::io::Error) -> miette::Report {
+    if is_disk_full(&e) {
+        return miette!(
+            code = "dynid::output::write",
+            help = "free some space or write elsewhere; nothing was written",
+            "cannot write `{}`: the disk is full ({e})",
+            target.display()
+        );
+    }
     miette!(
         code = "dynid::output::write",
         help = "check the permissions and the free space where it goes; nothing was written",
         "cannot write `{}`: {e}",
         target.display()
     )
+}
+
+fn is_disk_full(e: &std::io::Error) -> bool {
+    e.kind() == std::io::ErrorKind::StorageFull || e.kind() == std::io::ErrorKind::QuotaExceeded
 }
 
 /// Write one file all or nothing.
@@ -126,133 +227,6 @@ pub fn create_dir(dir: &Path) -> miette::Result<()> {
             dir.display()
         )
     })
-}
-
-/// One simulated level file being written: its CSV and, for the summary, the running mean
-/// and variance of every column (Welford's update).
-struct LevelFile {
-    csv: CsvSink<std::io::BufWriter<std::fs::File>>,
-    n: usize,
-    mean: Vec<f64>,
-    m2: Vec<f64>,
-}
-
-impl SampleSink for LevelFile {
-    fn begin(&mut self, names: &[String], ts: f64) -> std::io::Result<()> {
-        self.mean = vec![0.0; names.len()];
-        self.m2 = vec![0.0; names.len()];
-        self.csv.begin(names, ts)
-    }
-    fn push(&mut self, cols: &[&[f64]], len: usize) -> std::io::Result<()> {
-        for (j, c) in cols.iter().enumerate() {
-            let (mut n, mut mean, mut m2) = (self.n as f64, self.mean[j], self.m2[j]);
-            for &x in &c[..len] {
-                n += 1.0;
-                let d = x - mean;
-                mean += d / n;
-                m2 += d * (x - mean);
-            }
-            (self.mean[j], self.m2[j]) = (mean, m2);
-        }
-        self.n += len;
-        self.csv.push(cols, len)
-    }
-}
-
-/// A written level: its file, sample count and the std of each column.
-pub struct LevelWritten {
-    pub path: PathBuf,
-    pub samples: usize,
-    pub std: Vec<f64>,
-}
-
-/// Simulate `ir` under `cfg` straight into `DIR/level_k.csv` (streamed: memory does not
-/// grow with the duration) and write `DIR/truth.json`, all or nothing; `DIR` is created if
-/// missing (and removed again, if it was created and the run fails). Returns what was
-/// simulated and the level files.
-pub fn simulate_to_dir(
-    ir: &ModelIr,
-    cfg: &SimConfig,
-    dir: &Path,
-    progress: &(dyn Fn(u64) + Sync),
-) -> miette::Result<(Truth, Vec<LevelWritten>)> {
-    let n = sim::level_count(ir, cfg)?;
-    let created = !dir.exists();
-    create_dir(dir)?;
-    let result = (|| {
-        let names = level_file_names(n);
-        let mut staged = Staged::new();
-        let mut files = Vec::with_capacity(n);
-        for name in &names {
-            let target = dir.join(name);
-            let tmp = staged.temp_for(&target)?;
-            let f = std::fs::File::create(&tmp).map_err(|e| write_error(&target, e))?;
-            files.push(LevelFile {
-                csv: CsvSink::new(std::io::BufWriter::with_capacity(1 << 16, f)),
-                n: 0,
-                mean: Vec::new(),
-                m2: Vec::new(),
-            });
-        }
-        let mut sinks: Vec<&mut dyn SampleSink> =
-            files.iter_mut().map(|f| f as &mut dyn SampleSink).collect();
-        let mut truth = sim::simulate_into(ir, cfg, progress, &mut sinks)?;
-        let mut written = Vec::with_capacity(n);
-        for (f, name) in files.into_iter().zip(&names) {
-            let target = dir.join(name);
-            f.csv
-                .into_inner()
-                .into_inner()
-                .map_err(|e| e.into_error())
-                .and_then(|file| file.sync_all())
-                .map_err(|e| write_error(&target, e))?;
-            written.push(LevelWritten {
-                path: target,
-                samples: f.n,
-                std: f
-                    .m2
-                    .iter()
-                    .map(|m2| {
-                        if f.n > 0 {
-                            (m2 / f.n as f64).sqrt()
-                        } else {
-                            0.0
-                        }
-                    })
-                    .collect(),
-            });
-        }
-        truth.files = names;
-        let json = serde_json::to_string_pretty(&truth).into_diagnostic()? + "\n";
-        staged.write(&dir.join("truth.json"), json.as_bytes())?;
-        staged.commit()?;
-        Ok::<_, miette::Report>((truth, written))
-    })();
-    if result.is_err() && created {
-        let _ = std::fs::remove_dir(dir);
-    }
-    result
-}
-
-/// Write `DIR/level_k.csv` for every level and `DIR/truth.json`, all or nothing. Returns
-/// the paths written (truth.json last).
-pub fn write_simulation(dir: &Path, out: &SimOutput) -> miette::Result<Vec<PathBuf>> {
-    let names = level_file_names(out.records.len());
-    let mut truth = out.truth.clone();
-    truth.files = names.clone();
-    let mut staged = Staged::new();
-    let mut paths = Vec::with_capacity(names.len() + 1);
-    for (name, rec) in names.iter().zip(&out.records) {
-        let p = dir.join(name);
-        stage_csv(&mut staged, &p, rec)?;
-        paths.push(p);
-    }
-    let json = serde_json::to_string_pretty(&truth).into_diagnostic()? + "\n";
-    let p = dir.join("truth.json");
-    staged.write(&p, json.as_bytes())?;
-    paths.push(p);
-    staged.commit()?;
-    Ok(paths)
 }
 
 #[cfg(test)]
@@ -291,6 +265,110 @@ mod tests {
         assert_eq!(names(dir.path()), ["a.json", "b.svg"]);
         let b = std::fs::read_to_string(dir.path().join("b.svg")).unwrap();
         assert_eq!(b, "b.svg");
+    }
+
+    /// On a private null device (`mknod`, root only): a regression must not replace the
+    /// system's /dev/null. Skipped where the node cannot be made.
+    #[cfg(unix)]
+    #[test]
+    fn a_device_is_written_through_not_replaced() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let null = dir.path().join("null");
+        let c = std::ffi::CString::new(null.to_str().unwrap()).unwrap();
+        // SAFETY: a valid path; mknod only creates the node (1, 3: the null device).
+        if unsafe { libc::mknod(c.as_ptr(), libc::S_IFCHR | 0o666, libc::makedev(1, 3)) } != 0 {
+            eprintln!("skipped: mknod needs root");
+            return;
+        }
+        write_atomically(&null, b"{}").unwrap();
+        let t = std::fs::symlink_metadata(&null).unwrap().file_type();
+        assert!(t.is_char_device());
+        assert_eq!(names(dir.path()), ["null"]);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_fifo_is_written_through_without_a_temporary_beside_it() {
+        use std::io::Read;
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("out.json");
+        let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: a valid path; mkfifo only creates the node.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
+        let (tx, rx) = std::sync::mpsc::channel();
+        {
+            let fifo = fifo.clone();
+            // A reader that never gets a writer blocks for good; the test stops waiting.
+            std::thread::spawn(move || {
+                let mut s = String::new();
+                std::fs::File::open(&fifo)
+                    .unwrap()
+                    .read_to_string(&mut s)
+                    .unwrap();
+                tx.send(s)
+            });
+        }
+        let mut staged = Staged::new();
+        staged.write(&fifo, b"{\"a\": 1}").unwrap();
+        assert_eq!(
+            names(dir.path()),
+            ["out.json"],
+            "a temporary beside the FIFO"
+        );
+        staged.commit().unwrap();
+        let got = rx.recv_timeout(std::time::Duration::from_secs(60));
+        assert_eq!(got.as_deref(), Ok("{\"a\": 1}"));
+        assert!(std::fs::symlink_metadata(&fifo)
+            .unwrap()
+            .file_type()
+            .is_fifo());
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_link_to_a_file_writes_the_file_and_stays_a_link() {
+        let dir = tempfile::tempdir().unwrap();
+        let real = dir.path().join("real.json");
+        std::fs::write(&real, "old").unwrap();
+        let link = dir.path().join("link.json");
+        std::os::unix::fs::symlink("real.json", &link).unwrap();
+        write_atomically(&link, b"new").unwrap();
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read_to_string(&real).unwrap(), "new");
+        assert_eq!(names(dir.path()), ["link.json", "real.json"]);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn new_files_follow_the_umask_replaced_ones_keep_their_mode() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o7777;
+        let new = dir.path().join("new.json");
+        write_atomically(&new, b"{}").unwrap();
+        assert_eq!(mode(&new), target::new_file_mode());
+        assert_ne!(mode(&new), 0o600, "tempfile's private mode leaked");
+        let shared = dir.path().join("shared.json");
+        std::fs::write(&shared, "old").unwrap();
+        std::fs::set_permissions(&shared, std::fs::Permissions::from_mode(0o664)).unwrap();
+        write_atomically(&shared, b"new").unwrap();
+        assert_eq!(mode(&shared), 0o664);
+    }
+
+    #[test]
+    fn a_full_disk_is_said_so() {
+        let e = write_error(
+            Path::new("d/level_1.csv"),
+            std::io::Error::from(std::io::ErrorKind::StorageFull),
+        );
+        let text = format!("{e:?}");
+        assert!(text.contains("the disk is full"), "{text}");
+        assert!(text.contains("dynid::output::write"), "{text}");
     }
 
     #[test]
