@@ -146,6 +146,27 @@ fn devices_fifos_and_descriptors_are_written_through() {
     let json_start = text.find("\n{").expect("the JSON on stdout");
     let _: serde_json::Value = serde_json::from_str(&text[json_start..]).unwrap();
 
+    // /dev/stdout redirected to a file: the JSON follows the table, the table stays.
+    let redirected = dir.path().join("stdout.txt");
+    let script = format!(
+        "{} identify {} {} --json /dev/stdout > {}",
+        quote(Path::new(bin())),
+        quote(&model),
+        levels
+            .iter()
+            .map(|l| quote(l))
+            .collect::<Vec<_>>()
+            .join(" "),
+        quote(&redirected)
+    );
+    let out = Command::new("sh").arg("-c").arg(&script).output().unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = std::fs::read_to_string(&redirected).unwrap();
+    let json_start = text.find("\n{").expect("the JSON after the table");
+    assert!(json_start > 0 && !text[..json_start].trim().is_empty());
+    let _: serde_json::Value = serde_json::from_str(&text[json_start..]).unwrap();
+    std::fs::remove_file(&redirected).unwrap();
+
     // A process substitution `>(cat > FILE)` (a /dev/fd/N path), where bash is there.
     if Command::new("bash").arg("-c").arg("true").status().is_ok() {
         let got = dir.path().join("via_fd.json");
@@ -364,7 +385,7 @@ fn simulate_and_demo_never_write_over_an_input() {
         .arg(k.join("level_1.csv"))
         .output()
         .unwrap();
-    let err = refused(&out, "dynid::output::is_input");
+    let err = refused(&out, "dynid::output::same_file");
     assert!(err.contains("which is the report"), "{err}");
     assert!(out.stdout.is_empty(), "the demo ran");
     assert!(names(&k).is_empty());

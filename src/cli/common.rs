@@ -214,42 +214,66 @@ pub fn check_distinct<'a>(
                 other.display()
             ));
         }
-        seen.push((p, what, r));
+        // Two outputs may share a stream (`--json /dev/stdout --report /dev/stdout`).
+        if matches!(
+            dynid::output::target::target(p),
+            dynid::output::Target::File(_)
+        ) {
+            seen.push((p, what, r));
+        }
     }
     Ok(())
 }
 
 /// Check, before the work, an output directory that receives a run's files (`new_names`,
 /// and the removal of an earlier run's there): it is or can become a writable directory,
-/// and none of those files is one of `others` (the inputs, another output; each with what
-/// it is, e.g. "the model").
+/// and none of those files is one of the `inputs` or of the command's other `outputs`
+/// (each with what it is, e.g. "the model").
 pub fn check_run_dir<'a>(
     dir: &Path,
     flag: &str,
     new_names: &[String],
-    others: impl IntoIterator<Item = (&'a Path, &'a str)>,
+    inputs: impl IntoIterator<Item = (&'a Path, &'a str)>,
+    outputs: impl IntoIterator<Item = (&'a Path, &'a str)>,
 ) -> miette::Result<()> {
     dynid::output::check_out_dir(dir, flag)?;
-    let others: Vec<(&Path, &str, PathBuf)> = others
+    let others: Vec<(&Path, &str, bool, PathBuf)> = inputs
         .into_iter()
-        .map(|(p, what)| (p, what, resolve(p)))
+        .map(|(p, what)| (p, what, true))
+        .chain(outputs.into_iter().map(|(p, what)| (p, what, false)))
+        .map(|(p, what, input)| (p, what, input, resolve(p)))
         .collect();
     for file in dynid::output::run_outputs(dir, new_names) {
         let r = resolve(&file);
-        if let Some((other, what, _)) = others.iter().find(|(_, _, ro)| *ro == r) {
-            return Err(miette!(
+        let Some((other, what, input, _)) = others.iter().find(|o| o.3 == r) else {
+            continue;
+        };
+        let because = format!(
+            "`{flag} {}` would replace `{}`, which is {what} `{}`",
+            dir.display(),
+            file.display(),
+            other.display()
+        );
+        let run = format!(
+            "a run writes its files into `{flag}` and removes the level_k.csv, driven.csv \
+             and truth.json of an earlier run there"
+        );
+        return Err(if *input {
+            miette!(
                 code = "dynid::output::is_input",
                 help = format!(
-                    "a run writes its files into `{flag}` and removes the level_k.csv, \
-                     driven.csv and truth.json of an earlier run there; an input is never \
-                     overwritten: give another `{flag}` directory or move the file"
+                    "{run}; an input is never overwritten: give another `{flag}` directory \
+                     or move the file"
                 ),
-                "`{flag} {}` would replace `{}`, which is {what} `{}`",
-                dir.display(),
-                file.display(),
-                other.display()
-            ));
-        }
+                "{because}"
+            )
+        } else {
+            miette!(
+                code = "dynid::output::same_file",
+                help = format!("{run}: give {what} a path outside `{flag}`"),
+                "{because}"
+            )
+        });
     }
     Ok(())
 }

@@ -111,6 +111,7 @@ fn check_kept(args: &Args, dir: &std::path::Path, n_levels: usize) -> miette::Re
         dir,
         "--keep-data",
         &names,
+        [],
         [(args.report.as_path(), "the report")],
     )
 }

@@ -64,12 +64,13 @@ pub struct Args {
     #[arg(long = "drivers", value_delimiter = ',', value_name = "SIGNALS")]
     pub drivers: Option<Vec<String>>,
     /// Cut the arrow into levels, write DIR/level_k.csv (header `t,<output>,<input>` of the
-    /// first model, at the `--upsample` rate) and print the per-level fits of the first
-    /// model instead of the table.
+    /// first model, at the `--upsample` rate; an earlier run's level files there are
+    /// replaced) and print the per-level fits of the first model instead of the table.
     #[arg(long = "export-levels", value_name = "DIR")]
     pub export_levels: Option<PathBuf>,
     /// Write the estimation parts of the multisines (one per realisation, at the
-    /// `--upsample` rate) as DIR/level_k.csv, e.g. for `dynid diagnose`.
+    /// `--upsample` rate) as DIR/level_k.csv, e.g. for `dynid diagnose` (replacing an
+    /// earlier run's level files there).
     #[arg(long = "export-estimation", value_name = "DIR")]
     pub export_estimation: Option<PathBuf>,
     /// Number of arrow levels for `--export-levels`.
@@ -98,10 +99,10 @@ pub fn run(args: Args) -> miette::Result<()> {
         .collect();
     if let Some(dir) = &args.export_levels {
         let names = level_file_names(args.n_levels);
-        super::common::check_run_dir(dir, "--export-levels", &names, inputs.iter().copied())?;
+        super::common::check_run_dir(dir, "--export-levels", &names, inputs.iter().copied(), [])?;
     }
     if let Some(dir) = &args.export_estimation {
-        super::common::check_run_dir(dir, "--export-estimation", &[], inputs.iter().copied())?;
+        super::common::check_run_dir(dir, "--export-estimation", &[], inputs.iter().copied(), [])?;
     }
     let data = silverbox::load(&args.data)?;
     if let Some(dir) = &args.export_levels {

@@ -42,7 +42,10 @@ reference r is white noise through a Butterworth low-pass of natural frequency
 `<body>.x_ref`; the recorded input is the controller's output.
 
 DIR/truth.json records the parameter values, levels and settings used, so identification
-results can be scored against it.
+results can be scored against it. DIR holds one run: the level_k.csv, driven.csv and
+truth.json of an earlier run there are replaced (other files stay), and a run that would
+write or remove its own model or --input file is refused before it starts. The free space
+is checked first against an estimate of the CSVs' size (about 17 bytes per number).
 
 With --input data.csv the model is instead driven by the measured input columns (named
 like the model's inputs and references, plus a uniform time column `t`), starting from rest, and its
@@ -117,7 +120,7 @@ pub struct Args {
     /// The controller feeds back the true velocity instead of a position difference.
     #[arg(long)]
     pub tachometer: bool,
-    /// Output directory (created if missing).
+    /// Output directory (created if missing; an earlier run's files there are replaced).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Drive the model with the inputs in this CSV instead of the form filters.
@@ -168,6 +171,7 @@ fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
         "--out",
         &names,
         [(args.model.as_path(), "the model")],
+        [],
     )?;
     let bar = progress_bar(sim::total_samples(&cfg, n_levels));
     let out = dynid::output::simulate_to_dir(ir, &cfg, &args.out, &|n| bar.inc(n));
@@ -270,6 +274,7 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
             (args.model.as_path(), "the model"),
             (input, "the input file"),
         ],
+        [],
     )?;
     let record = read_input_csv(input)?;
     let response = sim::simulate_driven(ir, &record, args.substeps)

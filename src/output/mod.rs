@@ -150,13 +150,14 @@ impl Staged {
     }
 }
 
-/// Copy the temporary `tmp` into the stream `path` (opened for writing as it is: nothing
-/// created, nothing truncated). Standard output is flushed first, so text printed before
-/// stays before.
+/// Copy the temporary `tmp` into the stream `path`, opened for appending: nothing created,
+/// nothing truncated, and `/dev/stdout` redirected to a file (`> out.txt`, which a new
+/// open would write from its start) continues after what was printed. Standard output is
+/// flushed first, so text printed before stays before.
 fn write_through(tmp: &Path, path: &Path) -> std::io::Result<()> {
     std::io::stdout().flush()?;
     let mut src = std::fs::File::open(tmp)?;
-    let mut dst = std::fs::OpenOptions::new().write(true).open(path)?;
+    let mut dst = std::fs::OpenOptions::new().append(true).open(path)?;
     std::io::copy(&mut src, &mut dst)?;
     dst.flush()
 }
