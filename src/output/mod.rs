@@ -1,5 +1,5 @@
 //! Writing output files, all or nothing. The numerics format (into any `io::Write`); only
-//! this crate opens files for writing.
+//! this module writes output files.
 //!
 //! [`Staged`] is the one writer: every file of a command goes to a temporary file
 //! (`tempfile`, keeping the extension, which some writers use to pick a format) and all are

@@ -247,7 +247,9 @@ fn umask() -> u32 {
         }
     }
     #[cfg(not(unix))]
-    0o022
+    {
+        0o022
+    }
 }
 
 /// Bytes free for an unprivileged user on the file system of `dir`, if known.
