@@ -471,15 +471,25 @@ fn interrupt(signal: libc::c_int) {
     let dir = tempfile::tempdir().unwrap();
     let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/sdof_linear.dyn");
     let out_dir = dir.path().join("out");
-    let mut child = dynid()
-        .arg("simulate")
+    let mut cmd = dynid();
+    cmd.arg("simulate")
         .arg(&model)
         .args(["--duration", "20000", "--burn-in", "1", "--out"])
         .arg(&out_dir)
         .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+        .stderr(Stdio::piped());
+    // dynid keeps a signal ignored that its parent ignored (`nohup`, a background job):
+    // give the child the default actions whatever this test runs under.
+    // SAFETY: `signal` is async-signal-safe, as `pre_exec` requires.
+    unsafe {
+        std::os::unix::process::CommandExt::pre_exec(&mut cmd, || {
+            for s in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+                libc::signal(s, libc::SIG_DFL);
+            }
+            Ok(())
+        });
+    }
+    let mut child = cmd.spawn().unwrap();
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
     loop {
         let written = std::fs::read_dir(&out_dir)
