@@ -636,6 +636,32 @@ const CASES: &[Case] = &[
         "dynid::output::not_a_directory",
     ),
     case(
+        "demo --keep-data naming an existing file",
+        &[
+            "demo",
+            "--duration",
+            "100",
+            "--quiet",
+            "--keep-data",
+            "{dir}/existing_file",
+            "--report",
+            "{dir}/r.html",
+        ],
+        "dynid::output::not_a_directory",
+    ),
+    case(
+        "simulate --input a level of the --out directory (the run replaces it)",
+        &[
+            "simulate",
+            "{model}",
+            "--input",
+            "{dir}/data/level_1.csv",
+            "--out",
+            "{dir}/data",
+        ],
+        "dynid::output::is_input",
+    ),
+    case(
         "filter corners above the Nyquist frequency (Ts = 0.01 s: 314 rad/s)",
         &[
             "identify",

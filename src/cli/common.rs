@@ -161,38 +161,7 @@ impl SplitArgs {
     }
 }
 
-/// Fail before any work if `path` cannot be an output file: its directory must exist and
-/// the path must not name a directory. (Writing can still fail later, e.g. on a full disk;
-/// [`Staged`] then leaves nothing behind.)
-pub fn check_output(path: &Path, what: &str) -> miette::Result<()> {
-    let dir = parent_dir(path);
-    if path.file_name().is_none() || path.is_dir() {
-        return Err(miette!(
-            code = "dynid::output::is_directory",
-            help = "give the path of a file (it may be inside that directory)",
-            "{what} `{}` is a directory, not a file",
-            path.display()
-        ));
-    }
-    if !dir.is_dir() {
-        return Err(miette!(
-            code = "dynid::output::no_directory",
-            help = format!("create it first (`mkdir -p {}`)", dir.display()),
-            "the directory of {what} `{}` does not exist",
-            path.display()
-        ));
-    }
-    Ok(())
-}
-
-/// The file a path names, as far as it can be resolved: the canonical path of an existing
-/// file (symbolic links followed), else the canonical directory joined with the file name.
-fn resolved(path: &Path) -> Option<PathBuf> {
-    std::fs::canonicalize(path).ok().or_else(|| {
-        let dir = std::fs::canonicalize(parent_dir(path)).ok()?;
-        Some(dir.join(path.file_name()?))
-    })
-}
+pub use dynid::output::check_output;
 
 /// A command's input files: its model and its data files.
 pub fn inputs<'a>(model: &'a Path, data: &'a [PathBuf]) -> impl Iterator<Item = &'a Path> {
@@ -206,14 +175,27 @@ pub fn check_outputs<'a>(
     outputs: impl IntoIterator<Item = (Option<&'a Path>, &'a str)>,
     inputs: impl IntoIterator<Item = &'a Path>,
 ) -> miette::Result<()> {
-    let inputs: Vec<(&Path, Option<PathBuf>)> =
-        inputs.into_iter().map(|p| (p, resolved(p))).collect();
-    let mut seen: Vec<(&Path, &str, Option<PathBuf>)> = Vec::new();
-    for (p, what) in outputs {
-        let Some(p) = p else { continue };
+    let outputs: Vec<(&Path, &str)> = outputs
+        .into_iter()
+        .filter_map(|(p, what)| Some((p?, what)))
+        .collect();
+    for (p, what) in &outputs {
         check_output(p, what)?;
-        let r = resolved(p);
-        let same = |other: &Option<PathBuf>| r.is_some() && r == *other;
+    }
+    check_distinct(outputs, inputs)
+}
+
+/// That no output is one of `inputs` or another output (after resolving links and
+/// relative spellings, also in directories that do not exist yet).
+pub fn check_distinct<'a>(
+    outputs: impl IntoIterator<Item = (&'a Path, &'a str)>,
+    inputs: impl IntoIterator<Item = &'a Path>,
+) -> miette::Result<()> {
+    let inputs: Vec<(&Path, PathBuf)> = inputs.into_iter().map(|p| (p, resolve(p))).collect();
+    let mut seen: Vec<(&Path, &str, PathBuf)> = Vec::new();
+    for (p, what) in outputs {
+        let r = resolve(p);
+        let same = |other: &PathBuf| r == *other;
         if let Some((input, _)) = inputs.iter().find(|(_, ri)| same(ri)) {
             return Err(miette!(
                 code = "dynid::output::is_input",
@@ -232,31 +214,69 @@ pub fn check_outputs<'a>(
                 other.display()
             ));
         }
-        seen.push((p, what, r));
+        // Two outputs may share a stream (`--json /dev/stdout --report /dev/stdout`).
+        if matches!(
+            dynid::output::target::target(p),
+            dynid::output::Target::File(_)
+        ) {
+            seen.push((p, what, r));
+        }
     }
     Ok(())
 }
 
-pub use dynid::output::{parent_dir, write_atomically, Staged};
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn outputs_are_checked_before_the_work() {
-        let dir = tempfile::tempdir().unwrap();
-        let e = check_output(&dir.path().join("nope").join("r.html"), "the report")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("the directory of the report") && e.contains("does not exist"),
-            "{e}"
+/// Check, before the work, an output directory that receives a run's files (`new_names`,
+/// and the removal of an earlier run's there): it is or can become a writable directory,
+/// and none of those files is one of the `inputs` or of the command's other `outputs`
+/// (each with what it is, e.g. "the model").
+pub fn check_run_dir<'a>(
+    dir: &Path,
+    flag: &str,
+    new_names: &[String],
+    inputs: impl IntoIterator<Item = (&'a Path, &'a str)>,
+    outputs: impl IntoIterator<Item = (&'a Path, &'a str)>,
+) -> miette::Result<()> {
+    dynid::output::check_out_dir(dir, flag)?;
+    let others: Vec<(&Path, &str, bool, PathBuf)> = inputs
+        .into_iter()
+        .map(|(p, what)| (p, what, true))
+        .chain(outputs.into_iter().map(|(p, what)| (p, what, false)))
+        .map(|(p, what, input)| (p, what, input, resolve(p)))
+        .collect();
+    for file in dynid::output::run_outputs(dir, new_names) {
+        let r = resolve(&file);
+        let Some((other, what, input, _)) = others.iter().find(|o| o.3 == r) else {
+            continue;
+        };
+        let because = format!(
+            "`{flag} {}` would replace `{}`, which is {what} `{}`",
+            dir.display(),
+            file.display(),
+            other.display()
         );
-        let e = check_output(dir.path(), "the report")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("is a directory"), "{e}");
-        assert!(check_output(&dir.path().join("r.html"), "the report").is_ok());
+        let run = format!(
+            "a run writes its files into `{flag}` and removes the level_k.csv, driven.csv \
+             and truth.json of an earlier run there"
+        );
+        return Err(if *input {
+            miette!(
+                code = "dynid::output::is_input",
+                help = format!(
+                    "{run}; an input is never overwritten: give another `{flag}` directory \
+                     or move the file"
+                ),
+                "{because}"
+            )
+        } else {
+            miette!(
+                code = "dynid::output::same_file",
+                help = format!("{run}: give {what} a path outside `{flag}`"),
+                "{because}"
+            )
+        });
     }
+    Ok(())
 }
+
+use dynid::output::resolve;
+pub use dynid::output::{write_atomically, Staged};

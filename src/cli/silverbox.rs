@@ -2,7 +2,7 @@
 //! multisines, free-run simulate the arrow and the multisine test, compare with the
 //! published results; optionally export the arrow as excitation levels for detection.
 
-use dynid::output::{stage_csv, Staged};
+use dynid::output::Staged;
 use dynid_runtime::record::Record;
 use dynid_runtime::refine::RefineOptions;
 use dynid_runtime::silverbox::{self, RunOptions, SilverboxReport, PUBLISHED};
@@ -64,12 +64,13 @@ pub struct Args {
     #[arg(long = "drivers", value_delimiter = ',', value_name = "SIGNALS")]
     pub drivers: Option<Vec<String>>,
     /// Cut the arrow into levels, write DIR/level_k.csv (header `t,<output>,<input>` of the
-    /// first model, at the `--upsample` rate) and print the per-level fits of the first
-    /// model instead of the table.
+    /// first model, at the `--upsample` rate; an earlier run's level files there are
+    /// replaced) and print the per-level fits of the first model instead of the table.
     #[arg(long = "export-levels", value_name = "DIR")]
     pub export_levels: Option<PathBuf>,
     /// Write the estimation parts of the multisines (one per realisation, at the
-    /// `--upsample` rate) as DIR/level_k.csv, e.g. for `dynid diagnose`.
+    /// `--upsample` rate) as DIR/level_k.csv, e.g. for `dynid diagnose` (replacing an
+    /// earlier run's level files there).
     #[arg(long = "export-estimation", value_name = "DIR")]
     pub export_estimation: Option<PathBuf>,
     /// Number of arrow levels for `--export-levels`.
@@ -90,6 +91,19 @@ pub fn run(args: Args) -> miette::Result<()> {
             .map(PathBuf::as_path)
             .chain([data_file.as_path()]),
     )?;
+    let inputs: Vec<(&std::path::Path, &str)> = args
+        .models
+        .iter()
+        .map(|m| (m.as_path(), "the model"))
+        .chain([(data_file.as_path(), "the data file")])
+        .collect();
+    if let Some(dir) = &args.export_levels {
+        let names = level_file_names(args.n_levels);
+        super::common::check_run_dir(dir, "--export-levels", &names, inputs.iter().copied(), [])?;
+    }
+    if let Some(dir) = &args.export_estimation {
+        super::common::check_run_dir(dir, "--export-estimation", &[], inputs.iter().copied(), [])?;
+    }
     let data = silverbox::load(&args.data)?;
     if let Some(dir) = &args.export_levels {
         return export_levels(&args, &data, dir);
@@ -248,14 +262,11 @@ pub fn table(reports: &[SilverboxReport]) -> String {
 }
 
 /// Write `records` as DIR/level_k.csv, all or nothing.
+/// (Replacing the run files of an earlier run in DIR; see [`dynid::output::stage_levels`].)
 fn write_levels(dir: &std::path::Path, records: &[Record]) -> miette::Result<()> {
-    std::fs::create_dir_all(dir)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("cannot create `{}`", dir.display()))?;
+    dynid::output::create_dir(dir)?;
     let mut staged = Staged::new();
-    for (name, rec) in level_file_names(records.len()).iter().zip(records) {
-        stage_csv(&mut staged, &dir.join(name), rec)?;
-    }
+    dynid::output::stage_levels(&mut staged, dir, records)?;
     staged.commit()
 }
 

@@ -1,9 +1,8 @@
 //! `dynid simulate`: synthetic test data from a model, or the model's response to
 //! measured inputs.
 
-use super::common::{load_model, Staged};
+use super::common::{check_run_dir, load_model, Staged};
 use dsl_parser::ir::ModelIr;
-use dynid::output::stage_csv;
 use dynid_runtime::data;
 use dynid_runtime::record::Record;
 use dynid_runtime::sim::{self, SimConfig, DEFAULT_SUBSTEPS};
@@ -43,7 +42,10 @@ reference r is white noise through a Butterworth low-pass of natural frequency
 `<body>.x_ref`; the recorded input is the controller's output.
 
 DIR/truth.json records the parameter values, levels and settings used, so identification
-results can be scored against it.
+results can be scored against it. DIR holds one run: the level_k.csv, driven.csv and
+truth.json of an earlier run there are replaced (other files stay), and a run that would
+write or remove its own model or --input file is refused before it starts. The free space
+is checked first against an estimate of the CSVs' size (about 17 bytes per number).
 
 With --input data.csv the model is instead driven by the measured input columns (named
 like the model's inputs and references, plus a uniform time column `t`), starting from rest, and its
@@ -118,7 +120,7 @@ pub struct Args {
     /// The controller feeds back the true velocity instead of a position difference.
     #[arg(long)]
     pub tachometer: bool,
-    /// Output directory (created if missing).
+    /// Output directory (created if missing; an earlier run's files there are replaced).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Drive the model with the inputs in this CSV instead of the form filters.
@@ -137,7 +139,7 @@ pub enum Format {
 
 pub fn run(args: Args) -> miette::Result<()> {
     let ir = load_model(&args.model)?;
-    check_out_dir(&args.out)?;
+    dynid::output::check_out_dir(&args.out, "--out")?;
     match &args.input {
         Some(input) => run_driven(&ir, &args, input),
         None => run_excited(&ir, &args),
@@ -159,6 +161,18 @@ fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
         control: pd_control(ir, args)?,
     };
     let n_levels = sim::level_count(ir, &cfg)?;
+    let names = [
+        sim::level_file_names(n_levels),
+        vec!["truth.json".to_string()],
+    ]
+    .concat();
+    check_run_dir(
+        &args.out,
+        "--out",
+        &names,
+        [(args.model.as_path(), "the model")],
+        [],
+    )?;
     let bar = progress_bar(sim::total_samples(&cfg, n_levels));
     let out = dynid::output::simulate_to_dir(ir, &cfg, &args.out, &|n| bar.inc(n));
     bar.finish_and_clear();
@@ -252,6 +266,16 @@ fn pd_control(ir: &ModelIr, args: &Args) -> miette::Result<Option<sim::PdControl
 }
 
 fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
+    check_run_dir(
+        &args.out,
+        "--out",
+        &["driven.csv".into(), "truth.json".into()],
+        [
+            (args.model.as_path(), "the model"),
+            (input, "the input file"),
+        ],
+        [],
+    )?;
     let record = read_input_csv(input)?;
     let response = sim::simulate_driven(ir, &record, args.substeps)
         .map_err(miette::Report::new)
@@ -272,10 +296,11 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
     });
     let json_path = args.out.join("truth.json");
     let mut staged = Staged::new();
-    stage_csv(&mut staged, &csv, &response)?;
-    staged.write(
-        &json_path,
-        (serde_json::to_string_pretty(&truth).into_diagnostic()? + "\n").as_bytes(),
+    dynid::output::stage_driven(
+        &mut staged,
+        &args.out,
+        &response,
+        &(serde_json::to_string_pretty(&truth).into_diagnostic()? + "\n"),
     )?;
     staged.commit()?;
     let summary = level_summary(&response, &csv, None);
@@ -318,30 +343,6 @@ fn progress_bar(total: u64) -> indicatif::ProgressBar {
         bar.set_style(style);
     }
     bar
-}
-
-/// Refuse, before any work, an `--out` that exists and is not a directory (or whose
-/// nearest existing ancestor is not one).
-fn check_out_dir(dir: &Path) -> miette::Result<()> {
-    let mut p = Some(dir);
-    while let Some(d) = p {
-        if d.as_os_str().is_empty() {
-            break;
-        }
-        if let Ok(meta) = std::fs::metadata(d) {
-            if !meta.is_dir() {
-                miette::bail!(
-                    code = "dynid::output::not_a_directory",
-                    help = "`--out` names the directory that receives level_1.csv, …, truth.json: give a new or an existing directory",
-                    "`{}` is a file, not a directory",
-                    d.display()
-                );
-            }
-            break;
-        }
-        p = d.parent();
-    }
-    Ok(())
 }
 
 fn level_summary(r: &Record, path: &Path, level: Option<f64>) -> serde_json::Value {

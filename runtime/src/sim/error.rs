@@ -59,6 +59,17 @@ pub enum SimError {
     #[diagnostic(code(dynid::sim::config), help("{help}"))]
     InvalidConfig { what: String, help: String },
 
+    #[error("{context}: cannot write the simulated samples: {source}")]
+    #[diagnostic(
+        code(dynid::sim::scratch),
+        help("the samples go to temporary files (of the system's temporary directory when noise is added) and to the output files: free space there, or set TMPDIR to a directory with room")
+    )]
+    Scratch {
+        context: String,
+        #[source]
+        source: std::io::Error,
+    },
+
     #[error("the mass matrix is singular (body `{body}` has no usable inertia)")]
     #[diagnostic(
         code(dynid::sim::singular_mass),

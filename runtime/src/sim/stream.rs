@@ -64,9 +64,9 @@ pub(super) struct LevelWriter<'s> {
 }
 
 fn io_error(context: &str, e: std::io::Error) -> SimError {
-    SimError::InvalidConfig {
-        what: format!("{context}: cannot write the simulated samples: {e}"),
-        help: "check the free space of the temporary directory and of the output directory".into(),
+    SimError::Scratch {
+        context: context.to_string(),
+        source: e,
     }
 }
 
