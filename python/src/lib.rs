@@ -384,7 +384,7 @@ fn bind<'a>(
                     }
                     let tol = TIME_TOL * ts + 1e-12 * t[k].abs();
                     let whole = (step / ts).round();
-                    if whole >= 2.0 && whole < 1e15 && (step - whole * ts).abs() <= tol {
+                    if (2.0..1e15).contains(&whole) && (step - whole * ts).abs() <= tol {
                         // A whole number of intervals: samples dropped, not a jittery clock.
                         return Err(data_error(
                             py,

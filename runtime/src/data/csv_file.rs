@@ -189,11 +189,9 @@ impl CsvSource {
             }
         }
         // A renaming onto `t` when the file keeps its own `t` column.
-        if let Some((c, _)) = opts.map.iter().find(|(c, s)| {
-            s == "t" && c != "t" && header.iter().any(|h| h == "t") && {
-                !opts.map.iter().any(|(c2, _)| c2 == "t")
-            }
-        }) {
+        let keeps_t = header.iter().any(|h| h == "t") && !opts.map.iter().any(|(c, _)| c == "t");
+        let onto_t = opts.map.iter().find(|(c, s)| s == "t" && c != "t");
+        if let (true, Some((c, _))) = (keeps_t, onto_t) {
             return Err(DataError::MapOntoTime {
                 path: p,
                 spec: format!("{}=t", dynid_ir::text::escape(c)),

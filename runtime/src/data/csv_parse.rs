@@ -129,8 +129,7 @@ impl Layout<'_> {
         if (step - self.ts).abs() > self.time_tol * self.ts + 1e-12 * t.abs() {
             // A whole number of intervals: samples dropped, not a jittery clock.
             let k = (step / self.ts).round();
-            if k >= 2.0
-                && k < 1e15
+            if (2.0..1e15).contains(&k)
                 && (step - k * self.ts).abs() <= self.time_tol * self.ts + 1e-12 * t.abs()
             {
                 return Some(DataError::MissingSamples {
