@@ -149,14 +149,21 @@ pub(crate) struct Draft {
 
 /// Collects the errors of one file.
 pub(crate) struct ErrorSink {
+    /// The source as the diagnostics show it: invisible and control characters replaced by
+    /// visible ones of the same byte length ([`crate::text::visible`]), so that an excerpt
+    /// cannot act on the terminal and every span stays valid.
     pub src: Source,
+    /// The source as written, for quoting offending text (escaped) in messages.
+    pub text: Arc<str>,
     pub errors: Vec<CompileError>,
 }
 
 impl ErrorSink {
     pub fn new(name: &str, source: &str) -> Self {
+        let shown = crate::text::visible(source);
         ErrorSink {
-            src: NamedSource::new(name, Arc::from(source)).with_language("dyn"),
+            src: NamedSource::new(name, Arc::from(shown)).with_language("dyn"),
+            text: Arc::from(source),
             errors: Vec::new(),
         }
     }
@@ -301,7 +308,7 @@ fn rule_name(r: &Rule) -> String {
 /// Convert a pest error into a diagnostic with a readable "expected …" message.
 pub(crate) fn from_pest(sink: &ErrorSink, e: pest::error::Error<Rule>) -> CompileError {
     use pest::error::{ErrorVariant, InputLocation};
-    let src: &str = sink.src.inner();
+    let src: &str = &sink.text;
     let (mut start, mut end) = match e.location {
         InputLocation::Pos(p) => (p, p),
         InputLocation::Span((a, b)) => (a, b),
@@ -352,9 +359,25 @@ pub(crate) fn from_pest(sink: &ErrorSink, e: pest::error::Error<Rule>) -> Compil
     let found = if start >= src.len() {
         "end of file".to_string()
     } else {
-        format!("`{}`", &src[start..end])
+        crate::text::quote(&src[start..end])
     };
+    let invisible = src[start.min(src.len())..end.min(src.len())]
+        .chars()
+        .any(|c| crate::text::invisible_name(c).is_some());
     let (message, help) = match &e.variant {
+        ErrorVariant::ParsingError { .. } if invisible => (
+            format!("unexpected {found}"),
+            "remove the invisible character (it often comes with text copied from a web page, \
+             a PDF or a word processor); the language is plain text"
+                .to_string(),
+        ),
+        ErrorVariant::ParsingError { .. } if src[start.min(src.len())..].starts_with('\'') => (
+            "`'` is not part of the language: a model names no derivatives".to_string(),
+            "inside a force, `s` and `v` are the element's relative displacement and \
+             velocity; a body's position and velocity are `m.x` and `m.v` (e.g. \
+             `sign(v)` or `sign(m.v)`, not `sign(x')`)"
+                .to_string(),
+        ),
         ErrorVariant::ParsingError { .. } => {
             if statement {
                 (

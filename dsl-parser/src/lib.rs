@@ -30,7 +30,7 @@ pub mod codegen;
 pub mod error;
 mod lower;
 
-pub use dynid_ir::{edit, ir, num, print};
+pub use dynid_ir::{edit, ir, num, print, text};
 
 pub use error::{CompileError, CompileErrors, ErrorKind};
 
@@ -39,8 +39,10 @@ use std::path::Path;
 /// Compile `.dyn` source text. `name` is the file name shown in diagnostics.
 ///
 /// Returns every error of the file, not only the first (a syntax error stops the parse, so
-/// it is reported alone).
+/// it is reported alone). A byte-order mark at the start (as some editors write) is skipped;
+/// anywhere else it is an error that names it.
 pub fn compile_str(name: &str, source: &str) -> Result<ir::ModelIr, CompileErrors> {
+    let source = source.strip_prefix('\u{feff}').unwrap_or(source);
     let mut sink = error::ErrorSink::new(name, source);
     let ir = ast::parse(source, &mut sink).map(|ast| lower::lower(&ast, &mut sink));
     match ir {
@@ -86,6 +88,18 @@ pub fn compile_file(path: &Path) -> Result<ir::ModelIr, CompileErrors> {
             )
         }
     };
+    if let Some(kind) = text::utf16_kind(&bytes) {
+        return io_error(
+            "",
+            error::Draft {
+                message: format!("`{name}` is {kind} text, not UTF-8"),
+                help: "save the model as UTF-8 (most editors: \"Save with encoding\"; or \
+                       `iconv -f UTF-16 -t UTF-8 FILE > NEW.dyn`)"
+                    .into(),
+                ..Default::default()
+            },
+        );
+    }
     match std::str::from_utf8(&bytes) {
         Ok(src) => compile_str(&name, src),
         Err(e) => {

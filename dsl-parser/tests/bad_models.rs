@@ -252,3 +252,112 @@ fn hostile_inputs_are_rejected_without_overflow() {
     assert!(compile_str("e.dyn", "").is_err());
     assert!(compile_str("e.dyn", "model").is_err());
 }
+
+// ---- Text a terminal does not show, and the messages that quote it ----
+
+/// A file name of this test process in the temporary directory.
+fn scratch(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("dynid-bad-models-{}-{name}", std::process::id()))
+}
+
+fn sdof(line: &str) -> String {
+    format!(
+        "model sdof {{\n    body m = 1.0\n    input u on m\n    {line}\n    damper d (ground, m) ~ 0.4\n}}\n"
+    )
+}
+
+#[test]
+fn a_byte_order_mark_at_the_start_is_skipped() {
+    let src = format!("\u{feff}{}", sdof("spring k (ground, m) ~ 4.0"));
+    let ir = compile_str("bom.dyn", &src).unwrap_or_else(|e| panic!("{e:?}"));
+    assert_eq!(ir.unknowns().len(), 2);
+    // The same through a file.
+    let path = scratch("bom.dyn");
+    std::fs::write(&path, &src).unwrap();
+    let result = compile_file(&path);
+    let _ = std::fs::remove_file(&path);
+    result.unwrap_or_else(|e| panic!("{e:?}"));
+}
+
+#[test]
+fn invisible_characters_are_escaped_and_named() {
+    for (c, name) in [
+        ('\u{feff}', "a byte-order mark"),
+        ('\u{200b}', "a zero-width space"),
+        ('\u{202e}', "a bidirectional embedding or override"),
+        ('\x1b', "an escape character"),
+        ('\0', "a NUL byte"),
+    ] {
+        let src = sdof(&format!("spring k{c} (ground, m) ~ 4.0"));
+        let errs = compile_str("inv.dyn", &src).unwrap_err();
+        assert_eq!(errs.kinds(), vec![ErrorKind::Syntax]);
+        let msg = errs.errors[0].message();
+        let escaped = dsl_parser::text::escape_char(c);
+        assert!(msg.contains(&format!("`{escaped}`")), "{msg}");
+        assert!(msg.contains(name), "{msg}");
+        assert!(!msg.contains(c), "raw {c:?} in {msg:?}");
+        // The excerpt of the source shows a stand-in, never the character itself.
+        let text = errs.render_plain(100);
+        assert!(!text.contains(c), "raw {c:?} in the report:\n{text}");
+        assert!(text.contains("inv.dyn:4:13"), "{text}");
+    }
+}
+
+#[test]
+fn a_utf16_model_is_named_as_such() {
+    let src = sdof("spring k (ground, m) ~ 4.0");
+    for (bom, le) in [(true, true), (false, true), (true, false)] {
+        let mut bytes: Vec<u8> = Vec::new();
+        let units = (bom.then_some(0xfeff_u16).into_iter()).chain(src.encode_utf16());
+        for u in units {
+            bytes.extend(if le { u.to_le_bytes() } else { u.to_be_bytes() });
+        }
+        let path = scratch("u16.dyn");
+        std::fs::write(&path, &bytes).unwrap();
+        let result = compile_file(&path);
+        let _ = std::fs::remove_file(&path);
+        let errs = result.unwrap_err();
+        assert_eq!(errs.kinds(), vec![ErrorKind::Io]);
+        let msg = errs.errors[0].message();
+        assert!(msg.contains("is UTF-16"), "{msg}");
+        let text = errs.render_plain(100);
+        assert!(!text.contains('\0'), "NUL bytes echoed:\n{text}");
+    }
+}
+
+#[test]
+fn a_prime_is_explained_not_listed() {
+    let src = sdof("spring k (ground, m) ~ 4.0\n    force f (ground, m) = c ~ 1.0 * sign(x')");
+    let errs = compile_str("prime.dyn", &src).unwrap_err();
+    assert_eq!(errs.kinds(), vec![ErrorKind::Syntax]);
+    let (msg, help) = (errs.errors[0].message(), errs.errors[0].help_text());
+    assert!(msg.contains("`'` is not part of the language"), "{msg}");
+    assert!(!msg.contains("expected"), "{msg}");
+    assert!(help.contains("`v`") && help.contains("`m.v`"), "{help}");
+}
+
+#[test]
+fn a_control_law_divided_by_zero_is_refused_like_a_force() {
+    let model = |law: &str| {
+        format!(
+            "model servo {{\n    body m ~ 50\n    input u on m\n    reference xr\n    \
+             measure m.x, u\n    control u = {law}\n    damper d (ground, m) ~ 120\n    \
+             excite xr: white levels [1]\n}}\n"
+        )
+    };
+    for law in [
+        "80000 * (xr - m.x) / 0",
+        "80000 * (xr - m.x) - 2680 * m.v / 0",
+    ] {
+        let errs = compile_str("law.dyn", &model(law)).unwrap_err();
+        assert_eq!(errs.kinds(), vec![ErrorKind::InvalidValue], "{law}");
+        assert!(errs.errors[0].message().contains("control law"), "{law}");
+    }
+    // The same force term has always been refused.
+    let force = sdof("spring k (ground, m) ~ 4.0\n    force f (ground, m) = c ~ 1.0 * s / 0");
+    assert_eq!(
+        compile_str("f.dyn", &force).unwrap_err().kinds(),
+        vec![ErrorKind::InvalidValue]
+    );
+    compile_str("ok.dyn", &model("80000 * (xr - m.x) - 2680 * m.v")).unwrap();
+}

@@ -382,7 +382,28 @@ fn bind<'a>(
                             "dynid::data::non_uniform_time",
                         ));
                     }
-                    if (step - ts).abs() > TIME_TOL * ts + 1e-12 * t[k].abs() {
+                    let tol = TIME_TOL * ts + 1e-12 * t[k].abs();
+                    let whole = (step / ts).round();
+                    if (2.0..1e15).contains(&whole) && (step - whole * ts).abs() <= tol {
+                        // A whole number of intervals: samples dropped, not a jittery clock.
+                        return Err(data_error(
+                            py,
+                            level,
+                            Some("t"),
+                            Some(k + 1),
+                            format!(
+                                "{label}, column `t`, sample {}: {} sample(s) missing between t = {} s and t = {} s (sample interval {} s)",
+                                k + 1,
+                                whole as u64 - 1,
+                                fmt_t(t[k - 1]),
+                                fmt_t(t[k]),
+                                fmt_t(ts)
+                            ),
+                            "the filters need a record without gaps, and joining the two sides would splice the motion across the gap: cut the record at the gap and give the pieces as separate records",
+                            "dynid::data::non_uniform_time",
+                        ));
+                    }
+                    if (step - ts).abs() > tol {
                         return Err(data_error(
                             py,
                             level,
@@ -394,7 +415,7 @@ fn bind<'a>(
                                 fmt_t(step),
                                 fmt_t(ts)
                             ),
-                            "identification needs uniformly sampled data; resample the record, or drop `t` and give `sample=TS`",
+                            "identification needs uniformly sampled data: resample the record onto a uniform time grid; only if the time stamps merely jitter around a uniform grid drop `t` and give `sample=TS`",
                             "dynid::data::non_uniform_time",
                         ));
                     }

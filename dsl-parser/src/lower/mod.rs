@@ -383,6 +383,30 @@ impl Lowerer<'_> {
         }
     }
 
+    /// The check a force's terms get (element.rs): the constant factor of each term of a
+    /// law must be finite, so `kp * (r - m.x) / 0` is refused here rather than making the
+    /// simulation fail. Call only on a law that lowered without error.
+    fn law_terms_finite(&mut self, law: &AstExpr, ctx: &force_expr::Ctx) -> bool {
+        let mut ok = true;
+        for (_, term) in element::split_sum(law) {
+            let Some(t) = self.lower_expr(term, ctx, None) else {
+                continue;
+            };
+            let (scale, _) = t.extract_scale();
+            if !scale.is_finite() {
+                self.err(
+                    ErrorKind::InvalidValue,
+                    "the constant factor of this term of the control law is not finite".into(),
+                    term.span,
+                    "division by zero?",
+                    "check the numeric factors of the term".into(),
+                );
+                ok = false;
+            }
+        }
+        ok
+    }
+
     /// The `control` statements: each law lowered over body signals, references and known
     /// values, at most one per input.
     fn controls(&mut self, ast: &AstModel) -> (Vec<ControlIr>, Vec<Span>) {
@@ -412,7 +436,10 @@ impl Lowerer<'_> {
                 v: &zero,
                 law: true,
             };
-            let lowered = self.lower_expr(law, &ctx, None);
+            let mut lowered = self.lower_expr(law, &ctx, None);
+            if lowered.is_some() && !self.law_terms_finite(law, &ctx) {
+                lowered = None;
+            }
             let Some(i) = id else { continue };
             if let Some(k) = out.iter().position(|c| c.input == i) {
                 self.sink.draft(

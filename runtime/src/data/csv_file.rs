@@ -52,6 +52,60 @@ fn csv_err(path: &Path, e: csv::Error) -> DataError {
     }
 }
 
+/// The header's columns for a message (invisible characters escaped), with a note when one
+/// of them is `wanted` but for invisible characters.
+fn present_columns(header: &[String], wanted: &str) -> String {
+    let mut out = header
+        .iter()
+        .map(|h| dynid_ir::text::escape(h))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let clean = |h: &str| -> String {
+        h.chars()
+            .filter(|&c| dynid_ir::text::invisible_name(c).is_none())
+            .collect()
+    };
+    if let Some(h) = header
+        .iter()
+        .find(|h| h.as_str() != wanted && clean(h) == wanted)
+    {
+        let what = dynid_ir::text::describe_invisibles(h).unwrap_or_default();
+        out += &format!(
+            "; column `{}` is `{wanted}` with an invisible character: {what}; remove it",
+            dynid_ir::text::escape(h)
+        );
+    }
+    out
+}
+
+/// Refuse, by their first bytes, files that the CSV reader would misread: UTF-16 text, and
+/// old Mac OS line ends (a carriage return alone), which make the file one line.
+fn sniff(path: &Path) -> Result<(), DataError> {
+    let Ok(f) = std::fs::File::open(path) else {
+        // The reader reports it.
+        return Ok(());
+    };
+    let mut head = Vec::with_capacity(64 << 10);
+    if f.take(64 << 10).read_to_end(&mut head).is_err() {
+        return Ok(());
+    }
+    let p = || path.display().to_string();
+    if let Some(kind) = dynid_ir::text::utf16_kind(&head) {
+        return Err(DataError::Encoding {
+            path: p(),
+            kind: kind.into(),
+        });
+    }
+    // A carriage return followed by more text, and no line feed in the first block.
+    let cr = head.iter().position(|&b| b == b'\r');
+    if !head.contains(&b'\n')
+        && cr.is_some_and(|k| head[k + 1..].iter().any(|b| !b.is_ascii_whitespace()))
+    {
+        return Err(DataError::CarriageReturns { path: p() });
+    }
+    Ok(())
+}
+
 fn parse_cell(path: &Path, line: u64, column: &str, raw: &[u8]) -> Result<f64, DataError> {
     parse_number(path, line, column, raw)
 }
@@ -73,7 +127,7 @@ impl CsvSource {
                         return Err(DataError::MissingColumn {
                             path: path.display().to_string(),
                             signal: name.clone(),
-                            present: header.join(", "),
+                            present: present_columns(header, name),
                         })
                     }
                 }
@@ -98,8 +152,10 @@ impl CsvSource {
                 return Err(DataError::BadSampleInterval { ts });
             }
         }
+        sniff(path)?;
         let mut rdr = Self::reader(path)?;
         let header: Vec<String> = match rdr.headers() {
+            // (The reader skips a UTF-8 byte-order mark at the start of the file.)
             Ok(h) => h.iter().map(|s| s.trim().to_string()).collect(),
             Err(e) => return Err(csv_err(path, e)),
         };
@@ -111,7 +167,7 @@ impl CsvSource {
             if let Some(sep) = [";", "\t"].into_iter().find(|s| only.contains(s)) {
                 return Err(DataError::Separator {
                     path: p,
-                    header: only.clone(),
+                    header: dynid_ir::text::escape(only),
                     separator: if sep == "\t" {
                         "\\t".into()
                     } else {
@@ -127,16 +183,26 @@ impl CsvSource {
             } else {
                 return Err(DataError::MissingColumn {
                     path: p,
-                    signal: c.clone(),
-                    present: header.join(", "),
+                    signal: dynid_ir::text::escape(c),
+                    present: present_columns(&header, c),
                 });
             }
+        }
+        // A renaming onto `t` when the file keeps its own `t` column.
+        let keeps_t = header.iter().any(|h| h == "t") && !opts.map.iter().any(|(c, _)| c == "t");
+        let onto_t = opts.map.iter().find(|(c, s)| s == "t" && c != "t");
+        if let (true, Some((c, _))) = (keeps_t, onto_t) {
+            return Err(DataError::MapOntoTime {
+                path: p,
+                spec: format!("{}=t", dynid_ir::text::escape(c)),
+                column: dynid_ir::text::escape(c),
+            });
         }
         for (k, n) in names.iter().enumerate() {
             if names[..k].contains(n) {
                 return Err(DataError::DuplicateColumn {
                     path: p,
-                    column: n.clone(),
+                    column: dynid_ir::text::quote(n),
                 });
             }
         }
@@ -169,6 +235,14 @@ impl CsvSource {
             return Err(DataError::HeaderOnly { path: p });
         }
         let ts = match (opts.ts, first_t.as_slice()) {
+            (Some(ts), [a, b]) => {
+                // `--sample` with a `t` column: the two must agree.
+                let step = b - a;
+                if step.is_finite() && step > 0.0 && (step - ts).abs() > TIME_TOL * ts {
+                    return Err(DataError::SampleConflict { path: p, ts, step });
+                }
+                ts
+            }
             (Some(ts), _) => ts,
             (None, [a, b]) => {
                 let ts = b - a;

@@ -90,18 +90,29 @@ pub(super) fn parse_number(
     let v: f64 = fast_float2::parse(s).map_err(|_| DataError::NotANumber {
         path: path.display().to_string(),
         line,
-        column: column.to_string(),
-        value: String::from_utf8_lossy(s).into_owned(),
+        column: dynid_ir::text::escape(column),
+        value: dynid_ir::text::escape(&shown_field(s)),
+        note: dynid_ir::text::describe_invisibles(&shown_field(s)),
     })?;
     if !v.is_finite() {
         return Err(DataError::NonFinite {
             path: path.display().to_string(),
             line,
-            column: column.to_string(),
+            column: dynid_ir::text::escape(column),
             value: v,
         });
     }
     Ok(v)
+}
+
+/// A field for a message: at most 60 characters of it.
+fn shown_field(raw: &[u8]) -> String {
+    let text = String::from_utf8_lossy(raw);
+    let mut shown: String = text.chars().take(60).collect();
+    if shown.len() < text.len() {
+        shown.push('…');
+    }
+    shown
 }
 
 impl Layout<'_> {
@@ -116,6 +127,20 @@ impl Layout<'_> {
             });
         }
         if (step - self.ts).abs() > self.time_tol * self.ts + 1e-12 * t.abs() {
+            // A whole number of intervals: samples dropped, not a jittery clock.
+            let k = (step / self.ts).round();
+            if (2.0..1e15).contains(&k)
+                && (step - k * self.ts).abs() <= self.time_tol * self.ts + 1e-12 * t.abs()
+            {
+                return Some(DataError::MissingSamples {
+                    path: self.path.display().to_string(),
+                    line,
+                    before: previous,
+                    after: t,
+                    missing: k as u64 - 1,
+                    ts: self.ts,
+                });
+            }
             return Some(DataError::NonUniformTime {
                 path: self.path.display().to_string(),
                 line,

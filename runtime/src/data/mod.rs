@@ -121,13 +121,16 @@ pub enum DataError {
         expected: usize,
         found: usize,
     },
-    #[error("{path}: line {line}, column `{column}`: `{value}` is not a number")]
+    #[error("{path}: line {line}, column `{column}`: `{value}` is not a number{}", .note.as_ref().map_or(String::new(), |n| format!(" ({n})")))]
     #[diagnostic(code(dynid::data::not_a_number), help("{}", number_help(value)))]
     NotANumber {
         path: String,
         line: u64,
         column: String,
+        /// The field, invisible characters escaped.
         value: String,
+        /// What its invisible characters are, if it has any.
+        note: Option<String>,
     },
     #[error("{path}: line {line}, column `{column}`: {value} is not a finite number")]
     #[diagnostic(
@@ -149,7 +152,7 @@ pub enum DataError {
     #[error("{path}: line {line}: the time step is {step} s, but the sample interval is {ts} s")]
     #[diagnostic(
         code(dynid::data::non_uniform_time),
-        help("identification needs uniformly sampled data; resample the record, or drop the `t` column and give `--sample TS`")
+        help("identification needs uniformly sampled data: resample the record onto a uniform time grid; only if the time stamps merely jitter around a uniform grid (the samples themselves are uniform) drop the `t` column and give `--sample TS`")
     )]
     NonUniformTime {
         path: String,
@@ -168,6 +171,42 @@ pub enum DataError {
         t: f64,
         previous: f64,
     },
+    #[error("{path}: line {line}: {gone} missing between t = {t_before} s and t = {t_after} s (the time step there is {step} s, the sample interval {dt} s)",
+        gone = if *.missing == 1 { "a sample is".to_string() } else { format!("{} samples are", .missing) },
+        t_before = dynid_ir::num::sig(*.before, 9, false),
+        t_after = dynid_ir::num::sig(*.after, 9, false),
+        step = dynid_ir::num::sig(*.after - *.before, 6, false),
+        dt = dynid_ir::num::sig(*.ts, 6, false))]
+    #[diagnostic(
+        code(dynid::data::non_uniform_time),
+        help("the filters need a record without gaps, and joining the two sides would splice the motion across the gap: cut the file at line {line} into two files (each with the header) and give both, as separate records")
+    )]
+    MissingSamples {
+        path: String,
+        line: u64,
+        before: f64,
+        after: f64,
+        missing: u64,
+        ts: f64,
+    },
+    #[error("{path}: `--sample {}` conflicts with the file's `t` column, whose time step is {} s", dynid_ir::num::sig(*.ts, 9, false), dynid_ir::num::sig(*.step, 6, false))]
+    #[diagnostic(
+        code(dynid::data::sample_conflict),
+        help("leave out `--sample`: the `t` column gives the sample interval (`--sample` is for files without a `t` column)")
+    )]
+    SampleConflict { path: String, ts: f64, step: f64 },
+    #[error("{path}: the file is {kind} text; dynid reads UTF-8 (or ASCII) CSV")]
+    #[diagnostic(
+        code(dynid::data::encoding),
+        help("save the file as UTF-8 (e.g. `iconv -f UTF-16 -t UTF-8 FILE > NEW.csv`, or \"CSV UTF-8\" when exporting)")
+    )]
+    Encoding { path: String, kind: String },
+    #[error("{path}: the lines end in a carriage return alone (old Mac OS line ends), so the file reads as one long line")]
+    #[diagnostic(
+        code(dynid::data::line_ends),
+        help("convert the line ends to line feeds (`\\n`), e.g. `tr '\\r' '\\n' < FILE > NEW.csv`; Windows line ends (`\\r\\n`) are read as they are")
+    )]
+    CarriageReturns { path: String },
     #[error("{path}: no sample interval: the file has no `t` column")]
     #[diagnostic(
         code(dynid::data::no_sample_interval),
@@ -180,6 +219,16 @@ pub enum DataError {
         help("the sample interval is a positive number of seconds")
     )]
     BadSampleInterval { ts: f64 },
+    #[error("{path}: `--map {spec}`: the file already has the time column `t`, so column `{column}` cannot become a second one")]
+    #[diagnostic(
+        code(dynid::data::bad_map),
+        help("`t` is the time column and cannot be mapped to a signal or from one; `--map COLUMN=t` names the time column of a file that has no `t`. To read a signal from a column, write `--map COLUMN=SIGNAL` (e.g. `--map disp={column}` reads signal `{column}` from column `disp`)")
+    )]
+    MapOntoTime {
+        path: String,
+        spec: String,
+        column: String,
+    },
     #[error("`--map {spec}`: {message}")]
     #[diagnostic(
         code(dynid::data::bad_map),
@@ -245,16 +294,33 @@ impl CsvOptions {
             .join(", ");
         let Some((c, s)) = spec.split_once('=') else {
             return Err(DataError::BadMap {
-                spec: spec.into(),
+                spec: dynid_ir::text::escape(spec),
                 message: "expected COLUMN=SIGNAL".into(),
                 signals,
             });
         };
         let (c, s) = (c.trim(), s.trim());
-        if c.is_empty() || (ir.signal_id(s).is_none() && s != "t") {
+        if c.is_empty() {
             return Err(DataError::BadMap {
-                spec: spec.into(),
-                message: format!("`{s}` is not a signal of the model"),
+                spec: dynid_ir::text::escape(spec),
+                message: "the column name before `=` is empty".into(),
+                signals,
+            });
+        }
+        if c == "t" && s != "t" {
+            return Err(DataError::BadMap {
+                spec: dynid_ir::text::escape(spec),
+                message: format!(
+                    "`t` is the time column; it cannot be mapped to the signal `{}`",
+                    dynid_ir::text::escape(s)
+                ),
+                signals,
+            });
+        }
+        if ir.signal_id(s).is_none() && s != "t" {
+            return Err(DataError::BadMap {
+                spec: dynid_ir::text::escape(spec),
+                message: format!("{} is not a signal of the model", dynid_ir::text::quote(s)),
                 signals,
             });
         }

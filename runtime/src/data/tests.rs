@@ -180,7 +180,14 @@ fn non_uniform_time_names_the_first_bad_line() {
         .map(|(_, l)| format!("{l}\n"))
         .collect();
     let e = read(&body, &CsvOptions::default()).unwrap_err();
-    assert!(e.contains("line 121: the time step is"), "{e}");
+    assert!(
+        e.contains("line 121: a sample is missing between t = 1.18 s and t = 1.2 s"),
+        "{e}"
+    );
+    // A step that is no whole number of intervals: a non-uniform clock.
+    let body = rows(300, 0.01).replace("\n1.2,", "\n1.2049,");
+    let e = read(&body, &CsvOptions::default()).unwrap_err();
+    assert!(e.contains("line 122: the time step is"), "{e}");
 }
 
 #[test]
@@ -359,4 +366,115 @@ fn crlf_quotes_blank_lines_and_no_final_line_break_are_read() {
     assert_eq!(*len, 200);
     assert_eq!(cols[0][199], 199.0);
     assert_eq!(cols[1][199], -199.0);
+}
+
+// ---- Messages that quote the file ----
+
+/// Open and stream; the error of the first failure.
+fn read_err(bytes: &[u8], opts: &CsvOptions) -> DataError {
+    let ir = sdof_ir(true);
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    f.write_all(bytes).unwrap();
+    let src = match CsvSource::open(f.path(), &ir, opts) {
+        Ok(src) => src,
+        Err(e) => return e,
+    };
+    src.stream(64, &mut |_, _| {})
+        .expect_err("the file is refused")
+}
+
+fn code(e: &DataError) -> String {
+    miette::Diagnostic::code(e).map_or(String::new(), |c| c.to_string())
+}
+
+#[test]
+fn a_byte_order_mark_at_the_start_is_read() {
+    let body = format!("\u{feff}{}", rows(300, 0.01));
+    assert_eq!(read(&body, &CsvOptions::default()), Ok(300));
+}
+
+#[test]
+fn utf16_files_are_named_as_such() {
+    let text = rows(300, 0.01);
+    for bom in [true, false] {
+        let units = bom
+            .then_some(0xfeff_u16)
+            .into_iter()
+            .chain(text.encode_utf16());
+        let bytes: Vec<u8> = units.flat_map(u16::to_le_bytes).collect();
+        let e = read_err(&bytes, &CsvOptions::default());
+        assert_eq!(code(&e), "dynid::data::encoding", "{e}");
+        assert!(e.to_string().contains("UTF-16"), "{e}");
+    }
+}
+
+#[test]
+fn old_mac_line_ends_are_named() {
+    let body = rows(300, 0.01).replace('\n', "\r");
+    let e = read_err(body.as_bytes(), &CsvOptions::default());
+    assert_eq!(code(&e), "dynid::data::line_ends", "{e}");
+    // Windows line ends are read.
+    let body = rows(300, 0.01).replace('\n', "\r\n");
+    assert_eq!(read(&body, &CsvOptions::default()), Ok(300));
+}
+
+#[test]
+fn invisible_and_control_characters_are_escaped_and_named() {
+    // A zero-width space in a column name.
+    let body = rows(300, 0.01).replacen("m1.x", "m1.x\u{200b}", 1);
+    let e = read_err(body.as_bytes(), &CsvOptions::default());
+    assert_eq!(code(&e), "dynid::data::missing_column", "{e}");
+    let msg = e.to_string();
+    assert!(msg.contains("m1.x\\u{200b}"), "{msg}");
+    assert!(msg.contains("a zero-width space"), "{msg}");
+    assert!(!msg.contains('\u{200b}'), "{msg}");
+    // An escape sequence and a NUL in a number.
+    for (bad, name) in [("\x1b[31m", "an escape character"), ("\0", "a NUL byte")] {
+        let body = rows(300, 0.01).replacen("\n0.29,", &format!("\n0.29,{bad}"), 1);
+        let e = read_err(body.as_bytes(), &CsvOptions::default());
+        assert_eq!(code(&e), "dynid::data::not_a_number", "{e}");
+        let msg = e.to_string();
+        assert!(msg.contains(name), "{msg}");
+        assert!(!msg.contains(bad), "{msg:?}");
+        assert!(!msg.contains('\x1b') && !msg.contains('\0'), "{msg:?}");
+    }
+}
+
+#[test]
+fn sample_conflicting_with_the_t_column_says_so() {
+    let opts = CsvOptions {
+        map: vec![],
+        ts: Some(0.02),
+    };
+    let e = read_err(rows(300, 0.01).as_bytes(), &opts);
+    assert_eq!(code(&e), "dynid::data::sample_conflict", "{e}");
+    // An agreeing `--sample` is accepted.
+    let opts = CsvOptions {
+        map: vec![],
+        ts: Some(0.01),
+    };
+    assert_eq!(read(&rows(300, 0.01), &opts), Ok(300));
+}
+
+#[test]
+fn map_messages_name_the_real_problem() {
+    let ir = sdof_ir(true);
+    let e = CsvOptions::parse_map("=m1.x", &ir).unwrap_err();
+    assert_eq!(code(&e), "dynid::data::bad_map");
+    assert!(
+        e.to_string().contains("column name before `=` is empty"),
+        "{e}"
+    );
+    let e = CsvOptions::parse_map("t=m1.x", &ir).unwrap_err();
+    assert!(e.to_string().contains("`t` is the time column"), "{e}");
+    // `m1.x=t` parses (it names the time column of a file without `t`), but a file that
+    // has its own `t` refuses it.
+    let map = CsvOptions::parse_map("m1.x=t", &ir).unwrap();
+    let opts = CsvOptions {
+        map: vec![map],
+        ts: None,
+    };
+    let e = read_err(rows(300, 0.01).as_bytes(), &opts);
+    assert_eq!(code(&e), "dynid::data::bad_map", "{e}");
+    assert!(matches!(e, DataError::MapOntoTime { .. }), "{e}");
 }

@@ -129,24 +129,7 @@ pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooA
         let f = smallest(&|s| s / hi).max(smallest(&|s| lo / s));
         if f > MAX_INVISIBLE {
             let element = r.curve.element.clone();
-            let message = format!(
-                "levels too alike for `{}` of {element}: with its {} spanning a factor {:.3} \
-                 over the levels and its standard errors, an effect that scales with σ or \
-                 1/σ (friction, prestress, quadratic damping) would have to reach {} of `{}` \
-                 to show as a drift (at most {:.0} % is needed); `linear` here only rules \
-                 out larger effects — add levels that span a wider range of amplitude (a \
-                 factor ≥ 3) or longer levels",
-                r.curve.param,
-                r.sigma_name,
-                ratio,
-                if f.is_finite() {
-                    format!("{:.0} %", 100.0 * f)
-                } else {
-                    "any size".into()
-                },
-                r.curve.param,
-                100.0 * MAX_INVISIBLE,
-            );
+            let message = too_alike_message(&r.curve.param, &element, &r.sigma_name, ratio, f);
             out.push(LevelsTooAlike {
                 element,
                 param: r.curve.param.clone(),
@@ -158,6 +141,46 @@ pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooA
         }
     }
     out
+}
+
+/// The span in σ below which the levels themselves are too alike (the recommendation of
+/// the detection's help: a factor ≥ 3).
+const WIDE_SPAN: f64 = 3.0;
+
+/// The warning for a curve whose smallest visible effect is `f` (a fraction) with its σ
+/// spanning a factor `ratio`: blamed on the levels' span when it is below [`WIDE_SPAN`],
+/// on the standard errors otherwise (more span would not help then).
+fn too_alike_message(param: &str, element: &str, sigma: &str, ratio: f64, f: f64) -> String {
+    let size = if f > 10.0 {
+        // Beyond ten times the parameter the figure carries no information.
+        "over 1000 %".to_string()
+    } else if f.is_finite() {
+        format!("{} %", dynid_ir::num::sig(100.0 * f, 2, false))
+    } else {
+        "any size".into()
+    };
+    let effect = format!(
+        "an effect that scales with σ or 1/σ (friction, prestress, quadratic damping) would \
+         have to reach {size} of `{param}` to show as a drift (at most {:.0} % is needed); \
+         `linear` here only rules out larger effects",
+        100.0 * MAX_INVISIBLE
+    );
+    let factor = dynid_ir::num::sig(ratio, 3, false);
+    // Decide on the printed factor, so that "only a factor 3" never meets "≥ 3".
+    if dynid_ir::num::round_sig(ratio, 3) < WIDE_SPAN {
+        format!(
+            "levels too alike for `{param}` of {element}: its {sigma} spans only a factor \
+             {factor} over the levels, so {effect} — add levels that span a wider range of \
+             amplitude (a factor ≥ {WIDE_SPAN} in {sigma}), or record longer levels"
+        )
+    } else {
+        format!(
+            "standard errors too large for `{param}` of {element}: its {sigma} spans a \
+             factor {factor} over the levels, but with the standard errors of `{param}` \
+             {effect} — record longer levels or less noisy data (a wider span would not \
+             help)"
+        )
+    }
 }
 
 #[cfg(test)]
@@ -211,9 +234,32 @@ mod tests {
         assert_eq!(w.len(), 1, "{w:?}");
         assert!((w[0].sigma_ratio - 1.1).abs() < 1e-12);
         assert!(w[0].smallest_visible > 0.25, "{w:?}");
-        assert!(w[0].message.contains("a factor 1.100"), "{}", w[0].message);
-        // The same factor 3 with 20 % errors cannot resolve a quarter either.
+        assert!(
+            w[0].message.contains("spans only a factor 1.1 "),
+            "{}",
+            w[0].message
+        );
+        assert!(w[0].message.contains("a factor ≥ 3"), "{}", w[0].message);
+        // The same factor 3 with 20 % errors cannot resolve a quarter either: the
+        // warning blames the standard errors, not the span, which it must not ask to
+        // widen to a factor it already exceeds.
         let (d, o) = detection(&[0.1, 0.17, 0.3], 0.2);
-        assert_eq!(levels_too_alike(&d, &o).len(), 1);
+        let w = levels_too_alike(&d, &o);
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].message.starts_with("standard errors too large"),
+            "{}",
+            w[0].message
+        );
+        assert!(!w[0].message.contains("≥ 3"), "{}", w[0].message);
+        // A span of millions is printed as a number a reader can take in.
+        let (d, o) = detection(&[1e-6, 0.5, 3.871641], 40.0);
+        let w = levels_too_alike(&d, &o);
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].message.contains("a factor 3.87e6 "),
+            "{}",
+            w[0].message
+        );
     }
 }

@@ -40,10 +40,17 @@ pub fn fmt_num(v: f64) -> String {
     num::sig(v, 5, false)
 }
 
-/// A gap in % for the text and report: one decimal, "diverged" for an infinite gap (a run
-/// that diverged), "unavailable" for one that cannot be computed.
+/// Gaps above this (in %) are printed as "> 1000 %": a prediction ten times the size of
+/// the signal is simply wrong, and its digits say nothing more (the JSON keeps them).
+pub const GAP_SHOWN_MAX: f64 = 1000.0;
+
+/// A gap in % for the text and report: one decimal, "> 1000 %" beyond [`GAP_SHOWN_MAX`],
+/// "diverged" for an infinite gap (a run that diverged), "unavailable" for one that cannot
+/// be computed.
 pub fn fmt_gap(v: f64) -> String {
-    if v.is_finite() {
+    if v.is_finite() && v > GAP_SHOWN_MAX {
+        format!("> {GAP_SHOWN_MAX:.0} %")
+    } else if v.is_finite() {
         format!("{v:.1} %")
     } else if v == f64::INFINITY {
         "diverged".into()

@@ -14,6 +14,47 @@ pub fn fmt_shrink(shrink: Option<f64>, word: &str) -> String {
     }
 }
 
+/// The gap table: a label column and two right-aligned columns, each as wide as its widest
+/// cell plus a blank (at least 12), so that cells never run together.
+fn gap_table(rows: &[(&str, &ModelGap)]) -> String {
+    use std::fmt::Write;
+    let cells: Vec<(String, String)> = rows
+        .iter()
+        .map(|(_, g)| (fmt_gap(g.gap), fmt_gap(g.pathwise)))
+        .collect();
+    let width = |head: &str, col: &dyn Fn(&(String, String)) -> usize| {
+        cells
+            .iter()
+            .map(col)
+            .chain([head.chars().count()])
+            .max()
+            .unwrap_or(0)
+            .saturating_add(1)
+            .max(12)
+    };
+    let w1 = width("statistical", &|c| c.0.chars().count());
+    let w2 = width("pathwise", &|c| c.1.chars().count());
+    let label = rows
+        .iter()
+        .map(|(l, _)| l.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(36);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{:<w$}{:>w1$}{:>w2$}",
+        "",
+        "statistical",
+        "pathwise",
+        w = label + 2
+    );
+    for ((l, _), (a, b)) in rows.iter().zip(&cells) {
+        let _ = writeln!(s, "  {l:<label$}{a:>w1$}{b:>w2$}");
+    }
+    s
+}
+
 impl Diagnosis {
     /// A short human summary: verdict, location, effect, shrink, evidence.
     pub fn summary(&self) -> String {
@@ -32,20 +73,14 @@ impl Diagnosis {
             s,
             "Gap (mean over response signals and levels; statistical: spectrum and std of each signal, the headline; pathwise: free-run NRMSE):"
         );
-        let _ = writeln!(s, "{:<38}{:>12}{:>12}", "", "statistical", "pathwise");
-        let mut row = |label: &str, g: &ModelGap| {
-            let _ = writeln!(
-                s,
-                "  {label:<36}{:>12}{:>12}",
-                fmt_gap(g.gap),
-                fmt_gap(g.pathwise)
-            );
-        };
-        row("nominal model", &self.nominal);
-        row("re-identified (withheld level)", &self.reidentified);
+        let mut rows: Vec<(&str, &ModelGap)> = vec![
+            ("nominal model", &self.nominal),
+            ("re-identified (withheld level)", &self.reidentified),
+        ];
         if !self.found.is_empty() {
-            row("corrected model (withheld level)", &self.corrected);
+            rows.push(("corrected model (withheld level)", &self.corrected));
         }
+        s += &gap_table(&rows);
         let _ = writeln!(s);
         // Where.
         let worst: Vec<String> = {
@@ -273,5 +308,46 @@ pub(super) fn confidence(t: f64, shrink: f64) -> &'static str {
         "medium"
     } else {
         "low"
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gap(gap: f64, pathwise: f64) -> ModelGap {
+        ModelGap {
+            label: String::new(),
+            gap,
+            pathwise,
+            levels: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_gap_table_keeps_its_columns_apart_at_any_value() {
+        let (a, b, c) = (
+            gap(8_878_825.0, 5_803_459_933.7),
+            gap(0.8, f64::INFINITY),
+            gap(f64::NAN, 12.34),
+        );
+        let t = gap_table(&[("nominal model", &a), ("re-identified", &b), ("x", &c)]);
+        // Huge gaps are not printed digit by digit, and no two cells touch.
+        assert!(!t.contains("8878825"), "{t}");
+        assert!(t.contains("> 1000 %"), "{t}");
+        for line in t.lines().skip(1) {
+            assert!(!line.contains("%>") && !line.contains("%d") && !line.contains("%u"));
+            let cells: Vec<&str> = line.split("  ").filter(|c| !c.trim().is_empty()).collect();
+            assert_eq!(cells.len(), 3, "{line:?} in\n{t}");
+        }
+        // Ordinary values keep the layout the table always had.
+        let t = gap_table(&[("nominal model", &gap(0.0, 0.0))]);
+        assert_eq!(
+            t,
+            format!(
+                "{:<38}{:>12}{:>12}\n  {:<36}{:>12}{:>12}\n",
+                "", "statistical", "pathwise", "nominal model", "0.0 %", "0.0 %"
+            )
+        );
     }
 }

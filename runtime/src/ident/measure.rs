@@ -66,6 +66,24 @@ pub fn measure<'m>(
     let ts_max = stats.iter().map(|s| s.ts).fold(0.0, f64::max);
     let nyquist = std::f64::consts::PI / ts_max;
     if let Some(c) = corners.iter().find(|c| **c >= nyquist) {
+        let designed_here =
+            opts.corners.is_none() && ir.filter.as_ref().is_none_or(|f| f.corners.is_empty());
+        if designed_here && ts_min < ts_max {
+            // No option was given: the corners come from the faster level's rate.
+            let at = |ts: f64| {
+                stats
+                    .iter()
+                    .position(|s| s.ts == ts)
+                    .map_or_else(String::new, |k| levels[k].origin())
+            };
+            return Err(IdentifyError::MixedSampleIntervals {
+                fast: at(ts_min),
+                ts_fast: ts_min,
+                slow: at(ts_max),
+                ts_slow: ts_max,
+                corner: corners.iter().copied().fold(0.0, f64::max),
+            });
+        }
         return Err(IdentifyError::BadOption {
             message: format!(
                 "filter corner {} rad/s is at or above the Nyquist frequency π/Ts = {} rad/s \

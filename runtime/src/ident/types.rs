@@ -107,6 +107,18 @@ pub enum IdentifyError {
     #[error("invalid option: {message}")]
     #[diagnostic(code(dynid::identify::option), help("{help}"))]
     BadOption { message: String, help: String },
+    #[error("the levels have different sample intervals: {fast} has Ts = {} s, {slow} has Ts = {} s; the filter corners designed for the faster level (up to {} rad/s) are above the Nyquist frequency π/Ts = {} rad/s of the slower one", dynid_ir::num::sig(*.ts_fast, 4, false), dynid_ir::num::sig(*.ts_slow, 4, false), dynid_ir::num::sig(*.corner, 4, false), dynid_ir::num::sig(std::f64::consts::PI / *.ts_slow, 4, false))]
+    #[diagnostic(
+        code(dynid::identify::sample_intervals),
+        help("resample the levels to one sample interval (e.g. decimate {fast} to Ts = {} s after low-pass filtering), or give `--filter-corners` well below π/Ts of the slowest level", dynid_ir::num::sig(*.ts_slow, 4, false))
+    )]
+    MixedSampleIntervals {
+        fast: String,
+        ts_fast: f64,
+        slow: String,
+        ts_slow: f64,
+        corner: f64,
+    },
     #[error(
         "{origin}: every measured signal is constant ({columns}): the level carries no excitation"
     )]

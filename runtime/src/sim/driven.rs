@@ -110,7 +110,18 @@ pub fn simulate_driven_from(
             *v = c[k];
         }
         if let Some(laws) = &mut laws {
-            laws.apply(&rk.x, &rk.v, &r, &mut u0);
+            if let Some(bad) = laws.apply(&rk.x, &rk.v, &r, &mut u0) {
+                let value = u0[ir.controls[bad].input.index()];
+                let t = input.t0 + k as f64 * input.ts;
+                let when = format!("t = {} s", dynid_ir::num::sig(t, 6, false));
+                return Err(law::law_error(
+                    ir,
+                    bad,
+                    value,
+                    "the driven run".into(),
+                    when,
+                ));
+            }
         }
         for (col, &s) in out.iter_mut().zip(&measured) {
             col.push(signal_value(ir, s, &rk, &u0, &r));
@@ -128,7 +139,12 @@ pub fn simulate_driven_from(
             &rk,
             limit,
             || "the driven run".into(),
-            input.t0 + (k + 1) as f64 * input.ts,
+            || {
+                format!(
+                    "t = {} s",
+                    dynid_ir::num::sig(input.t0 + (k + 1) as f64 * input.ts, 6, false)
+                )
+            },
         )?;
     }
     Ok(Record {

@@ -84,15 +84,28 @@ pub enum SimError {
     )]
     UnsupportedTerm { body: String, what: String },
 
-    #[error("the simulation diverged at {context}, t = {} s ({what})", dynid_ir::num::sig(*.time, 6, false))]
+    #[error("the simulation diverged at {context}, {when} ({what})")]
     #[diagnostic(
         code(dynid::sim::diverged),
         help("the model is unstable at this excitation (e.g. a negative stiffness or damping, or a softening spring driven past its limit); check parameter values and signs, lower the level, or raise `--substeps`")
     )]
     Diverged {
         context: String,
-        time: f64,
+        /// When, in words: seconds since the run started, and whether in the warm-up.
+        when: String,
         what: String,
+    },
+
+    #[error("the control law `{law}` gives {value} at {context}, {when}, although everything it reads is finite")]
+    #[diagnostic(
+        code(dynid::sim::control_law),
+        help("the law itself is undefined there (a square root of a negative number, a division by a signal that passes through zero, an overflow): rewrite it so that it is defined for every state the loop reaches (e.g. `sqrt(abs(…))`, or no division by a signal)")
+    )]
+    ControlLaw {
+        law: String,
+        value: String,
+        context: String,
+        when: String,
     },
 
     #[error("at {context} the motion of `{body}` is too fast for the sample interval {ts} s (ω·Ts ≈ {omega_ts:.2}, {samples_per_period:.1} samples per period)")]

@@ -53,7 +53,19 @@ impl Laws {
 
     /// Write every law's value into `u[input]`, from positions `x`, velocities `v` and
     /// reference values `r` (other inputs in `u` are left as they are and not read).
-    pub(crate) fn apply(&mut self, x: &[f64], v: &[f64], r: &[f64], u: &mut [f64]) {
+    ///
+    /// Returns the index (in `ir.controls`) of the first law whose value is not finite
+    /// while everything it reads is (`sqrt` of a negative error, a division by a signal
+    /// that is zero): the law's own fault, which the caller reports as such rather than as
+    /// a diverging model.
+    #[must_use]
+    pub(crate) fn apply(
+        &mut self,
+        x: &[f64],
+        v: &[f64],
+        r: &[f64],
+        u: &mut [f64],
+    ) -> Option<usize> {
         let nb = self.n_bodies;
         for b in 0..nb {
             self.signals[2 * b] = x[b];
@@ -66,6 +78,52 @@ impl Laws {
         for (&i, &value) in self.inputs.iter().zip(&self.out) {
             u[i] = value;
         }
+        let read_finite = || self.signals.iter().all(|s| s.is_finite());
+        match self.out.iter().position(|o| !o.is_finite()) {
+            Some(k) if read_finite() => Some(k),
+            _ => None,
+        }
+    }
+}
+
+/// The error for law `k` of `ir` giving `value` at `context`, `when` (in words).
+pub(crate) fn law_error(
+    ir: &ModelIr,
+    k: usize,
+    value: f64,
+    context: String,
+    when: String,
+) -> super::SimError {
+    let c = &ir.controls[k];
+    super::SimError::ControlLaw {
+        law: format!(
+            "{} = {}",
+            ir.inputs[c.input.index()].name,
+            dynid_ir::print::render_expr(ir, c.law)
+        ),
+        value: if value.is_nan() {
+            "NaN".into()
+        } else {
+            format!("{value}")
+        },
+        context,
+        when,
+    }
+}
+
+/// A time of the run in words: seconds since the run started, and where the record is.
+pub(crate) fn run_time(time: f64, record_start: f64) -> String {
+    let t = dynid_ir::num::sig(time, 6, false);
+    if time < record_start {
+        format!(
+            "{t} s after the start, during the warm-up (the record starts at {} s)",
+            dynid_ir::num::sig(record_start, 6, false)
+        )
+    } else {
+        format!(
+            "{t} s after the start, t = {} s in the record",
+            dynid_ir::num::sig(time - record_start, 6, false)
+        )
     }
 }
 

@@ -532,7 +532,13 @@ fn simulate_level(
                 u0[ctl.input] = ctl.output(rk.x[b], rk.v[b]);
             }
             if let Some(laws) = &mut laws {
-                laws.apply(&rk.x, &rk.v, &r, &mut u0);
+                if let Some(bad) = laws.apply(&rk.x, &rk.v, &r, &mut u0) {
+                    let value = u0[ir.controls[bad].input.index()];
+                    let time = (k * fine + j) as f64 * h;
+                    let start = n_burn as f64 * cfg.sample;
+                    let when = law::run_time(time, start);
+                    return Err(law::law_error(ir, bad, value, context(), when));
+                }
             }
             if j == 0 && k >= n_burn {
                 for (v, &s) in row.iter_mut().zip(&measured) {
@@ -562,9 +568,8 @@ fn simulate_level(
             rk.advance(mech, &u0, &u1, h, substeps);
             std::mem::swap(&mut u0, &mut u1);
         }
-        // Time relative to the start of the recording (negative during the burn-in).
-        let t = (k as f64 + 1.0 - n_burn as f64) * cfg.sample;
-        check_divergence(&rk, limit, context, t)?;
+        let when = || law::run_time((k as f64 + 1.0) * cfg.sample, n_burn as f64 * cfg.sample);
+        check_divergence(&rk, limit, context, when)?;
         if k >= n_burn {
             res.add(&rk.x);
         }
@@ -670,7 +675,7 @@ fn check_divergence(
     rk: &Rk4,
     limit: f64,
     context: impl Fn() -> String,
-    time: f64,
+    when: impl Fn() -> String,
 ) -> Result<(), SimError> {
     let m = rk.magnitude();
     // An infinite limit (an input of infinite intensity) must not let `inf <= inf` pass.
@@ -679,7 +684,7 @@ fn check_divergence(
     }
     Err(SimError::Diverged {
         context: context(),
-        time,
+        when: when(),
         what: if m.is_finite() {
             format!("state magnitude {m:.3e} exceeds {limit:.1e}")
         } else {

@@ -712,3 +712,43 @@ fn a_pd_controller_on_a_model_with_its_own_law_is_refused() {
     let e = simulate(&ir, &cfg).unwrap_err();
     assert!(e.to_string().contains("control law"), "{e}");
 }
+
+#[test]
+fn a_control_law_undefined_on_the_state_is_named_with_the_run_time() {
+    // `sqrt` of the tracking error: NaN as soon as the mass overshoots the set point.
+    let src = SERVO_LOOP.replace(
+        "control u = 80000 * (xr - m.x) - 2680 * m.v",
+        "control u = 80000 * sqrt(xr - m.x) - 2680 * m.v",
+    );
+    let ir = dsl_parser::compile_str("servo_sqrt.dyn", &src).unwrap();
+    let cfg = SimConfig {
+        duration: 2.0,
+        sample: 1e-3,
+        burn_in: 2.0,
+        ..SimConfig::default()
+    };
+    let e = simulate(&ir, &cfg).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, SimError::ControlLaw { .. }), "{msg}");
+    assert!(msg.contains("`u = 80000 * sqrt(xr - m.x)"), "{msg}");
+    assert!(msg.contains("NaN"), "{msg}");
+    // The time counts from the start of the run, and the warm-up is named as such
+    // (never a negative time).
+    assert!(msg.contains("s after the start"), "{msg}");
+    assert!(msg.contains("warm-up"), "{msg}");
+    assert!(!msg.contains("t = -"), "{msg}");
+}
+
+#[test]
+fn divergence_in_the_warm_up_gives_no_negative_time() {
+    let ir = sdof(
+        &SdofParams::linear(1.0, -1.0, 4.0),
+        lowpass(),
+        vec![6.0, 15.0],
+    );
+    let e = simulate(&ir, &cfg(2000.0)).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, SimError::Diverged { .. }), "{msg}");
+    assert!(msg.contains("s after the start"), "{msg}");
+    assert!(!msg.contains("t = -"), "{msg}");
+}
