@@ -59,6 +59,14 @@ pub enum SimError {
     #[diagnostic(code(dynid::sim::config), help("{help}"))]
     InvalidConfig { what: String, help: String },
 
+    #[error("{what} would take {estimate}")]
+    #[diagnostic(code(dynid::sim::too_long), help("{help}"))]
+    TooLong {
+        what: String,
+        estimate: String,
+        help: String,
+    },
+
     #[error("the mass matrix is singular (body `{body}` has no usable inertia)")]
     #[diagnostic(
         code(dynid::sim::singular_mass),
