@@ -308,3 +308,18 @@ fn silverbox_upsampling_is_refused_above_the_memory_limit() {
         &["TB of memory", "--allow-large"],
     );
 }
+
+#[test]
+fn a_missing_column_in_a_huge_header_is_named_without_echoing_the_header() {
+    // Before: the whole 10.9 MB "header" of a file without line ends was echoed.
+    let dir = tempfile::tempdir().unwrap();
+    let wide = dir.path().join("wide.csv");
+    let header: Vec<String> = (0..20_000).map(|k| format!("col{k}")).collect();
+    let row = vec!["0"; header.len()].join(",");
+    std::fs::write(&wide, header.join(",") + "\n" + &row + "\n" + &row + "\n").unwrap();
+    let mut cmd = dynid();
+    cmd.arg("identify").arg(model("sdof_linear.dyn")).arg(&wide);
+    let o = run_within(cmd, Duration::from_secs(60));
+    assert_refused(&o, "dynid::data::missing_column", &["(20000 columns)"]);
+    assert!(o.stderr.len() < 4096, "{} bytes of error", o.stderr.len());
+}

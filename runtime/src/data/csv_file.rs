@@ -84,6 +84,21 @@ fn parse_cell(path: &Path, line: u64, column: &str, raw: &[u8]) -> Result<f64, D
 /// Relative tolerance on the time step (times printed with few digits jitter slightly).
 const TIME_TOL: f64 = 1e-3;
 
+/// The header's columns for a message: all of them, or the first few and how many there
+/// are (a header can be up to [`super::MAX_LINE`] long; a message should not be).
+fn columns_in_words(header: &[String]) -> String {
+    const SHOWN: usize = 400;
+    let all = header.join(", ");
+    if all.len() <= SHOWN {
+        return all;
+    }
+    let mut cut = SHOWN;
+    while !all.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    format!("{}… ({} columns)", &all[..cut], header.len())
+}
+
 /// The `(slot, column)` pairs of the measured signals of `ir` in a header (`names` after
 /// the renamings), and the number of slots.
 fn select_measured(
@@ -101,7 +116,7 @@ fn select_measured(
                 return Err(DataError::MissingColumn {
                     path: path.display().to_string(),
                     signal: name.clone(),
-                    present: header.join(", "),
+                    present: columns_in_words(header),
                 })
             }
         }
@@ -179,7 +194,7 @@ impl CsvSource {
                 return Err(DataError::MissingColumn {
                     path: p,
                     signal: c.clone(),
-                    present: header.join(", "),
+                    present: columns_in_words(&header),
                 });
             }
         }
