@@ -324,7 +324,7 @@ const CASES: &[Case] = &[
     case(
         "a binary file as a level",
         &["identify", "{model}", "{dir}/binary.csv"],
-        "dynid::data::csv",
+        "dynid::data::binary",
     ),
     case(
         "a semicolon-separated level",

@@ -1,8 +1,12 @@
 //! Every `expect` left in the library and CLI code states the invariant that makes it
 //! unreachable (`expect("invariant: …")`, or `expect("grammar: …")` where the parser's
 //! grammar guarantees the shape), and no bare `unwrap()` remains: bad input must come back
-//! as an error, never as a panic. Unit-test modules (`#[cfg(test)] mod tests` at the end of
-//! a file, `tests.rs`) and test-only helpers are exempt.
+//! as an error, never as a panic. Unit-test modules (`#[cfg(test)] mod tests { … }` at the
+//! end of a file, `tests.rs`) and test-only helpers are exempt.
+//!
+//! Indexing panics are not `unwrap`s: in the files where matrix sizes come from the data
+//! ([`DATA_SHAPED`]) every function that indexes a matrix states the check that keeps its
+//! indices in bounds (`// shape: …`).
 
 use std::path::{Path, PathBuf};
 
@@ -32,21 +36,30 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-/// The lines of `text` before its unit-test module.
-fn code_lines(text: &str) -> Vec<&str> {
+/// The lines of `text` before its inline unit-test module (`#[cfg(test)] mod tests {`),
+/// numbered from 1. A module declared in another file (`#[cfg(test)] mod tests;`) ends
+/// nothing: the code after the declaration is audited too.
+fn code_lines(text: &str) -> Vec<(usize, &str)> {
     let lines: Vec<&str> = text.lines().collect();
     let cut = lines
         .windows(2)
-        .position(|w| w[0].trim() == "#[cfg(test)]" && w[1].trim_start().starts_with("mod tests"))
+        .position(|w| {
+            w[0].trim() == "#[cfg(test)]"
+                && w[1].trim_start().starts_with("mod tests")
+                && !w[1].trim_end().ends_with(';')
+        })
         .unwrap_or(lines.len());
-    lines[..cut].to_vec()
+    lines[..cut]
+        .iter()
+        .enumerate()
+        .map(|(i, l)| (i + 1, *l))
+        .collect()
 }
 
 /// Offending lines of one file's code.
 fn offences(text: &str) -> Vec<(usize, String)> {
     code_lines(text)
-        .iter()
-        .enumerate()
+        .into_iter()
         .filter(|(_, l)| !l.trim_start().starts_with("//"))
         .filter(|(_, l)| {
             l.contains(".unwrap()")
@@ -55,8 +68,99 @@ fn offences(text: &str) -> Vec<(usize, String)> {
                     !(msg.starts_with("invariant: ") || msg.starts_with("grammar: "))
                 })
         })
-        .map(|(i, l)| (i + 1, l.trim().to_string()))
+        .map(|(i, l)| (i, l.trim().to_string()))
         .collect()
+}
+
+/// Files whose matrices and vectors take their sizes from the data (the number of levels,
+/// of points on a curve, of unknowns left after rank loss): there an index out of bounds
+/// is a panic that input can reach, and `tests/panic_audit.rs` cannot see it as it sees an
+/// `unwrap`. The rule: every function of these files that indexes a matrix (`m[(i, j)]`)
+/// states, in a comment `// shape: …`, the check that keeps its indices in bounds (a guard
+/// at its top, or the invariant of its caller).
+const DATA_SHAPED: &[&str] = &[
+    "runtime/src/detect/fit.rs",
+    "runtime/src/ident/solve.rs",
+    "runtime/src/ident/stats.rs",
+    "runtime/src/refine/qr.rs",
+    "runtime/src/refine/sens.rs",
+    "runtime/src/diagnose/search.rs",
+];
+
+/// Whether `line` indexes by a parenthesised expression (`m[(i, j)]`, `v[(a + b)..]`):
+/// `[(` after a name or a closing bracket, not a slice of tuples (`&[(usize, f64)]`).
+fn indexes_by_tuple(line: &str) -> bool {
+    line.match_indices("[(").any(|(i, _)| {
+        line[..i]
+            .chars()
+            .next_back()
+            .is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ')' || c == ']')
+    })
+}
+
+/// Functions of `text` that index a matrix and state no `// shape:` check: `(line of the
+/// fn, its first line)`. A function runs from its `fn` line to the closing brace at the
+/// same indentation.
+fn unchecked_indexing(text: &str) -> Vec<(usize, String)> {
+    let lines = code_lines(text);
+    let mut out = Vec::new();
+    for (k, &(line, l)) in lines.iter().enumerate() {
+        let body = l.trim_start();
+        let is_fn = ["fn ", "pub fn ", "pub(crate) fn ", "pub(super) fn "]
+            .iter()
+            .any(|p| body.starts_with(p));
+        if !is_fn {
+            continue;
+        }
+        let indent = l.len() - body.len();
+        let end = format!("{}}}", " ".repeat(indent));
+        let span: Vec<&str> = lines[k..]
+            .iter()
+            .map(|&(_, l)| l)
+            .take_while(|l| *l != end)
+            .collect();
+        let indexes = span
+            .iter()
+            .any(|l| !l.trim_start().starts_with("//") && indexes_by_tuple(l));
+        let checked = span.iter().any(|l| l.trim_start().starts_with("// shape:"));
+        if indexes && !checked {
+            out.push((line, body.to_string()));
+        }
+    }
+    out
+}
+
+#[test]
+fn the_shape_audit_finds_unchecked_matrix_indexing() {
+    let text = "fn a(m: &M) -> f64 {\n    m[(0, 1)]\n}\nfn b(m: &M) -> f64 {\n    // shape: m is 2 × 2 (checked by the caller)\n    m[(0, 1)]\n}\nfn c(h: &[(usize, f64)]) {}\n";
+    let found: Vec<usize> = unchecked_indexing(text).iter().map(|o| o.0).collect();
+    assert_eq!(found, [1]);
+}
+
+#[test]
+fn the_audit_reads_past_a_test_module_declared_elsewhere() {
+    let text = "#[cfg(test)]\nmod tests;\nfn a() {\n    x.unwrap();\n}\n";
+    let found: Vec<usize> = offences(text).iter().map(|o| o.0).collect();
+    assert_eq!(found, [4]);
+}
+
+#[test]
+fn matrix_indexing_on_data_dependent_shapes_states_its_bounds() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut bad = Vec::new();
+    for f in DATA_SHAPED {
+        let text = std::fs::read_to_string(root.join(f)).unwrap();
+        for (line, code) in unchecked_indexing(&text) {
+            bad.push(format!("{f}:{line}: {code}"));
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "these functions index matrices whose sizes come from the data: check the shape \
+         (fewer points than coefficients, an empty curve) and say how in a `// shape:` \
+         comment:\n{}",
+        bad.join("\n")
+    );
 }
 
 #[test]

@@ -63,9 +63,61 @@ pub fn compile_str(name: &str, source: &str) -> Result<ir::ModelIr, CompileError
     }
 }
 
+/// Largest model source read: 8 MiB. The largest example model is a few kilobytes; a
+/// bigger file is not a model (`/dev/zero`, a data file given by mistake), and reading it
+/// whole would take the memory it holds.
+pub const MAX_SOURCE: u64 = 8 << 20;
+
+/// The bytes of the file at `path`, read once (a pipe or device cannot be read twice), at
+/// most [`MAX_SOURCE`] of them: `Ok(None)` when the file holds more.
+pub fn read_source(path: &Path) -> std::io::Result<Option<Vec<u8>>> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)?
+        .take(MAX_SOURCE + 1)
+        .read_to_end(&mut bytes)?;
+    Ok((bytes.len() as u64 <= MAX_SOURCE).then_some(bytes))
+}
+
 /// Read and compile a `.dyn` file. A read failure is reported as a `dyn::io` diagnostic.
 pub fn compile_file(path: &Path) -> Result<ir::ModelIr, CompileErrors> {
     let name = path.display().to_string();
+    let io_error = |d: error::Draft| {
+        let sink = error::ErrorSink::new(&name, "");
+        let err = CompileError::build(ErrorKind::Io, d, sink.src.clone());
+        Err(CompileErrors {
+            name: name.clone(),
+            src: sink.src,
+            errors: vec![err],
+        })
+    };
+    let bytes = match read_source(path) {
+        Ok(Some(b)) => b,
+        Ok(None) => {
+            return io_error(error::Draft {
+                message: format!(
+                    "`{name}` holds more than {} MiB: it is not a model source",
+                    MAX_SOURCE >> 20
+                ),
+                help: "a model is a `.dyn` text file of a few kilobytes; check the path".into(),
+                ..Default::default()
+            })
+        }
+        Err(e) => {
+            return io_error(error::Draft {
+                message: format!("cannot read `{name}`: {e}"),
+                help: "check the path and the file permissions".into(),
+                ..Default::default()
+            })
+        }
+    };
+    compile_bytes(&name, &bytes)
+}
+
+/// Compile the bytes of a `.dyn` file (`name` is shown in diagnostics): UTF-8 text, else a
+/// `dyn::io` diagnostic pointing at the first byte that is not.
+pub fn compile_bytes(name: &str, bytes: &[u8]) -> Result<ir::ModelIr, CompileErrors> {
+    let name = name.to_string();
     let io_error = |source: &str, d: error::Draft| {
         let sink = error::ErrorSink::new(&name, source);
         let err = CompileError::build(ErrorKind::Io, d, sink.src.clone());
@@ -75,20 +127,7 @@ pub fn compile_file(path: &Path) -> Result<ir::ModelIr, CompileErrors> {
             errors: vec![err],
         })
     };
-    let bytes = match std::fs::read(path) {
-        Ok(b) => b,
-        Err(e) => {
-            return io_error(
-                "",
-                error::Draft {
-                    message: format!("cannot read `{name}`: {e}"),
-                    help: "check the path and the file permissions".into(),
-                    ..Default::default()
-                },
-            )
-        }
-    };
-    if let Some(kind) = text::utf16_kind(&bytes) {
+    if let Some(kind) = text::utf16_kind(bytes) {
         return io_error(
             "",
             error::Draft {
@@ -100,7 +139,7 @@ pub fn compile_file(path: &Path) -> Result<ir::ModelIr, CompileErrors> {
             },
         );
     }
-    match std::str::from_utf8(&bytes) {
+    match std::str::from_utf8(bytes) {
         Ok(src) => compile_str(&name, src),
         Err(e) => {
             // Point at the first byte that is not UTF-8, in a lossy copy of the text.
@@ -111,7 +150,7 @@ pub fn compile_file(path: &Path) -> Result<ir::ModelIr, CompileErrors> {
                 .chars()
                 .count()
                 + 1;
-            let lossy = String::from_utf8_lossy(&bytes);
+            let lossy = String::from_utf8_lossy(bytes);
             io_error(
                 &lossy,
                 error::Draft {

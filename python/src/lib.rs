@@ -44,6 +44,34 @@ fn raise(py: Python<'_>, class: &str, message: String, attrs: Vec<(&str, Py<PyAn
     build().unwrap_or_else(|e| e)
 }
 
+/// Run one call into the runtime, turning a panic into `DynidError` (code
+/// `dynid::internal`) with its message: Python code catching `Exception` must see every
+/// failure, and a `pyo3_runtime.PanicException` is not an `Exception`.
+fn guarded<T>(py: Python<'_>, call: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(call)) {
+        Ok(r) => r,
+        Err(payload) => {
+            let what = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "a panic without a message".into());
+            let help = "this is a bug in dynid, not in your data or model: please report it \
+                        with the model and data that caused it";
+            Err(raise_located(
+                py,
+                "DynidError",
+                format!("internal error: {what}"),
+                help,
+                "dynid::internal",
+                None,
+                None,
+                None,
+            ))
+        }
+    }
+}
+
 fn obj<'py, T: IntoPyObject<'py>>(py: Python<'py>, v: T) -> Py<PyAny> {
     match v.into_pyobject(py) {
         Ok(b) => b.into_any().unbind(),
@@ -84,7 +112,16 @@ fn runtime_error_at(
     } else {
         "DynidError"
     };
-    raise_located(py, class, text, &help, &code, level, column.as_deref(), sample)
+    raise_located(
+        py,
+        class,
+        text,
+        &help,
+        &code,
+        level,
+        column.as_deref(),
+        sample,
+    )
 }
 
 /// Raise `class` with the message followed by its help line and code (each when given), as
@@ -142,7 +179,16 @@ fn data_error(
     help: &str,
     code: &str,
 ) -> PyErr {
-    raise_located(py, "DataError", message, help, code, Some(level), column, sample)
+    raise_located(
+        py,
+        "DataError",
+        message,
+        help,
+        code,
+        Some(level),
+        column,
+        sample,
+    )
 }
 
 /// Line and column (1-based, in characters) of byte offset `at` in `src`.
@@ -251,7 +297,7 @@ impl LevelSource for ArraySource<'_> {
         let mut start = 0;
         let mut cols: Vec<&[f64]> = vec![&[]; self.cols.len()];
         while start < self.n {
-            let len = max_len.min(self.n - start);
+            let len = max_len.max(1).min(self.n - start);
             for (out, c) in cols.iter_mut().zip(&self.cols) {
                 *out = match c {
                     Some(c) => &c[start..start + len],
@@ -548,33 +594,35 @@ impl CompiledModel {
         noise: f64,
         burn_in: f64,
     ) -> PyResult<(Vec<SimLevel<'py>>, String)> {
-        let cfg = SimConfig {
-            levels,
-            duration,
-            seed,
-            sample,
-            noise,
-            burn_in,
-            ..SimConfig::default()
-        };
-        let ir = &self.ir;
-        let out = py
-            .detach(|| sim::simulate(ir, &cfg))
-            .map_err(|e| runtime_error(py, &e))?;
-        let truth = json(&out.truth)?;
-        let records = out
-            .records
-            .into_iter()
-            .map(|r| {
-                let cols = r
-                    .columns
-                    .into_iter()
-                    .map(|c| PyArray1::from_vec(py, c))
-                    .collect();
-                (r.names, cols, r.ts, r.t0)
-            })
-            .collect();
-        Ok((records, truth))
+        guarded(py, || {
+            let cfg = SimConfig {
+                levels,
+                duration,
+                seed,
+                sample,
+                noise,
+                burn_in,
+                ..SimConfig::default()
+            };
+            let ir = &self.ir;
+            let out = py
+                .detach(|| sim::simulate(ir, &cfg))
+                .map_err(|e| runtime_error(py, &e))?;
+            let truth = json(&out.truth)?;
+            let records = out
+                .records
+                .into_iter()
+                .map(|r| {
+                    let cols = r
+                        .columns
+                        .into_iter()
+                        .map(|c| PyArray1::from_vec(py, c))
+                        .collect();
+                    (r.names, cols, r.ts, r.t0)
+                })
+                .collect();
+            Ok((records, truth))
+        })
     }
 
     /// Identify the unknown parameters from all levels pooled: `(json, equations)`.
@@ -587,78 +635,103 @@ impl CompiledModel {
         noise_correction: bool,
         balance: bool,
     ) -> PyResult<(String, String)> {
-        let ir = &self.ir;
-        let sources = bind(py, ir, &levels)?;
-        let opts = IdentifyOptions {
-            corners,
-            balance: Some(balance),
-            noise_correction,
-            ..Default::default()
-        };
-        let id = py
-            .detach(|| {
-                let refs: Vec<&dyn LevelSource> =
-                    sources.iter().map(|s| s as &dyn LevelSource).collect();
-                identify(ir, &refs, &opts)
-            })
-            .map_err(|e| identify_error(py, &e))?;
-        Ok((json(&id)?, format_equations(ir, &id)))
+        guarded(py, || {
+            let ir = &self.ir;
+            let sources = bind(py, ir, &levels)?;
+            let opts = IdentifyOptions {
+                corners,
+                balance: Some(balance),
+                noise_correction,
+                ..Default::default()
+            };
+            let id = py
+                .detach(|| {
+                    let refs: Vec<&dyn LevelSource> =
+                        sources.iter().map(|s| s as &dyn LevelSource).collect();
+                    identify(ir, &refs, &opts)
+                })
+                .map_err(|e| identify_error(py, &e))?;
+            Ok((json(&id)?, format_equations(ir, &id)))
+        })
     }
 }
 
 fn read_source(path: &Path) -> String {
-    std::fs::read(path)
+    dsl_parser::read_source(path)
+        .ok()
+        .flatten()
         .map(|b| String::from_utf8_lossy(&b).into_owned())
         .unwrap_or_default()
+}
+
+/// The text of a compiled model, read once and at most 64 MiB of it (a bigger file is not a
+/// model, and would be read whole into memory).
+fn read_json_text(path: &Path) -> std::io::Result<String> {
+    use std::io::Read;
+    const MAX: u64 = 64 << 20;
+    let mut text = String::new();
+    std::fs::File::open(path)?
+        .take(MAX + 1)
+        .read_to_string(&mut text)?;
+    if text.len() as u64 > MAX {
+        return Err(std::io::Error::other(
+            "it holds more than 64 MiB, which is not a compiled model",
+        ));
+    }
+    Ok(text)
 }
 
 /// Compile `.dyn` source text; `name` is the file name shown in diagnostics.
 #[pyfunction]
 #[pyo3(signature = (source, name="<source>"))]
 fn compile_source(py: Python<'_>, source: &str, name: &str) -> PyResult<CompiledModel> {
-    dsl_parser::compile_str(name, source)
-        .map(|ir| CompiledModel { ir })
-        .map_err(|e| compile_error(py, &e, source))
+    guarded(py, || {
+        dsl_parser::compile_str(name, source)
+            .map(|ir| CompiledModel { ir })
+            .map_err(|e| compile_error(py, &e, source))
+    })
 }
 
 /// Compile a `.dyn` file, or load a `.json` compiled model (`dynid compile --emit json`).
 #[pyfunction]
 fn compile_file(py: Python<'_>, path: std::path::PathBuf) -> PyResult<CompiledModel> {
-    if path.extension().is_some_and(|e| e == "json") {
-        let fail = |message: String, help: &str| {
-            raise(
-                py,
-                "DynidError",
-                format!("{message}\n  help: {help}\n  [dynid::model::json]"),
-                vec![
-                    ("code", obj(py, "dynid::model::json")),
-                    ("help", obj(py, help)),
-                ],
-            )
-        };
-        let text = std::fs::read_to_string(&path).map_err(|e| {
-            fail(
-                format!("cannot read the model `{}`: {e}", path.display()),
-                "check the path and the file permissions (a compiled model is UTF-8 JSON)",
-            )
-        })?;
-        let ir: ModelIr = serde_json::from_str(&text).map_err(|e| {
-            fail(
-                format!("`{}` is not a compiled model (JSON IR): {e}", path.display()),
-                "a `.json` model is the output of `dynid compile M.dyn --emit json`; give the `.dyn` file instead",
-            )
-        })?;
-        ir.check_invariants().map_err(|e| {
-            fail(
-                format!("`{}` is not a consistent model: {e}", path.display()),
-                "write the model as .dyn and compile it instead of editing the JSON",
-            )
-        })?;
-        return Ok(CompiledModel { ir });
-    }
-    dsl_parser::compile_file(&path)
-        .map(|ir| CompiledModel { ir })
-        .map_err(|e| compile_error(py, &e, &read_source(&path)))
+    guarded(py, || {
+        if path.extension().is_some_and(|e| e == "json") {
+            let fail = |message: String, help: &str| {
+                raise(
+                    py,
+                    "DynidError",
+                    format!("{message}\n  help: {help}\n  [dynid::model::json]"),
+                    vec![
+                        ("code", obj(py, "dynid::model::json")),
+                        ("help", obj(py, help)),
+                    ],
+                )
+            };
+            let text = read_json_text(&path).map_err(|e| {
+                fail(
+                    format!("cannot read the model `{}`: {e}", path.display()),
+                    "check the path and the file permissions (a compiled model is UTF-8 JSON)",
+                )
+            })?;
+            let ir: ModelIr = serde_json::from_str(&text).map_err(|e| {
+                fail(
+                    format!("`{}` is not a compiled model (JSON IR): {e}", path.display()),
+                    "a `.json` model is the output of `dynid compile M.dyn --emit json`; give the `.dyn` file instead",
+                )
+            })?;
+            ir.check_invariants().map_err(|e| {
+                fail(
+                    format!("`{}` is not a consistent model: {e}", path.display()),
+                    "write the model as .dyn and compile it instead of editing the JSON",
+                )
+            })?;
+            return Ok(CompiledModel { ir });
+        }
+        dsl_parser::compile_file(&path)
+            .map(|ir| CompiledModel { ir })
+            .map_err(|e| compile_error(py, &e, &read_source(&path)))
+    })
 }
 
 /// Detect nonlinear elements of a linear model: `(json, table, warnings, verdicts)`, the
@@ -671,45 +744,49 @@ fn detect(
     levels: Vec<LevelArg<'_>>,
     alpha: f64,
 ) -> PyResult<DetectOut> {
-    if !(alpha > 0.0 && alpha < 1.0) {
-        return Err(raise(
-            py,
-            "DynidError",
-            format!("alpha = {alpha} is not between 0 and 1\n  help: a probability such as 1e-3"),
-            vec![("code", obj(py, "dynid::detect::option"))],
-        ));
-    }
-    let ir = &model.ir;
-    let sources = bind(py, ir, &levels)?;
-    let mut dopts = DetectOptions {
-        alpha,
-        ..Default::default()
-    };
-    let (det, fits) = py
-        .detach(|| {
-            let refs: Vec<&dyn LevelSource> =
-                sources.iter().map(|s| s as &dyn LevelSource).collect();
-            detect_from_data(ir, &refs, &IdentifyOptions::default(), &dopts, &[])
-        })
-        .map_err(|e| runtime_error(py, &e))?;
-    dopts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
-    let warnings: Vec<String> = levels_too_alike(&det, &dopts)
-        .iter()
-        .map(|w| w.message.clone())
-        .collect();
-    let value = serde_json::json!({
-        "detection": det,
-        "intensities": fits.input.elements,
-        "sigma_v_source": fits.sigma_v_source,
-        "jackknife_blocks": fits.n_blocks,
-        "warnings": warnings,
-    });
-    let verdicts = det
-        .elements
-        .iter()
-        .map(|e| (e.element.clone(), e.verdict.to_string()))
-        .collect();
-    Ok((json(&value)?, det.render_table(), warnings, verdicts))
+    guarded(py, || {
+        if !(alpha > 0.0 && alpha < 1.0) {
+            return Err(raise(
+                py,
+                "DynidError",
+                format!(
+                    "alpha = {alpha} is not between 0 and 1\n  help: a probability such as 1e-3"
+                ),
+                vec![("code", obj(py, "dynid::detect::option"))],
+            ));
+        }
+        let ir = &model.ir;
+        let sources = bind(py, ir, &levels)?;
+        let mut dopts = DetectOptions {
+            alpha,
+            ..Default::default()
+        };
+        let (det, fits) = py
+            .detach(|| {
+                let refs: Vec<&dyn LevelSource> =
+                    sources.iter().map(|s| s as &dyn LevelSource).collect();
+                detect_from_data(ir, &refs, &IdentifyOptions::default(), &dopts, &[])
+            })
+            .map_err(|e| runtime_error(py, &e))?;
+        dopts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
+        let warnings: Vec<String> = levels_too_alike(&det, &dopts)
+            .iter()
+            .map(|w| w.message.clone())
+            .collect();
+        let value = serde_json::json!({
+            "detection": det,
+            "intensities": fits.input.elements,
+            "sigma_v_source": fits.sigma_v_source,
+            "jackknife_blocks": fits.n_blocks,
+            "warnings": warnings,
+        });
+        let verdicts = det
+            .elements
+            .iter()
+            .map(|e| (e.element.clone(), e.verdict.to_string()))
+            .collect();
+        Ok((json(&value)?, det.render_table(), warnings, verdicts))
+    })
 }
 
 /// Diagnose the gap between a model and the levels: `(json, summary, html report)`.
@@ -719,26 +796,42 @@ fn diagnose(
     model: &CompiledModel,
     levels: Vec<LevelArg<'_>>,
 ) -> PyResult<(String, String, String)> {
-    let ir = &model.ir;
-    let sources = bind(py, ir, &levels)?;
-    let mut records = Vec::with_capacity(sources.len());
-    for s in &sources {
-        records.push(rt_diagnose::read_record(s, ir).map_err(|e| runtime_error(py, &e))?);
-    }
-    let origins: Vec<String> = sources.iter().map(|s| s.origin.clone()).collect();
-    let d = py
-        .detach(|| {
-            rt_diagnose::diagnose(
-                ir,
-                &records,
-                &origins,
-                &DiagnoseOptions::default(),
-                &|_, _| {},
-            )
+    guarded(py, || {
+        let ir = &model.ir;
+        let sources = bind(py, ir, &levels)?;
+        let mut records = Vec::with_capacity(sources.len());
+        for s in &sources {
+            records.push(rt_diagnose::read_record(s, ir).map_err(|e| runtime_error(py, &e))?);
+        }
+        let origins: Vec<String> = sources.iter().map(|s| s.origin.clone()).collect();
+        let d = py
+            .detach(|| {
+                rt_diagnose::diagnose(
+                    ir,
+                    &records,
+                    &origins,
+                    &DiagnoseOptions::default(),
+                    &|_, _| {},
+                )
+            })
+            .map_err(|e| runtime_error(py, &e))?;
+        let html = dynid::plot::render_html(&d);
+        Ok((json(&d)?, d.summary(), html))
+    })
+}
+
+/// Panic inside the boundary on purpose: the tests check with it that a panic reaches
+/// Python as `DynidError` (code `dynid::internal`), never as `PanicException`.
+#[pyfunction]
+fn _panic_inside_the_boundary(py: Python<'_>) -> PyResult<()> {
+    guarded(py, || {
+        py.detach(|| -> PyResult<()> {
+            let empty: Vec<f64> = Vec::new();
+            // An out-of-bounds index, as a data-dependent size bug would make.
+            let _ = empty[std::hint::black_box(1)];
+            Ok(())
         })
-        .map_err(|e| runtime_error(py, &e))?;
-    let html = dynid::plot::render_html(&d);
-    Ok((json(&d)?, d.summary(), html))
+    })
 }
 
 #[pymodule]
@@ -748,6 +841,7 @@ fn _dynid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(compile_file, m)?)?;
     m.add_function(wrap_pyfunction!(detect, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(_panic_inside_the_boundary, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -79,3 +79,22 @@ def test_compile_error_carries_the_rendered_diagnostic_line_and_column():
 def test_missing_model_file(tmp_path):
     with pytest.raises(dynid.CompileError, match="cannot read"):
         dynid.Model.from_file(tmp_path / "nope.dyn")
+
+
+def test_a_panic_in_the_runtime_is_a_dynid_error_not_a_panic_exception():
+    # pyo3 turns an uncaught panic into pyo3_runtime.PanicException, which
+    # `except Exception` does not catch; every call into the runtime catches it first.
+    with pytest.raises(dynid.DynidError) as e:
+        dynid._dynid._panic_inside_the_boundary()
+    assert e.value.code == "dynid::internal"
+    assert "internal error" in str(e.value)
+    assert "index out of bounds" in str(e.value)
+
+
+def test_detection_on_two_levels_says_they_are_too_few(models):
+    # Before: a two-parameter template fitted to two levels indexed past its matrix and
+    # Python saw pyo3_runtime.PanicException.
+    truth = dynid.Model.from_file(models / "sdof_cubic_coulomb.dyn")
+    data = truth.simulate(duration=500, seed=3)[:2]
+    det = dynid.detect(models / "sdof_linear.dyn", data)
+    assert "too few to rank any template" in " ".join(det.elements.values())

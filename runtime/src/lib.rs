@@ -22,6 +22,7 @@ pub mod detect;
 pub mod diagnose;
 mod fft;
 pub mod ident;
+pub mod limits;
 pub(crate) mod prefetch;
 pub mod record;
 pub mod refine;

@@ -76,6 +76,13 @@ pub enum SilverboxError {
         help("use one body whose position is measured and one measured input (e.g. `body y`, `input u on y`, `measure y.x, u`)")
     )]
     Model { model: String, what: String },
+    #[error("{what} would need {estimate}")]
+    #[diagnostic(code(dynid::silverbox::too_large), help("{help}"))]
+    TooLarge {
+        what: String,
+        estimate: String,
+        help: String,
+    },
     #[error(transparent)]
     #[diagnostic(transparent)]
     Identify(#[from] IdentifyError),
@@ -279,6 +286,50 @@ fn names(ir: &ModelIr) -> Result<(String, String), SilverboxError> {
         return Err(bad("the data has no velocity; add `measure y.x, u`"));
     }
     Ok((y.name.clone(), ir.inputs[0].name.clone()))
+}
+
+/// Refuse a run whose upsampled records (two `f64` columns of every sample, at `upsample`
+/// times the rate) would exceed [`crate::limits::MAX_BYTES`], or whose free-run
+/// simulations (`substeps` RK4 steps per upsampled sample) would exceed
+/// [`crate::limits::MAX_STEPS`], unless `allow`; `flag` is the option that allows it.
+pub fn check_work(
+    data: &SilverboxData,
+    upsample: usize,
+    substeps: usize,
+    flag: &str,
+    allow: bool,
+) -> Result<(), SilverboxError> {
+    use crate::limits::{bytes_in_words, duration_in_words, steps_in_words};
+    use crate::limits::{MAX_BYTES, MAX_STEPS, STEPS_PER_SECOND};
+    if allow {
+        return Ok(());
+    }
+    let samples = data.u.len() as f64 * upsample.max(1) as f64;
+    let bytes = samples * 2.0 * 8.0;
+    if bytes > MAX_BYTES {
+        return Err(SilverboxError::TooLarge {
+            what: format!("upsampling {} samples by {upsample}", data.u.len()),
+            estimate: format!("{} of memory", bytes_in_words(bytes)),
+            help: format!(
+                "runs above {} of records are refused as a likely mistyped setting: lower                  `--upsample` (4 is the default), or give `{flag}` to run it anyway",
+                bytes_in_words(MAX_BYTES)
+            ),
+        });
+    }
+    let steps = samples * substeps as f64;
+    if steps > MAX_STEPS {
+        return Err(SilverboxError::TooLarge {
+            what: format!(
+                "simulating {samples:.3e} upsampled samples × {substeps} RK4 sub-steps"
+            ),
+            estimate: steps_in_words(steps),
+            help: format!(
+                "runs above {MAX_STEPS:.0e} RK4 steps ({}) are refused as a likely mistyped                  setting: lower `--upsample` or `--substeps`, or give `{flag}` to run it anyway",
+                duration_in_words(MAX_STEPS / STEPS_PER_SECOND)
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// The samples `seg` as a record with the model's signal names (`t0` = start time).

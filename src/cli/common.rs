@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 /// file), or a `.json` file holding a compiled `ModelIr` (`dynid compile --emit json`).
 pub fn load_model(path: &Path) -> miette::Result<ModelIr> {
     if path.extension().is_some_and(|e| e == "json") {
-        let text = std::fs::read_to_string(path).map_err(|e| {
+        let text = read_json_model(path).map_err(|e| {
             miette!(
                 code = "dynid::model::io",
                 help = "check the path and the file permissions (a compiled model is UTF-8 JSON)",
@@ -38,6 +38,26 @@ pub fn load_model(path: &Path) -> miette::Result<ModelIr> {
         return Ok(ir);
     }
     Ok(dsl_parser::compile_file(path)?)
+}
+
+/// Largest compiled model (JSON IR) read: 64 MiB, hundreds of times the IR of a model with
+/// hundreds of bodies; a bigger file is not a model and would be read whole into memory.
+pub const MAX_JSON_MODEL: u64 = 64 << 20;
+
+/// The text of a JSON model, read once and at most [`MAX_JSON_MODEL`] bytes of it.
+fn read_json_model(path: &Path) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut text = String::new();
+    std::fs::File::open(path)?
+        .take(MAX_JSON_MODEL + 1)
+        .read_to_string(&mut text)?;
+    if text.len() as u64 > MAX_JSON_MODEL {
+        return Err(std::io::Error::other(format!(
+            "it holds more than {} MiB, which is not a compiled model",
+            MAX_JSON_MODEL >> 20
+        )));
+    }
+    Ok(text)
 }
 
 /// A count of at least one (clap value parser): `0` is refused, never read as 1.

@@ -55,13 +55,18 @@ pub fn run(args: Args) -> miette::Result<()> {
     let ir = dsl_parser::compile_file(&args.model)?;
     match (args.emit, args.format) {
         (Some(Emit::Rust), _) => {
-            let source = std::fs::read_to_string(&args.model).map_err(|e| {
-                miette::miette!(
-                    code = "dynid::model::io",
-                    "cannot read {}: {e}",
-                    args.model.display()
-                )
-            })?;
+            // Compiled above, so UTF-8 and within the size limit (unless replaced since).
+            let source = dsl_parser::read_source(&args.model)
+                .ok()
+                .flatten()
+                .and_then(|b| String::from_utf8(b).ok())
+                .ok_or_else(|| {
+                    miette::miette!(
+                        code = "dynid::model::io",
+                        "cannot read {} again for the generated code",
+                        args.model.display()
+                    )
+                })?;
             let opts = dsl_parser::codegen::CodegenOptions {
                 source_name: args
                     .model

@@ -80,6 +80,10 @@ pub struct Args {
     /// estimation parts, and report the refined figures beside the covariance ones.
     #[arg(long, conflicts_with_all = ["export_levels", "export_estimation"])]
     pub refine: bool,
+    /// Run even when the estimated memory (8 GB) or work (1e10 RK4 steps) is above the
+    /// safety limit.
+    #[arg(long)]
+    pub allow_large: bool,
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
@@ -105,6 +109,13 @@ pub fn run(args: Args) -> miette::Result<()> {
         super::common::check_run_dir(dir, "--export-estimation", &[], inputs.iter().copied(), [])?;
     }
     let data = silverbox::load(&args.data)?;
+    silverbox::check_work(
+        &data,
+        args.upsample,
+        args.substeps,
+        "--allow-large",
+        args.allow_large,
+    )?;
     if let Some(dir) = &args.export_levels {
         return export_levels(&args, &data, dir);
     }

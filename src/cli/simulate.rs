@@ -129,6 +129,9 @@ pub struct Args {
     /// Summary format on stdout.
     #[arg(long, value_enum, default_value_t = Format::Text)]
     pub format: Format,
+    /// Run even when the estimated work is above the safety limit (1e10 RK4 steps).
+    #[arg(long)]
+    pub allow_long: bool,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -161,6 +164,17 @@ fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
         control: pd_control(ir, args)?,
     };
     let n_levels = sim::level_count(ir, &cfg)?;
+    sim::check_steps(
+        sim::integration_steps(&cfg, n_levels),
+        &format!(
+            "simulating {n_levels} level(s) of {:.3e} samples × {} RK4 sub-steps (input oversampling {})",
+            (cfg.burn_in + cfg.duration) / cfg.sample,
+            cfg.substeps,
+            cfg.input_oversample
+        ),
+        "--allow-long",
+        args.allow_long,
+    )?;
     let names = [
         sim::level_file_names(n_levels),
         vec!["truth.json".to_string()],
@@ -277,6 +291,17 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
         [],
     )?;
     let record = read_input_csv(input)?;
+    sim::check_steps(
+        record.len() as f64 * args.substeps as f64,
+        &format!(
+            "driving `{}` with {} samples × {} RK4 sub-steps",
+            ir.name,
+            record.len(),
+            args.substeps
+        ),
+        "--allow-long",
+        args.allow_long,
+    )?;
     let response = sim::simulate_driven(ir, &record, args.substeps)
         .map_err(miette::Report::new)
         .wrap_err_with(|| format!("driving `{}` with `{}`", ir.name, input.display()))?;
@@ -436,6 +461,7 @@ mod tests {
             out,
             input: None,
             format: Format::Json,
+            allow_long: false,
         }
     }
 

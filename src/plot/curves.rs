@@ -108,6 +108,7 @@ fn short_verdict(v: &Verdict) -> String {
         Verdict::Nonlinear { best, .. } => best.clone(),
         Verdict::Ambiguous { candidates } => format!("ambiguous: {}", candidates.join(" / ")),
         Verdict::Unexplained { .. } => "drifts, unexplained".into(),
+        Verdict::TooFewLevels { .. } => "drifts, too few levels".into(),
     }
 }
 

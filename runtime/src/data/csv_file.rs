@@ -2,6 +2,7 @@
 //! uniform time step), with an optional binary copy that later passes replay.
 
 use super::csv_parse::{parse_body, parse_number, Layout, Role};
+use super::text::{copy_if_stream, read_error, LineCap};
 use super::*;
 
 /// A CSV file bound to a model: validated header, known sample interval; the body is
@@ -31,6 +32,30 @@ pub struct CsvSource {
     /// The binary copy of a complete, validated pass: samples in order, each the `wanted`
     /// columns as little-endian `f64`.
     pub(super) replay: Arc<Mutex<Option<std::fs::File>>>,
+    /// Where the text is read from.
+    text: Text,
+}
+
+/// Where the text of a [`CsvSource`] is read from.
+#[derive(Clone, Debug)]
+enum Text {
+    /// The file at the source's path.
+    File,
+    /// A copy of the pipe or device at the source's path (readable only once).
+    Copy(Arc<tempfile::NamedTempFile>),
+    /// Bytes in memory.
+    Bytes(Arc<[u8]>),
+}
+
+/// A reader of the text, through [`LineCap`]; `path` names it in errors.
+fn open_text(path: &Path, text: &Text) -> Result<Box<dyn Read + Send>, DataError> {
+    let file = |p: &Path| std::fs::File::open(p).map_err(|e| io_err(path, e));
+    let r: Box<dyn Read + Send> = match text {
+        Text::File => Box::new(file(path)?),
+        Text::Copy(t) => Box::new(file(t.path())?),
+        Text::Bytes(b) => Box::new(std::io::Cursor::new(b.clone())),
+    };
+    Ok(Box::new(LineCap::new(r)))
 }
 
 fn io_err(path: &Path, e: impl std::fmt::Display) -> DataError {
@@ -43,7 +68,7 @@ fn io_err(path: &Path, e: impl std::fmt::Display) -> DataError {
 fn csv_err(path: &Path, e: csv::Error) -> DataError {
     let line = e.position().map_or(0, |p| p.line());
     match e.kind() {
-        csv::ErrorKind::Io(_) => io_err(path, e),
+        csv::ErrorKind::Io(io) => read_error(path, io),
         _ => DataError::Csv {
             path: path.display().to_string(),
             line,
@@ -55,11 +80,8 @@ fn csv_err(path: &Path, e: csv::Error) -> DataError {
 /// The header's columns for a message (invisible characters escaped), with a note when one
 /// of them is `wanted` but for invisible characters.
 fn present_columns(header: &[String], wanted: &str) -> String {
-    let mut out = header
-        .iter()
-        .map(|h| dynid_ir::text::escape(h))
-        .collect::<Vec<_>>()
-        .join(", ");
+    let escaped: Vec<String> = header.iter().map(|h| dynid_ir::text::escape(h)).collect();
+    let mut out = columns_in_words(&escaped);
     let clean = |h: &str| -> String {
         h.chars()
             .filter(|&c| dynid_ir::text::invisible_name(c).is_none())
@@ -80,14 +102,26 @@ fn present_columns(header: &[String], wanted: &str) -> String {
 
 /// Refuse, by their first bytes, files that the CSV reader would misread: UTF-16 text, and
 /// old Mac OS line ends (a carriage return alone), which make the file one line.
-fn sniff(path: &Path) -> Result<(), DataError> {
-    let Ok(f) = std::fs::File::open(path) else {
-        // The reader reports it.
-        return Ok(());
+fn sniff(path: &Path, text: &Text) -> Result<(), DataError> {
+    const HEAD: usize = 64 << 10;
+    let mut head = Vec::with_capacity(HEAD);
+    let file = match text {
+        Text::Bytes(b) => {
+            head.extend_from_slice(&b[..b.len().min(HEAD)]);
+            None
+        }
+        Text::File => Some(path),
+        Text::Copy(t) => Some(t.path()),
     };
-    let mut head = Vec::with_capacity(64 << 10);
-    if f.take(64 << 10).read_to_end(&mut head).is_err() {
-        return Ok(());
+    if let Some(f) = file {
+        // The raw bytes (UTF-16 text is full of NUL bytes, which the line reader refuses).
+        let Ok(f) = std::fs::File::open(f) else {
+            // The reader reports it.
+            return Ok(());
+        };
+        if f.take(HEAD as u64).read_to_end(&mut head).is_err() {
+            return Ok(());
+        }
     }
     let p = || path.display().to_string();
     if let Some(kind) = dynid_ir::text::utf16_kind(&head) {
@@ -113,28 +147,64 @@ fn parse_cell(path: &Path, line: u64, column: &str, raw: &[u8]) -> Result<f64, D
 /// Relative tolerance on the time step (times printed with few digits jitter slightly).
 const TIME_TOL: f64 = 1e-3;
 
+/// The header's columns for a message: all of them, or the first few and how many there
+/// are (a header can be up to [`super::MAX_LINE`] long; a message should not be).
+fn columns_in_words(header: &[String]) -> String {
+    const SHOWN: usize = 400;
+    let all = header.join(", ");
+    if all.len() <= SHOWN {
+        return all;
+    }
+    let mut cut = SHOWN;
+    while !all.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    format!("{}… ({} columns)", &all[..cut], header.len())
+}
+
+/// The `(slot, column)` pairs of the measured signals of `ir` in a header (`names` after
+/// the renamings), and the number of slots.
+fn select_measured(
+    path: &Path,
+    ir: &ModelIr,
+    names: &[String],
+    header: &[String],
+) -> Result<(Vec<(usize, usize)>, usize), DataError> {
+    let mut wanted = Vec::new();
+    for s in ir.measured_signals() {
+        let name = &ir.signal(s).name;
+        match names.iter().position(|n| n == name) {
+            Some(k) => wanted.push((s.index(), k)),
+            None => {
+                return Err(DataError::MissingColumn {
+                    path: path.display().to_string(),
+                    signal: name.clone(),
+                    present: present_columns(header, name),
+                })
+            }
+        }
+    }
+    Ok((wanted, ir.signals.len()))
+}
+
 impl CsvSource {
     /// Open `path`, match its header to the measured signals of `ir` and fix the sample
     /// interval (from `t`, else from `opts.ts`).
     pub fn open(path: &Path, ir: &ModelIr, opts: &CsvOptions) -> Result<CsvSource, DataError> {
-        let select = |names: &[String], header: &[String]| {
-            let mut wanted = Vec::new();
-            for s in ir.measured_signals() {
-                let name = &ir.signal(s).name;
-                match names.iter().position(|n| n == name) {
-                    Some(k) => wanted.push((s.index(), k)),
-                    None => {
-                        return Err(DataError::MissingColumn {
-                            path: path.display().to_string(),
-                            signal: name.clone(),
-                            present: present_columns(header, name),
-                        })
-                    }
-                }
-            }
-            Ok((wanted, ir.signals.len()))
-        };
-        Self::open_with(path, opts, select, MIN_SAMPLES)
+        let select = |names: &[String], header: &[String]| select_measured(path, ir, names, header);
+        Self::open_with(path, None, opts, select, MIN_SAMPLES)
+    }
+
+    /// As [`Self::open`] for a file's bytes held in memory (`path` names it in messages);
+    /// the source parses them on every pass.
+    pub fn from_bytes(
+        path: &Path,
+        bytes: &[u8],
+        ir: &ModelIr,
+        opts: &CsvOptions,
+    ) -> Result<CsvSource, DataError> {
+        let select = |names: &[String], header: &[String]| select_measured(path, ir, names, header);
+        Ok(Self::open_with(path, Some(bytes.into()), opts, select, MIN_SAMPLES)?.without_replay())
     }
 
     /// Open with a caller's choice of columns: `select(names, header)` returns the
@@ -142,6 +212,7 @@ impl CsvSource {
     /// the `--map` renamings.
     fn open_with(
         path: &Path,
+        bytes: Option<Arc<[u8]>>,
         opts: &CsvOptions,
         select: impl FnOnce(&[String], &[String]) -> Result<(Vec<(usize, usize)>, usize), DataError>,
         min_samples: usize,
@@ -152,8 +223,12 @@ impl CsvSource {
                 return Err(DataError::BadSampleInterval { ts });
             }
         }
-        sniff(path)?;
-        let mut rdr = Self::reader(path)?;
+        let text = match bytes {
+            Some(b) => Text::Bytes(b),
+            None => copy_if_stream(path)?.map_or(Text::File, Text::Copy),
+        };
+        sniff(path, &text)?;
+        let mut rdr = Self::reader(path, &text)?;
         let header: Vec<String> = match rdr.headers() {
             // (The reader skips a UTF-8 byte-order mark at the start of the file.)
             Ok(h) => h.iter().map(|s| s.trim().to_string()).collect(),
@@ -277,6 +352,7 @@ impl CsvSource {
             min_samples,
             spill: true,
             replay: Arc::default(),
+            text,
         })
     }
 
@@ -334,9 +410,12 @@ impl CsvSource {
         }
     }
 
-    fn reader(path: &Path) -> Result<csv::Reader<Box<dyn Read + Send>>, DataError> {
-        let f = std::fs::File::open(path).map_err(|e| io_err(path, e))?;
-        let buf: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(1 << 20, f));
+    /// A CSV reader of the text (`path` names it in errors).
+    fn reader(path: &Path, text: &Text) -> Result<csv::Reader<Box<dyn Read + Send>>, DataError> {
+        let buf: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(
+            1 << 20,
+            open_text(path, text)?,
+        ));
         Ok(csv::ReaderBuilder::new()
             .has_headers(true)
             .flexible(true)
@@ -440,8 +519,8 @@ impl CsvSource {
         };
         // Streaming means an error can surface after earlier chunks were handed on; callers
         // discard their partial results on error.
-        let mut file = std::fs::File::open(path).map_err(|e| io_err(path, e))?;
-        let n = parse_body(&layout, &mut file, &mut |cols, rows| {
+        let mut file = open_text(path, &self.text)?;
+        let n = parse_body(&layout, &mut *file, &mut |cols, rows| {
             let mut done = 0;
             while done < rows {
                 let take = (max_len - in_chunk).min(rows - done);
@@ -475,9 +554,27 @@ impl CsvSource {
 /// finite numbers and a uniform time step (`t` column or `opts.ts`). At least two samples.
 /// For inputs that drive a simulation; identification streams with [`CsvSource`] instead.
 pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, DataError> {
+    read_record_from(path, None, opts)
+}
+
+/// As [`read_record`] for a file's bytes held in memory (`path` names it in messages).
+pub fn read_record_bytes(
+    path: &Path,
+    bytes: &[u8],
+    opts: &CsvOptions,
+) -> Result<Record, DataError> {
+    read_record_from(path, Some(bytes.into()), opts)
+}
+
+fn read_record_from(
+    path: &Path,
+    bytes: Option<Arc<[u8]>>,
+    opts: &CsvOptions,
+) -> Result<Record, DataError> {
     let mut names = Vec::new();
     let src = CsvSource::open_with(
         path,
+        bytes,
         opts,
         |renamed, _| {
             let wanted: Vec<(usize, usize)> = renamed

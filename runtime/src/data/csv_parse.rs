@@ -229,10 +229,7 @@ pub(super) fn parse_body(
     reader: &mut dyn Read,
     rows: &mut dyn FnMut(&[Vec<f64>], usize),
 ) -> Result<usize, DataError> {
-    let io = |e: std::io::Error| DataError::Io {
-        path: layout.path.display().to_string(),
-        message: e.to_string(),
-    };
+    let io = |e: std::io::Error| super::text::read_error(layout.path, &e);
     let mut buf: Vec<u8> = Vec::with_capacity(BLOCK + (64 << 10));
     let mut header_done = false;
     let mut line = 1u64;

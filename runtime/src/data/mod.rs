@@ -14,10 +14,12 @@ mod record;
 pub mod split;
 #[cfg(test)]
 mod tests;
+mod text;
 
-pub use csv_file::{read_record, CsvSource};
+pub use csv_file::{read_record, read_record_bytes, CsvSource};
 pub use record::RecordSource;
 pub use split::{default_response, split_record, Segment, Split, SplitError, SplitOptions};
+pub use text::MAX_LINE;
 
 use crate::record::Record;
 use dynid_ir::ir::ModelIr;
@@ -250,6 +252,25 @@ pub enum DataError {
         expected: usize,
         found: usize,
     },
+    #[error("{path}: line {line} is longer than {limit} without a line end")]
+    #[diagnostic(
+        code(dynid::data::line_too_long),
+        help("a level file is text with one sample per line (ending in `\\n` or `\\r\\n`); check that this is the right file and that its line ends survived the transfer")
+    )]
+    LineTooLong {
+        path: String,
+        line: u64,
+        /// The limit in words (e.g. `1 MiB`).
+        limit: String,
+    },
+    #[error("{path}: line {line} holds a NUL byte: this is not a text file")]
+    #[diagnostic(
+        code(dynid::data::binary),
+        help(
+            "a level file is CSV text (ASCII or UTF-8); a UTF-16 file must be saved as UTF-8 first"
+        )
+    )]
+    Binary { path: String, line: u64 },
 }
 
 fn ragged_help(expected: usize, found: usize) -> String {

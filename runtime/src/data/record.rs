@@ -86,7 +86,7 @@ impl LevelSource for RecordSource<'_> {
         let mut start = 0;
         let mut cols: Vec<&[f64]> = vec![&[]; self.col_of.len()];
         while start < n {
-            let len = max_len.min(n - start);
+            let len = max_len.max(1).min(n - start); // progress even for `max_len` 0
             for (s, c) in self.col_of.iter().enumerate() {
                 cols[s] = match c {
                     Some(k) => &self.record.columns[*k][start..start + len],

@@ -478,3 +478,34 @@ fn map_messages_name_the_real_problem() {
     assert_eq!(code(&e), "dynid::data::bad_map", "{e}");
     assert!(matches!(e, DataError::MapOntoTime { .. }), "{e}");
 }
+
+#[test]
+fn identification_and_detection_survive_random_small_records() {
+    // A deterministic miniature of `fuzz/fuzz_targets/numerics.rs`: random bytes through
+    // `fuzz::check_numerics` (random scales down to subnormal, constant and raw columns,
+    // 1 to 3 levels), which panics on a non-finite estimate.
+    use rand::{Rng, SeedableRng};
+    let irs: Vec<ModelIr> = fuzz::NUMERIC_MODELS
+        .iter()
+        .map(|m| dsl_parser::compile_str("fuzz.dyn", m).unwrap())
+        .collect();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(29);
+    let (mut identified, mut detected) = (0, 0);
+    let mut errors = std::collections::BTreeMap::new();
+    for _ in 0..120 {
+        let len = rng.random_range(12..200);
+        let b: Vec<u8> = (0..len).map(|_| rng.random()).collect();
+        let r = fuzz::check_numerics(&b, &irs);
+        identified += usize::from(r.identified);
+        detected += usize::from(r.detected);
+        for e in r.sim_error.iter().chain(&r.ident_error) {
+            let head: String = e.chars().take(60).collect();
+            *errors.entry(head).or_insert(0) += 1;
+        }
+    }
+    // The inputs must reach the solve and detection, not stop at the first check.
+    assert!(
+        identified >= 10 && detected >= 5,
+        "{identified} identified, {detected} detected; errors: {errors:#?}"
+    );
+}

@@ -73,6 +73,9 @@ impl ElementData {
                 (self.sigma_s[l].ln(), ratio(m.0, g.0), ratio(m.1, g.1))
             })
             .collect();
+        if pts.is_empty() {
+            return g;
+        }
         pts.sort_by(|a, b| a.0.total_cmp(&b.0));
         let x = ss.ln();
         let k = pts.iter().position(|p| p.0 >= x).unwrap_or(pts.len());
@@ -92,7 +95,7 @@ impl ElementData {
         (g.0 * rk, g.1 * rd)
     }
 
-    fn n_bases(&self) -> usize {
+    pub(crate) fn n_bases(&self) -> usize {
         usize::from(self.stiffness.is_some()) + usize::from(self.damping.is_some())
     }
 }
@@ -110,6 +113,13 @@ const RANK_TOL: f64 = 1e-10;
 /// Weighted LS of `a β ≈ y` with row standard errors `se`; `None` when rank-deficient.
 pub(crate) fn weighted_ls(a: &DMatrix<f64>, y: &[f64], se: &[f64]) -> Option<LsFit> {
     let (n, m) = a.shape();
+    // Fewer points than coefficients: the fit is underdetermined (and a thin SVD has only
+    // `n` singular values). Rows must match the errors given.
+    if n < m || m == 0 || y.len() != n || se.len() != n {
+        return None;
+    }
+    // shape: checked just above: `n ≥ m ≥ 1` rows of `a`, `y` and `se`, so the thin SVD has
+    // `m` singular values, `u` is `n × m` and `v_t` is `m × m`.
     let mut aw = a.clone();
     let mut yw = DVector::zeros(n);
     for i in 0..n {
@@ -177,6 +187,9 @@ fn design(
     let m = nb + effects.len();
     let n = el.n_points();
     let mut a = DMatrix::zeros(n, m);
+    // shape: `a` is `n_points × (bases + effects)`; each curve present fills one row per
+    // level, and `detect` checks that every curve has one value per level
+    // (`DetectError::Length`), so `row < n_points` and `j < effects`.
     let mut y = Vec::with_capacity(n);
     let mut se = Vec::with_capacity(n);
     let levels = el.sigma_s.len();
@@ -248,6 +261,9 @@ fn median(v: &[f64]) -> f64 {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);
     let n = s.len();
+    if n == 0 {
+        return f64::NAN;
+    }
     if n % 2 == 1 {
         s[n / 2]
     } else {
@@ -275,6 +291,7 @@ fn search_shape(el: &ElementData, effects: &[&Candidate], thetas: &mut [f64], j:
         .map(|i| lo + (hi - lo) * i as f64 / (GRID - 1) as f64)
         .collect();
     let vals: Vec<f64> = grid.iter().map(|&u| eval(u, &mut work)).collect();
+    // shape: `best` and its neighbours are clamped to `0..GRID`.
     let best = (0..GRID)
         .min_by(|&a, &b| vals[a].total_cmp(&vals[b]))
         .unwrap_or(0);
@@ -341,6 +358,9 @@ pub(crate) fn aicc(chi2: f64, k: usize, n: usize) -> f64 {
 /// Intensities along a continuous path through the levels (sorted by σ_s, log-linear
 /// between neighbours, extrapolated a little), for drawing template curves.
 fn level_path(el: &ElementData, n: usize) -> Vec<(f64, f64)> {
+    if el.sigma_s.is_empty() || n < 2 {
+        return Vec::new();
+    }
     let mut idx: Vec<usize> = (0..el.sigma_s.len()).collect();
     idx.sort_by(|&a, &b| el.sigma_s[a].total_cmp(&el.sigma_s[b]));
     let ls: Vec<f64> = idx.iter().map(|&i| el.sigma_s[i].ln()).collect();
@@ -402,6 +422,8 @@ fn joint_covariance(
     let (a, y, se) = design(el, effects, thetas);
     let (n, m) = a.shape();
     let mut aug = a.clone().resize_horizontally(m + shaped.len(), 0.0);
+    // shape: `aug` has the `n` rows of the design and `m + shaped` columns; `plus` and
+    // `minus` are designs of the same `n` rows times `beta` (length `m`, the fit's).
     let h: f64 = 1e-3;
     let b = DVector::from_column_slice(beta);
     for (k, &j) in shaped.iter().enumerate() {
@@ -435,6 +457,8 @@ pub(crate) fn fit_template(
         }
     }
     let fit = solve(el, effects, &thetas)?;
+    // shape: `fit.beta` and `fit.cov` have one entry per base and effect (the design's
+    // columns), `joint` one more per shaped effect; `col` counts exactly those.
     let n = el.n_points();
     let k_params = el.n_bases() + effects.len() + shaped.len();
     let dof = n.saturating_sub(k_params);

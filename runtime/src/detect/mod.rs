@@ -370,6 +370,22 @@ fn explain_element(
     }
     finding.ranking = fits;
     let best = &finding.ranking[0];
+    if !finding.ranking.iter().any(|f| f.aicc.is_finite()) {
+        // Every template is saturated (points ≤ parameters + 1): say how many levels
+        // would let the smallest one be ranked, rather than call the drift unexplained.
+        let curves = data.n_bases().max(1);
+        let need = finding
+            .ranking
+            .iter()
+            .map(|f| (f.n_params + 2).div_ceil(curves))
+            .min()
+            .unwrap_or(0);
+        finding.verdict = Verdict::TooFewLevels {
+            levels: data.sigma_s.len(),
+            need: need.max(data.sigma_s.len() + 1),
+        };
+        return finding;
+    }
     if !best.aicc.is_finite() || best.explained < opts.min_explained {
         // Only fits that can be ranked count: a template with as many parameters as levels
         // explains everything and proves nothing.

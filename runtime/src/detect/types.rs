@@ -273,6 +273,10 @@ pub enum Verdict {
     Ambiguous { candidates: Vec<String> },
     /// The element drifts but no template explains enough of it.
     Unexplained { best_explained: f64 },
+    /// The element drifts, but its curves have too few points for any template to be
+    /// ranked (a template needs at least two points more than it has parameters): `levels`
+    /// were given, `need` would let the smallest template be ranked.
+    TooFewLevels { levels: usize, need: usize },
 }
 
 impl std::fmt::Display for Verdict {
@@ -287,6 +291,11 @@ impl std::fmt::Display for Verdict {
                 f,
                 "drifts, unexplained (best template explains {:.0} %)",
                 100.0 * best_explained
+            ),
+            Verdict::TooFewLevels { levels, need } => write!(
+                f,
+                "drifts, but {levels} levels are too few to rank any template: \
+                 give at least {need} levels"
             ),
         }
     }

@@ -567,21 +567,24 @@ fn level_stats(
         .iter_mut()
         .map(|st| std::mem::take(&mut st.screen))
         .collect();
+    let nf = n.max(1) as f64;
+    let std: Vec<f64> = sigs
+        .iter()
+        .map(|st| {
+            let m = st.s1 / nf;
+            (st.s2 / nf - m * m).max(0.0).sqrt()
+        })
+        .collect();
+    let mean: Vec<f64> = sigs.iter().map(|st| st.shift + st.s1 / nf).collect();
+    check_magnitudes(ir, plan, src, &std, &mean)?;
     screen_level(ir, plan, src, &screens)?;
     let ts = src.ts();
-    let nf = n.max(1) as f64;
     let duration = (n.max(2) - 1) as f64 * ts;
     Ok(LevelStats {
         n,
         ts,
-        std: sigs
-            .iter()
-            .map(|st| {
-                let m = st.s1 / nf;
-                (st.s2 / nf - m * m).max(0.0).sqrt()
-            })
-            .collect(),
-        mean: sigs.iter().map(|st| st.shift + st.s1 / nf).collect(),
+        std,
+        mean,
         omegas: sigs
             .iter()
             .zip(&plan.y)
@@ -591,6 +594,34 @@ fn level_stats(
         noise_var: sigs.iter().map(|st| st.floor.variance()).collect(),
         noise_flat: sigs.iter().map(|st| st.floor.flat()).collect(),
     })
+}
+
+/// Smallest magnitude (larger of spread and mean) of a measured column that is not zero:
+/// the moments are products of filtered signals, and below this their squares leave the
+/// normal range of double precision (about 2e-308), where precision is lost digit by digit
+/// and row weights become infinite.
+pub(crate) const TINY_SIGNAL: f64 = 1e-150;
+
+/// Refuse a level with a column so small that the products of its values underflow double
+/// precision (units legitimately scale data, but not by 10^-150).
+fn check_magnitudes(
+    ir: &ModelIr,
+    plan: &Plan,
+    src: &dyn LevelSource,
+    std: &[f64],
+    mean: &[f64],
+) -> Result<(), IdentifyError> {
+    for (k, (s, m)) in std.iter().zip(mean).enumerate() {
+        let size = s.max(m.abs());
+        if size > 0.0 && size < TINY_SIGNAL {
+            return Err(IdentifyError::Underflow {
+                origin: src.origin(),
+                column: ir.signal(plan.y[k]).name.clone(),
+                size,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Refuse a level without motion or with a sample far outside its column's spread

@@ -325,7 +325,15 @@ impl<'m> Moments<'m> {
                     return 0.0;
                 }
                 let n = big * row().map(|v| (v / big).powi(2)).sum::<f64>().sqrt();
-                1.0 / n
+                // A row whose norm is subnormal has no finite weight; such data are refused
+                // before the solve (`IdentifyError::Underflow`), and the row counts for
+                // nothing here rather than poisoning the matrix with infinities.
+                let w = 1.0 / n;
+                if w.is_finite() {
+                    w
+                } else {
+                    0.0
+                }
             })
             .collect();
         let names: Vec<String> = plan
@@ -349,9 +357,18 @@ impl<'m> Moments<'m> {
             }
             (a, b)
         };
+        // Every pass either ends the loop or removes one column from `active`, so it runs at
+        // most `ncol + 1` times; the count below makes that bound explicit.
+        let mut passes = 0;
         let (sol, se) = loop {
+            passes += 1;
             let (a, b) = weighted(&c_full, &r_full, &active);
-            let sol = match solve::lstsq(&a, &b, rows, active.len(), self.rcond) {
+            let solved = if passes > ncol + 1 {
+                Err("the solve made no progress".to_string())
+            } else {
+                solve::lstsq(&a, &b, rows, active.len(), self.rcond)
+            };
+            let sol = match solved {
                 Ok(sol) => sol,
                 Err(why) => {
                     // Nothing can be trusted: every remaining parameter is named, none valued.
@@ -361,7 +378,7 @@ impl<'m> Moments<'m> {
                             "{why}: check the data for values far outside the physical range"
                         ),
                     }));
-                    continue;
+                    break (solve::LsSolution::empty(), vec![]);
                 }
             };
             if active.is_empty() {

@@ -20,6 +20,17 @@ pub(crate) struct LsSolution {
 }
 
 impl LsSolution {
+    /// The solution of a problem without columns.
+    pub fn empty() -> Self {
+        LsSolution {
+            x: vec![],
+            sv: vec![],
+            v_min: vec![],
+            col_norms: vec![],
+            pinv: vec![],
+        }
+    }
+
     /// `σ_max / σ_min` of the column-scaled matrix.
     pub fn condition(&self) -> f64 {
         match (self.sv.first(), self.sv.last()) {
@@ -40,6 +51,17 @@ pub(crate) fn lstsq(
     cols: usize,
     rcond: f64,
 ) -> Result<LsSolution, String> {
+    if a.len() != rows * cols || b.len() != rows || (rows == 0 && cols > 0) {
+        return Err(format!(
+            "the least-squares problem has {} entries and {} right-hand sides for {rows} rows \
+             of {cols} columns",
+            a.len(),
+            b.len()
+        ));
+    }
+    // shape: checked above: `a` is `rows × cols`, `b` has `rows` entries, and a problem
+    // with columns has rows, so the thin SVD has `k = min(rows, cols) ≥ 1` directions,
+    // `u` is `rows × k` and `v` is `cols × k`.
     if !a.iter().chain(b).all(|v| v.is_finite()) {
         return Err("the least-squares problem has entries that are not finite".into());
     }

@@ -95,6 +95,8 @@ pub(crate) fn sandwich_stderr(
             dj.iter_mut().zip(&e).for_each(|(x, e)| *x -= wj * e);
         }
         // u_j = A⁺_l d_j for every window at once: U = D A⁺_lᵀ (`nh × na`).
+        // shape: `u` is created here as `nh × na` and read for `j < nh`, `k < na`; `sol` is
+        // the solution of the `na` active columns over `which.len() · nr = rows` rows.
         let mut u = Mat::<f64>::zeros(nh, na);
         if na > 0 && nr > 0 {
             let dm = MatRef::from_row_major_slice(&d[..], nh, nr);

@@ -157,6 +157,16 @@ pub enum IdentifyError {
         help("rescale the data (e.g. millimetres → metres) or the term so that its values stay far below 1e150")
     )]
     Overflow { origin: String, term: String },
+    #[error("{origin}: the values of column `{column}` are so small (about {size:.1e}) that their products underflow double precision")]
+    #[diagnostic(
+        code(dynid::identify::underflow),
+        help("rescale the data (e.g. metres → micrometres) so that every column's values stay far above 1e-150")
+    )]
+    Underflow {
+        origin: String,
+        column: String,
+        size: f64,
+    },
     #[error(transparent)]
     #[diagnostic(transparent)]
     Data(#[from] DataError),

@@ -495,7 +495,7 @@ mod tests {
             let c = &self.0.columns[0];
             let mut s = 0;
             while s < c.len() {
-                let len = max_len.min(c.len() - s);
+                let len = max_len.max(1).min(c.len() - s); // progress even for `max_len` 0
                 sink(&[&c[s..s + len], &[]], len);
                 s += len;
             }

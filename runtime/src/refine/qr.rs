@@ -86,6 +86,8 @@ pub(super) fn lm_step(
     rcond: f64,
 ) -> (Vec<f64>, Vec<Vec<f64>>) {
     let sl = lambda.sqrt();
+    // shape: the sizes come from the model, not the data: each block's `qr` is `n × n`
+    // with `n = nl + np`, `d` has `nl` scales, `d_shared` has `np`.
     // Eliminate each block's local unknowns: QR of [R_b; √λ D_l (local columns)].
     let mut reduced: Vec<(DMatrix<f64>, DVector<f64>)> = Vec::with_capacity(blocks.len());
     let mut shared_rows: Vec<(DMatrix<f64>, DVector<f64>)> = Vec::new();

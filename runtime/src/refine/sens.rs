@@ -68,6 +68,8 @@ impl SensModel {
                 .map(|d| (2 * nb + d, c.scale))
         };
         let mut mass = nalgebra::DMatrix::<f64>::zeros(nb, nb);
+        // shape: `mass` is `nb × nb` and every mass term names an equation and a body of
+        // the same model.
         for &(i, body, c) in &split.mass {
             mass[(i, body)] += value(c);
         }
@@ -118,6 +120,8 @@ impl SensModel {
     fn accel(&self, x: &[f64], v: &[f64], u: &[f64], s: &mut SensScratch, a: &mut [f64]) {
         let (nb, q) = (self.nb, self.q);
         let w = 1 + q;
+        // shape: the sizes come from the model: `x` and `v` hold `nb` blocks of `1 + q`,
+        // and `s` was sized for this model by `scratch`.
         for i in 0..nb {
             s.sig_val[2 * i] = x[i * w];
             s.sig_val[2 * i + 1] = v[i * w];

@@ -129,6 +129,32 @@ pub(super) fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
     Ok(())
 }
 
+/// RK4 steps of the mechanical model in a run of `cfg` over `n_levels` levels, burn-in
+/// included (the input processes take `input_oversample` steps per sample besides).
+pub fn integration_steps(cfg: &SimConfig, n_levels: usize) -> f64 {
+    let fine = cfg.input_oversample.max(1) as f64;
+    let per_sample = fine * (cfg.substeps as f64 / fine).ceil();
+    (cfg.burn_in.max(0.0) + cfg.duration) / cfg.sample * per_sample * n_levels as f64
+}
+
+/// Refuse a run of `steps` RK4 steps above [`crate::limits::MAX_STEPS`] unless `allow`;
+/// `what` names the run (`3 levels of 2.1e5 samples × 1000000 sub-steps`), `flag` the
+/// option that allows it.
+pub fn check_steps(steps: f64, what: &str, flag: &str, allow: bool) -> Result<(), SimError> {
+    if allow || steps <= crate::limits::MAX_STEPS {
+        return Ok(());
+    }
+    Err(SimError::TooLong {
+        what: what.to_string(),
+        estimate: crate::limits::steps_in_words(steps),
+        help: format!(
+            "runs above {:.0e} RK4 steps ({}) are refused as a likely mistyped setting:              lower the sub-steps, oversampling, duration or levels, or give `{flag}` to run it anyway",
+            crate::limits::MAX_STEPS,
+            crate::limits::duration_in_words(crate::limits::MAX_STEPS / crate::limits::STEPS_PER_SECOND)
+        ),
+    })
+}
+
 pub(super) fn config_error(what: &str, help: &str) -> SimError {
     SimError::InvalidConfig {
         what: what.into(),

@@ -70,6 +70,14 @@ pub enum SimError {
         source: std::io::Error,
     },
 
+    #[error("{what} would take {estimate}")]
+    #[diagnostic(code(dynid::sim::too_long), help("{help}"))]
+    TooLong {
+        what: String,
+        estimate: String,
+        help: String,
+    },
+
     #[error("the mass matrix is singular (body `{body}` has no usable inertia)")]
     #[diagnostic(
         code(dynid::sim::singular_mass),

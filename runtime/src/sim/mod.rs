@@ -79,7 +79,7 @@ mod stream;
 #[cfg(any(test, feature = "test-support"))]
 pub mod test_models;
 
-pub use config::SimConfig;
+pub use config::{check_steps, integration_steps, SimConfig};
 pub use control::{PdControl, ReferenceSpec, VelocitySource};
 pub use driven::{simulate_driven, simulate_driven_from, Start};
 
