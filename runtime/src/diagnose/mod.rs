@@ -304,7 +304,9 @@ pub fn diagnose(
         // already matches, is no finding: the re-identified parameters moved away from a
         // model that holds (a biased fit, e.g. on data with a sensor offset), and the
         // effect only made up part of that move.
-        if nominal.gap < CONSISTENT_GAP && !(g.gap < nominal.gap) {
+        // (A gap that is not a number is not smaller either.)
+        let smaller = g.gap < nominal.gap;
+        if nominal.gap < CONSISTENT_GAP && !smaller {
             notes.push(format!(
                 "the nominal model already matches the data (gap {}); the re-identified \
                  model with the best effect ({} at {}) leaves a larger gap ({}), so no \
