@@ -166,6 +166,7 @@ class Identification:
 
     ``parameters``: value, stderr and significance per parameter; ``condition``; the
     parameters the data cannot determine (``unidentifiable``); ``warnings``;
+    ``fit_warnings`` (residuals the model cannot explain, with their likely cause);
     ``equations``, the identified equations; ``to_dict()``, everything (the fields of
     ``dynid identify --json``).
     """
@@ -208,6 +209,12 @@ class Identification:
     def warnings(self) -> List[Any]:
         return self._d["warnings"]
 
+    @property
+    def fit_warnings(self) -> List[Any]:
+        """Residuals the model cannot explain, each with ``check``, ``cause``
+        (``sensor_offset``, ``wrong_mass``, ``missing_body``, ...) and ``message``."""
+        return self._d.get("fit_warnings", [])
+
     def _rows(self) -> List[List[str]]:
         rows = []
         for p in self._d["params"]:
@@ -225,6 +232,7 @@ class Identification:
         for u in self._d["unidentifiable"]:
             lines.append(f"{u['name']:<12} not identifiable: {u['reason']}")
         lines.append(f"condition {self.condition:.3e}, {self._d['rows']} rows")
+        lines.extend(f"warning: {w['message']}" for w in self.fit_warnings)
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:

@@ -103,6 +103,12 @@ pub fn run(args: Args) -> miette::Result<()> {
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
     let split = args.split.levels(&ir, &args.data, &csv)?;
+    if split.is_none() {
+        super::duplicates::refuse_duplicate_levels(
+            &args.data,
+            "detection compares the levels, and a copy would count as a level that agrees",
+        )?;
+    }
     let (files, segments) = match &split {
         Some(s) => (
             Vec::new(),

@@ -98,6 +98,12 @@ pub fn run(args: Args) -> miette::Result<()> {
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
     let split = args.split.levels(&ir, &args.data, &csv)?;
+    if split.is_none() {
+        super::duplicates::refuse_duplicate_levels(
+            &args.data,
+            "one record cannot be both fitted and withheld as another level",
+        )?;
+    }
     let mut records = Vec::new();
     let origins: Vec<String> = match &split {
         Some(s) => {

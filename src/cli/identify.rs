@@ -123,6 +123,9 @@ pub fn run(args: Args) -> miette::Result<()> {
     for w in &id.warnings {
         eprintln!("warning: {w}");
     }
+    for w in &id.fit_warnings {
+        eprintln!("warning: {w}");
+    }
     let refined = match &opts {
         Some(o) => {
             let r = refine_files(&ir, &args, &id, o)?;
@@ -422,7 +425,7 @@ fn noise_line(n: &dynid_runtime::ident::NoiseSummary) -> String {
 }
 
 /// `{"parameters": {name: {value, stderr, significant}}, "condition", "residual", "levels",
-/// "unidentifiable", "warnings"}`.
+/// "unidentifiable", "warnings", "fit_warnings"}`.
 pub fn to_json(id: &Identification) -> serde_json::Value {
     let params: serde_json::Map<String, serde_json::Value> = id
         .params
@@ -450,6 +453,7 @@ pub fn to_json(id: &Identification) -> serde_json::Value {
         "levels": id.levels,
         "unidentifiable": id.unidentifiable,
         "warnings": id.warnings,
+        "fit_warnings": id.fit_warnings,
         "filter": id.filter,
         "estimated": id.estimated,
         "shapes": id.shapes,

@@ -7,6 +7,7 @@ pub mod compile;
 pub mod demo;
 pub mod detect;
 pub mod diagnose;
+pub mod duplicates;
 pub mod identify;
 pub mod silverbox;
 pub mod simulate;

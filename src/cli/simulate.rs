@@ -50,7 +50,9 @@ is checked first against an estimate of the CSVs' size (about 17 bytes per numbe
 With --input data.csv the model is instead driven by the measured input columns (named
 like the model's inputs and references, plus a uniform time column `t`), starting from rest, and its
 response is written to DIR/driven.csv on the same time base — to compare the model with
-reality.
+reality. The file sets the time base, the length and the inputs, so the flags of the
+excitation (--levels, --duration, --sample, --seed, --noise, --burn-in, --quantise, --pd,
+…) are refused with --input; --substeps applies.
 
 Example:
   dynid simulate models/sdof_cubic_coulomb.dyn --levels 6,15,40 --duration 2000 --sample 0.01 \\
@@ -64,6 +66,7 @@ pub struct Args {
     /// The model file (.dyn), or a model compiled to its JSON IR (.json).
     pub model: PathBuf,
     /// Excitation intensities, one experiment each (default: the model's `excite` levels).
+    #[arg(conflicts_with = "input")]
     #[arg(
         long,
         value_delimiter = ',',
@@ -72,33 +75,42 @@ pub struct Args {
     )]
     pub levels: Option<Vec<f64>>,
     /// Recorded seconds per level.
+    #[arg(conflicts_with = "input")]
     #[arg(long, default_value_t = 2000.0, value_name = "SECONDS")]
     pub duration: f64,
     /// Sample interval in seconds.
+    #[arg(conflicts_with = "input")]
     #[arg(long, default_value_t = 0.01, value_name = "SECONDS")]
     pub sample: f64,
     /// Base seed of the random excitation and noise.
+    #[arg(conflicts_with = "input")]
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Measurement noise as a fraction of each signal's std (0.05 = 5 %).
+    #[arg(conflicts_with = "input")]
     #[arg(long, default_value_t = 0.0, value_name = "FRACTION")]
     pub noise: f64,
     /// Keep the input columns free of measurement noise.
+    #[arg(conflicts_with = "input")]
     #[arg(long)]
     pub clean_inputs: bool,
     /// RK4 steps per sample interval.
     #[arg(long, default_value_t = DEFAULT_SUBSTEPS, value_name = "N")]
     pub substeps: usize,
     /// Seconds simulated and discarded before recording, so the record is stationary.
+    #[arg(conflicts_with = "input")]
     #[arg(long, default_value_t = 100.0, value_name = "SECONDS")]
     pub burn_in: f64,
     /// Input-process steps per sample interval (1 = linear between samples).
+    #[arg(conflicts_with = "input")]
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub input_oversample: usize,
     /// Round recorded positions to multiples of this encoder resolution.
+    #[arg(conflicts_with = "input")]
     #[arg(long, value_name = "RESOLUTION")]
     pub quantise: Option<f64>,
     /// Close a PD position loop on the first input's body with these gains.
+    #[arg(conflicts_with = "input")]
     #[arg(
         long,
         value_delimiter = ',',
@@ -107,17 +119,21 @@ pub struct Args {
     )]
     pub pd: Option<Vec<f64>>,
     /// RMS of the controller's reference position at level 1.
+    #[arg(conflicts_with = "input")]
     #[arg(long, default_value_t = 0.03, value_name = "X")]
     pub reference_rms: f64,
     /// Natural frequency of the reference's low-pass in rad/s.
+    #[arg(conflicts_with = "input")]
     #[arg(long, default_value_t = 5.0, value_name = "RAD_PER_S")]
     pub reference_corner: f64,
     /// Make the reference a third-order trajectory (continuous velocity and acceleration,
     /// as a trajectory planner makes); without it the reference velocity is rough
     /// between samples and so is the controller's force.
+    #[arg(conflicts_with = "input")]
     #[arg(long)]
     pub smooth_reference: bool,
     /// The controller feeds back the true velocity instead of a position difference.
+    #[arg(conflicts_with = "input")]
     #[arg(long)]
     pub tachometer: bool,
     /// Output directory (created if missing; an earlier run's files there are replaced).

@@ -35,6 +35,9 @@ use gap::{
 use rayon::prelude::*;
 use search::search_step;
 
+/// Statistical gap (%) below which a model matches the data.
+const CONSISTENT_GAP: f64 = 5.0;
+
 /// Values in the diagnosis' text and report: five significant digits.
 pub fn fmt_num(v: f64) -> String {
     num::sig(v, 5, false)
@@ -152,6 +155,30 @@ pub fn diagnose(
         })
         .collect();
     let pooled = m.identify_pooled();
+    // What the identification's guard says of the data (a sensor offset, a wrong fixed
+    // mass, a record given twice) holds for every fit below. A missing force is what the
+    // diagnosis itself looks for, so that warning is left to the search.
+    {
+        let srcs = gap::sources(&ir, &data)?;
+        let refs: Vec<&dyn crate::data::LevelSource> = srcs
+            .iter()
+            .map(|s| s as &dyn crate::data::LevelSource)
+            .collect();
+        use crate::ident::LikelyCause;
+        for w in crate::ident::guard::check(&m, &pooled, &refs, &opts.ident)
+            .into_iter()
+            .filter(|w| {
+                matches!(
+                    w.cause,
+                    LikelyCause::SensorOffset
+                        | LikelyCause::WrongMass
+                        | LikelyCause::SameRecordTwice
+                )
+            })
+        {
+            notes.push(format!("identification warning: {w}"));
+        }
+    }
     // Masses held at one value, as detection does: a mass fitted freely per level trades
     // off against the stiffness and hides its drift (Silverbox: m and a each scatter by
     // 10 % while their ratio rises 8 %).
@@ -280,6 +307,29 @@ pub fn diagnose(
                 )),
             }
         }
+        // An effect that leaves the gap larger than the nominal model's, where that
+        // already matches, is no finding: the re-identified parameters moved away from a
+        // model that holds (a biased fit, e.g. on data with a sensor offset), and the
+        // effect only made up part of that move.
+        // (A gap that is not a number is not smaller either.)
+        let smaller = g.gap < nominal.gap;
+        if nominal.gap < CONSISTENT_GAP && !smaller {
+            notes.push(format!(
+                "the nominal model already matches the data (gap {}); the re-identified \
+                 model with the best effect ({} at {}) leaves a larger gap ({}), so no \
+                 effect is needed — the re-identified parameters are biased (see the \
+                 identification warnings)",
+                fmt_gap(nominal.gap),
+                c.effect.name(),
+                c.location.label(),
+                fmt_gap(g.gap)
+            ));
+            for r in ranking.iter_mut().filter(|r| r.accepted) {
+                r.accepted = false;
+                r.note = "not needed: the nominal model already matches".into();
+            }
+            break;
+        }
         let element =
             v.ir.elements
                 .iter()
@@ -376,7 +426,7 @@ pub fn diagnose(
         } else {
             Verdict::Unexplained
         }
-    } else if reidentified.gap.min(gap_before) < 5.0 {
+    } else if reidentified.gap.min(gap_before) < CONSISTENT_GAP {
         Verdict::Consistent
     } else {
         Verdict::Unexplained

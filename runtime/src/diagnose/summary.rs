@@ -4,11 +4,13 @@ use super::types::{Diagnosis, ModelGap, MovedParam, Verdict};
 use super::Effect;
 use super::{fmt_gap, fmt_num, fmt_opt_gap, shrink};
 
-/// A shrink as "N % `word`" (e.g. "N % smaller"), "N % larger" when the gap grew, or
+/// A shrink as "N % `word`" (e.g. "N % smaller"), "N % larger" when the gap grew, "N×
+/// larger" when it more than doubled (a percentage of a gap near zero says nothing), or
 /// "change unavailable" when a gap diverged.
 pub fn fmt_shrink(shrink: Option<f64>, word: &str) -> String {
     match shrink {
         Some(x) if x >= 0.0 => format!("{:.0} % {word}", 100.0 * x),
+        Some(x) if x < -1.0 => format!("{:.1}× larger", 1.0 - x),
         Some(x) => format!("{:.0} % larger", -100.0 * x),
         None => "change unavailable".into(),
     }

@@ -233,6 +233,12 @@ pub fn measure<'m>(
                 .zip(&s.std)
                 .map(|(sig, sd)| (ir.signal(*sig).name.clone(), *sd))
                 .collect(),
+            mean: plan
+                .y
+                .iter()
+                .zip(&s.mean)
+                .map(|(sig, m)| (ir.signal(*sig).name.clone(), *m))
+                .collect(),
             noise: plan
                 .y
                 .iter()

@@ -35,7 +35,9 @@
 //! Only rank loss removes a parameter (a zero column, or collinear columns by the condition
 //! number); an estimate within [`SIGNIFICANCE_T`] standard errors of zero stays in the fit
 //! and is flagged ([`ParamEstimate::significant`]). Estimates that are unphysical for the
-//! kind of term they multiply are reported in [`Identification::warnings`].
+//! kind of term they multiply are reported in [`Identification::warnings`]; a residual the
+//! model cannot explain (a large relative residual, a pooled estimate outside every
+//! level's) in [`Identification::fit_warnings`], with its likely cause (see [`guard`]).
 //!
 //! Noise in a measured signal inside a nonlinear static term (`s³`, `sign(v)`) biases its
 //! moments; the first pass estimates each signal's noise level and the moments of such
@@ -44,6 +46,7 @@
 mod columns;
 pub mod design;
 pub mod filter;
+pub mod guard;
 mod measure;
 mod moments;
 pub mod noise;
@@ -58,6 +61,7 @@ mod types;
 pub mod velocity;
 
 pub use filter::Hold;
+pub use guard::{FitCheck, FitWarning, LikelyCause};
 pub use measure::measure;
 pub use moments::PhaseTimes;
 pub use stats::{Quantity, Warning};
@@ -124,7 +128,15 @@ pub fn identify(
         return Ok(shape::profile(ir, levels, opts)?.1);
     }
     let tape = Tape::compile(ir, &ir.eval_roots());
-    Ok(measure(ir, &tape, levels, opts)?.identify_pooled())
+    let m = measure(ir, &tape, levels, opts)?;
+    Ok(guarded(&m, levels, opts))
+}
+
+/// The pooled identification with the guard's warnings (see [`guard`]).
+fn guarded(m: &Moments<'_>, levels: &[&dyn LevelSource], opts: &IdentifyOptions) -> Identification {
+    let mut id = m.identify_pooled();
+    id.fit_warnings = guard::check(m, &id, levels, opts);
+    id
 }
 
 /// As [`identify`], with a caller-supplied basis evaluator (e.g. macro-generated code).
@@ -134,7 +146,8 @@ pub fn identify_with(
     levels: &[&dyn LevelSource],
     opts: &IdentifyOptions,
 ) -> Result<Identification, IdentifyError> {
-    Ok(measure(ir, eval, levels, opts)?.identify_pooled())
+    let m = measure(ir, eval, levels, opts)?;
+    Ok(guarded(&m, levels, opts))
 }
 
 /// Identify separately at each level (for detection: an equivalent-linear parameter that
@@ -508,6 +521,7 @@ impl<'m> Moments<'m> {
             shapes: Vec::new(),
             ssr,
             warnings: stats::physical_warnings(self.ir, &params),
+            fit_warnings: Vec::new(),
             params,
             unidentifiable: unident,
             condition: sol.condition(),

@@ -2,13 +2,24 @@
 //! of its column (a recording glitch, a lost exponent, a saturated channel) and a level
 //! without any motion are refused before they spoil the moments.
 //!
-//! The robust spread is `1.4826 · MAD` (median absolute deviation about the median, scaled
-//! to the standard deviation of a normal distribution), taken over a strided subsample of at
-//! most [`KEEP`] values so memory stays fixed for any record length. A sample counts as an
+//! The robust spread is the larger of `1.4826 · MAD` (median absolute deviation about the
+//! median, scaled to the standard deviation of a normal distribution) and the 99th
+//! percentile of the absolute deviations divided by 2.576 (the same for a normal
+//! distribution), taken over a strided subsample of at most [`KEEP`] values so memory stays
+//! fixed for any record length. The percentile keeps a record that rests (sensor noise
+//! only) for most of its length and then moves from being judged against its noise alone;
+//! a recording glitch is a handful of samples and moves neither. A sample counts as an
 //! outlier when it lies more than [`OUTLIER_RATIO`] robust standard deviations from the
 //! median. Random-excitation records stay orders of magnitude below that, and so do the
-//! bursts and moves from rest of the unit tests below; a genuine impulse on an almost silent
-//! background could exceed it, and is then refused too (there is no override).
+//! bursts and moves from rest of the unit tests below; a genuine impulse on a background
+//! that is almost silent for more than 99 % of the record could exceed it, and is then
+//! refused too (there is no override).
+
+/// Quantile of the kept absolute deviations that also sets the robust spread, and the
+/// standard normal's quantile at the same probability (two-sided), which turns it into a
+/// standard deviation.
+const TAIL_QUANTILE: f64 = 0.99;
+const TAIL_Z: f64 = 2.576;
 
 /// Samples kept per column for the robust spread.
 const KEEP: usize = 4096;
@@ -125,7 +136,14 @@ impl ColumnScreen {
         let mut v = self.kept.clone();
         let median = median_of(&mut v);
         v.iter_mut().for_each(|x| *x = (*x - median).abs());
-        let scale = 1.4826 * median_of(&mut v);
+        let mad = 1.4826 * median_of(&mut v);
+        // The upper tail of the kept deviations, as a normal distribution's std: a stretch
+        // at rest (sensor noise only) for most of the record leaves the MAD at the noise
+        // while the motion after it reaches far out; a glitch is one sample, rarely kept
+        // and never a percentile of the column.
+        let k = ((TAIL_QUANTILE * v.len() as f64) as usize).min(v.len() - 1);
+        let (_, q, _) = v.select_nth_unstable_by(k, f64::total_cmp);
+        let scale = mad.max(*q / TAIL_Z);
         if scale.is_nan() || scale <= 0.0 {
             return None;
         }
@@ -241,6 +259,23 @@ mod tests {
             })
             .collect();
         assert_eq!(screen(&x, 4096).outlier(), None);
+        // Sensor noise of 1e-7 for the first 60 % of the record, then motion of size one:
+        // the MAD is the noise's, the motion 1e7 of it.
+        let z: Vec<f64> = (0..50_000)
+            .map(|i| {
+                let noise = 1e-7 * (((i * 7919) % 1000) as f64 / 1000.0 - 0.5);
+                if i < 30_000 {
+                    noise
+                } else {
+                    (i as f64 * 0.013).sin() + noise
+                }
+            })
+            .collect();
+        assert_eq!(screen(&z, 4096).outlier(), None);
+        // A glitch in the same record is still found.
+        let mut g = z.clone();
+        g[40_001] = 1e7;
+        assert_eq!(screen(&g, 4096).outlier().map(|o| o.sample), Some(40_001));
         // A column at rest but for a few samples has no robust spread and is not judged.
         let mut y = vec![0.0; 10_000];
         y[5] = 1e9;

@@ -208,6 +208,8 @@ pub struct LevelInfo {
     pub ts: f64,
     /// Standard deviation per measured signal.
     pub std: BTreeMap<String, f64>,
+    /// Mean per measured signal.
+    pub mean: BTreeMap<String, f64>,
     /// Estimated white measurement-noise standard deviation per measured signal.
     pub noise: BTreeMap<String, f64>,
     /// Time blocks of the standard errors over this level.
@@ -233,6 +235,9 @@ pub struct Identification {
     /// Estimates that are unphysical for their kind of term (negative mass, damping,
     /// friction coefficient or stiffness).
     pub warnings: Vec<Warning>,
+    /// Residuals the model cannot explain (a large relative residual, a pooled estimate
+    /// outside every level's), each with its likely cause (see [`guard`]).
+    pub fit_warnings: Vec<FitWarning>,
     /// Condition number of the row-normalised, column-scaled matrix.
     pub condition: f64,
     pub residual: Vec<EquationResidual>,

@@ -111,10 +111,11 @@ pub(super) fn check_config(cfg: &SimConfig) -> Result<(), SimError> {
         ));
     }
     if let Some(q) = cfg.quantise {
-        if !positive(q) {
+        // A subnormal resolution makes `x / q` overflow and a quantised position infinite.
+        if !positive(q) || q < f64::MIN_POSITIVE {
             return Err(config_error(
                 &format!("position resolution {q}"),
-                "the quantisation step is a positive encoder resolution in position units, e.g. `--quantise 1e-6`",
+                "the quantisation step is a positive encoder resolution in position units (a normal number, at least 2.2e-308), e.g. `--quantise 1e-6`",
             ));
         }
     }

@@ -205,7 +205,16 @@ impl Controller {
 #[inline]
 pub(crate) fn quantise(x: f64, q: Option<f64>) -> f64 {
     match q {
-        Some(q) => q * (x / q).round(),
+        // A multiple beyond the range of a double (a resolution tiny against the value)
+        // leaves the value as it is: it is then already a multiple to double precision.
+        Some(q) => {
+            let n = (x / q).round();
+            if n.is_finite() {
+                q * n
+            } else {
+                x
+            }
+        }
         None => x,
     }
 }

@@ -61,6 +61,30 @@ pub(super) struct LevelWriter<'s> {
     /// One spill file per column when noise is added.
     spill: Option<Vec<BufWriter<File>>>,
     context: String,
+    names: Vec<String>,
+    /// Per column: the range of the values before quantisation and whether the quantised
+    /// values varied (a resolution coarser than the motion rounds it all to one value).
+    quantised_range: Vec<QuantisedRange>,
+}
+
+/// What quantisation did to one column: see [`LevelWriter::quantised_range`].
+#[derive(Clone, Copy, Debug)]
+struct QuantisedRange {
+    lo: f64,
+    hi: f64,
+    first: Option<f64>,
+    varied: bool,
+}
+
+impl Default for QuantisedRange {
+    fn default() -> Self {
+        QuantisedRange {
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+            first: None,
+            varied: false,
+        }
+    }
 }
 
 fn io_error(context: &str, e: std::io::Error) -> SimError {
@@ -98,6 +122,8 @@ impl<'s> LevelWriter<'s> {
             quantum,
             spill,
             context,
+            names: names.to_vec(),
+            quantised_range: vec![QuantisedRange::default(); names.len()],
         })
     }
 
@@ -127,7 +153,12 @@ impl<'s> LevelWriter<'s> {
                 }
             }
             None => {
-                quantise_columns(&mut self.buf, &self.finish, self.quantum);
+                quantise_columns(
+                    &mut self.buf,
+                    &self.finish,
+                    self.quantum,
+                    &mut self.quantised_range,
+                );
                 let cols: Vec<&[f64]> = self.buf.iter().map(Vec::as_slice).collect();
                 self.sink
                     .push(&cols, len)
@@ -143,7 +174,7 @@ impl<'s> LevelWriter<'s> {
     pub fn finish(mut self, rng: &mut impl rand::Rng) -> Result<(), SimError> {
         self.flush()?;
         let Some(files) = self.spill.take() else {
-            return Ok(());
+            return self.check_quantised();
         };
         let ctx = self.context.clone();
         let err = |e| io_error(&ctx, e);
@@ -193,21 +224,63 @@ impl<'s> LevelWriter<'s> {
             if len == 0 || len == usize::MAX {
                 break;
             }
-            quantise_columns(&mut self.buf, &self.finish, self.quantum);
+            quantise_columns(
+                &mut self.buf,
+                &self.finish,
+                self.quantum,
+                &mut self.quantised_range,
+            );
             let cols: Vec<&[f64]> = self.buf.iter().map(Vec::as_slice).collect();
             self.sink.push(&cols, len).map_err(err)?;
+        }
+        self.check_quantised()
+    }
+
+    /// Refuse a resolution that rounded a moving position to one value (the record would
+    /// hold a constant, silently).
+    fn check_quantised(&self) -> Result<(), SimError> {
+        let Some(q) = self.quantum else {
+            return Ok(());
+        };
+        for (name, r) in self.names.iter().zip(&self.quantised_range) {
+            if r.first.is_some() && r.hi > r.lo && !r.varied {
+                return Err(SimError::InvalidConfig {
+                    what: format!(
+                        "{}: the position resolution {q} exceeds the range of `{name}` \
+                         ({:e} … {:e}): every recorded sample rounds to the same value",
+                        self.context, r.lo, r.hi
+                    ),
+                    help: format!(
+                        "give an encoder resolution far below the motion, e.g. `--quantise {:.0e}`",
+                        (r.hi - r.lo) / 1000.0
+                    ),
+                });
+            }
         }
         Ok(())
     }
 }
 
-fn quantise_columns(buf: &mut [Vec<f64>], finish: &[ColumnFinish], quantum: Option<f64>) {
+fn quantise_columns(
+    buf: &mut [Vec<f64>],
+    finish: &[ColumnFinish],
+    quantum: Option<f64>,
+    ranges: &mut [QuantisedRange],
+) {
     if quantum.is_none() {
         return;
     }
-    for (col, fin) in buf.iter_mut().zip(finish) {
+    for ((col, fin), r) in buf.iter_mut().zip(finish).zip(ranges) {
         if fin.quantised {
-            col.iter_mut().for_each(|x| *x = quantise(*x, quantum));
+            for x in col.iter_mut() {
+                r.lo = r.lo.min(*x);
+                r.hi = r.hi.max(*x);
+                *x = quantise(*x, quantum);
+                match r.first {
+                    None => r.first = Some(*x),
+                    Some(f) => r.varied |= *x != f,
+                }
+            }
         }
     }
 }

@@ -1,0 +1,426 @@
+//! A guard against estimates the data do not support although every number is finite: a
+//! residual the model cannot explain is reported with its likely cause, so that a wrong
+//! model or a damaged record never passes as an identification.
+//!
+//! Two symptoms are checked, from what identification has already computed:
+//!
+//! - **A large relative residual**: an equation whose weighted rows leave more than
+//!   [`RESIDUAL_WARN`] of their norm unexplained at every level (`‖W (C p̂ − c)‖ / ‖W c‖`,
+//!   [`EquationResidual`]). A model that holds leaves what noise, the record's end effects
+//!   and estimated velocities leave: at most 0.06 on the clean and 5 %-noisy records of
+//!   `guard_is_quiet_on_clean_and_noisy_records` (tests/silent_nonsense.rs), but up to
+//!   0.49 at one level of short records that hold little information (a free mass over
+//!   25 s, `tests/short_records.rs`; 0.11–0.49 over its three levels) and 0.16–0.28 for a
+//!   closed-loop axis over 20 s (`tests/codegen_parity.rs`). A defect of the model shows at
+//!   every level (0.37–0.41 for a mass fixed at half its value, 0.54–0.64 for a missing
+//!   body, 0.84–0.98 for a sensor offset, in the same tests), so the smallest residual
+//!   over the levels is what is judged.
+//! - **Levels that disagree**: a pooled estimate outside every level's own estimate by more
+//!   than [`LEVEL_SPREAD_T`] of that level's standard errors. Pooling averages the levels'
+//!   equations, so for a model that holds it lies among them; outside all of them, no
+//!   single set of parameters describes the levels.
+//!
+//! Two levels with the same record (the same length and, to the last bit, the same mean,
+//! spread and noise of every signal) are reported too: the record counts twice.
+//!
+//! Either symptom of a misfit starts one probe: the model with an unknown constant force on every body,
+//! measured again on the same data. A constant offset `x0` of a position sensor enters the
+//! equation of a body held by a spring `k` as the constant force `k·x0` (a constant added
+//! to `x` is a constant in `k·x`), which no other term can take up: the model then fits the
+//! offset with the wrong stiffness and damping and leaves a large residual. When the probe
+//! explains the data (its residuals below [`RESIDUAL_WARN`] and at most
+//! [`PROBE_SHRINK`] of the model's), the likely cause is a sensor offset (or an unmodelled
+//! constant force: gravity, a preload, an amplifier bias). Otherwise, where the equation's
+//! mass is fixed in the model, a second probe identifies it: when that explains the data,
+//! the fixed mass is likely wrong. Else a body or an element that the data show is missing.
+
+use super::{measure, EquationResidual, Identification, IdentifyOptions, Moments};
+use crate::data::LevelSource;
+use crate::tape::Tape;
+use dynid_ir::edit::NewTerm;
+use dynid_ir::ir::{Coef, ModelIr, ParamId, ParamIr, ParamKind, SignalKind};
+use serde::Serialize;
+
+/// Relative residual of an equation above which, at every level, the model does not
+/// explain the data (see the module doc for the figures it is set from).
+pub const RESIDUAL_WARN: f64 = 0.25;
+
+/// A pooled estimate further than this many of a level's standard errors from that level's
+/// estimate, at every level, means the levels disagree.
+pub const LEVEL_SPREAD_T: f64 = 6.0;
+
+/// The constant-force probe explains a residual when it leaves at most this fraction of it.
+pub const PROBE_SHRINK: f64 = 0.3;
+
+/// What the guard saw.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum FitCheck {
+    /// An equation's relative residual above [`RESIDUAL_WARN`] at every level.
+    LargeResidual,
+    /// A pooled estimate outside every level's own.
+    LevelsDisagree,
+    /// Two levels with the same record.
+    DuplicateLevel,
+}
+
+/// The likely cause the guard names.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum LikelyCause {
+    /// A constant force explains the residual: a position sensor's zero offset, or an
+    /// unmodelled constant force.
+    SensorOffset,
+    /// A body or an element that the data show is not in the model.
+    MissingBody,
+    /// The equation's mass is fixed in the model (not identified) and likely wrong, or a
+    /// body or element is missing.
+    WrongMass,
+    /// The levels do not share one set of parameters (a level from another set-up, other
+    /// units, or an effect that changes with the amplitude).
+    LevelsInconsistent,
+    /// One record given as two levels: it counts twice, and the standard errors come out
+    /// √2 too small.
+    SameRecordTwice,
+}
+
+/// A residual the model cannot explain, with its likely cause and what to do.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct FitWarning {
+    pub check: FitCheck,
+    pub cause: LikelyCause,
+    /// The equation (body) or parameter concerned.
+    pub subject: String,
+    /// The largest relative residual of the equation over the levels, or, for levels that
+    /// disagree, the pooled estimate's distance from the nearest level's in that level's
+    /// standard errors.
+    pub value: f64,
+    pub message: String,
+}
+
+impl std::fmt::Display for FitWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+/// The smallest and the largest of an equation's residuals over the levels (`None` when
+/// one is not finite).
+fn range(r: &EquationResidual) -> Option<(f64, f64)> {
+    if r.per_level.is_empty() || r.per_level.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    Some(
+        r.per_level
+            .iter()
+            .fold((f64::INFINITY, 0.0_f64), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            }),
+    )
+}
+
+/// The largest residual of any equation at any level.
+fn worst(id: &Identification) -> f64 {
+    id.residual
+        .iter()
+        .flat_map(|r| r.per_level.iter().copied())
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max)
+}
+
+/// The warnings of the pooled identification `id` from the moments `m` of `levels`.
+pub(crate) fn check(
+    m: &Moments<'_>,
+    id: &Identification,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Vec<FitWarning> {
+    let mut out = duplicates(id);
+    let large: Vec<(&EquationResidual, f64, f64)> = id
+        .residual
+        .iter()
+        .filter_map(|r| range(r).map(|(lo, hi)| (r, lo, hi)))
+        .filter(|(_, lo, _)| *lo > RESIDUAL_WARN)
+        .collect();
+    let disagree = levels_disagree(m, id);
+    if large.is_empty() && disagree.is_empty() {
+        return out;
+    }
+    let offset = offset_probe(m.ir, id, levels, opts);
+    for (r, lo, hi) in large {
+        let body = m.ir.bodies.iter().find(|b| b.name == r.equation);
+        let fixed_mass = body.and_then(|b| match b.mass.param {
+            None => Some(b.mass.scale),
+            Some(p) if !m.ir.params[p.index()].is_unknown() => {
+                m.ir.params[p.index()].nominal().map(|x| x * b.mass.scale)
+            }
+            Some(_) => None,
+        });
+        let share = if r.per_level.len() > 1 {
+            format!(
+                "{:.0}–{:.0} % of its filtered data unexplained at every level",
+                100.0 * lo,
+                100.0 * hi
+            )
+        } else {
+            format!("{:.0} % of its filtered data unexplained", 100.0 * hi)
+        };
+        let seen = format!(
+            "the equation of `{}` leaves {share} (a model that holds leaves a few per cent)",
+            r.equation,
+        );
+        let freed = match (&offset, fixed_mass) {
+            (None, Some(_)) => mass_probe(m.ir, &r.equation, levels, opts),
+            _ => None,
+        };
+        let (cause, why) = match (&offset, fixed_mass, freed) {
+            (Some(o), _, _) => (LikelyCause::SensorOffset, o.advice(Some(&r.equation))),
+            (None, Some(mass), Some((value, after))) => (
+                LikelyCause::WrongMass,
+                format!(
+                    "the mass of `{}` is fixed at {} in the model, and identified it comes out \
+                     {} with a residual of {:.1} %: the fixed mass is likely wrong (or the \
+                     force scale: the input's units or gain) — check it, or declare it \
+                     unknown (`body {} ~ {}`)",
+                    r.equation,
+                    dynid_ir::num::sig(mass, 4, false),
+                    dynid_ir::num::sig(value, 4, false),
+                    100.0 * after,
+                    r.equation,
+                    dynid_ir::num::sig(value, 4, false),
+                ),
+            ),
+            _ => (
+                LikelyCause::MissingBody,
+                "the model lacks a force the data show: most likely a missing body (the \
+                 record comes from a system with more degrees of freedom) or a missing \
+                 element; the estimates are not those of the system — compare the model's \
+                 structure with the rig (`dynid diagnose` searches for missing effects)"
+                    .to_string(),
+            ),
+        };
+        out.push(FitWarning {
+            check: FitCheck::LargeResidual,
+            cause,
+            subject: r.equation.clone(),
+            value: lo,
+            message: format!("{seen}: {why}"),
+        });
+    }
+    for (name, pooled, nearest, t) in disagree {
+        let (cause, why) = match &offset {
+            Some(o) => (LikelyCause::SensorOffset, o.advice(None)),
+            None => (
+                LikelyCause::LevelsInconsistent,
+                "no single set of parameters describes the levels: a level from another \
+                 set-up or in other units, or an effect that changes with the amplitude and \
+                 is missing from the model (`dynid detect` tests for one)"
+                    .to_string(),
+            ),
+        };
+        out.push(FitWarning {
+            check: FitCheck::LevelsDisagree,
+            cause,
+            message: format!(
+                "the pooled estimate of `{name}` ({}) lies outside every level's own (nearest \
+                 {}, {t:.0} of its standard errors away): {why}",
+                dynid_ir::num::sig(pooled, 4, false),
+                dynid_ir::num::sig(nearest, 4, false),
+            ),
+            subject: name,
+            value: t,
+        });
+    }
+    out
+}
+
+/// Levels that are one record given twice: the same length, sample interval, and the same
+/// first-pass mean, spread and noise of every signal, to the last bit (distinct records
+/// never agree in all of them).
+fn duplicates(id: &Identification) -> Vec<FitWarning> {
+    let same = |a: &super::LevelInfo, b: &super::LevelInfo| {
+        a.samples == b.samples
+            && a.ts == b.ts
+            && a.mean == b.mean
+            && a.std == b.std
+            && a.noise == b.noise
+    };
+    let mut out = Vec::new();
+    for (j, b) in id.levels.iter().enumerate() {
+        if let Some(a) = id.levels[..j].iter().find(|a| same(a, b)) {
+            out.push(FitWarning {
+                check: FitCheck::DuplicateLevel,
+                cause: LikelyCause::SameRecordTwice,
+                subject: b.origin.clone(),
+                value: 0.0,
+                message: format!(
+                    "{} holds the same record as {}: it counts twice, so the standard errors \
+                     come out √2 too small — give each level once",
+                    b.origin, a.origin
+                ),
+            });
+        }
+    }
+    out
+}
+
+/// Parameters whose pooled estimate lies outside every level's own: `(name, pooled,
+/// nearest level's value, distance in that level's standard errors)`.
+fn levels_disagree(m: &Moments<'_>, id: &Identification) -> Vec<(String, f64, f64, f64)> {
+    let n = m.levels().len();
+    if n < 2 {
+        return Vec::new();
+    }
+    let per_level: Vec<Identification> = (0..n).map(|i| m.identify_level(i)).collect();
+    id.params
+        .iter()
+        .filter(|p| p.value.is_finite())
+        .filter_map(|p| {
+            let own: Vec<(f64, f64)> = per_level
+                .iter()
+                .map(|l| l.param(&p.name).map(|e| (e.value, e.stderr)))
+                .collect::<Option<Vec<_>>>()?;
+            if own.iter().any(|(v, s)| !(v.is_finite() && s.is_finite())) {
+                return None;
+            }
+            let (lo, hi) = own
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (v, _)| {
+                    (a.min(*v), b.max(*v))
+                });
+            if (lo..=hi).contains(&p.value) {
+                return None;
+            }
+            let (near, t) = own
+                .iter()
+                .map(|(v, s)| (*v, (p.value - v).abs() / s.max(f64::MIN_POSITIVE)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))?;
+            (t > LEVEL_SPREAD_T).then(|| (p.name.clone(), p.value, near, t))
+        })
+        .collect()
+}
+
+/// What the constant-force probe found: the largest residual with a constant force on
+/// every body, and the measured position whose mean lies furthest from zero.
+struct Offset {
+    residual: f64,
+    /// `(signal, mean, mean / std)` over the levels.
+    position: Option<(String, f64, f64)>,
+}
+
+impl Offset {
+    /// What to do, for the equation of `body` where there is one.
+    fn advice(&self, body: Option<&str>) -> String {
+        let pos = match &self.position {
+            Some((s, mean, z)) => format!(
+                " (`{s}` has mean {}, {z:.1} standard deviations from zero)",
+                dynid_ir::num::sig(*mean, 3, false)
+            ),
+            None => String::new(),
+        };
+        format!(
+            "with a constant force on every body the residual falls to {:.1} %, so the \
+             likely cause is a zero offset of a position sensor{pos} or an unmodelled \
+             constant force (gravity, a preload, an amplifier bias) — subtract the sensor's \
+             reading at rest from its column, or add a constant force to the model \
+             (`force off (ground, {}) = f0`), which takes up an offset `x0` of a body held \
+             by a spring `k` as `f0 = −k·x0`",
+            100.0 * self.residual,
+            body.unwrap_or("BODY")
+        )
+    }
+}
+
+/// Identify the model with the fixed mass of body `body` made unknown: `(its estimate, the
+/// largest residual left)` when that explains the residual (below [`RESIDUAL_WARN`]).
+fn mass_probe(
+    ir: &ModelIr,
+    body: &str,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Option<(f64, f64)> {
+    let mut probe = ir.clone();
+    let b = probe.bodies.iter().position(|b| b.name == body)?;
+    let name = match probe.bodies[b].mass.param {
+        Some(p) => {
+            let q = &mut probe.params[p.index()];
+            let v = q.nominal()?;
+            q.kind = ParamKind::Unknown { nominal: Some(v) };
+            q.name.clone()
+        }
+        None => {
+            let name = probe.fresh_name(&format!("{body}_mass_probe"));
+            let pid = ParamId(probe.params.len() as u32);
+            let scale = probe.bodies[b].mass.scale;
+            probe.params.push(ParamIr {
+                name: name.clone(),
+                kind: ParamKind::Unknown {
+                    nominal: Some(scale),
+                },
+            });
+            probe.spans.params.push(probe.spans.model);
+            probe.bodies[b].mass = Coef::param(pid);
+            name
+        }
+    };
+    probe.equations = dynid_ir::edit::assemble_equations(&probe);
+    let tape = Tape::compile(&probe, &probe.eval_roots());
+    let fit = measure(&probe, &tape, levels, opts).ok()?.identify_pooled();
+    let value = fit.param(&name)?.value * probe.bodies[b].mass.scale;
+    let after = worst(&fit);
+    (after <= RESIDUAL_WARN && value.is_finite()).then_some((value, after))
+}
+
+/// Identify the model with an unknown constant force on every body; `Some` when that
+/// explains the residual (see the module doc).
+fn offset_probe(
+    ir: &ModelIr,
+    id: &Identification,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Option<Offset> {
+    let before = worst(id);
+    let mut probe = ir.clone();
+    let one = |a: &mut dynid_ir::ir::ExprArena, _, _| a.constant(1.0);
+    for b in &ir.bodies {
+        let name = probe.fresh_name("offset_probe");
+        let param = probe.fresh_name("f_offset_probe");
+        probe
+            .add_force(
+                &name,
+                ("ground", &b.name),
+                &[NewTerm {
+                    param: &param,
+                    nominal: None,
+                    basis: &one,
+                }],
+            )
+            .ok()?;
+    }
+    let tape = Tape::compile(&probe, &probe.eval_roots());
+    let fit = measure(&probe, &tape, levels, opts).ok()?.identify_pooled();
+    let after = worst(&fit);
+    if !(after <= RESIDUAL_WARN && after <= PROBE_SHRINK * before) {
+        return None;
+    }
+    let position = ir
+        .measured_signals()
+        .iter()
+        .map(|s| ir.signal(*s))
+        .filter(|s| matches!(s.kind, SignalKind::Position(_)))
+        .filter_map(|s| {
+            id.levels
+                .iter()
+                .filter_map(|l| {
+                    let (m, sd) = (*l.mean.get(&s.name)?, *l.std.get(&s.name)?);
+                    (sd > 0.0).then(|| (m, m.abs() / sd))
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(m, z)| (s.name.clone(), m, z))
+        })
+        .max_by(|a, b| a.2.total_cmp(&b.2));
+    Some(Offset {
+        residual: after,
+        position,
+    })
+}
