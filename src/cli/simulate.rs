@@ -447,7 +447,9 @@ mod tests {
             "{e}"
         );
         assert!(err("t,u\n0,1\n0.1,x\n").contains("not a number"));
-        assert!(err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n").contains("line 4: the time step"));
+        // A step of two intervals: a dropped sample, named as such.
+        assert!(err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n").contains("line 4: a sample is missing"));
+        assert!(err("t,u\n0,1\n0.1,2\n0.25,2\n0.35,1\n").contains("line 4: the time step"));
         let r = read_input_csv(&write(dir.path(), "b.csv", "t,u\n1,1\n1.5,2\n2,3\n\n")).unwrap();
         assert_eq!(
             (r.t0, r.ts, r.names.clone()),
