@@ -67,3 +67,19 @@ def test_from_source_and_model_properties():
     assert model.measured == ["m.x", "m.v", "u"]
     assert model.equations == "m: 1 m.x'' + k m.x + d m.x' = u\n"
     assert model.to_dict()["name"] == "sdof"
+
+
+def test_a_sensor_offset_is_warned_about_and_named(models):
+    # The same guard as `dynid identify`: a zero offset on the position sensor leaves a
+    # residual the linear model cannot explain, named with its likely cause.
+    model = dynid.Model.from_file(models / "sdof_linear.dyn")
+    clean = model.identify(model.simulate(duration=200, seed=1))
+    assert clean.fit_warnings == []
+    shifted = []
+    for level in model.simulate(duration=200, seed=1):
+        level["m.x"] = level["m.x"] + 1.0
+        shifted.append(level)
+    result = model.identify(shifted)
+    (w,) = result.fit_warnings
+    assert (w["check"], w["cause"], w["subject"]) == ("large_residual", "sensor_offset", "m")
+    assert result.to_dict()["fit_warnings"] == result.fit_warnings
