@@ -517,3 +517,20 @@ fn identification_and_detection_survive_random_small_records() {
         "{identified} identified, {detected} detected; errors: {errors:#?}"
     );
 }
+
+#[test]
+fn the_numerics_fuzzer_finds_no_non_finite_residual() {
+    // Inputs the `numerics` fuzz target once failed on (regression cases).
+    let irs: Vec<ModelIr> = fuzz::NUMERIC_MODELS
+        .iter()
+        .map(|m| dsl_parser::compile_str("fuzz.dyn", m).unwrap())
+        .collect();
+    let cases: [&[u8]; 1] = [b"\x0b\x002222222222\x19'"];
+    for bytes in cases {
+        let r = fuzz::check_numerics(bytes, &irs);
+        println!(
+            "identified {}, error {:?}, detected {}",
+            r.identified, r.ident_error, r.detected
+        );
+    }
+}

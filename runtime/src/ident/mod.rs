@@ -363,10 +363,13 @@ impl<'m> Moments<'m> {
             let mut a = Vec::with_capacity(rows * active.len());
             let mut b = Vec::with_capacity(rows);
             for i in 0..rows {
+                // A row of weight zero (not finite, or no finite norm) counts for nothing:
+                // written as zeros, never as `0 · inf`.
+                let w = weights[i];
                 for &j in active {
-                    a.push(weights[i] * c[i * ncol + j]);
+                    a.push(if w == 0.0 { 0.0 } else { w * c[i * ncol + j] });
                 }
-                b.push(weights[i] * r[i]);
+                b.push(if w == 0.0 { 0.0 } else { w * r[i] });
             }
             (a, b)
         };
@@ -495,6 +498,9 @@ impl<'m> Moments<'m> {
                                 continue;
                             }
                             let i = pos * nr + r;
+                            if weights[i] == 0.0 {
+                                continue; // a row that counts for nothing (see `weighted`)
+                            }
                             let fit: f64 =
                                 (0..ncol).map(|j| c_full[i * ncol + j] * p_full[j]).sum();
                             num += (weights[i] * (fit - r_full[i])).powi(2);
@@ -510,6 +516,7 @@ impl<'m> Moments<'m> {
             })
             .collect();
         let ssr: f64 = (0..rows)
+            .filter(|&i| weights[i] != 0.0)
             .map(|i| {
                 let fit: f64 = (0..ncol).map(|j| c_full[i * ncol + j] * p_full[j]).sum();
                 (weights[i] * (fit - r_full[i])).powi(2)
