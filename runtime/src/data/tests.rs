@@ -525,7 +525,11 @@ fn the_numerics_fuzzer_finds_no_non_finite_residual() {
         .iter()
         .map(|m| dsl_parser::compile_str("fuzz.dyn", m).unwrap())
         .collect();
-    let cases: [&[u8]; 1] = [b"\x0b\x002222222222\x19'"];
+    let cases: [&[u8]; 2] = [
+        b"\x0b\x002222222222\x19'",
+        // (base64 AQARAP///zIyXQY0Ihg=: a standard error of inf)
+        b"\x01\x00\x11\x00\xff\xff\xff22]\x064\"\x18",
+    ];
     for bytes in cases {
         let r = fuzz::check_numerics(bytes, &irs);
         println!(

@@ -449,6 +449,20 @@ impl<'m> Moments<'m> {
                 which,
                 &self.store.levels,
             );
+            // An estimate or standard error beyond double precision (data whose products
+            // overflow) is no number to print: the parameter is named instead.
+            if let Some(j) =
+                (0..active.len()).find(|&j| !(sol.x[j].is_finite() && se[j].is_finite()))
+            {
+                unident.push(Unidentifiable {
+                    name: names[active[j]].clone(),
+                    reason: "its estimate or standard error is beyond double precision (the \
+                             data's products overflow): rescale the data (other units)"
+                        .to_string(),
+                });
+                active.remove(j);
+                continue;
+            }
             if self.prune_t > 0.0 {
                 let worst = (0..active.len())
                     .filter(|&j| self.prune_t * se[j] >= sol.x[j].abs())
