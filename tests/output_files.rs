@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{dynid, stderr};
+use common::{dynid, setup_linear_levels as setup, stderr};
 
 use std::os::unix::fs::{FileTypeExt, PermissionsExt};
 use std::path::{Path, PathBuf};
@@ -16,28 +16,6 @@ use std::process::{Command, Output, Stdio};
 
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_dynid")
-}
-
-/// A copy of the linear SDOF model and three short levels of it in `dir`.
-fn setup(dir: &Path) -> (PathBuf, Vec<PathBuf>) {
-    let model = dir.join("sdof_linear.dyn");
-    std::fs::copy(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("models/sdof_linear.dyn"),
-        &model,
-    )
-    .unwrap();
-    let st = dynid()
-        .arg("simulate")
-        .arg(&model)
-        .args(["--duration", "50", "--seed", "3", "--out"])
-        .arg(dir)
-        .output()
-        .unwrap();
-    assert!(st.status.success(), "{}", stderr(&st));
-    let levels = (1..=3)
-        .map(|i| dir.join(format!("level_{i}.csv")))
-        .collect();
-    (model, levels)
 }
 
 /// `dynid identify MODEL LEVELS... EXTRA...`.
@@ -72,6 +50,17 @@ fn mkfifo(p: &Path) {
 /// A shell command line quoting `s` for `sh -c`.
 fn quote(s: &Path) -> String {
     format!("'{}'", s.display().to_string().replace('\'', "'\\''"))
+}
+
+/// `dynid identify MODEL LEVELS…` as a shell command line.
+fn identify_line(model: &Path, levels: &[PathBuf]) -> String {
+    let levels: Vec<String> = levels.iter().map(|l| quote(l)).collect();
+    format!(
+        "{} identify {} {}",
+        quote(Path::new(bin())),
+        quote(model),
+        levels.join(" ")
+    )
 }
 
 fn refused(out: &Output, code: &str) -> String {
@@ -149,14 +138,8 @@ fn devices_fifos_and_descriptors_are_written_through() {
     // /dev/stdout redirected to a file: the JSON follows the table, the table stays.
     let redirected = dir.path().join("stdout.txt");
     let script = format!(
-        "{} identify {} {} --json /dev/stdout > {}",
-        quote(Path::new(bin())),
-        quote(&model),
-        levels
-            .iter()
-            .map(|l| quote(l))
-            .collect::<Vec<_>>()
-            .join(" "),
+        "{} --json /dev/stdout > {}",
+        identify_line(&model, &levels),
         quote(&redirected)
     );
     let out = Command::new("sh").arg("-c").arg(&script).output().unwrap();
@@ -171,14 +154,8 @@ fn devices_fifos_and_descriptors_are_written_through() {
     if Command::new("bash").arg("-c").arg("true").status().is_ok() {
         let got = dir.path().join("via_fd.json");
         let script = format!(
-            "{} identify {} {} --json >(cat > {}); wait $!",
-            quote(Path::new(bin())),
-            quote(&model),
-            levels
-                .iter()
-                .map(|l| quote(l))
-                .collect::<Vec<_>>()
-                .join(" "),
+            "{} --json >(cat > {}); wait $!",
+            identify_line(&model, &levels),
             quote(&got)
         );
         let out = Command::new("bash")
@@ -221,14 +198,8 @@ fn new_files_follow_the_umask_and_replaced_files_keep_their_mode() {
     let (model, levels) = setup(dir.path());
     let run = |umask: &str, json: &Path| {
         let script = format!(
-            "umask {umask}; exec {} identify {} {} --json {}",
-            quote(Path::new(bin())),
-            quote(&model),
-            levels
-                .iter()
-                .map(|l| quote(l))
-                .collect::<Vec<_>>()
-                .join(" "),
+            "umask {umask}; exec {} --json {}",
+            identify_line(&model, &levels),
             quote(json)
         );
         let out = Command::new("sh").arg("-c").arg(&script).output().unwrap();

@@ -4,31 +4,9 @@
 
 mod common;
 
-use common::{dynid, stderr};
+use common::{dynid, setup_linear_levels as setup, stderr};
 
 use std::path::{Path, PathBuf};
-
-/// A copy of the linear SDOF model and three short levels of it in `dir`.
-fn setup(dir: &Path) -> (PathBuf, Vec<PathBuf>) {
-    let model = dir.join("sdof_linear.dyn");
-    std::fs::copy(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("models/sdof_linear.dyn"),
-        &model,
-    )
-    .unwrap();
-    let st = dynid()
-        .arg("simulate")
-        .arg(&model)
-        .args(["--duration", "50", "--seed", "3", "--out"])
-        .arg(dir)
-        .output()
-        .unwrap();
-    assert!(st.status.success(), "{}", stderr(&st));
-    let levels = (1..=3)
-        .map(|i| dir.join(format!("level_{i}.csv")))
-        .collect();
-    (model, levels)
-}
 
 fn contents(paths: &[&Path]) -> Vec<Vec<u8>> {
     paths.iter().map(|p| std::fs::read(p).unwrap()).collect()

@@ -117,3 +117,25 @@ pub fn seed(seed: u64) -> u64 {
         Err(_) => seed,
     }
 }
+
+/// A copy of the linear SDOF model and three short levels of it in `dir`.
+pub fn setup_linear_levels(dir: &std::path::Path) -> (std::path::PathBuf, Vec<std::path::PathBuf>) {
+    let model = dir.join("sdof_linear.dyn");
+    std::fs::copy(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/sdof_linear.dyn"),
+        &model,
+    )
+    .unwrap();
+    let st = dynid()
+        .arg("simulate")
+        .arg(&model)
+        .args(["--duration", "50", "--seed", "3", "--out"])
+        .arg(dir)
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{}", stderr(&st));
+    let levels = (1..=3)
+        .map(|i| dir.join(format!("level_{i}.csv")))
+        .collect();
+    (model, levels)
+}
