@@ -82,6 +82,12 @@ pub struct Args {
     /// they are de-biased where the estimated noise is significant).
     #[arg(long = "no-noise-correction")]
     pub no_noise_correction: bool,
+    /// Let the model's nonlinear columns (`sign(v)`, `s^3`, …) drive filter chains of their
+    /// own, besides the chains of measured positions and inputs: their states are
+    /// instruments that carry each column's own information (often smaller errors for
+    /// damping and friction, see docs/method.md §2)
+    #[arg(long = "column-chains")]
+    pub column_chains: bool,
     /// Refine the covariance estimate by minimising the free-run simulation error.
     #[arg(long)]
     pub refine: bool,
@@ -308,6 +314,7 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
         corners: args.filter_corners.clone(),
         balance: Some(args.balance && !args.no_balance),
         noise_correction: !args.no_noise_correction,
+        column_chains: args.column_chains,
         ..Default::default()
     };
     Ok(identify(ir, &levels, &opts)?)
@@ -517,6 +524,7 @@ mod tests {
             no_balance: false,
             balance: false,
             no_noise_correction: false,
+            column_chains: false,
             refine: false,
             test: Vec::new(),
             weight: Vec::new(),
@@ -564,6 +572,7 @@ mod tests {
             no_balance: false,
             balance: false,
             no_noise_correction: false,
+            column_chains: false,
             refine: false,
             test: Vec::new(),
             weight: Vec::new(),

@@ -183,10 +183,19 @@ pub fn measure<'m>(
         .collect();
 
     let t_pass = Instant::now();
-    let results: Vec<(LevelMoments, PhaseTimes)> =
-        crate::first_error_in_order(sources.par_iter().zip(&stats).zip(&noise_var).map(
-            |((src, st), var)| {
+    let results: Vec<(LevelMoments, PhaseTimes)> = crate::first_error_in_order(
+        sources
+            .par_iter()
+            .zip(&stats)
+            .zip(&noise_var)
+            .enumerate()
+            .map(|(level, ((src, st), var))| {
                 let mut acc = LevelAccumulator::new(&plan, eval, st.ts, st.n, n_blocks, opts.hold);
+                // Delayed column drivers wait out the widest velocity window of the level.
+                let widest = estimators
+                    .get(level)
+                    .map_or(0, |e| e.designs().iter().map(|d| d.2).max().unwrap_or(0));
+                acc.set_root_delay(widest + 1);
                 acc.set_extra_widths(noise::extra_widths(&plan, &st.noise_var, &st.std));
                 let mut read = Duration::ZERO;
                 let mut t_read = Instant::now();
@@ -208,8 +217,8 @@ pub fn measure<'m>(
                 noise::debias(&plan, &mut m, var, opts.hold);
                 t.read = read;
                 Ok::<_, IdentifyError>((m, t))
-            },
-        ))?;
+            }),
+    )?;
     let mut times = PhaseTimes {
         read: stats_time,
         pass: t_pass.elapsed(),
@@ -387,6 +396,7 @@ pub(super) fn choose_bank(
         _ => opts.n_corners,
     };
     Ok(BankChoice {
+        regressors: opts.column_chains,
         drivers,
         order,
         min_degree,

@@ -208,6 +208,9 @@ impl<'m> Moments<'m> {
                 .iter()
                 .map(|s| self.ir.signal(*s).name.clone())
                 .collect(),
+            column_drivers: (self.plan.drivers.len()..self.plan.n_drivers())
+                .map(|d| self.plan.driver_name(self.ir, d))
+                .collect(),
             instrument_degrees: (self.plan.min_degree..=self.plan.order).collect(),
             balance_rows: self.plan.balance,
         }

@@ -518,6 +518,13 @@ pub(crate) struct LevelAccumulator<'a> {
     /// The first non-finite basis value met: (root, sample, value).
     pub non_finite: Option<(usize, usize, f64)>,
     pub times: PhaseTimes,
+    /// Column drivers ([`super::plan::RootDriver`]): delay in samples of a delayed column
+    /// at this level (the velocity differentiator's half-width plus one).
+    root_delay: usize,
+    /// Per column driver: its values over the last `delay` samples before this chunk.
+    root_hist: Vec<Vec<f64>>,
+    /// Per column driver: its (delayed) values over the current chunk, driver-major.
+    root_buf: Vec<f64>,
 }
 
 impl<'a> LevelAccumulator<'a> {
@@ -533,10 +540,10 @@ impl<'a> LevelAccumulator<'a> {
         let bounds: Vec<usize> = (0..=n_blocks)
             .map(|b| ((b as u128 * (n_total - 1) as u128) / n_blocks as u128) as usize)
             .collect();
-        let bank = FilterBank::new(&plan.corners, plan.drivers.len(), plan.order, ts, hold);
+        let bank = FilterBank::new(&plan.corners, plan.n_drivers(), plan.order, ts, hold);
         let (n_i, n_w, n_q) = (plan.n_i(), plan.n_w(), plan.n_q());
         let mut row_map = vec![None; bank.n_rows()];
-        for d in 0..plan.drivers.len() {
+        for d in 0..plan.n_drivers() {
             for c in 0..plan.corners.len() {
                 for i in 0..plan.order {
                     row_map[bank.row(d, c, i)] = Some(plan.state(d, c, i));
@@ -569,6 +576,9 @@ impl<'a> LevelAccumulator<'a> {
             extra_width: vec![1.0; plan.extra.len()],
             non_finite: None,
             times: PhaseTimes::default(),
+            root_delay: 0,
+            root_hist: vec![Vec::new(); plan.root_drivers.len()],
+            root_buf: Vec::new(),
         };
         acc.set_task_len(TASK_LEN);
         acc
@@ -579,6 +589,75 @@ impl<'a> LevelAccumulator<'a> {
         self.task_len = task_len.max(1);
         self.ramp = (0..self.task_len).map(|k| k as f64).collect();
         self.bank.prepare_propagation(self.task_len);
+    }
+
+    /// Delay of the delayed column drivers at this level, in samples (see
+    /// [`super::plan::RootDriver`]); set before the first chunk.
+    pub fn set_root_delay(&mut self, delay: usize) {
+        assert_eq!(
+            self.pos, 0,
+            "invariant: the delay is set before the first chunk"
+        );
+        self.root_delay = delay;
+    }
+
+    /// Fill `root_buf` with the column drivers' values over the next `len` samples: the
+    /// basis evaluated over the chunk (in tasks, in parallel), each delayed column shifted
+    /// by the delay through `root_hist` (before the record's first sample a column holds
+    /// its first value, as the filters start at rest there).
+    fn fill_root_drivers(&mut self, cols: &[&[f64]], len: usize) {
+        use rayon::prelude::*;
+        let plan = self.plan;
+        let n_g = plan.roots.len();
+        if plan.root_drivers.is_empty() || n_g == 0 {
+            return;
+        }
+        let step = self.task_len;
+        let mut g = vec![0.0; n_g * len];
+        let pieces: Vec<(usize, usize)> = (0..len)
+            .step_by(step)
+            .map(|o| (o, step.min(len - o)))
+            .collect();
+        let parts: Vec<Vec<f64>> = pieces
+            .par_iter()
+            .map(|&(o, l)| {
+                let view: Vec<&[f64]> = cols
+                    .iter()
+                    .map(|c| if c.is_empty() { *c } else { &c[o..o + l] })
+                    .collect();
+                let mut out = vec![0.0; n_g * l];
+                self.eval.eval_block(&view, l, &mut out, &mut Vec::new());
+                out
+            })
+            .collect();
+        for (&(o, l), part) in pieces.iter().zip(&parts) {
+            for r in 0..n_g {
+                // shape: `part` is n_g × l column-major, `g` is n_g × len.
+                g[r * len + o..r * len + o + l].copy_from_slice(&part[r * l..(r + 1) * l]);
+            }
+        }
+        self.root_buf.resize(plan.root_drivers.len() * len, 0.0);
+        for (k, rd) in plan.root_drivers.iter().enumerate() {
+            // shape: `g` holds every root over the chunk; `rd.root < n_g`.
+            let col = &g[rd.root * len..(rd.root + 1) * len];
+            let dst = &mut self.root_buf[k * len..(k + 1) * len];
+            let delay = if rd.delayed { self.root_delay } else { 0 };
+            if delay == 0 {
+                dst.copy_from_slice(col);
+                continue;
+            }
+            let hist = &mut self.root_hist[k];
+            if self.pos == 0 {
+                hist.clear();
+                hist.resize(delay, col.first().copied().unwrap_or(0.0));
+            }
+            // The concatenation `hist ++ col`: the chunk's driver is its first `len`
+            // values, the next history its last `delay`.
+            let mut all = std::mem::take(hist);
+            all.extend_from_slice(col);
+            dst.copy_from_slice(&all[..len]);
+            *hist = all[len..].to_vec();
+        }
     }
 
     /// Set the kernel widths of the plan's extra columns for this level.
@@ -637,7 +716,12 @@ impl<'a> LevelAccumulator<'a> {
         if self.work.len() < tasks.len() {
             self.work.resize_with(tasks.len(), TaskWork::default);
         }
-        let drivers: Vec<&[f64]> = plan.drivers.iter().map(|d| cols[d.index()]).collect();
+        self.fill_root_drivers(cols, len);
+        let root_buf = std::mem::take(&mut self.root_buf);
+        let mut drivers: Vec<&[f64]> = plan.drivers.iter().map(|d| cols[d.index()]).collect();
+        if !plan.root_drivers.is_empty() {
+            drivers.extend(root_buf.chunks_exact(len));
+        }
         let bank = &self.bank;
         let at = |k: usize| -> Vec<f64> { drivers.iter().map(|c| c[k]).collect() };
         // The state before each task's first sample; the record's first task starts at rest
@@ -757,6 +841,7 @@ impl<'a> LevelAccumulator<'a> {
         }
         self.state = self.work[tasks.len() - 1].end.take();
         self.pos += len;
+        self.root_buf = root_buf;
     }
 
     /// The snapshot `ι qᵀ` at block boundary `b`, the first sample of the piece

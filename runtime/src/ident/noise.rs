@@ -324,7 +324,7 @@ pub struct NoiseSummary {
 }
 
 /// `e` as a constant factor times a core expression.
-fn split_factor(ir: &ModelIr, e: ExprId) -> (f64, ExprId) {
+pub(crate) fn split_factor(ir: &ModelIr, e: ExprId) -> (f64, ExprId) {
     match ir.exprs[e.index()] {
         ExprNode::Unary(UnaryOp::Neg, a) => {
             let (f, c) = split_factor(ir, a);
@@ -346,7 +346,7 @@ fn split_factor(ir: &ModelIr, e: ExprId) -> (f64, ExprId) {
 }
 
 /// `e` as a linear form `Σ aₖ sₖ` in signals (no constant offset), if it is one.
-fn linear_form(ir: &ModelIr, e: ExprId) -> Option<Vec<(SignalId, f64)>> {
+pub(crate) fn linear_form(ir: &ModelIr, e: ExprId) -> Option<Vec<(SignalId, f64)>> {
     let scale = |v: Vec<(SignalId, f64)>, f: f64| v.into_iter().map(|(s, a)| (s, a * f)).collect();
     match ir.exprs[e.index()] {
         ExprNode::Signal(s) => Some(vec![(s, 1.0)]),

@@ -58,6 +58,9 @@ pub(crate) struct Plan {
     pub y: Vec<SignalId>,
     pub y_of: Vec<Option<usize>>,
     pub drivers: Vec<SignalId>,
+    /// Chains driven by nonlinear static columns (filtered regressors), after the chains of
+    /// `drivers` in the bank.
+    pub root_drivers: Vec<RootDriver>,
     pub order: usize,
     pub min_degree: usize,
     pub corners: Vec<f64>,
@@ -84,9 +87,26 @@ pub(crate) struct Plan {
     pub linear_roots: Vec<(usize, Vec<(usize, f64)>)>,
 }
 
+/// A filter chain driven by a static basis column `g` (paper eq. 9: the filters may be
+/// driven by the extended state): its states are low-pass versions of the column itself,
+/// instruments that carry the column's own information (a Coulomb column's switching, a
+/// cubic spring's peaks) where chains of positions and inputs see it only weakly.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct RootDriver {
+    /// Index into `roots` (the column `g`).
+    pub root: usize,
+    /// The column holds an estimated velocity, whose value at a sample depends on position
+    /// samples up to the differentiator's half-width `H` on either side: the chain is then
+    /// driven by the column `H + 1` samples earlier, so that no instrument shares a
+    /// position sample's noise with the column it multiplies.
+    pub delayed: bool,
+}
+
 /// Filter choices resolved from options, the model's filter block and the data.
 #[derive(Clone, Debug)]
 pub(crate) struct BankChoice {
+    /// Drive chains by the nonlinear static columns too ([`RootDriver`]).
+    pub regressors: bool,
     pub drivers: Vec<SignalId>,
     pub order: usize,
     pub min_degree: usize,
@@ -94,8 +114,12 @@ pub(crate) struct BankChoice {
 }
 
 impl Plan {
+    /// Chains per corner: the signal drivers, then the column drivers.
+    pub fn n_drivers(&self) -> usize {
+        self.drivers.len() + self.root_drivers.len()
+    }
     pub fn n_z(&self) -> usize {
-        self.drivers.len() * self.corners.len() * self.order
+        self.n_drivers() * self.corners.len() * self.order
     }
     pub fn n_i(&self) -> usize {
         self.n_z() + self.y.len()
@@ -233,6 +257,27 @@ pub(crate) fn build_structure(
             }
         }
     }
+    let mut root_drivers: Vec<RootDriver> = Vec::new();
+    if bank.regressors {
+        let est: Vec<SignalId> = estimated.iter().map(|&(v, _)| v).collect();
+        for t in equations.iter().flatten() {
+            let (TermCoef::Unknown { .. }, BasisMoment::Static(w)) = (&t.coef, t.basis) else {
+                continue;
+            };
+            // Constant and linear columns add nothing: their chains are the constant or
+            // combinations of the measured signals' chains.
+            let linear = |r| super::noise::linear_form(ir, super::noise::split_factor(ir, r).1);
+            if w >= n_g
+                || ir.is_constant(roots[w])
+                || linear(roots[w]).is_some()
+                || root_drivers.iter().any(|r| r.root == w)
+            {
+                continue;
+            }
+            let delayed = ir.expr_signals(roots[w]).iter().any(|s| est.contains(s));
+            root_drivers.push(RootDriver { root: w, delayed });
+        }
+    }
     for d in &bank.drivers {
         if y_of[d.index()].is_none() {
             return Err(IdentifyError::UnmeasuredDriver {
@@ -245,6 +290,7 @@ pub(crate) fn build_structure(
         y,
         y_of,
         drivers: bank.drivers.clone(),
+        root_drivers,
         order: bank.order,
         min_degree: bank.min_degree,
         corners: vec![0.0; bank.n_corners],
@@ -284,14 +330,15 @@ impl Plan {
         assert_eq!(corners.len(), self.corners.len());
         self.corners = corners.to_vec();
         let mut inst = Vec::new();
-        for (d, &sig) in self.drivers.iter().enumerate() {
+        for d in 0..self.n_drivers() {
+            let driver = self.driver_name(ir, d);
             for (c, &lam) in self.corners.iter().enumerate() {
                 for i in (self.min_degree - 1)..self.order {
                     let a = vec![(self.state(d, c, i), 1.0)];
                     let a1 = self.deriv(ir, &a);
                     let a2 = a1.as_ref().and_then(|a1| self.deriv(ir, a1));
                     inst.push(Instrument {
-                        label: format!("ζ{}({}, λ={:.3})", i + 1, ir.signal(sig).name, lam),
+                        label: format!("ζ{}({driver}, λ={lam:.3})", i + 1),
                         a,
                         a1,
                         a2,
@@ -350,7 +397,7 @@ impl Plan {
                 }
                 let ok = eq.iter().all(|t| {
                     computable(ins, &t.basis)
-                        && (!filter_row || self.noise_free(ins, &t.basis, &w_signals))
+                        && (!filter_row || self.noise_free(ir, ins, &t.basis, &w_signals))
                 });
                 if ok {
                     rows.push((k, l));
@@ -364,25 +411,44 @@ impl Plan {
     /// Signals that a combination depends on within the same sample: the driver of a
     /// relative-degree-1 state (its exact discretisation weighs the current input sample
     /// by `≈ λTₛ/2`) and raw measured signals.
-    fn same_sample(&self, c: &Comb) -> Vec<SignalId> {
+    fn same_sample(&self, ir: &ModelIr, c: &Comb) -> Vec<SignalId> {
         let n_z = self.n_z();
-        c.iter()
-            .filter_map(|&(k, _)| {
-                if k >= n_z {
-                    Some(self.y[k - n_z])
-                } else if k % self.order == 0 {
-                    Some(self.drivers[k / self.order / self.corners.len()])
-                } else {
-                    None
+        let mut out = Vec::new();
+        for &(k, _) in c {
+            if k >= n_z {
+                out.push(self.y[k - n_z]);
+            } else if k % self.order == 0 {
+                let d = k / self.order / self.corners.len();
+                match d.checked_sub(self.drivers.len()) {
+                    None => out.push(self.drivers[d]),
+                    Some(r) if !self.root_drivers[r].delayed => {
+                        out.extend(ir.expr_signals(self.roots[self.root_drivers[r].root]))
+                    }
+                    Some(_) => {}
                 }
-            })
-            .collect()
+            }
+        }
+        out
+    }
+
+    /// The signal or column that drives chain `d`, for labels.
+    pub fn driver_name(&self, ir: &ModelIr, d: usize) -> String {
+        match d.checked_sub(self.drivers.len()) {
+            None => ir.signal(self.drivers[d]).name.clone(),
+            Some(r) => dynid_ir::print::render_expr(ir, self.roots[self.root_drivers[r].root]),
+        }
     }
 
     /// Whether a filter instrument's moment with this basis keeps white measurement noise
     /// out: no product may pair a signal with something that depends on the same sample of
     /// that signal, or the noise variance enters the moment (amplified by `λ²` in `ι''`).
-    fn noise_free(&self, ins: &Instrument, b: &BasisMoment, w_signals: &[Vec<SignalId>]) -> bool {
+    fn noise_free(
+        &self,
+        ir: &ModelIr,
+        ins: &Instrument,
+        b: &BasisMoment,
+        w_signals: &[Vec<SignalId>],
+    ) -> bool {
         let (comb, col) = match *b {
             BasisMoment::Static(w) => (Some(&ins.a), w),
             BasisMoment::D1Pos(x) => (ins.a1.as_ref(), x),
@@ -390,7 +456,7 @@ impl Plan {
             BasisMoment::D2Pos(x, _) => (ins.a2.as_ref(), x),
         };
         let Some(comb) = comb else { return true };
-        let hazards = self.same_sample(comb);
+        let hazards = self.same_sample(ir, comb);
         !w_signals[col].iter().any(|s| hazards.contains(s))
     }
 
@@ -412,7 +478,9 @@ impl Plan {
                 let d = chain / self.corners.len();
                 add(k, -lam * coef);
                 if i == 0 {
-                    add(self.iota_y(self.drivers[d])?, lam * coef);
+                    // A column driver is no row signal: its chain's first state has no
+                    // computable derivative.
+                    add(self.iota_y(*self.drivers.get(d)?)?, lam * coef);
                 } else {
                     add(k - 1, lam * coef);
                 }

@@ -35,6 +35,11 @@ pub struct IdentifyOptions {
     /// De-bias the moments of nonlinear static terms in signals whose estimated measurement
     /// noise is significant (see [`noise`]). The noise is estimated and reported either way.
     pub noise_correction: bool,
+    /// Drive filter chains by the model's nonlinear static columns as well (`sign(v)`,
+    /// `s³`, …): their states are instruments that carry each column's own information
+    /// (see [`plan::RootDriver`]). Off (the default): chains of positions and inputs
+    /// only. What it gains and costs is measured in docs/method.md §2.
+    pub column_chains: bool,
 }
 
 impl Default for IdentifyOptions {
@@ -50,6 +55,7 @@ impl Default for IdentifyOptions {
             rcond: 1e-10,
             hold: Hold::FirstOrder,
             noise_correction: true,
+            column_chains: false,
         }
     }
 }
@@ -222,6 +228,10 @@ pub struct FilterSummary {
     pub corners: Vec<f64>,
     pub order: usize,
     pub drivers: Vec<String>,
+    /// Nonlinear static columns that drive chains of their own (filtered regressors as
+    /// instruments); a column with an estimated velocity drives its chains a velocity
+    /// window late.
+    pub column_drivers: Vec<String>,
     /// Relative degrees of the states used as instruments.
     pub instrument_degrees: Vec<usize>,
     pub balance_rows: bool,
