@@ -76,7 +76,7 @@
 //! [`super::IdentifyOptions::noise_correction`] switches the correction off (the CLI's
 //! `--no-noise-correction`); the noise levels are estimated and reported either way.
 
-use super::filter::{ChainDisc, Hold};
+use super::filter::{ChainDisc, Hold, LinearColumnMap};
 use super::moments::LevelMoments;
 use super::plan::{BasisMoment, Comb, Plan};
 use dynid_ir::ir::{BinaryOp, ExprId, ExprNode, ModelIr, SignalId, UnaryOp};
@@ -324,7 +324,7 @@ pub struct NoiseSummary {
 }
 
 /// `e` as a constant factor times a core expression.
-fn split_factor(ir: &ModelIr, e: ExprId) -> (f64, ExprId) {
+pub(crate) fn split_factor(ir: &ModelIr, e: ExprId) -> (f64, ExprId) {
     match ir.exprs[e.index()] {
         ExprNode::Unary(UnaryOp::Neg, a) => {
             let (f, c) = split_factor(ir, a);
@@ -346,7 +346,7 @@ fn split_factor(ir: &ModelIr, e: ExprId) -> (f64, ExprId) {
 }
 
 /// `e` as a linear form `Σ aₖ sₖ` in signals (no constant offset), if it is one.
-fn linear_form(ir: &ModelIr, e: ExprId) -> Option<Vec<(SignalId, f64)>> {
+pub(crate) fn linear_form(ir: &ModelIr, e: ExprId) -> Option<Vec<(SignalId, f64)>> {
     let scale = |v: Vec<(SignalId, f64)>, f: f64| v.into_iter().map(|(s, a)| (s, a * f)).collect();
     match ir.exprs[e.index()] {
         ExprNode::Signal(s) => Some(vec![(s, 1.0)]),
@@ -605,9 +605,17 @@ pub(crate) fn debias(plan: &Plan, lm: &mut LevelMoments, var_y: &[f64], hold: Ho
         }
         for (c, &lam) in plan.corners.iter().enumerate() {
             let g1 = ChainDisc::new(lam, plan.order, lm.ts, hold).g1;
+            // Columns in measured inputs were integrated exactly for an input linear
+            // between samples, which weights the shared noise differently.
+            let exact = (hold == Hold::FirstOrder)
+                .then(|| LinearColumnMap::new(lam, plan.order, lm.ts).noise_gain);
             for (i, g) in g1.iter().enumerate() {
                 let row = plan.state(d, c, i);
                 for &(col, a) in &cols {
+                    let g = match &exact {
+                        Some(gain) if plan.hold_columns.iter().any(|(h, _)| *h == col) => gain[i],
+                        _ => *g,
+                    };
                     for (sum, &len) in lm.sums.iter_mut().zip(&lm.lens) {
                         sum[row * n_w + col] -= a * g * var_y[k] * len as f64;
                     }

@@ -826,6 +826,68 @@ fn time_parallel_pass_matches_the_serial_recursion() {
             }
         }
     }
+    // Columns in measured inputs: the exact integral for inputs linear between samples,
+    // the same map of the sums and the lag-one products (`filter::LinearColumnMap`).
+    assert!(!plan.hold_columns.is_empty());
+    let n_in = plan.hold_inputs.len();
+    for (c, &lam) in plan.corners.iter().enumerate() {
+        let map = filter::LinearColumnMap::new(lam, plan.order, ts);
+        for (d, sd) in plan.drivers.iter().enumerate() {
+            let sy = plan.iota_y(*sd).unwrap();
+            for (col, lin) in &plan.hold_columns {
+                for b in 0..n_blocks {
+                    let mut lag = [[0.0; 2]; 4];
+                    for k in bounds[b].max(1)..bounds[b + 1] {
+                        let t = (k - bounds[b]) as f64;
+                        let s = view[sd.index()];
+                        for &(p, a) in lin {
+                            let u = view[plan.y[plan.hold_inputs[p]].index()];
+                            let (l1, l2) = (a * s[k - 1] * u[k], a * s[k] * u[k - 1]);
+                            for (slot, v) in [(0, l1), (1, l2), (2, t * l1), (3, t * l2)] {
+                                lag[slot][0] += v;
+                                lag[slot][1] += v.abs();
+                            }
+                        }
+                    }
+                    let _ = n_in;
+                    for (which, off) in [(0, 0), (1, 2)] {
+                        let pick = |m: &(Vec<f64>, Vec<f64>)| -> Vec<f64> {
+                            if which == 0 {
+                                m.0.clone()
+                            } else {
+                                m.1.clone()
+                            }
+                        };
+                        let (old, old_scale) = (pick(&want[b]), pick(&scale[b]));
+                        let mut new = old.clone();
+                        let mut new_scale = old_scale.clone();
+                        for i in 0..plan.order {
+                            let at = |j: usize| plan.state(d, c, j) * n_w + col;
+                            let mut v = map.k0[i] * old[sy * n_w + col]
+                                + map.k1[i] * lag[off][0]
+                                + map.k2[i] * lag[off + 1][0];
+                            let mut sc = map.k0[i].abs() * old_scale[sy * n_w + col]
+                                + map.k1[i].abs() * lag[off][1]
+                                + map.k2[i].abs() * lag[off + 1][1];
+                            for j in 0..plan.order {
+                                v += map.k[i * plan.order + j] * old[at(j)];
+                                sc += map.k[i * plan.order + j].abs() * old_scale[at(j)];
+                            }
+                            new[at(i)] = v;
+                            new_scale[at(i)] = sc;
+                        }
+                        if which == 0 {
+                            want[b].0 = new;
+                            scale[b].0 = new_scale;
+                        } else {
+                            want[b].1 = new;
+                            scale[b].1 = new_scale;
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     let check = |lm: &LevelMoments, what: &str| {
         assert_eq!(
