@@ -157,8 +157,9 @@ impl ChainDisc {
 /// products. The trapezoid rule is exact only where `ζ w` is smooth across the samples; a
 /// filter driven by a rough input (an Ornstein–Uhlenbeck force, linear between samples)
 /// holds its own driver with a weight that grows like `(λ Tₛ)²`, and against that input the
-/// trapezoid rule misses `∫ ζ w` by a relative `(λ Tₛ)²/12` or so: on the benchmark SDOF the
-/// damping came out 0.1 % low at `λ Tₛ = 0.31` and 0.8 % low with corners up to 0.63.
+/// trapezoid rule misses `∫ ζ w` by a relative `(λ Tₛ)²/12` or so (test
+/// `inputs_linear_between_samples_are_integrated_exactly`): on the noise-free benchmark SDOF
+/// the damping came out 0.1 % low at several standard errors (docs/method.md, §7).
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct LinearColumnMap {
     pub order: usize,

@@ -12,7 +12,11 @@
 //! splits exactly into time blocks: block `b` (samples `n_b … n_{b+1}`) contributes
 //! `Tₛ (Σ_{[n_b, n_{b+1})} f + ½ f(n_{b+1}) − ½ f(n_b))`. At the block boundaries the full
 //! products `ι qᵀ` are kept as snapshots; they supply both the trapezoid end corrections and
-//! the boundary terms `[ι q]` of the finite-record identities.
+//! the boundary terms `[ι q]` of the finite-record identities. A column linear in measured
+//! inputs is linear between samples by the filters' own assumption, not smooth: its sums
+//! with the filter states are mapped, after the pass, to the exact integrals for such an
+//! input ([`LinearColumnMap`]), from the same sums and the lag-one products of every
+//! driver with the input, kept per block like the sums.
 //!
 //! # Per-block contributions for the standard errors
 //!

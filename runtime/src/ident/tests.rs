@@ -100,8 +100,14 @@ fn fmt_errs(e: &[f64]) -> String {
         .join(", ")
 }
 
+/// Noise-free records (3 × 2000 s, seed 1000): every error within 0.08 % and within three
+/// standard errors. Measured (`cargo test --release -p dynid-runtime --lib
+/// sdof_noise_free -- --nocapture`): largest |error| 0.029 % (d), at most 1.7 standard
+/// errors, with or without balance rows. The trapezoid rule for the moments of the filter states
+/// against the input left d 0.12 % and r 0.08 % low here, at up to 6 standard errors
+/// (see `filter::LinearColumnMap`).
 #[test]
-fn sdof_noise_free_within_one_percent() {
+fn sdof_noise_free_within_a_tenth_of_a_percent() {
     let ir = sdof_model("");
     for balance in [false, true] {
         let opts = IdentifyOptions {
@@ -110,21 +116,28 @@ fn sdof_noise_free_within_one_percent() {
         };
         let id = run(&ir, sdof_data(), &opts);
         let e = rel_errors(&id, &sdof_truth());
+        let z: Vec<String> = id
+            .params
+            .iter()
+            .zip(&e)
+            .map(|(p, e)| format!("{:+.2}", e * p.value / p.stderr))
+            .collect();
         eprintln!(
-            "noise 0 %, balance {balance}: (d, k, k3, r) {} cond {:.1} corners {:?}",
-            fmt_errs(&e),
+            "noise 0 %, balance {balance}: (d, k, k3, r) {} = ({}) standard errors, cond {:.1} corners {:?}",
+            e.iter()
+                .map(|v| format!("{:+.4}%", 100.0 * v))
+                .collect::<Vec<_>>()
+                .join(", "),
+            z.join(", "),
             id.condition,
             id.filter.corners
         );
-        assert!(e.iter().all(|e| e.abs() < 0.01), "{}", fmt_errs(&e));
+        assert!(e.iter().all(|e| e.abs() < 8e-4), "{}", fmt_errs(&e));
         assert!(id.unidentifiable.is_empty());
         // The standard errors are of the size of the errors, not orders of magnitude off.
         for (p, e) in id.params.iter().zip(&e) {
             assert!(p.stderr > 0.0 && p.stderr < 0.01 * p.value.abs(), "{p:?}");
-            assert!(
-                (e * p.value).abs() < 6.0 * p.stderr + 1e-3 * p.value.abs(),
-                "{p:?} err {e}"
-            );
+            assert!((e * p.value).abs() < 3.0 * p.stderr, "{p:?} err {e}");
         }
     }
 }
@@ -189,7 +202,7 @@ fn chunks_of_8192_samples_and_more_give_the_same_identification() {
 }
 
 #[test]
-fn duffing_from_positions_only_within_one_percent() {
+fn duffing_from_positions_only_within_tolerance() {
     let ir = duffing_model();
     let truth = [("d", 0.4), ("k", 4.0), ("k3", 2.0)];
     for eta in [0.0, 0.05] {
@@ -198,11 +211,16 @@ fn duffing_from_positions_only_within_one_percent() {
         let e = rel_errors(&id, &truth);
         eprintln!(
             "displacement only, noise {eta}: (d, k, k3) {} order {} degrees {:?}",
-            fmt_errs(&e),
+            e.iter()
+                .map(|v| format!("{:+.4}%", 100.0 * v))
+                .collect::<Vec<_>>()
+                .join(", "),
             id.filter.order,
             id.filter.instrument_degrees
         );
-        let tol = if eta == 0.0 { 0.01 } else { 0.02 };
+        // Noise-free: measured -0.0146, +0.0041, +0.0147 % (`cargo test --release -p
+        // dynid-runtime --lib duffing_from_positions -- --nocapture`).
+        let tol = if eta == 0.0 { 3e-4 } else { 0.02 };
         assert!(e.iter().all(|e| e.abs() < tol), "{}", fmt_errs(&e));
     }
 }
