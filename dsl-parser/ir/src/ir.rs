@@ -201,6 +201,9 @@ pub enum UnaryOp {
     Tanh,
     Sqrt,
     Exp,
+    /// Sine of an angle in radians (a position-periodic force: `sin(2π s / p)`).
+    Sin,
+    Cos,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -222,6 +225,8 @@ impl UnaryOp {
             UnaryOp::Tanh => a.tanh(),
             UnaryOp::Sqrt => a.sqrt(),
             UnaryOp::Exp => a.exp(),
+            UnaryOp::Sin => a.sin(),
+            UnaryOp::Cos => a.cos(),
         }
     }
 }

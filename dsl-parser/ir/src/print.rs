@@ -80,6 +80,8 @@ impl Printer<'_> {
                     UnaryOp::Tanh => "tanh",
                     UnaryOp::Sqrt => "sqrt",
                     UnaryOp::Exp => "exp",
+                    UnaryOp::Sin => "sin",
+                    UnaryOp::Cos => "cos",
                     UnaryOp::Neg => "-",
                 };
                 format!("{f}({})", self.expr(a))
