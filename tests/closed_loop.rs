@@ -141,3 +141,68 @@ fn a_closed_loop_model_drives_its_loop_from_a_recorded_set_point() {
     assert!(stderr(&out).contains("`xr`"), "{}", stderr(&out));
     assert!(!dir.path().join("bad").exists());
 }
+
+#[test]
+fn simulate_drives_a_set_point_by_planned_moves_at_every_level() {
+    // `models/servo_axis_planned.dyn`: one cycle per level; the recorded set point is the
+    // designed profile (level L: the moves L times as fast), the levels are written to
+    // truth.json, and the axis follows.
+    use dynid::runtime::sim::Moves;
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let out = dynid()
+        .arg("simulate")
+        .arg(model_path("servo_axis_planned.dyn"))
+        .args([
+            "--duration",
+            "6.18",
+            "--sample",
+            "0.001",
+            "--burn-in",
+            "0.5",
+        ])
+        .args(["--input-oversample", "10", "--quantise", "1e-6", "--out"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let truth: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(data.join("truth.json")).unwrap()).unwrap();
+    assert_eq!(truth["levels"], serde_json::json!([0.5, 1.0, 1.5]));
+    assert_eq!(
+        truth["excitation"][0]["filter"]["Moves"]["dwell"],
+        serde_json::json!(0.33)
+    );
+    let moves = Moves::servo_standard();
+    for (k, level) in [0.5, 1.0, 1.5].into_iter().enumerate() {
+        let text = std::fs::read_to_string(data.join(format!("level_{}.csv", k + 1))).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("t,m.x,u,xr"));
+        let rows: Vec<Vec<f64>> = lines
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(rows.len(), 6180);
+        let plan = moves.trajectory(level, 1e-3).unwrap();
+        let mut peak = 0.0f64;
+        for (i, r) in rows.iter().enumerate() {
+            let phase = i % plan.samples_per_cycle();
+            assert_eq!(
+                r[3],
+                plan.at(phase as f64 * 1e-3).position,
+                "level {level}, sample {i}"
+            );
+            // Tracking within 5 % of the 10 cm moves.
+            assert!(
+                (r[1] - r[3]).abs() < 5e-3,
+                "level {level}, sample {i}: {r:?}"
+            );
+            if i > 0 {
+                peak = peak.max((r[3] - rows[i - 1][3]).abs() / 1e-3);
+            }
+        }
+        assert!(
+            (peak - 0.4 * level).abs() < 1e-3 * level,
+            "level {level}: {peak}"
+        );
+    }
+}

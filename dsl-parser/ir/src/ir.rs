@@ -317,7 +317,8 @@ pub struct EquationIr {
     pub terms: Vec<TermIr>,
 }
 
-/// A form filter (paper eq. 2) that turns white noise of intensity `level` into an input.
+/// How simulation drives an input or a reference: a form filter (paper eq. 2) that turns
+/// white noise of intensity `level` into the signal, or a planned trajectory.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum FormFilter {
     /// `u' = −corner·u + level·w`.
@@ -326,6 +327,16 @@ pub enum FormFilter {
     SecondOrder { freq: f64, damping: f64 },
     /// `u = level·w` band-limited to the sample rate (white, held per sample).
     White,
+    /// Planned point-to-point moves, no noise: a cycle of six moves of `distance`, out
+    /// and back at `speed`, `speed/2` and `speed/4` (peak acceleration `accel`, smooth
+    /// velocity profile), each after `dwell` seconds at rest, repeated. Level `L` runs
+    /// every move `L` times as fast (speeds × L, accelerations × L²); dwells stay.
+    Moves {
+        distance: f64,
+        speed: f64,
+        accel: f64,
+        dwell: f64,
+    },
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
