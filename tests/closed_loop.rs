@@ -183,7 +183,7 @@ fn simulate_drives_a_set_point_by_planned_moves_at_every_level() {
             .collect();
         assert_eq!(rows.len(), 6180);
         let plan = moves.trajectory(level, 1e-3).unwrap();
-        let mut peak = 0.0f64;
+        let (mut peak, mut settled) = (0.0f64, 0);
         for (i, r) in rows.iter().enumerate() {
             let phase = i % plan.samples_per_cycle();
             assert_eq!(
@@ -191,15 +191,29 @@ fn simulate_drives_a_set_point_by_planned_moves_at_every_level() {
                 plan.at(phase as f64 * 1e-3).position,
                 "level {level}, sample {i}"
             );
-            // Tracking within 5 % of the 10 cm moves.
+            // The law damps the absolute velocity (`- 2680 * m.v`), so the axis lags a
+            // moving set point by about (2680 + 120) / 80000 s: 14 mm at 0.4 m/s.
             assert!(
-                (r[1] - r[3]).abs() < 5e-3,
+                (r[1] - r[3]).abs() < 0.05 * level * 0.4,
                 "level {level}, sample {i}: {r:?}"
             );
             if i > 0 {
                 peak = peak.max((r[3] - rows[i - 1][3]).abs() / 1e-3);
             }
+            // At the end of each dwell the axis has settled on the set point (friction
+            // leaves at most (15 + 1.5) / 80000 m = 0.2 mm).
+            let ends_dwell =
+                i > 0 && rows[i - 1][3] == r[3] && rows.get(i + 1).is_some_and(|n| n[3] != r[3]);
+            if ends_dwell {
+                assert!(
+                    (r[1] - r[3]).abs() < 3e-4,
+                    "level {level}, sample {i}: {r:?}"
+                );
+                settled += 1;
+            }
         }
+        // Five dwells end within the record at level 0.5, more at the others.
+        assert!(settled >= 5, "level {level}: {settled} dwells");
         assert!(
             (peak - 0.4 * level).abs() < 1e-3 * level,
             "level {level}: {peak}"
