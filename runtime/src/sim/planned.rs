@@ -108,7 +108,7 @@ impl Moves {
             ));
         }
         let needed = 2.0 * self.speed * self.speed / self.accel;
-        if !(needed <= self.distance) {
+        if needed > self.distance {
             return Err(format!(
                 "`speed` {} is not reached in a move of `distance` {} at `accel` {} (speeding up and slowing down take 2 speed² / accel = {})",
                 self.speed,
