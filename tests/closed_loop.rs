@@ -141,3 +141,82 @@ fn a_closed_loop_model_drives_its_loop_from_a_recorded_set_point() {
     assert!(stderr(&out).contains("`xr`"), "{}", stderr(&out));
     assert!(!dir.path().join("bad").exists());
 }
+
+#[test]
+fn simulate_drives_a_set_point_by_planned_moves_at_every_level() {
+    // `models/servo_axis_planned.dyn`: one cycle per level; the recorded set point is the
+    // designed profile (level L: the moves L times as fast), the levels are written to
+    // truth.json, and the axis follows.
+    use dynid::runtime::sim::Moves;
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let out = dynid()
+        .arg("simulate")
+        .arg(model_path("servo_axis_planned.dyn"))
+        .args([
+            "--duration",
+            "6.18",
+            "--sample",
+            "0.001",
+            "--burn-in",
+            "0.5",
+        ])
+        .args(["--input-oversample", "10", "--quantise", "1e-6", "--out"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let truth: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(data.join("truth.json")).unwrap()).unwrap();
+    assert_eq!(truth["levels"], serde_json::json!([0.5, 1.0, 1.5]));
+    assert_eq!(
+        truth["excitation"][0]["filter"]["Moves"]["dwell"],
+        serde_json::json!(0.33)
+    );
+    let moves = Moves::servo_standard();
+    for (k, level) in [0.5, 1.0, 1.5].into_iter().enumerate() {
+        let text = std::fs::read_to_string(data.join(format!("level_{}.csv", k + 1))).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("t,m.x,u,xr"));
+        let rows: Vec<Vec<f64>> = lines
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(rows.len(), 6180);
+        let plan = moves.trajectory(level, 1e-3).unwrap();
+        let (mut peak, mut settled) = (0.0f64, 0);
+        for (i, r) in rows.iter().enumerate() {
+            let phase = i % plan.samples_per_cycle();
+            assert_eq!(
+                r[3],
+                plan.at(phase as f64 * 1e-3).position,
+                "level {level}, sample {i}"
+            );
+            // The law damps the absolute velocity (`- 2680 * m.v`), so the axis lags a
+            // moving set point by about (2680 + 120) / 80000 s: 14 mm at 0.4 m/s.
+            assert!(
+                (r[1] - r[3]).abs() < 0.05 * level * 0.4,
+                "level {level}, sample {i}: {r:?}"
+            );
+            if i > 0 {
+                peak = peak.max((r[3] - rows[i - 1][3]).abs() / 1e-3);
+            }
+            // At the end of each dwell the axis has settled on the set point (friction
+            // leaves at most (15 + 1.5) / 80000 m = 0.2 mm).
+            let ends_dwell =
+                i > 0 && rows[i - 1][3] == r[3] && rows.get(i + 1).is_some_and(|n| n[3] != r[3]);
+            if ends_dwell {
+                assert!(
+                    (r[1] - r[3]).abs() < 3e-4,
+                    "level {level}, sample {i}: {r:?}"
+                );
+                settled += 1;
+            }
+        }
+        // Five dwells end within the record at level 0.5, more at the others.
+        assert!(settled >= 5, "level {level}: {settled} dwells");
+        assert!(
+            (peak - 0.4 * level).abs() < 1e-3 * level,
+            "level {level}: {peak}"
+        );
+    }
+}

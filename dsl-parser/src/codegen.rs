@@ -409,6 +409,8 @@ fn basis_eval_impl(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStrea
                     UnaryOp::Tanh => quote!(#a.tanh()),
                     UnaryOp::Sqrt => quote!(#a.sqrt()),
                     UnaryOp::Exp => quote!(#a.exp()),
+                    UnaryOp::Sin => quote!(#a.sin()),
+                    UnaryOp::Cos => quote!(#a.cos()),
                 }
             }
             ExprNode::Binary(op, a, b) => {

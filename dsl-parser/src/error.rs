@@ -290,7 +290,7 @@ fn rule_name(r: &Rule) -> String {
         Rule::nominal => "`~ nominal`",
         Rule::known => "`= value`",
         Rule::nodes => "`(node_a, node_b)`",
-        Rule::form => "a form filter (`lowpass(corner = ..)`, `second_order(freq = .., damping = ..)`, `white`)",
+        Rule::form => "a form filter (`lowpass(corner = ..)`, `second_order(freq = .., damping = ..)`, `white`) or `moves(..)`",
         Rule::named_arg => "`name = value`",
         Rule::num_list => "a list `[a, b, ..]`",
         Rule::expr | Rule::term | Rule::unary | Rule::power | Rule::exponent => "an expression",

@@ -36,7 +36,7 @@ fn expr() -> impl Strategy<Value = String> {
             (inner.clone(), -3i32..5).prop_map(|(a, n)| format!("({a})^{n}")),
             (
                 inner.clone(),
-                prop::sample::select(vec!["abs", "sign", "tanh", "sqrt", "exp"])
+                prop::sample::select(vec!["abs", "sign", "tanh", "sqrt", "exp", "sin", "cos"])
             )
                 .prop_map(|(a, f)| format!("{f}({a})")),
             (inner.clone(), number()).prop_map(|(a, c)| format!("deadzone({a}, {c})")),

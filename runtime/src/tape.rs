@@ -147,6 +147,8 @@ impl Tape {
                         UnaryOp::Tanh => f64::tanh,
                         UnaryOp::Sqrt => f64::sqrt,
                         UnaryOp::Exp => f64::exp,
+                        UnaryOp::Sin => f64::sin,
+                        UnaryOp::Cos => f64::cos,
                     };
                     map1(dst, read(a), f)
                 }
@@ -285,6 +287,8 @@ enum PointKind {
     Tanh,
     Sqrt,
     Exp,
+    Sin,
+    Cos,
     Add,
     Sub,
     Mul,
@@ -351,6 +355,8 @@ impl PointTape {
                             UnaryOp::Tanh => PointKind::Tanh,
                             UnaryOp::Sqrt => PointKind::Sqrt,
                             UnaryOp::Exp => PointKind::Exp,
+                            UnaryOp::Sin => PointKind::Sin,
+                            UnaryOp::Cos => PointKind::Cos,
                         };
                         (kind, slot(a), 0)
                     }
@@ -437,6 +443,8 @@ impl PointTape {
                 PointKind::Tanh => UnaryOp::Tanh.apply(a),
                 PointKind::Sqrt => UnaryOp::Sqrt.apply(a),
                 PointKind::Exp => UnaryOp::Exp.apply(a),
+                PointKind::Sin => UnaryOp::Sin.apply(a),
+                PointKind::Cos => UnaryOp::Cos.apply(a),
                 PointKind::Add => BinaryOp::Add.apply(a, b()),
                 PointKind::Sub => BinaryOp::Sub.apply(a, b()),
                 PointKind::Mul => BinaryOp::Mul.apply(a, b()),

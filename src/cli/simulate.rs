@@ -13,7 +13,9 @@ use std::path::{Path, PathBuf};
 /// `cli/mod.rs` replaces any `long_about` set here, so the teaching text goes after.)
 const LONG_HELP: &str = "\
 Every input with an `excite` line is driven by its form filter (white noise of the level's
-intensity, shaped by a low-pass or second-order filter); inputs without one stay zero.
+intensity, shaped by a low-pass or second-order filter), or by planned point-to-point
+moves (`moves(distance = .., speed = .., accel = .., dwell = ..)`, a cycle repeated from
+the start of the record; the level scales their speed); inputs without one stay zero.
 Unknown parameters take their nominal values. Each level is an independent experiment:
 the model starts at rest, runs for --burn-in seconds that are discarded, then --duration
 seconds are recorded every --sample seconds. The columns are `t` and every measured signal
@@ -65,7 +67,8 @@ Example:
 pub struct Args {
     /// The model file (.dyn), or a model compiled to its JSON IR (.json).
     pub model: PathBuf,
-    /// Excitation intensities, one experiment each (default: the model's `excite` levels).
+    /// Excitation intensities, one experiment each (default: the model's `excite` levels);
+    /// for `moves`, speed factors.
     #[arg(conflicts_with = "input")]
     #[arg(
         long,
@@ -291,6 +294,7 @@ fn pd_control(ir: &ModelIr, args: &Args) -> miette::Result<Option<sim::PdControl
             rms: args.reference_rms,
             corner: args.reference_corner,
             smooth: args.smooth_reference,
+            planned: None,
         },
     }))
 }

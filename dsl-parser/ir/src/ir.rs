@@ -201,6 +201,9 @@ pub enum UnaryOp {
     Tanh,
     Sqrt,
     Exp,
+    /// Sine of an angle in radians (a position-periodic force: `sin(2π s / p)`).
+    Sin,
+    Cos,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -222,6 +225,8 @@ impl UnaryOp {
             UnaryOp::Tanh => a.tanh(),
             UnaryOp::Sqrt => a.sqrt(),
             UnaryOp::Exp => a.exp(),
+            UnaryOp::Sin => a.sin(),
+            UnaryOp::Cos => a.cos(),
         }
     }
 }
@@ -312,7 +317,8 @@ pub struct EquationIr {
     pub terms: Vec<TermIr>,
 }
 
-/// A form filter (paper eq. 2) that turns white noise of intensity `level` into an input.
+/// How simulation drives an input or a reference: a form filter (paper eq. 2) that turns
+/// white noise of intensity `level` into the signal, or a planned trajectory.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum FormFilter {
     /// `u' = −corner·u + level·w`.
@@ -321,6 +327,16 @@ pub enum FormFilter {
     SecondOrder { freq: f64, damping: f64 },
     /// `u = level·w` band-limited to the sample rate (white, held per sample).
     White,
+    /// Planned point-to-point moves, no noise: a cycle of six moves of `distance`, out
+    /// and back at `speed`, `speed/2` and `speed/4` (peak acceleration `accel`, smooth
+    /// velocity profile), each after `dwell` seconds at rest, repeated. Level `L` runs
+    /// every move `L` times as fast (speeds × L, accelerations × L²); dwells stay.
+    Moves {
+        distance: f64,
+        speed: f64,
+        accel: f64,
+        dwell: f64,
+    },
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -80,6 +80,8 @@ impl Printer<'_> {
                     UnaryOp::Tanh => "tanh",
                     UnaryOp::Sqrt => "sqrt",
                     UnaryOp::Exp => "exp",
+                    UnaryOp::Sin => "sin",
+                    UnaryOp::Cos => "cos",
                     UnaryOp::Neg => "-",
                 };
                 format!("{f}({})", self.expr(a))
@@ -673,6 +675,18 @@ pub fn to_source(ir: &ModelIr) -> String {
                 fmt_num(damping)
             ),
             FormFilter::White => "white".into(),
+            FormFilter::Moves {
+                distance,
+                speed,
+                accel,
+                dwell,
+            } => format!(
+                "moves(distance = {}, speed = {}, accel = {}, dwell = {})",
+                fmt_num(distance),
+                fmt_num(speed),
+                fmt_num(accel),
+                fmt_num(dwell)
+            ),
         };
         let levels: Vec<String> = levels.iter().map(|l| fmt_num(*l)).collect();
         let _ = writeln!(

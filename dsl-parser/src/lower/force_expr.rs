@@ -90,8 +90,8 @@ impl Lowerer<'_> {
             AstExprKind::Call(f, args) => {
                 let Some(&(_, arity)) = FUNCTIONS.iter().find(|(n, _)| *n == f.name) else {
                     let help = match closest(&f.name, FUNCTIONS.iter().map(|f| f.0)) {
-                        Some(c) => format!("did you mean `{c}`? The functions are abs, sign, tanh, sqrt, exp, deadzone(x, gap) and saturate(x, limit)"),
-                        None => "the functions are abs, sign, tanh, sqrt, exp, deadzone(x, gap) and saturate(x, limit)".into(),
+                        Some(c) => format!("did you mean `{c}`? The functions are abs, sign, tanh, sqrt, exp, sin, cos, deadzone(x, gap) and saturate(x, limit)"),
+                        None => "the functions are abs, sign, tanh, sqrt, exp, sin, cos, deadzone(x, gap) and saturate(x, limit)".into(),
                     };
                     self.err(
                         ErrorKind::InvalidCall,
@@ -169,6 +169,8 @@ impl Lowerer<'_> {
                             "sign" => UnaryOp::Sign,
                             "tanh" => UnaryOp::Tanh,
                             "sqrt" => UnaryOp::Sqrt,
+                            "sin" => UnaryOp::Sin,
+                            "cos" => UnaryOp::Cos,
                             _ => UnaryOp::Exp,
                         };
                         LExpr::unary(op, x?)

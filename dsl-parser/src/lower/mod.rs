@@ -479,4 +479,18 @@ impl Lowerer<'_> {
         );
         false
     }
+
+    fn check_not_negative(&mut self, n: &AstNumber, what: &str) -> bool {
+        if n.value >= 0.0 {
+            return true;
+        }
+        self.err(
+            ErrorKind::InvalidValue,
+            format!("{what} must not be negative, found {}", fmt_value(n.value)),
+            n.span,
+            "negative",
+            format!("give {what} as zero or more"),
+        );
+        false
+    }
 }

@@ -12,6 +12,8 @@ pub(super) const FUNCTIONS: &[(&str, usize)] = &[
     ("tanh", 1),
     ("sqrt", 1),
     ("exp", 1),
+    ("sin", 1),
+    ("cos", 1),
     ("deadzone", 2),
     ("saturate", 2),
 ];

@@ -3,7 +3,7 @@
 //! filter bank.
 
 use super::names::closest;
-use super::{Decl, Lowerer};
+use super::{fmt_value, Decl, Lowerer};
 use crate::ast::*;
 use crate::error::{Draft, ErrorKind};
 use crate::ir::*;
@@ -263,13 +263,14 @@ impl Lowerer<'_> {
             "lowpass" => &["corner"],
             "second_order" => &["freq", "damping"],
             "white" => &[],
+            "moves" => &["distance", "speed", "accel", "dwell"],
             other => {
                 self.err(
                     ErrorKind::InvalidValue,
                     format!("unknown form filter `{other}`"),
                     form.name.span,
                     "not a form filter",
-                    "use `lowpass(corner = ..)`, `second_order(freq = .., damping = ..)` or `white`".into(),
+                    "use `lowpass(corner = ..)`, `second_order(freq = .., damping = ..)`, `white` or `moves(distance = .., speed = .., accel = .., dwell = ..)`".into(),
                 );
                 return None;
             }
@@ -279,7 +280,11 @@ impl Lowerer<'_> {
         for a in &form.args {
             match expected.iter().position(|e| *e == a.name.name) {
                 Some(k) => {
-                    ok &= self.check_positive(&a.value, &format!("`{}`", a.name.name));
+                    ok &= if a.name.name == "dwell" {
+                        self.check_not_negative(&a.value, "`dwell`")
+                    } else {
+                        self.check_positive(&a.value, &format!("`{}`", a.name.name))
+                    };
                     vals[k] = Some(a.value.value);
                 }
                 None => {
@@ -314,7 +319,11 @@ impl Lowerer<'_> {
                     format!("`{}` needs `{} = ..`", form.name.name, expected[k]),
                     form.span,
                     "missing argument",
-                    "corner and frequencies are in rad/s, damping is a ratio, e.g. `lowpass(corner = 10)`, `second_order(freq = 20, damping = 0.3)`".into(),
+                    if form.name.name == "moves" {
+                        "a move goes `distance` out or back at a top `speed` and a peak `accel`, after `dwell` seconds at rest, e.g. `moves(distance = 0.1, speed = 0.4, accel = 4, dwell = 0.3)`".into()
+                    } else {
+                        "corner and frequencies are in rad/s, damping is a ratio, e.g. `lowpass(corner = 10)`, `second_order(freq = 20, damping = 0.3)`".into()
+                    },
                 );
             }
         }
@@ -322,6 +331,41 @@ impl Lowerer<'_> {
             return None;
         }
         let v = |k: usize| vals[k].unwrap_or(1.0);
+        if form.name.name == "moves" {
+            let (distance, speed, accel, dwell) = (v(0), v(1), v(2), v(3));
+            // The velocity profile of a move: the fastest move reaches `speed` only if the
+            // two acceleration phases (each `speed² / accel` long) fit into `distance`.
+            if 2.0 * speed * speed / accel > distance {
+                let at = form
+                    .args
+                    .iter()
+                    .find(|a| a.name.name == "speed")
+                    .map_or(form.span, |a| a.value.span);
+                self.err(
+                    ErrorKind::InvalidValue,
+                    format!(
+                        "`speed` {} is not reached in a move of `distance` {} at `accel` {}",
+                        fmt_value(speed),
+                        fmt_value(distance),
+                        fmt_value(accel)
+                    ),
+                    at,
+                    "not reached",
+                    format!(
+                        "speeding up and slowing down take 2 speed² / accel = {} of the distance: lower `speed` to about {} or less, or raise `accel` or `distance`",
+                        crate::num::sig(2.0 * speed * speed / accel, 3, false),
+                        crate::num::sig((0.5 * accel * distance).sqrt(), 3, false)
+                    ),
+                );
+                return None;
+            }
+            return Some(FormFilter::Moves {
+                distance,
+                speed,
+                accel,
+                dwell,
+            });
+        }
         Some(match expected.len() {
             0 => FormFilter::White,
             1 => FormFilter::Lowpass { corner: v(0) },

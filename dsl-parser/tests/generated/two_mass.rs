@@ -30,6 +30,8 @@ pub struct TwoMassParams {
     pub e: f64,
     /// `q`, nominal value 0.05.
     pub q: f64,
+    /// `w`, nominal value 0.2.
+    pub w: f64,
 }
 impl ::core::default::Default for TwoMassParams {
     /// The nominal values of the model.
@@ -48,6 +50,7 @@ impl ::core::default::Default for TwoMassParams {
             fr: 0.1,
             e: 1.5,
             q: 0.05,
+            w: 0.2,
         }
     }
 }
@@ -57,7 +60,7 @@ impl TwoMassParams {
     pub fn to_vec(&self) -> ::std::vec::Vec<f64> {
         ::std::vec![
             self.m2, self.k1, self.k3, self.g, self.d1, self.c, self.k2, self.k5, self
-            .f0, self.h, self.fr, self.e, self.q
+            .f0, self.h, self.fr, self.e, self.q, self.w
         ]
     }
     /// The inverse of [`Self::to_vec`].
@@ -66,7 +69,7 @@ impl TwoMassParams {
     /// If `values` does not hold exactly one value per unknown parameter.
     pub fn from_slice(values: &[f64]) -> Self {
         ::core::assert_eq!(
-            values.len(), 13, "model `two_mass` has 13 unknown parameters"
+            values.len(), 14, "model `two_mass` has 14 unknown parameters"
         );
         TwoMassParams {
             m2: values[0],
@@ -82,6 +85,7 @@ impl TwoMassParams {
             fr: values[10],
             e: values[11],
             q: values[12],
+            w: values[13],
         }
     }
 }
@@ -92,7 +96,7 @@ impl TwoMass {
     /// The model's name in the `.dyn` source.
     pub const NAME: &'static str = "two_mass";
     /// The `.dyn` source the code was generated from.
-    pub const SOURCE: &'static str = "model two_mass {\n    body m1 { mass = 1.0 }\n    body m2 { mass = m2 }\n    input u on m1\n    param m2 ~ 0.5\n    param k1 ~ 10\n    param k3 ~ 50\n    param g ~ 2\n    param d1 ~ 0.3\n    param c\n    param k2 ~ 20\n    param k5 ~ 1e3\n    param f0 ~ 0.2\n    param h ~ -0.7\n    param fr ~ 0.1\n    param e ~ 1.5\n    param q ~ 0.05\n    spring s1 (ground, m1) = k1 * s + k3 * s^3 + g * deadzone(s, 0.01)\n    damper c1 (ground, m1) = d1 * v + c * v * abs(v)\n    spring s2 (m1, m2) = k2 * s + k5 * s^5 + f0 * saturate(s - 0.1, 0.5) + h * s^2 * sign(s)\n    force t2 (m1, m2) = fr * tanh(v / 0.1) + e * sqrt(abs(s)) * exp(-(s * s)) + e * 2.5 * s^4\n        + q * (abs(s) + 1)^-2\n}\n";
+    pub const SOURCE: &'static str = "model two_mass {\n    body m1 { mass = 1.0 }\n    body m2 { mass = m2 }\n    input u on m1\n    param m2 ~ 0.5\n    param k1 ~ 10\n    param k3 ~ 50\n    param g ~ 2\n    param d1 ~ 0.3\n    param c\n    param k2 ~ 20\n    param k5 ~ 1e3\n    param f0 ~ 0.2\n    param h ~ -0.7\n    param fr ~ 0.1\n    param e ~ 1.5\n    param q ~ 0.05\n    param w ~ 0.2\n    spring s1 (ground, m1) = k1 * s + k3 * s^3 + g * deadzone(s, 0.01)\n    damper c1 (ground, m1) = d1 * v + c * v * abs(v)\n    spring s2 (m1, m2) = k2 * s + k5 * s^5 + f0 * saturate(s - 0.1, 0.5) + h * s^2 * sign(s)\n    force t2 (m1, m2) = fr * tanh(v / 0.1) + e * sqrt(abs(s)) * exp(-(s * s)) + e * 2.5 * s^4\n        + q * (abs(s) + 1)^-2 + w * sin(3 * s) * cos(v)\n}\n";
     /// Unknown parameters, in the order of the least-squares columns.
     pub const PARAM_NAMES: &'static [&'static str] = &[
         "m2",
@@ -108,6 +112,7 @@ impl TwoMass {
         "fr",
         "e",
         "q",
+        "w",
     ];
     /// All signals, indexed by signal id.
     pub const SIGNAL_NAMES: &'static [&'static str] = &[
@@ -120,7 +125,7 @@ impl TwoMass {
     /// Number of signals (the length of the `signals` argument of `eval_block`).
     pub const N_SIGNALS: usize = 5;
     /// Number of basis functions `eval_block` computes.
-    pub const N_ROOTS: usize = 13;
+    pub const N_ROOTS: usize = 14;
     /// Index of signal `m1.x` (position).
     pub const M1_X: usize = 0;
     /// Index of signal `m1.v` (velocity).
@@ -162,7 +167,7 @@ impl TwoMass {
 }
 impl crate::mock::runtime::BasisEval for TwoMass {
     fn n_roots(&self) -> usize {
-        13
+        14
     }
     #[allow(clippy::all, unused_variables)]
     fn eval_block(
@@ -174,13 +179,13 @@ impl crate::mock::runtime::BasisEval for TwoMass {
     ) {
         use crate::mock::dsl_parser::ir::{deadzone, saturate, sign};
         let _ = scratch;
-        ::core::assert!(out.len() >= 13 * len, "output block too small");
+        ::core::assert!(out.len() >= 14 * len, "output block too small");
         let c_s_m1_x: &[f64] = &signals[0][..len];
         let c_s_m1_v: &[f64] = &signals[1][..len];
         let c_s_m2_x: &[f64] = &signals[2][..len];
         let c_s_m2_v: &[f64] = &signals[3][..len];
         let c_s_u: &[f64] = &signals[4][..len];
-        let rest = &mut out[..13 * len];
+        let rest = &mut out[..14 * len];
         let (o0, rest) = rest.split_at_mut(len);
         let (o1, rest) = rest.split_at_mut(len);
         let (o2, rest) = rest.split_at_mut(len);
@@ -194,6 +199,7 @@ impl crate::mock::runtime::BasisEval for TwoMass {
         let (o10, rest) = rest.split_at_mut(len);
         let (o11, rest) = rest.split_at_mut(len);
         let (o12, rest) = rest.split_at_mut(len);
+        let (o13, rest) = rest.split_at_mut(len);
         let _ = rest;
         for i in 0..len {
             let s_m1_x: f64 = c_s_m1_x[i];
@@ -225,6 +231,10 @@ impl crate::mock::runtime::BasisEval for TwoMass {
             let e29: f64 = 2.5 * e28;
             let e31: f64 = e21 + 1.0;
             let e32: f64 = e31.powi(-2);
+            let e34: f64 = 3.0 * e9;
+            let e35: f64 = e34.sin();
+            let e36: f64 = e10.cos();
+            let e37: f64 = e35 * e36;
             o0[i] = s_u;
             o1[i] = s_m1_x;
             o2[i] = e5;
@@ -238,6 +248,7 @@ impl crate::mock::runtime::BasisEval for TwoMass {
             o10[i] = e26;
             o11[i] = e29;
             o12[i] = e32;
+            o13[i] = e37;
         }
     }
 }
@@ -316,6 +327,7 @@ impl TwoMassParams {
             fr: id.param("fr")?.value,
             e: id.param("e")?.value,
             q: id.param("q")?.value,
+            w: id.param("w")?.value,
         })
     }
 }

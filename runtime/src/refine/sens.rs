@@ -238,6 +238,8 @@ impl SensModel {
                         UnaryOp::Tanh => 1.0 - val * val,
                         UnaryOp::Sqrt => 0.5 / val,
                         UnaryOp::Exp => val,
+                        UnaryOp::Sin => av.cos(),
+                        UnaryOp::Cos => -av.sin(),
                     };
                     (val, d, ad, 0.0, None)
                 }

@@ -30,6 +30,11 @@
 //! linear input over each fine step), so `ṙ` and `r̈` are continuous. The record carries
 //! `r` as the column `<body>.x_ref`, after the measured signals.
 //!
+//! With [`ReferenceSpec::planned`] the reference is instead a planned trajectory of
+//! point-to-point moves with dwells, repeated in cycles ([`super::planned`]); the
+//! controller reads its exact position and velocity at every fine step, the level scales
+//! the speed of the moves, and the random settings are not used.
+//!
 //! Why smoothness matters: the derivative-gain part `kd ṙ` of the force inherits the
 //! roughness of `ṙ`. With the plain second-order reference `ṙ` is a random walk between
 //! samples, so the force carries content between samples that no sampled record shows;
@@ -37,7 +42,8 @@
 //! 1 kHz record) it biased the identified viscous and Coulomb friction by −15 % and
 //! +20 % (`tests/servo.rs` with `smooth = false`).
 
-use super::excite::FormFilterSampler;
+use super::excite::Excitation;
+use super::planned::Moves;
 use dynid_ir::ir::FormFilter;
 use serde::{Deserialize, Serialize};
 
@@ -76,7 +82,8 @@ pub enum VelocitySource {
     Tachometer,
 }
 
-/// A random reference trajectory: low-pass filtered white noise (see the module doc).
+/// The reference trajectory: low-pass filtered white noise, or planned moves (see the
+/// module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ReferenceSpec {
     /// Stationary RMS of the reference position at level 1.
@@ -90,9 +97,59 @@ pub struct ReferenceSpec {
     /// (see the module doc). `rms` is that of the trajectory before the lag.
     #[serde(default)]
     pub smooth: bool,
+    /// A planned trajectory instead of the random one: point-to-point moves with dwells,
+    /// repeated in cycles from the start of the record ([`super::planned`]); level `L` of
+    /// the controlled input runs the moves `L` times as fast. `rms`, `corner` and `smooth`
+    /// then do not apply.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub planned: Option<Moves>,
 }
 
 impl ReferenceSpec {
+    /// A planned reference of `moves` (see [`ReferenceSpec::planned`]).
+    pub fn planned(moves: Moves) -> Self {
+        ReferenceSpec {
+            rms: 0.0,
+            corner: 1.0,
+            smooth: false,
+            planned: Some(moves),
+        }
+    }
+
+    /// The generator of this reference at level `scale`, on the fine grid of `fine` steps
+    /// per sample interval `sample`, the record starting after `burn_in` samples.
+    pub(crate) fn excitation(
+        &self,
+        scale: f64,
+        sample: f64,
+        fine: usize,
+        burn_in: usize,
+    ) -> Result<Excitation, String> {
+        match &self.planned {
+            Some(m) => Excitation::new(
+                &FormFilter::Moves {
+                    distance: m.distance,
+                    speed: m.speed,
+                    accel: m.accel,
+                    dwell: m.dwell,
+                },
+                scale,
+                sample,
+                fine,
+                burn_in,
+            ),
+            None => Excitation::new(&self.filter(), self.intensity(scale), sample, fine, burn_in),
+        }
+    }
+
+    /// A scale of the reference position at level `scale`, for the divergence check.
+    pub(crate) fn position_scale(&self, scale: f64) -> f64 {
+        match &self.planned {
+            Some(m) => m.distance,
+            None => self.rms * scale.abs(),
+        }
+    }
+
     /// The form filter that generates the reference.
     pub(crate) fn filter(&self) -> FormFilter {
         FormFilter::SecondOrder {
@@ -118,7 +175,7 @@ pub(crate) struct Controller {
     velocity: VelocitySource,
     quantum: Option<f64>,
     h: f64,
-    pub(crate) reference: FormFilterSampler,
+    pub(crate) reference: Excitation,
     /// Quantised positions of the last fine steps, for the difference over `Tₛ`.
     history: std::collections::VecDeque<f64>,
     /// Fine steps per sample interval.
@@ -137,7 +194,7 @@ impl Controller {
         quantum: Option<f64>,
         h: f64,
         window: usize,
-        reference: FormFilterSampler,
+        reference: Excitation,
     ) -> Self {
         Controller {
             input,
@@ -152,9 +209,7 @@ impl Controller {
             reference,
             history: std::collections::VecDeque::with_capacity(window + 1),
             window: window.max(1),
-            lag: spec
-                .reference
-                .smooth
+            lag: (spec.reference.smooth && spec.reference.planned.is_none())
                 .then(|| (spec.reference.corner, (-spec.reference.corner * h).exp())),
         }
     }

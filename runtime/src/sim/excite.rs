@@ -6,6 +6,7 @@
 //! exponential (Van Loan 1978); draws use the Cholesky factor of `Q`. The first state is
 //! drawn from the stationary distribution, so the record is stationary from sample 0.
 
+use super::planned::{Moves, PlannedSampler};
 use dynid_ir::ir::FormFilter;
 use nalgebra::DMatrix;
 use rand::Rng;
@@ -56,6 +57,9 @@ impl FormFilterSampler {
                     DMatrix::from_row_slice(1, 1, &[-corner]),
                     DMatrix::from_row_slice(1, 1, &[1.0 / (2.0 * corner)]),
                 )
+            }
+            FormFilter::Moves { .. } => {
+                return Err("planned moves are not a random form filter".into());
             }
             FormFilter::SecondOrder { freq, damping } => {
                 if !(freq.is_finite() && freq > 0.0) {
@@ -154,6 +158,88 @@ impl FormFilterSampler {
             self.white_std
         } else {
             self.p_chol[0][0]
+        }
+    }
+}
+
+/// What drives one input or reference of a run: a form filter or a planned trajectory.
+#[derive(Clone, Debug)]
+pub(crate) enum Excitation {
+    Random(FormFilterSampler),
+    Planned(PlannedSampler),
+}
+
+impl Excitation {
+    /// `filter` at `level` on the fine grid of `fine` steps per sample interval `sample`;
+    /// the record starts after `burn_in` samples (a planned trajectory rests until then).
+    /// `Err` carries the reason (the caller names the input).
+    pub(crate) fn new(
+        filter: &FormFilter,
+        level: f64,
+        sample: f64,
+        fine: usize,
+        burn_in: usize,
+    ) -> Result<Self, String> {
+        match *filter {
+            FormFilter::Moves {
+                distance,
+                speed,
+                accel,
+                dwell,
+            } => {
+                let moves = Moves {
+                    distance,
+                    speed,
+                    accel,
+                    dwell,
+                };
+                PlannedSampler::new(&moves, level, sample, fine, burn_in).map(Excitation::Planned)
+            }
+            _ => FormFilterSampler::new(filter, level, sample / fine.max(1) as f64)
+                .map(Excitation::Random),
+        }
+    }
+
+    /// Draw the state from the stationary distribution (a planned trajectory draws nothing).
+    pub(crate) fn start(&mut self, rng: &mut impl Rng) {
+        if let Excitation::Random(s) = self {
+            s.start(rng);
+        }
+    }
+
+    /// Advance by one fine step.
+    #[inline]
+    pub(crate) fn step(&mut self, rng: &mut impl Rng) {
+        match self {
+            Excitation::Random(s) => s.step(rng),
+            Excitation::Planned(p) => p.step(),
+        }
+    }
+
+    /// The signal now.
+    #[inline]
+    pub(crate) fn output(&self) -> f64 {
+        match self {
+            Excitation::Random(s) => s.output(),
+            Excitation::Planned(p) => p.setpoint().position,
+        }
+    }
+
+    /// Its derivative now (0 for a first-order or white form filter).
+    #[inline]
+    pub(crate) fn derivative(&self) -> f64 {
+        match self {
+            Excitation::Random(s) => s.derivative(),
+            Excitation::Planned(p) => p.setpoint().velocity,
+        }
+    }
+
+    /// A scale of the signal for the divergence check: the stationary standard deviation,
+    /// or the distance of the moves.
+    pub(crate) fn output_std(&self) -> f64 {
+        match self {
+            Excitation::Random(s) => s.output_std(),
+            Excitation::Planned(p) => p.scale(),
         }
     }
 }

@@ -7,7 +7,10 @@
 //! - **Excitation** (paper eq. 2): each input with an `excite` line is the output of its
 //!   form filter driven by white noise of the level's intensity; see [`excite`] for the
 //!   exact discretisation. Inputs without an `excite` line are identically zero. Level `k`
-//!   of every excited input is simulated together as experiment `k`.
+//!   of every excited input is simulated together as experiment `k`. An `excite … moves(…)`
+//!   line drives its input or reference by planned point-to-point moves instead, repeated
+//!   in cycles from the first recorded sample and evaluated in closed form at every step of
+//!   the input grid; see [`planned`].
 //! - **Mechanics**: `ẍ = −M⁻¹ r(x, v, u)` from the equations `Σ coef·basis = 0`, integrated
 //!   by classical RK4 with `substeps` fixed steps per sample interval, starting at rest at
 //!   the origin; the first `burn_in` seconds are discarded so the record is (close to)
@@ -32,9 +35,9 @@
 //!   references (excited like inputs, recorded as columns) on the fine grid with a
 //!   zero-order hold; driven runs read the references from the data (see `law`).
 //!   Alternatively [`SimConfig::control`] (`simulate --pd`), a PD position controller
-//!   with an encoder-difference velocity, produces one input from a random reference; the
-//!   record then gets that reference as the extra last column `<body>.x_ref`. See
-//!   [`control`].
+//!   with an encoder-difference velocity, produces one input from a random reference or
+//!   planned moves ([`ReferenceSpec::planned`]); the record then gets that reference as
+//!   the extra last column `<body>.x_ref`. See [`control`].
 //! - **Measurement noise**: white Gaussian, standard deviation `noise · std(signal)` per
 //!   measured signal (std of the clean record of that level), from an RNG stream separate
 //!   from the excitation, so switching noise on or off leaves the clean trajectory intact.
@@ -74,6 +77,7 @@ pub(crate) mod excite;
 mod law;
 pub(crate) mod mech;
 mod output;
+pub mod planned;
 mod stream;
 #[doc(hidden)]
 #[cfg(any(test, feature = "test-support"))]
@@ -82,6 +86,7 @@ pub mod test_models;
 pub use config::{check_steps, integration_steps, SimConfig};
 pub use control::{PdControl, ReferenceSpec, VelocitySource};
 pub use driven::{simulate_driven, simulate_driven_from, Start};
+pub use planned::{Moves, Setpoint, Trajectory};
 
 use config::{check_config, config_error, sample_counts, stream_seed, Stream};
 use driven::signal_value;
@@ -93,7 +98,7 @@ use crate::describe::std_dev;
 use crate::record::Record;
 use control::Controller;
 use dynid_ir::ir::{FormFilter, InputId, ModelIr, ParamKind, SignalKind};
-use excite::FormFilterSampler;
+use excite::Excitation;
 use mech::{Mechanics, Rk4};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -226,7 +231,8 @@ impl ExcitationPlan {
                 "drop the PD controller (`--pd`): the model's `control` line closes the loop",
             ));
         }
-        let h = cfg.sample / cfg.input_oversample as f64;
+        let fine = cfg.input_oversample;
+        let n_burn = sample_counts(cfg).0;
         let by_law = law::controlled(ir);
         let mut filters: Vec<Option<(FormFilter, Vec<f64>)>> = vec![None; ir.inputs.len()];
         let mut references: Vec<Option<(FormFilter, Vec<f64>)>> = vec![None; ir.references.len()];
@@ -289,9 +295,11 @@ impl ExcitationPlan {
             }
             // Discretise once up front so a bad filter fails before any work is done.
             for &l in &levels {
-                FormFilterSampler::new(filter, l, h).map_err(|reason| SimError::BadFormFilter {
-                    input: name.clone(),
-                    reason,
+                Excitation::new(filter, l, cfg.sample, fine, n_burn).map_err(|reason| {
+                    SimError::BadFormFilter {
+                        input: name.clone(),
+                        reason,
+                    }
                 })?;
             }
             match *slot {
@@ -312,10 +320,14 @@ impl ExcitationPlan {
                 let scales = control_levels.unwrap_or_else(|| vec![1.0; levels.len()]);
                 for &s in &scales {
                     let r = &spec.reference;
-                    FormFilterSampler::new(&r.filter(), r.intensity(s), h).map_err(|reason| {
+                    r.excitation(s, cfg.sample, fine, n_burn).map_err(|reason| {
                         config_error(
                             &format!("the reference of the controller: {reason}"),
-                            "give the reference a positive corner frequency and a finite, non-negative RMS",
+                            if r.planned.is_some() {
+                                "give the planned moves a positive distance, speed and acceleration, a dwell of zero or more, a speed the moves can reach (distance ≥ 2 speed² / accel), and non-negative levels"
+                            } else {
+                                "give the reference a positive corner frequency and a finite, non-negative RMS"
+                            },
                         )
                     })?;
                 }
@@ -414,7 +426,9 @@ fn resolve_control(ir: &ModelIr, c: &PdControl) -> Result<(usize, usize), SimErr
         ));
     }
     let r = &c.reference;
-    if !(r.rms.is_finite() && r.rms >= 0.0 && r.corner.is_finite() && r.corner > 0.0) {
+    if r.planned.is_none()
+        && !(r.rms.is_finite() && r.rms >= 0.0 && r.corner.is_finite() && r.corner > 0.0)
+    {
         return Err(config_error(
             &format!("reference RMS {} and corner {}", r.rms, r.corner),
             "the reference needs a finite, non-negative RMS and a positive corner frequency in rad/s",
@@ -440,15 +454,17 @@ fn simulate_level(
     let fine = cfg.input_oversample;
     let h = cfg.sample / fine as f64;
     let substeps = cfg.substeps.div_ceil(fine);
+    let (n_burn, n) = sample_counts(cfg);
     let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Excitation));
-    let mut samplers = start_samplers(&plan.filters, level, h, &mut rng);
+    let mut samplers = start_samplers(&plan.filters, level, cfg, n_burn, &mut rng);
     // References are drawn after the inputs from the same stream, so a model without
     // references gives the same inputs as before they existed.
-    let mut ref_samplers = start_samplers(&plan.references, level, h, &mut rng);
+    let mut ref_samplers = start_samplers(&plan.references, level, cfg, n_burn, &mut rng);
     let mut laws = law::Laws::new(ir);
     let mut control = plan.control.as_ref().map(|c| {
         let r = &c.spec.reference;
-        let mut reference = FormFilterSampler::new(&r.filter(), r.intensity(c.scales[level]), h)
+        let mut reference = r
+            .excitation(c.scales[level], cfg.sample, fine, n_burn)
             .expect("invariant: checked when planning");
         let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Reference));
         reference.start(&mut rng);
@@ -456,7 +472,7 @@ fn simulate_level(
         (ctl, rng)
     });
     let control_scale = plan.control.as_ref().map_or(0.0, |c| {
-        c.spec.kp.abs() * c.spec.reference.rms * c.scales[level].abs()
+        c.spec.kp.abs() * c.spec.reference.position_scale(c.scales[level])
     });
     let limit = divergence_limit(
         samplers
@@ -466,7 +482,6 @@ fn simulate_level(
             .map(|s| s.output_std())
             .chain([control_scale]),
     );
-    let (n_burn, n) = sample_counts(cfg);
     let measured = ir.measured_signals();
     let mut names: Vec<String> = measured
         .iter()
@@ -514,7 +529,7 @@ fn simulate_level(
     let mut row = vec![0.0; names.len()];
     let mut rk = Rk4::new(mech);
     let mut res = Resolution::new(mech.n_bodies);
-    let read = |s: &[Option<FormFilterSampler>], u: &mut [f64]| {
+    let read = |s: &[Option<Excitation>], u: &mut [f64]| {
         for (u, s) in u.iter_mut().zip(s) {
             *u = s.as_ref().map_or(0.0, |s| s.output());
         }
@@ -586,20 +601,27 @@ fn simulate_level(
     out.finish(&mut rng)
 }
 
-/// The form-filter samplers of one level (`None` where a signal is not excited), started
-/// from `rng` in order.
+/// The excitations of one level (`None` where a signal is not excited), started from `rng`
+/// in order.
 fn start_samplers(
     plans: &[Option<(FormFilter, Vec<f64>)>],
     level: usize,
-    h: f64,
+    cfg: &SimConfig,
+    n_burn: usize,
     rng: &mut StdRng,
-) -> Vec<Option<FormFilterSampler>> {
-    let mut out: Vec<Option<FormFilterSampler>> = plans
+) -> Vec<Option<Excitation>> {
+    let mut out: Vec<Option<Excitation>> = plans
         .iter()
         .map(|f| {
             f.as_ref().map(|(filter, levels)| {
-                FormFilterSampler::new(filter, levels[level], h)
-                    .expect("invariant: checked when planning")
+                Excitation::new(
+                    filter,
+                    levels[level],
+                    cfg.sample,
+                    cfg.input_oversample,
+                    n_burn,
+                )
+                .expect("invariant: checked when planning")
             })
         })
         .collect();

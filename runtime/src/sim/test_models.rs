@@ -122,7 +122,9 @@ fn excite(ir: &mut ModelIr, filter: FormFilter, levels: Vec<f64>) {
 /// A servo axis: one body of unknown mass on a guide with viscous and Coulomb friction,
 /// driven by the force `u` of a PD position controller, its position read by an encoder;
 /// velocity is not recorded. [`ServoAxis::model`] and [`ServoAxis::config`] give the model
-/// and the closed-loop simulation settings.
+/// and the closed-loop simulation settings; [`ServoAxis::true_model`] is the model to
+/// simulate, with the forces of [`ServoAxis::model_error`] that the identification model
+/// lacks.
 #[derive(Clone, Debug)]
 pub struct ServoAxis {
     /// Nominal value of the unknown mass `m`.
@@ -134,6 +136,11 @@ pub struct ServoAxis {
     /// Further forces on the body as `(element name, right-hand side in the modelling
     /// language)`, each added as `force <name> (ground, m) = <rhs>`.
     pub extra_forces: Vec<(String, String)>,
+    /// Forces of the simulated axis that the identification model [`ServoAxis::model`]
+    /// does not contain, as `extra_forces` (all known: e.g. [`ServoAxis::stribeck`],
+    /// [`ServoAxis::friction_ripple`], [`ServoAxis::cogging`]); only
+    /// [`ServoAxis::true_model`] has them.
+    pub model_error: Vec<(String, String)>,
     /// Encoder resolution in metres.
     pub resolution: f64,
     pub sample: f64,
@@ -154,6 +161,7 @@ impl ServoAxis {
             viscous: d,
             coulomb: 15.0,
             extra_forces: Vec::new(),
+            model_error: Vec::new(),
             resolution: 1e-6,
             sample: 1e-3,
             duration: 25.0,
@@ -163,8 +171,57 @@ impl ServoAxis {
                 rms: 0.03,
                 corner: 5.0,
                 smooth: true,
+                planned: None,
             },
         }
+    }
+
+    /// [`ServoAxis::standard`] following planned moves instead of a random reference:
+    /// [`crate::sim::Moves::servo_standard`] (10 cm out and back at 0.4, 0.2 and 0.1 m/s,
+    /// peak acceleration 4 m/s², 0.33 s at rest before each move; cycles of 6.18 s, four
+    /// in the 25 s record at 1 kHz), the same axis and controller.
+    pub fn planned() -> Self {
+        ServoAxis {
+            reference: crate::sim::ReferenceSpec::planned(crate::sim::Moves::servo_standard()),
+            ..ServoAxis::standard()
+        }
+    }
+
+    /// A Stribeck term: friction that rises above the Coulomb value by `excess` at rest and
+    /// falls back to it with speed, `excess · exp(−(v/speed)²) · sign(v)` (newtons, m/s).
+    pub fn stribeck(excess: f64, speed: f64) -> (String, String) {
+        (
+            "stribeck".into(),
+            format!("{excess:?} * exp(-(v / {speed:?})^2) * sign(v)"),
+        )
+    }
+
+    /// Position-dependent friction: `amplitude · sin(2π x / period) · sign(v)` (a guide
+    /// whose friction varies along the travel with `period` metres).
+    pub fn friction_ripple(amplitude: f64, period: f64) -> (String, String) {
+        let k = 2.0 * std::f64::consts::PI / period;
+        (
+            "friction_ripple".into(),
+            format!("{amplitude:?} * sin({k:?} * s) * sign(v)"),
+        )
+    }
+
+    /// A position-periodic force (cogging of a linear motor): `amplitude · sin(2π x /
+    /// period)`.
+    pub fn cogging(amplitude: f64, period: f64) -> (String, String) {
+        let k = 2.0 * std::f64::consts::PI / period;
+        ("cogging".into(), format!("{amplitude:?} * sin({k:?} * s)"))
+    }
+
+    /// The model to simulate: [`ServoAxis::model`] with the forces of
+    /// [`ServoAxis::model_error`]. Identify its records with [`ServoAxis::model`].
+    pub fn true_model(&self) -> ModelIr {
+        let mut with_error = self.clone();
+        with_error
+            .extra_forces
+            .extend(self.model_error.iter().cloned());
+        with_error.model_error.clear();
+        with_error.model()
     }
 
     /// The model `servo_axis`: body `m`, input `u`, measured `m.x` and `u`. The velocity
