@@ -265,13 +265,16 @@ fn noise_free_servo_axis_is_recovered() {
     }
 }
 
+/// A baseline by name.
+type Method<'a> = (&'static str, &'a dyn Fn(&Record) -> Fit);
+
 /// What the standard errors describe: the scatter that the noise of the record (here the
 /// 1 µm encoder, through the loop) adds to the estimate. On seeds 1–`seeds` the change of
 /// each estimate between the unquantised and the quantised record of one seed is compared
 /// with the quantised record's standard errors; returns, per method, the fraction within
 /// 2 SE (classical, Newey–West) and the same fractions for the error against the truth.
 fn coverage(seeds: u64) -> Vec<(&'static str, [f64; 4])> {
-    let methods: [(&str, &dyn Fn(&Record) -> Fit); 3] = [
+    let methods: [Method; 3] = [
         ("IDIM-LS", &|r| {
             idim_ls(r, "m.x", "u", &IdimOptions::default()).expect("IDIM-LS")
         }),
