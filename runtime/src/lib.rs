@@ -5,7 +5,8 @@
 //! takes the IR (or a [`BasisEval`] compiled from it) and plain data, and returns typed
 //! results or typed errors. Long records are streamed in chunks: memory use of
 //! identification and detection does not grow with the record length (diagnosis and the
-//! Silverbox procedure hold whole records for their free-run simulations).
+//! Silverbox procedure hold whole records for their free-run simulations, and the reference
+//! regressions of [`baseline`] take an in-memory [`record::Record`]).
 //!
 //! API boundary: [`ident`] (identification: [`identify`], [`identify_per_level`],
 //! [`ident::measure`] for repeated solves), [`data`] (level sources: CSV files and in-memory
@@ -13,8 +14,10 @@
 //! interpreter and macro-generated code), [`sim`] (simulation), [`detect`] (nonlinearity
 //! detection from per-level linear fits), [`diagnose`] (the sim-to-real gap and the
 //! unmodelled effect behind it), [`silverbox`] (the Silverbox benchmark on real data),
-//! [`describe`] (mean and standard deviation of a column).
+//! [`describe`] (mean and standard deviation of a column), [`baseline`] (two classical
+//! regressions, IDIM-LS and SVF-LS: references for benches and tests, not the method).
 
+pub mod baseline;
 pub mod basis;
 pub mod data;
 pub mod describe;
