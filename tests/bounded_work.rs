@@ -323,3 +323,91 @@ fn a_missing_column_in_a_huge_header_is_named_without_echoing_the_header() {
     assert_refused(&o, "dynid::data::missing_column", &["(20000 columns)"]);
     assert!(o.stderr.len() < 4096, "{} bytes of error", o.stderr.len());
 }
+
+/// A chain of `n` unit masses from a wall, springs and dampers between neighbours, driven
+/// at the free end, every position measured.
+fn chain_model(n: usize) -> String {
+    let mut s = format!("model chain{n} {{\n");
+    for i in 1..=n {
+        s += &format!("    body m{i} = 1.0\n");
+    }
+    s += &format!("    input u on m{n}\n    measure ");
+    for i in 1..=n {
+        s += &format!("m{i}.x, ");
+    }
+    s += "u\n";
+    for i in 1..=n {
+        let a = if i == 1 {
+            "ground".to_string()
+        } else {
+            format!("m{}", i - 1)
+        };
+        s += &format!("    spring k{i} ({a}, m{i}) ~ 4.0\n    damper d{i} ({a}, m{i}) ~ 0.4\n");
+    }
+    s + "    excite u: lowpass(corner = 10) levels [6, 15, 40]\n}\n"
+}
+
+/// Three short level files of the chain's columns (different values, so that no level is
+/// a copy of another).
+fn chain_levels(dir: &Path, n: usize) -> Vec<PathBuf> {
+    let header: Vec<String> = std::iter::once("t".to_string())
+        .chain((1..=n).map(|i| format!("m{i}.x")))
+        .chain(["u".to_string()])
+        .collect();
+    (1..=3)
+        .map(|level| {
+            let mut text = header.join(",") + "\n";
+            for k in 0..3 {
+                let v = format!(",{}", 0.1 * (level * (k + 1)) as f64);
+                text += &format!("{}{}\n", 0.01 * k as f64, v.repeat(n + 1));
+            }
+            let p = dir.join(format!("level_{level}.csv"));
+            std::fs::write(&p, text).unwrap();
+            p
+        })
+        .collect()
+}
+
+#[test]
+fn identification_memory_is_estimated_before_reading_and_refused_with_the_flag_to_allow_it() {
+    // Before: a chain of 500 bodies with every position measured passed every screen and
+    // then took memory until the system killed it (the moments alone are 12525 × 1002
+    // numbers per block and level, the rows 3·10⁶ per level for 1000 unknowns). Now the
+    // estimate (terabytes) is refused before a sample is read, so the files here are three
+    // samples long.
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("chain500.dyn");
+    std::fs::write(&model, chain_model(500)).unwrap();
+    let data = chain_levels(dir.path(), 500);
+    for command in ["identify", "detect", "diagnose"] {
+        let mut cmd = dynid();
+        cmd.arg(command).arg(&model).args(&data);
+        let o = run_within(cmd, Duration::from_secs(120));
+        assert_refused(
+            &o,
+            "dynid::identify::too_large",
+            &[
+                "TB of memory",
+                "above the limit of about 8 GB",
+                "500 bodies, 501 measured signals",
+                "501 drivers × 6 corners × 4 sections",
+                "1000 unknowns",
+                "filter corners [...]` line with fewer corners",
+                "--allow-large",
+            ],
+        );
+        // The flag lets it past the estimate (to the data, three samples too few here).
+        let mut cmd = dynid();
+        cmd.arg(command)
+            .arg(&model)
+            .args(&data)
+            .arg("--allow-large");
+        let o = run_within(cmd, Duration::from_secs(120));
+        assert_refused(&o, "dynid::data::too_few_samples", &["level_1.csv"]);
+    }
+    for command in ["identify", "detect", "diagnose", "simulate"] {
+        let out = dynid().args([command, "--help"]).output().unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(text.contains("--allow-large"), "`{command} --help`: {text}");
+    }
+}

@@ -3,7 +3,7 @@
 
 use super::common::{check_outputs, inputs, write_atomically, CsvArgs};
 use dsl_parser::ir::ModelIr;
-use dynid_runtime::data::read_record;
+use dynid_runtime::data::read_record_within;
 use dynid_runtime::data::{CsvSource, LevelSource};
 use dynid_runtime::ident::{print, Identification};
 use dynid_runtime::record::Record;
@@ -99,6 +99,11 @@ pub struct Args {
     /// RK4 sub-steps per sample interval of the refinement's simulations.
     #[arg(long, default_value_t = DEFAULT_SUBSTEPS, value_parser = super::common::at_least_one, requires = "refine")]
     pub substeps: usize,
+    /// Run even when the memory estimated before reading the data (of the moments and the
+    /// least-squares problem, or of the records read whole for --refine) is above the
+    /// safety limit (8 GB).
+    #[arg(long)]
+    pub allow_large: bool,
 }
 
 /// The refinement and the free-run errors of both estimates.
@@ -183,12 +188,14 @@ fn refine_options(args: &Args) -> miette::Result<Option<RefineOptions>> {
     }))
 }
 
-/// Read every file of `paths` whole (the refinement simulates whole records).
+/// Read every file of `paths` whole (the refinement simulates whole records); a record
+/// whose memory (estimated from the file's size) is above the limit is refused before it
+/// is read, unless `--allow-large`.
 fn read_all(ir: &ModelIr, args: &Args, paths: &[PathBuf]) -> miette::Result<Vec<Record>> {
     let csv = args.csv.options(ir)?;
     Ok(paths
         .iter()
-        .map(|p| read_record(p, &csv))
+        .map(|p| read_record_within(p, &csv, args.allow_large))
         .collect::<Result<Vec<_>, _>>()?)
 }
 
@@ -308,6 +315,7 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
         corners: args.filter_corners.clone(),
         balance: Some(args.balance && !args.no_balance),
         noise_correction: !args.no_noise_correction,
+        allow_large: args.allow_large,
         ..Default::default()
     };
     Ok(identify(ir, &levels, &opts)?)
@@ -522,6 +530,7 @@ mod tests {
             weight: Vec::new(),
             segment: None,
             substeps: DEFAULT_SUBSTEPS,
+            allow_large: false,
         };
         let id = identify_files(&ir, &args).unwrap();
         for (n, t) in [("d", 0.4), ("k", 4.0), ("k3", 2.0), ("r", 0.3)] {
@@ -569,6 +578,7 @@ mod tests {
             weight: Vec::new(),
             segment: None,
             substeps: DEFAULT_SUBSTEPS,
+            allow_large: false,
         };
         let e = format!("{:?}", identify_files(&ir, &args).unwrap_err());
         assert!(e.contains("bad.csv") && e.contains("`m1.v`"), "{e}");

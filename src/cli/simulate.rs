@@ -148,6 +148,11 @@ pub struct Args {
     /// Run even when the estimated work is above the safety limit (1e10 RK4 steps).
     #[arg(long)]
     pub allow_long: bool,
+    /// With --input: run even when the memory of the input record (read whole, estimated
+    /// from the file's size before reading) and of the response is above the safety limit
+    /// (8 GB).
+    #[arg(long)]
+    pub allow_large: bool,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -306,7 +311,8 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
         ],
         [],
     )?;
-    let record = read_input_csv(input)?;
+    let record = read_input_csv(input, args.allow_large)?;
+    check_response_memory(ir, &record, input, args.allow_large)?;
     sim::check_steps(
         record.len() as f64 * args.substeps as f64,
         &format!(
@@ -368,9 +374,42 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
     Ok(())
 }
 
-/// The driving inputs: the shared CSV reader, whose errors name the file and line.
-fn read_input_csv(path: &Path) -> miette::Result<Record> {
-    Ok(data::read_record(path, &data::CsvOptions::default())?)
+/// The driving inputs: the shared CSV reader, whose errors name the file and line; a
+/// record whose memory (estimated from the file's size) is above the limit is refused
+/// before it is read, unless `allow_large`.
+fn read_input_csv(path: &Path, allow_large: bool) -> miette::Result<Record> {
+    Ok(data::read_record_within(
+        path,
+        &data::CsvOptions::default(),
+        allow_large,
+    )?)
+}
+
+/// Refuse a driven simulation whose response (every signal of the model at every sample
+/// of `record`, held whole) would take more than the memory limit, unless `allow_large`.
+fn check_response_memory(
+    ir: &ModelIr,
+    record: &Record,
+    input: &Path,
+    allow_large: bool,
+) -> miette::Result<()> {
+    use dynid_runtime::limits::{bytes_in_words, MAX_BYTES};
+    let bytes = record.len() as f64 * (ir.signals.len() as f64 + 1.0) * 8.0;
+    if allow_large || bytes <= MAX_BYTES {
+        return Ok(());
+    }
+    Err(miette::miette!(
+        code = "dynid::sim::too_large",
+        help = "drive the model with a shorter record, or give `--allow-large` to run it anyway",
+        "driving `{}` with the {} samples of `{}` would hold a response of {} in memory \
+         ({} signals), above the limit of {}",
+        ir.name,
+        record.len(),
+        input.display(),
+        bytes_in_words(bytes),
+        ir.signals.len() + 1,
+        bytes_in_words(MAX_BYTES)
+    ))
 }
 
 fn progress_bar(total: u64) -> indicatif::ProgressBar {
@@ -480,6 +519,7 @@ mod tests {
             input: None,
             format: Format::Json,
             allow_long: false,
+            allow_large: false,
         }
     }
 

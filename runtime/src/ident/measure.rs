@@ -23,6 +23,8 @@ pub fn measure<'m>(
             help: "use the defaults".into(),
         });
     }
+    // Before any sample is read: a model too large for memory is refused with the estimate.
+    memory::check(ir, levels.len(), opts, 0.0, "identification")?;
     let bank = choose_bank(ir, opts)?;
     let mut plan = plan::build_structure(ir, opts.balance.unwrap_or(false), &bank)?;
     let t0 = Instant::now();

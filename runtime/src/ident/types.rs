@@ -35,6 +35,9 @@ pub struct IdentifyOptions {
     /// De-bias the moments of nonlinear static terms in signals whose estimated measurement
     /// noise is significant (see [`noise`]). The noise is estimated and reported either way.
     pub noise_correction: bool,
+    /// Run even when the estimated memory ([`memory::estimate`]) is above
+    /// [`crate::limits::MAX_BYTES`]; refused before any sample is read otherwise.
+    pub allow_large: bool,
 }
 
 impl Default for IdentifyOptions {
@@ -50,6 +53,7 @@ impl Default for IdentifyOptions {
             rcond: 1e-10,
             hold: Hold::FirstOrder,
             noise_correction: true,
+            allow_large: false,
         }
     }
 }
@@ -166,6 +170,17 @@ pub enum IdentifyError {
         origin: String,
         column: String,
         size: f64,
+    },
+    #[error("{what} would take {estimate}, above the limit of {limit}: {drivers}")]
+    #[diagnostic(
+        code(dynid::identify::too_large),
+        help("the memory grows with the measured signals times the filter states (drivers × corners × sections) and with the rows times the unknowns: give the model a `filter corners [...]` line with fewer corners (or `--filter-corners` with fewer values), measure fewer signals (or drive the filters by fewer: `filter corners [...] driven by u`), or give `--allow-large` to run it anyway")
+    )]
+    TooLarge {
+        what: String,
+        estimate: String,
+        limit: String,
+        drivers: String,
     },
     #[error(transparent)]
     #[diagnostic(transparent)]
