@@ -411,3 +411,97 @@ fn identification_memory_is_estimated_before_reading_and_refused_with_the_flag_t
         assert!(text.contains("--allow-large"), "`{command} --help`: {text}");
     }
 }
+
+/// A file of `size` bytes that starts with `head` and continues sparse (no disk space, NUL
+/// bytes if it were read, refused as binary): only its size says how large the record
+/// would be.
+fn sparse_csv(path: &Path, head: &str, size: u64) {
+    std::fs::write(path, head).unwrap();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(path)
+        .unwrap()
+        .set_len(size)
+        .unwrap();
+}
+
+#[test]
+fn records_read_whole_are_estimated_from_the_file_size_and_refused_above_the_limit() {
+    // Before: `simulate --input`, a record split into levels, `diagnose` and
+    // `identify --refine` read the whole file into memory, whatever its size (here the
+    // sparse tail would have been read as binary data after gigabytes).
+    let dir = tempfile::tempdir().unwrap();
+    let mut head = "t,m.x,m.v,u\n".to_string();
+    // 3 MB of rows: the reader's first buffer (1 MiB) holds text only.
+    for k in 0..100_000 {
+        let t = 0.01 * k as f64;
+        head += &format!(
+            "{t:.2},{:.6},{:.6},{:.6}\n",
+            t.sin(),
+            t.cos(),
+            (3.0 * t).sin()
+        );
+    }
+    // About 36 bytes a row: 40 GiB are 1.2·10⁹ rows, 29 GB of three columns.
+    let big = dir.path().join("big.csv");
+    sparse_csv(&big, &head, 40 << 30);
+    let big2 = dir.path().join("big2.csv");
+    sparse_csv(&big2, &head.replace("0.00,", "0.00,1"), 40 << 30);
+    let sdof = model("sdof_linear.dyn");
+    let out = dir.path().join("out");
+    let cases: [(Vec<&std::ffi::OsStr>, &str, &[&str]); 4] = [
+        (
+            vec![
+                "simulate".as_ref(),
+                sdof.as_os_str(),
+                "--input".as_ref(),
+                big.as_os_str(),
+                "--out".as_ref(),
+                out.as_os_str(),
+            ],
+            "dynid::data::too_large",
+            &[
+                "big.csv",
+                "GB of memory",
+                "rows × 3 columns",
+                "--allow-large",
+            ],
+        ),
+        (
+            vec!["detect".as_ref(), sdof.as_os_str(), big.as_os_str()],
+            "dynid::data::too_large",
+            &["big.csv", "GB of memory", "--allow-large"],
+        ),
+        (
+            vec![
+                "diagnose".as_ref(),
+                sdof.as_os_str(),
+                big.as_os_str(),
+                big2.as_os_str(),
+            ],
+            "dynid::identify::too_large",
+            &[
+                "diagnosis would take",
+                "for the records read whole",
+                "--allow-large",
+            ],
+        ),
+        (
+            vec![
+                "identify".as_ref(),
+                sdof.as_os_str(),
+                big.as_os_str(),
+                "--refine".as_ref(),
+            ],
+            "dynid::data::too_large",
+            &["big.csv", "GB of memory", "--allow-large"],
+        ),
+    ];
+    for (args, code, also) in cases {
+        let mut cmd = dynid();
+        cmd.args(&args);
+        let o = run_within(cmd, Duration::from_secs(60));
+        assert_refused(&o, code, also);
+        assert!(!out.exists(), "{args:?} created the output directory");
+    }
+}

@@ -123,6 +123,9 @@ pub fn run(args: Args) -> miette::Result<()> {
     )?;
     let ir = super::common::load_model(&args.model)?;
     let opts = refine_options(&args)?;
+    if opts.is_some() {
+        check_whole_records(&ir, &args)?;
+    }
     let id = identify_files(&ir, &args)?;
     print!("{}", render(&ir, &id));
     for w in &id.warnings {
@@ -186,6 +189,35 @@ fn refine_options(args: &Args) -> miette::Result<Option<RefineOptions>> {
         weights,
         ..Default::default()
     }))
+}
+
+/// Refuse, before any sample is read, a refinement whose records (read whole, the
+/// estimation and the test files together) would take more memory than the limit, unless
+/// `--allow-large`.
+fn check_whole_records(ir: &ModelIr, args: &Args) -> miette::Result<()> {
+    use dynid_runtime::limits::{bytes_in_words, MAX_BYTES};
+    if args.allow_large {
+        return Ok(());
+    }
+    let csv = args.csv.options(ir)?;
+    let mut total = 0.0;
+    for p in args.data.iter().chain(&args.test) {
+        let src = CsvSource::open(p, ir, &csv)?;
+        src.check_whole(false)?;
+        total += src.whole_bytes();
+    }
+    if total > MAX_BYTES {
+        return Err(miette!(
+            code = "dynid::data::too_large",
+            help = "the refinement holds every record whole: give fewer or shorter records, \
+                    or give `--allow-large` to read them anyway",
+            "the records of the refinement would take {} of memory read whole (estimated \
+             from the files' sizes), above the limit of {}",
+            bytes_in_words(total),
+            bytes_in_words(MAX_BYTES)
+        ));
+    }
+    Ok(())
 }
 
 /// Read every file of `paths` whole (the refinement simulates whole records); a record
