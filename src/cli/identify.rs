@@ -99,6 +99,10 @@ pub struct Args {
     /// RK4 sub-steps per sample interval of the refinement's simulations.
     #[arg(long, default_value_t = DEFAULT_SUBSTEPS, value_parser = super::common::at_least_one, requires = "refine")]
     pub substeps: usize,
+    /// With --refine: run even when the refinement's simulations (every record's samples
+    /// × the sub-steps, per iteration) are above the safety limit (1e10 RK4 steps).
+    #[arg(long, requires = "refine")]
+    pub allow_long: bool,
     /// Run even when the memory estimated before reading the data (of the moments and the
     /// least-squares problem, or of the records read whole for --refine) is above the
     /// safety limit (8 GB).
@@ -239,6 +243,16 @@ pub fn refine_files(
     opts: &RefineOptions,
 ) -> miette::Result<RefineReport> {
     let est = read_all(ir, args, &args.data)?;
+    let samples: usize = est.iter().map(Record::len).sum();
+    dynid_runtime::sim::check_steps(
+        samples as f64 * args.substeps as f64,
+        &format!(
+            "one free run of {samples} samples × {} RK4 sub-steps (of the refinement's many)",
+            args.substeps
+        ),
+        "--allow-long",
+        args.allow_long,
+    )?;
     let mut opts = opts.clone();
     if let (Some(s), Some(r)) = (args.segment, est.first()) {
         opts.segment = Some(((s / r.ts).round() as usize).max(3));
@@ -562,6 +576,7 @@ mod tests {
             weight: Vec::new(),
             segment: None,
             substeps: DEFAULT_SUBSTEPS,
+            allow_long: false,
             allow_large: false,
         };
         let id = identify_files(&ir, &args).unwrap();
@@ -610,6 +625,7 @@ mod tests {
             weight: Vec::new(),
             segment: None,
             substeps: DEFAULT_SUBSTEPS,
+            allow_long: false,
             allow_large: false,
         };
         let e = format!("{:?}", identify_files(&ir, &args).unwrap_err());

@@ -679,7 +679,7 @@ fn read_record_from(
     // Reserved for the estimated length (growth by doubling would hold up to three times
     // the record while a column is moved), unless the estimate is beyond the limit.
     let reserve = match src.samples_hint() {
-        Some(n) if src.whole_bytes() <= crate::limits::MAX_BYTES => n as usize + 16,
+        Some(n) if src.whole_bytes() <= crate::limits::MAX_BYTES => (n as usize).saturating_add(16),
         _ => 0,
     };
     let mut columns: Vec<Vec<f64>> = (0..names.len())

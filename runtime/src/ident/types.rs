@@ -91,7 +91,7 @@ pub enum IdentifyError {
         help("pass one data file per excitation level")
     )]
     NoLevels,
-    #[error("{origin}: {n} samples span {duration:.3} s, too short for the slowest filter (time constant {tau:.3} s)")]
+    #[error("{origin}: {n} samples span {duration:.3} s, too short for the slowest filter (time constant {} s)", dynid_ir::num::sig(*.tau, 4, false))]
     #[diagnostic(code(dynid::identify::too_short), help("{advice}"))]
     TooShort {
         origin: String,
