@@ -475,7 +475,7 @@ mod tests {
         let err = |text: &str| {
             format!(
                 "{:?}",
-                read_input_csv(&write(dir.path(), "a.csv", text)).unwrap_err()
+                read_input_csv(&write(dir.path(), "a.csv", text), false).unwrap_err()
             )
         };
         assert!(err("u\n1\n2\n").contains("no `t` column"));
@@ -489,7 +489,11 @@ mod tests {
         // A step of two intervals: a dropped sample, named as such.
         assert!(err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n").contains("line 4: a sample is missing"));
         assert!(err("t,u\n0,1\n0.1,2\n0.25,2\n0.35,1\n").contains("line 4: the time step"));
-        let r = read_input_csv(&write(dir.path(), "b.csv", "t,u\n1,1\n1.5,2\n2,3\n\n")).unwrap();
+        let r = read_input_csv(
+            &write(dir.path(), "b.csv", "t,u\n1,1\n1.5,2\n2,3\n\n"),
+            false,
+        )
+        .unwrap();
         assert_eq!(
             (r.t0, r.ts, r.names.clone()),
             (1.0, 0.5, vec!["u".to_string()])
@@ -550,7 +554,7 @@ mod tests {
                 .unwrap();
         assert_eq!(truth.levels, [6.0, 15.0]);
         assert_eq!(truth.files, ["level_1.csv", "level_2.csv"]);
-        let level = read_input_csv(&out.join("level_2.csv")).unwrap();
+        let level = read_input_csv(&out.join("level_2.csv"), false).unwrap();
         assert_eq!(level.names, ["m1.x", "m1.v", "u"]);
         assert_eq!(level.len(), 2000);
 
@@ -558,7 +562,7 @@ mod tests {
         let mut a = args(model, driven_out.clone());
         a.input = Some(out.join("level_2.csv"));
         run(a).unwrap();
-        let driven = read_input_csv(&driven_out.join("driven.csv")).unwrap();
+        let driven = read_input_csv(&driven_out.join("driven.csv"), false).unwrap();
         assert_eq!(driven.len(), level.len());
         assert_eq!(driven.column("u"), level.column("u"));
     }
@@ -582,7 +586,7 @@ mod tests {
         a.quantise = Some(1e-6);
         a.pd = Some(vec![80000.0, 2680.0]);
         run(a).unwrap();
-        let level = read_input_csv(&out.join("level_1.csv")).unwrap();
+        let level = read_input_csv(&out.join("level_1.csv"), false).unwrap();
         assert_eq!(level.names, ["m.x", "u", "m.x_ref"]);
         assert_eq!(level.len(), 2000);
         let truth: sim::Truth =
