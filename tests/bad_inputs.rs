@@ -737,6 +737,66 @@ const CASES: &[Case] = &[
         "invalid value 'pdf'",
     ),
     case("identify without data", &["identify", "{model}"], "<DATA>"),
+    // ---- Counts from flags beyond what a machine word holds ----
+    Case {
+        name: "a filter corner of 1e-300 rad/s (a record length beyond any count)",
+        args: &["identify", "{model}", DATA, "--filter-corners", "1e-300"],
+        code: "dynid::identify::too_short",
+        also: &["time constant 3e300 s"],
+    },
+    Case {
+        name: "--segments 18446744073709551615",
+        args: &[
+            "detect",
+            "{model}",
+            DATA,
+            "--segments",
+            "18446744073709551615",
+        ],
+        code: "dynid::split::too_short",
+        also: &["too short for 18446744073709551615 segments"],
+    },
+    Case {
+        name: "--refine --substeps 18446744073709551615",
+        args: &[
+            "identify",
+            "{model}",
+            DATA,
+            "--refine",
+            "--substeps",
+            "18446744073709551615",
+        ],
+        code: "dynid::sim::too_long",
+        also: &["RK4 sub-steps", "--allow-long"],
+    },
+    Case {
+        name: "--duration 1e300 at --sample 1e-300",
+        args: &[
+            "simulate",
+            "{model}",
+            "--duration",
+            "1e300",
+            "--sample",
+            "1e-300",
+            "--out",
+            "{dir}/out",
+        ],
+        code: "dynid::sim::config",
+        also: &["inf samples per level"],
+    },
+    Case {
+        name: "simulate --substeps 18446744073709551615",
+        args: &[
+            "simulate",
+            "{model}",
+            "--substeps",
+            "18446744073709551615",
+            "--out",
+            "{dir}/out",
+        ],
+        code: "dynid::sim::too_long",
+        also: &["--allow-long"],
+    },
     // ---- Outputs ----
     case(
         "a plot named .jpg (only SVG and PNG are drawn)",

@@ -323,3 +323,185 @@ fn a_missing_column_in_a_huge_header_is_named_without_echoing_the_header() {
     assert_refused(&o, "dynid::data::missing_column", &["(20000 columns)"]);
     assert!(o.stderr.len() < 4096, "{} bytes of error", o.stderr.len());
 }
+
+/// A chain of `n` unit masses from a wall, springs and dampers between neighbours, driven
+/// at the free end, every position measured.
+fn chain_model(n: usize) -> String {
+    let mut s = format!("model chain{n} {{\n");
+    for i in 1..=n {
+        s += &format!("    body m{i} = 1.0\n");
+    }
+    s += &format!("    input u on m{n}\n    measure ");
+    for i in 1..=n {
+        s += &format!("m{i}.x, ");
+    }
+    s += "u\n";
+    for i in 1..=n {
+        let a = if i == 1 {
+            "ground".to_string()
+        } else {
+            format!("m{}", i - 1)
+        };
+        s += &format!("    spring k{i} ({a}, m{i}) ~ 4.0\n    damper d{i} ({a}, m{i}) ~ 0.4\n");
+    }
+    s + "    excite u: lowpass(corner = 10) levels [6, 15, 40]\n}\n"
+}
+
+/// Three short level files of the chain's columns (different values, so that no level is
+/// a copy of another).
+fn chain_levels(dir: &Path, n: usize) -> Vec<PathBuf> {
+    let header: Vec<String> = std::iter::once("t".to_string())
+        .chain((1..=n).map(|i| format!("m{i}.x")))
+        .chain(["u".to_string()])
+        .collect();
+    (1..=3)
+        .map(|level| {
+            let mut text = header.join(",") + "\n";
+            for k in 0..3 {
+                let v = format!(",{}", 0.1 * (level * (k + 1)) as f64);
+                text += &format!("{}{}\n", 0.01 * k as f64, v.repeat(n + 1));
+            }
+            let p = dir.join(format!("level_{level}.csv"));
+            std::fs::write(&p, text).unwrap();
+            p
+        })
+        .collect()
+}
+
+#[test]
+fn identification_memory_is_estimated_before_reading_and_refused_with_the_flag_to_allow_it() {
+    // Before: a chain of 500 bodies with every position measured passed every screen and
+    // then took memory until the system killed it (the moments alone are 12525 × 1002
+    // numbers per block and level, the rows 3·10⁶ per level for 1000 unknowns). Now the
+    // estimate (terabytes) is refused before a sample is read, so the files here are three
+    // samples long.
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("chain500.dyn");
+    std::fs::write(&model, chain_model(500)).unwrap();
+    let data = chain_levels(dir.path(), 500);
+    for command in ["identify", "detect", "diagnose"] {
+        let mut cmd = dynid();
+        cmd.arg(command).arg(&model).args(&data);
+        let o = run_within(cmd, Duration::from_secs(120));
+        assert_refused(
+            &o,
+            "dynid::identify::too_large",
+            &[
+                "TB of memory",
+                "above the limit of about 8 GB",
+                "500 bodies, 501 measured signals",
+                "501 drivers × 6 corners × 4 sections",
+                "1000 unknowns",
+                "filter corners [...]` line with fewer corners",
+                "--allow-large",
+            ],
+        );
+        // The flag lets it past the estimate (to the data, three samples too few here).
+        let mut cmd = dynid();
+        cmd.arg(command)
+            .arg(&model)
+            .args(&data)
+            .arg("--allow-large");
+        let o = run_within(cmd, Duration::from_secs(120));
+        assert_refused(&o, "dynid::data::too_few_samples", &["level_1.csv"]);
+    }
+    for command in ["identify", "detect", "diagnose", "simulate"] {
+        let out = dynid().args([command, "--help"]).output().unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(text.contains("--allow-large"), "`{command} --help`: {text}");
+    }
+}
+
+/// A file of `size` bytes that starts with `head` and continues sparse (no disk space, NUL
+/// bytes if it were read, refused as binary): only its size says how large the record
+/// would be.
+fn sparse_csv(path: &Path, head: &str, size: u64) {
+    std::fs::write(path, head).unwrap();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(path)
+        .unwrap()
+        .set_len(size)
+        .unwrap();
+}
+
+#[test]
+fn records_read_whole_are_estimated_from_the_file_size_and_refused_above_the_limit() {
+    // Before: `simulate --input`, a record split into levels, `diagnose` and
+    // `identify --refine` read the whole file into memory, whatever its size (here the
+    // sparse tail would have been read as binary data after gigabytes).
+    let dir = tempfile::tempdir().unwrap();
+    let mut head = "t,m.x,m.v,u\n".to_string();
+    // 3 MB of rows: the reader's first buffer (1 MiB) holds text only.
+    for k in 0..100_000 {
+        let t = 0.01 * k as f64;
+        head += &format!(
+            "{t:.2},{:.6},{:.6},{:.6}\n",
+            t.sin(),
+            t.cos(),
+            (3.0 * t).sin()
+        );
+    }
+    // About 36 bytes a row: 40 GiB are 1.2·10⁹ rows, 29 GB of three columns.
+    let big = dir.path().join("big.csv");
+    sparse_csv(&big, &head, 40 << 30);
+    let big2 = dir.path().join("big2.csv");
+    sparse_csv(&big2, &head.replace("0.00,", "0.00,1"), 40 << 30);
+    let sdof = model("sdof_linear.dyn");
+    let out = dir.path().join("out");
+    let cases: [(Vec<&std::ffi::OsStr>, &str, &[&str]); 4] = [
+        (
+            vec![
+                "simulate".as_ref(),
+                sdof.as_os_str(),
+                "--input".as_ref(),
+                big.as_os_str(),
+                "--out".as_ref(),
+                out.as_os_str(),
+            ],
+            "dynid::data::too_large",
+            &[
+                "big.csv",
+                "GB of memory",
+                "rows × 3 columns",
+                "--allow-large",
+            ],
+        ),
+        (
+            vec!["detect".as_ref(), sdof.as_os_str(), big.as_os_str()],
+            "dynid::data::too_large",
+            &["big.csv", "GB of memory", "--allow-large"],
+        ),
+        (
+            vec![
+                "diagnose".as_ref(),
+                sdof.as_os_str(),
+                big.as_os_str(),
+                big2.as_os_str(),
+            ],
+            "dynid::identify::too_large",
+            &[
+                "diagnosis would take",
+                "for the records read whole",
+                "--allow-large",
+            ],
+        ),
+        (
+            vec![
+                "identify".as_ref(),
+                sdof.as_os_str(),
+                big.as_os_str(),
+                "--refine".as_ref(),
+            ],
+            "dynid::data::too_large",
+            &["big.csv", "GB of memory", "--allow-large"],
+        ),
+    ];
+    for (args, code, also) in cases {
+        let mut cmd = dynid();
+        cmd.args(&args);
+        let o = run_within(cmd, Duration::from_secs(60));
+        assert_refused(&o, code, also);
+        assert!(!out.exists(), "{args:?} created the output directory");
+    }
+}

@@ -2,7 +2,9 @@
 //! unreachable (`expect("invariant: …")`, or `expect("grammar: …")` where the parser's
 //! grammar guarantees the shape), and no bare `unwrap()` remains: bad input must come back
 //! as an error, never as a panic. Unit-test modules (`#[cfg(test)] mod tests { … }` at the
-//! end of a file, `tests.rs`) and test-only helpers are exempt.
+//! end of a file, `tests.rs`) and test-only helpers are exempt. Arithmetic on a count
+//! converted from a float (`x.ceil() as usize + 1`) is checked or saturating: the
+//! conversion saturates, and the `+` after it overflows.
 //!
 //! Indexing panics are not `unwrap`s: in the files where matrix sizes come from the data
 //! ([`DATA_SHAPED`]) every function that indexes a matrix states the check that keeps its
@@ -56,13 +58,25 @@ fn code_lines(text: &str) -> Vec<(usize, &str)> {
         .collect()
 }
 
+/// Arithmetic on a count converted from a float (`(t / ts).ceil() as usize + 1`): the
+/// conversion saturates at `usize::MAX` for a huge or tiny value from a flag or the data
+/// (a corner of 1e-300 rad/s), and the `+`, `-` or `*` after it then overflows — a panic in
+/// a debug build, a wrong count in a release build. Such arithmetic is written saturating
+/// or checked (`.saturating_add(1)`).
+fn unchecked_count_arithmetic(line: &str) -> bool {
+    [") as usize +", ") as usize -", ") as usize *"]
+        .iter()
+        .any(|p| line.contains(p))
+}
+
 /// Offending lines of one file's code.
 fn offences(text: &str) -> Vec<(usize, String)> {
     code_lines(text)
         .into_iter()
         .filter(|(_, l)| !l.trim_start().starts_with("//"))
         .filter(|(_, l)| {
-            l.contains(".unwrap()")
+            unchecked_count_arithmetic(l)
+                || l.contains(".unwrap()")
                 || l.match_indices(".expect(\"").any(|(i, m)| {
                     let msg = &l[i + m.len()..];
                     !(msg.starts_with("invariant: ") || msg.starts_with("grammar: "))
@@ -165,9 +179,9 @@ fn matrix_indexing_on_data_dependent_shapes_states_its_bounds() {
 
 #[test]
 fn the_audit_finds_what_it_looks_for() {
-    let text = "fn a() {\n    x.unwrap();\n    y.expect(\"oops\");\n    z.expect(\"invariant: fine\");\n}\n#[cfg(test)]\nmod tests {\n    fn t() { w.unwrap(); }\n}\n";
+    let text = "fn a() {\n    x.unwrap();\n    y.expect(\"oops\");\n    z.expect(\"invariant: fine\");\n    let n = (t / ts).ceil() as usize + 1;\n    let m = ((t / ts).ceil() as usize).saturating_add(1);\n    let k = r as usize * len;\n}\n#[cfg(test)]\nmod tests {\n    fn t() { w.unwrap(); }\n}\n";
     let found: Vec<usize> = offences(text).iter().map(|o| o.0).collect();
-    assert_eq!(found, [2, 3]);
+    assert_eq!(found, [2, 3, 5]);
 }
 
 #[test]
@@ -188,7 +202,8 @@ fn library_and_cli_code_has_no_unexplained_panic() {
     assert!(
         bad.is_empty(),
         "a panic reachable from input must be an error; an impossible one says \
-         `expect(\"invariant: why\")`:\n{}",
+         `expect(\"invariant: why\")`; arithmetic on a count converted from a float is \
+         saturating or checked:\n{}",
         bad.join("\n")
     );
 }

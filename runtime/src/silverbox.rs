@@ -311,7 +311,8 @@ pub fn check_work(
             what: format!("upsampling {} samples by {upsample}", data.u.len()),
             estimate: format!("{} of memory", bytes_in_words(bytes)),
             help: format!(
-                "runs above {} of records are refused as a likely mistyped setting: lower                  `--upsample` (4 is the default), or give `{flag}` to run it anyway",
+                "runs above {} of records are refused as a likely mistyped setting: lower \
+                 `--upsample` (4 is the default), or give `{flag}` to run it anyway",
                 bytes_in_words(MAX_BYTES)
             ),
         });
@@ -319,12 +320,11 @@ pub fn check_work(
     let steps = samples * substeps as f64;
     if steps > MAX_STEPS {
         return Err(SilverboxError::TooLarge {
-            what: format!(
-                "simulating {samples:.3e} upsampled samples × {substeps} RK4 sub-steps"
-            ),
+            what: format!("simulating {samples:.3e} upsampled samples × {substeps} RK4 sub-steps"),
             estimate: steps_in_words(steps),
             help: format!(
-                "runs above {MAX_STEPS:.0e} RK4 steps ({}) are refused as a likely mistyped                  setting: lower `--upsample` or `--substeps`, or give `{flag}` to run it anyway",
+                "runs above {MAX_STEPS:.0e} RK4 steps ({}) are refused as a likely mistyped \
+                 setting: lower `--upsample` or `--substeps`, or give `{flag}` to run it anyway",
                 duration_in_words(MAX_STEPS / STEPS_PER_SECOND)
             ),
         });

@@ -1,7 +1,7 @@
 //! Helpers shared by the subcommands.
 
 use dsl_parser::ir::ModelIr;
-use dynid_runtime::data::{default_response, read_record, split_record, CsvOptions};
+use dynid_runtime::data::{default_response, read_record_within, split_record, CsvOptions};
 use dynid_runtime::data::{Split, SplitOptions};
 use dynid_runtime::record::Record;
 use miette::miette;
@@ -127,12 +127,14 @@ pub struct SplitLevels {
 
 impl SplitArgs {
     /// With one data file, cut it into levels and print the segment table to stderr;
-    /// with several, `None` (and an error when a split option was given).
+    /// with several, `None` (and an error when a split option was given). The file is read
+    /// whole: above the memory limit it is refused before reading unless `allow_large`.
     pub fn levels(
         &self,
         ir: &ModelIr,
         data: &[PathBuf],
         csv: &CsvOptions,
+        allow_large: bool,
     ) -> miette::Result<Option<SplitLevels>> {
         if data.len() > 1 {
             let flag = match (&self.segments, &self.split_by) {
@@ -163,7 +165,7 @@ impl SplitArgs {
                 )
             })?,
         };
-        let record = read_record(path, csv)?;
+        let record = read_record_within(path, csv, allow_large)?;
         let opts = SplitOptions {
             segments: self.segments.unwrap_or(3),
             ..Default::default()

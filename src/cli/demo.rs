@@ -84,7 +84,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let origins: Vec<String> = (1..=n).map(|k| format!("level{k}")).collect();
     let t1 = Instant::now();
     let model = dsl_parser::compile_str("two_mass_linear.dyn", MODEL)?;
-    let d = super::diagnose::run_diagnosis(&model, &out.records, &origins, args.quiet)?;
+    let d = super::diagnose::run_diagnosis(&model, &out.records, &origins, args.quiet, false)?;
     println!("Diagnosed in {:.1} s.", t1.elapsed().as_secs_f64());
     println!();
     print!("{}", d.summary());

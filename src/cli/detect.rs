@@ -69,6 +69,11 @@ pub struct Args {
     /// Significance of the constancy test of each curve.
     #[arg(long, default_value_t = 1e-3, value_name = "P")]
     pub alpha: f64,
+    /// Run even when the memory estimated before reading the data (of the moments and the
+    /// least-squares problems, or of a record read whole to be split) is above the safety
+    /// limit (8 GB).
+    #[arg(long)]
+    pub allow_large: bool,
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
@@ -102,7 +107,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     }
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
-    let split = args.split.levels(&ir, &args.data, &csv)?;
+    let split = args.split.levels(&ir, &args.data, &csv, args.allow_large)?;
     if split.is_none() {
         super::duplicates::refuse_duplicate_levels(
             &args.data,
@@ -135,7 +140,11 @@ pub fn run(args: Args) -> miette::Result<()> {
         alpha: args.alpha,
         ..Default::default()
     };
-    let (det, fits) = detect_from_data(&ir, &levels, &IdentifyOptions::default(), &dopts, &[])?;
+    let iopts = IdentifyOptions {
+        allow_large: args.allow_large,
+        ..Default::default()
+    };
+    let (det, fits) = detect_from_data(&ir, &levels, &iopts, &dopts, &[])?;
     // The options the test ran with (the jackknife's degrees of freedom filled in).
     dopts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
     let warnings = levels_too_alike(&det, &dopts);

@@ -84,6 +84,11 @@ pub struct Args {
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Run even when the memory estimated before reading the data (the records, read whole
+    /// for the free-run comparison, with the moments and least-squares problems) is above
+    /// the safety limit (8 GB).
+    #[arg(long)]
+    pub allow_large: bool,
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
@@ -97,7 +102,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     )?;
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
-    let split = args.split.levels(&ir, &args.data, &csv)?;
+    let split = args.split.levels(&ir, &args.data, &csv, args.allow_large)?;
     if split.is_none() {
         super::duplicates::refuse_duplicate_levels(
             &args.data,
@@ -118,14 +123,26 @@ pub fn run(args: Args) -> miette::Result<()> {
             s.origins.clone()
         }
         None => {
-            for p in &args.data {
-                let src = CsvSource::open(p, &ir, &csv)?;
-                records.push(diagnose::read_record(&src, &ir)?);
+            let sources = args
+                .data
+                .iter()
+                .map(|p| CsvSource::open(p, &ir, &csv))
+                .collect::<Result<Vec<_>, _>>()?;
+            // The records are read whole (the free-run comparison), and the moments and
+            // least-squares problems come on top: both estimated before any sample is read.
+            let held: f64 = sources.iter().map(CsvSource::whole_bytes).sum();
+            let ident = dynid_runtime::IdentifyOptions {
+                allow_large: args.allow_large,
+                ..DiagnoseOptions::default().ident
+            };
+            dynid_runtime::ident::memory::check(&ir, sources.len(), &ident, held, "diagnosis")?;
+            for src in &sources {
+                records.push(diagnose::read_record(src, &ir)?);
             }
             args.data.iter().map(|p| p.display().to_string()).collect()
         }
     };
-    let d = run_diagnosis(&ir, &records, &origins, args.quiet)?;
+    let d = run_diagnosis(&ir, &records, &origins, args.quiet, args.allow_large)?;
     print!("{}", d.summary());
     let refined = if args.refine {
         let r = refine_corrected(&d, &records)?;
@@ -172,6 +189,7 @@ pub fn run_diagnosis(
     records: &[Record],
     origins: &[String],
     quiet: bool,
+    allow_large: bool,
 ) -> miette::Result<Diagnosis> {
     let bar = if quiet {
         ProgressBar::hidden()
@@ -189,7 +207,9 @@ pub fn run_diagnosis(
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     };
-    let d = diagnose::diagnose(ir, records, origins, &DiagnoseOptions::default(), &progress);
+    let mut opts = DiagnoseOptions::default();
+    opts.ident.allow_large = allow_large;
+    let d = diagnose::diagnose(ir, records, origins, &opts, &progress);
     bar.finish_and_clear();
     Ok(d?)
 }

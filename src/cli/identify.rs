@@ -3,7 +3,7 @@
 
 use super::common::{check_outputs, inputs, write_atomically, CsvArgs};
 use dsl_parser::ir::ModelIr;
-use dynid_runtime::data::read_record;
+use dynid_runtime::data::read_record_within;
 use dynid_runtime::data::{CsvSource, LevelSource};
 use dynid_runtime::ident::{print, Identification};
 use dynid_runtime::record::Record;
@@ -105,6 +105,15 @@ pub struct Args {
     /// RK4 sub-steps per sample interval of the refinement's simulations.
     #[arg(long, default_value_t = DEFAULT_SUBSTEPS, value_parser = super::common::at_least_one, requires = "refine")]
     pub substeps: usize,
+    /// With --refine: run even when the refinement's simulations (every record's samples
+    /// × the sub-steps, per iteration) are above the safety limit (1e10 RK4 steps).
+    #[arg(long, requires = "refine")]
+    pub allow_long: bool,
+    /// Run even when the memory estimated before reading the data (of the moments and the
+    /// least-squares problem, or of the records read whole for --refine) is above the
+    /// safety limit (8 GB).
+    #[arg(long)]
+    pub allow_large: bool,
 }
 
 /// The refinement and the free-run errors of both estimates.
@@ -124,6 +133,9 @@ pub fn run(args: Args) -> miette::Result<()> {
     )?;
     let ir = super::common::load_model(&args.model)?;
     let opts = refine_options(&args)?;
+    if opts.is_some() {
+        check_whole_records(&ir, &args)?;
+    }
     let id = identify_files(&ir, &args)?;
     print!("{}", render(&ir, &id));
     for w in &id.warnings {
@@ -189,12 +201,43 @@ fn refine_options(args: &Args) -> miette::Result<Option<RefineOptions>> {
     }))
 }
 
-/// Read every file of `paths` whole (the refinement simulates whole records).
+/// Refuse, before any sample is read, a refinement whose records (read whole, the
+/// estimation and the test files together) would take more memory than the limit, unless
+/// `--allow-large`.
+fn check_whole_records(ir: &ModelIr, args: &Args) -> miette::Result<()> {
+    use dynid_runtime::limits::{bytes_in_words, MAX_BYTES};
+    if args.allow_large {
+        return Ok(());
+    }
+    let csv = args.csv.options(ir)?;
+    let mut total = 0.0;
+    for p in args.data.iter().chain(&args.test) {
+        let src = CsvSource::open(p, ir, &csv)?;
+        src.check_whole(false)?;
+        total += src.whole_bytes();
+    }
+    if total > MAX_BYTES {
+        return Err(miette!(
+            code = "dynid::data::too_large",
+            help = "the refinement holds every record whole: give fewer or shorter records, \
+                    or give `--allow-large` to read them anyway",
+            "the records of the refinement would take {} of memory read whole (estimated \
+             from the files' sizes), above the limit of {}",
+            bytes_in_words(total),
+            bytes_in_words(MAX_BYTES)
+        ));
+    }
+    Ok(())
+}
+
+/// Read every file of `paths` whole (the refinement simulates whole records); a record
+/// whose memory (estimated from the file's size) is above the limit is refused before it
+/// is read, unless `--allow-large`.
 fn read_all(ir: &ModelIr, args: &Args, paths: &[PathBuf]) -> miette::Result<Vec<Record>> {
     let csv = args.csv.options(ir)?;
     Ok(paths
         .iter()
-        .map(|p| read_record(p, &csv))
+        .map(|p| read_record_within(p, &csv, args.allow_large))
         .collect::<Result<Vec<_>, _>>()?)
 }
 
@@ -206,6 +249,16 @@ pub fn refine_files(
     opts: &RefineOptions,
 ) -> miette::Result<RefineReport> {
     let est = read_all(ir, args, &args.data)?;
+    let samples: usize = est.iter().map(Record::len).sum();
+    dynid_runtime::sim::check_steps(
+        samples as f64 * args.substeps as f64,
+        &format!(
+            "one free run of {samples} samples × {} RK4 sub-steps (of the refinement's many)",
+            args.substeps
+        ),
+        "--allow-long",
+        args.allow_long,
+    )?;
     let mut opts = opts.clone();
     if let (Some(s), Some(r)) = (args.segment, est.first()) {
         opts.segment = Some(((s / r.ts).round() as usize).max(3));
@@ -315,6 +368,7 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
         balance: Some(args.balance && !args.no_balance),
         noise_correction: !args.no_noise_correction,
         column_chains: args.column_chains,
+        allow_large: args.allow_large,
         ..Default::default()
     };
     Ok(identify(ir, &levels, &opts)?)
@@ -530,6 +584,8 @@ mod tests {
             weight: Vec::new(),
             segment: None,
             substeps: DEFAULT_SUBSTEPS,
+            allow_long: false,
+            allow_large: false,
         };
         let id = identify_files(&ir, &args).unwrap();
         for (n, t) in [("d", 0.4), ("k", 4.0), ("k3", 2.0), ("r", 0.3)] {
@@ -578,6 +634,8 @@ mod tests {
             weight: Vec::new(),
             segment: None,
             substeps: DEFAULT_SUBSTEPS,
+            allow_long: false,
+            allow_large: false,
         };
         let e = format!("{:?}", identify_files(&ir, &args).unwrap_err());
         assert!(e.contains("bad.csv") && e.contains("`m1.v`"), "{e}");

@@ -151,6 +151,11 @@ pub struct Args {
     /// Run even when the estimated work is above the safety limit (1e10 RK4 steps).
     #[arg(long)]
     pub allow_long: bool,
+    /// With --input: run even when the memory of the input record (read whole, estimated
+    /// from the file's size before reading) and of the response is above the safety limit
+    /// (8 GB).
+    #[arg(long)]
+    pub allow_large: bool,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -310,7 +315,8 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
         ],
         [],
     )?;
-    let record = read_input_csv(input)?;
+    let record = read_input_csv(input, args.allow_large)?;
+    check_response_memory(ir, &record, input, args.allow_large)?;
     sim::check_steps(
         record.len() as f64 * args.substeps as f64,
         &format!(
@@ -372,9 +378,42 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
     Ok(())
 }
 
-/// The driving inputs: the shared CSV reader, whose errors name the file and line.
-fn read_input_csv(path: &Path) -> miette::Result<Record> {
-    Ok(data::read_record(path, &data::CsvOptions::default())?)
+/// The driving inputs: the shared CSV reader, whose errors name the file and line; a
+/// record whose memory (estimated from the file's size) is above the limit is refused
+/// before it is read, unless `allow_large`.
+fn read_input_csv(path: &Path, allow_large: bool) -> miette::Result<Record> {
+    Ok(data::read_record_within(
+        path,
+        &data::CsvOptions::default(),
+        allow_large,
+    )?)
+}
+
+/// Refuse a driven simulation whose response (every signal of the model at every sample
+/// of `record`, held whole) would take more than the memory limit, unless `allow_large`.
+fn check_response_memory(
+    ir: &ModelIr,
+    record: &Record,
+    input: &Path,
+    allow_large: bool,
+) -> miette::Result<()> {
+    use dynid_runtime::limits::{bytes_in_words, MAX_BYTES};
+    let bytes = record.len() as f64 * (ir.signals.len() as f64 + 1.0) * 8.0;
+    if allow_large || bytes <= MAX_BYTES {
+        return Ok(());
+    }
+    Err(miette::miette!(
+        code = "dynid::sim::too_large",
+        help = "drive the model with a shorter record, or give `--allow-large` to run it anyway",
+        "driving `{}` with the {} samples of `{}` would hold a response of {} in memory \
+         ({} signals), above the limit of {}",
+        ir.name,
+        record.len(),
+        input.display(),
+        bytes_in_words(bytes),
+        ir.signals.len() + 1,
+        bytes_in_words(MAX_BYTES)
+    ))
 }
 
 fn progress_bar(total: u64) -> indicatif::ProgressBar {
@@ -440,7 +479,7 @@ mod tests {
         let err = |text: &str| {
             format!(
                 "{:?}",
-                read_input_csv(&write(dir.path(), "a.csv", text)).unwrap_err()
+                read_input_csv(&write(dir.path(), "a.csv", text), false).unwrap_err()
             )
         };
         assert!(err("u\n1\n2\n").contains("no `t` column"));
@@ -454,7 +493,11 @@ mod tests {
         // A step of two intervals: a dropped sample, named as such.
         assert!(err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n").contains("line 4: a sample is missing"));
         assert!(err("t,u\n0,1\n0.1,2\n0.25,2\n0.35,1\n").contains("line 4: the time step"));
-        let r = read_input_csv(&write(dir.path(), "b.csv", "t,u\n1,1\n1.5,2\n2,3\n\n")).unwrap();
+        let r = read_input_csv(
+            &write(dir.path(), "b.csv", "t,u\n1,1\n1.5,2\n2,3\n\n"),
+            false,
+        )
+        .unwrap();
         assert_eq!(
             (r.t0, r.ts, r.names.clone()),
             (1.0, 0.5, vec!["u".to_string()])
@@ -484,6 +527,7 @@ mod tests {
             input: None,
             format: Format::Json,
             allow_long: false,
+            allow_large: false,
         }
     }
 
@@ -514,7 +558,7 @@ mod tests {
                 .unwrap();
         assert_eq!(truth.levels, [6.0, 15.0]);
         assert_eq!(truth.files, ["level_1.csv", "level_2.csv"]);
-        let level = read_input_csv(&out.join("level_2.csv")).unwrap();
+        let level = read_input_csv(&out.join("level_2.csv"), false).unwrap();
         assert_eq!(level.names, ["m1.x", "m1.v", "u"]);
         assert_eq!(level.len(), 2000);
 
@@ -522,7 +566,7 @@ mod tests {
         let mut a = args(model, driven_out.clone());
         a.input = Some(out.join("level_2.csv"));
         run(a).unwrap();
-        let driven = read_input_csv(&driven_out.join("driven.csv")).unwrap();
+        let driven = read_input_csv(&driven_out.join("driven.csv"), false).unwrap();
         assert_eq!(driven.len(), level.len());
         assert_eq!(driven.column("u"), level.column("u"));
     }
@@ -546,7 +590,7 @@ mod tests {
         a.quantise = Some(1e-6);
         a.pd = Some(vec![80000.0, 2680.0]);
         run(a).unwrap();
-        let level = read_input_csv(&out.join("level_1.csv")).unwrap();
+        let level = read_input_csv(&out.join("level_1.csv"), false).unwrap();
         assert_eq!(level.names, ["m.x", "u", "m.x_ref"]);
         assert_eq!(level.len(), 2000);
         let truth: sim::Truth =

@@ -34,6 +34,9 @@ pub struct CsvSource {
     pub(super) replay: Arc<Mutex<Option<std::fs::File>>>,
     /// Where the text is read from.
     text: Text,
+    /// Samples estimated from the size of the text and the bytes per row of its first
+    /// lines (`None` where the size is unknown).
+    rows_hint: Option<f64>,
 }
 
 /// Where the text of a [`CsvSource`] is read from.
@@ -101,8 +104,9 @@ fn present_columns(header: &[String], wanted: &str) -> String {
 }
 
 /// Refuse, by their first bytes, files that the CSV reader would misread: UTF-16 text, and
-/// old Mac OS line ends (a carriage return alone), which make the file one line.
-fn sniff(path: &Path, text: &Text) -> Result<(), DataError> {
+/// old Mac OS line ends (a carriage return alone), which make the file one line. Returns
+/// the first bytes read.
+fn sniff(path: &Path, text: &Text) -> Result<Vec<u8>, DataError> {
     const HEAD: usize = 64 << 10;
     let mut head = Vec::with_capacity(HEAD);
     let file = match text {
@@ -117,10 +121,10 @@ fn sniff(path: &Path, text: &Text) -> Result<(), DataError> {
         // The raw bytes (UTF-16 text is full of NUL bytes, which the line reader refuses).
         let Ok(f) = std::fs::File::open(f) else {
             // The reader reports it.
-            return Ok(());
+            return Ok(head);
         };
         if f.take(HEAD as u64).read_to_end(&mut head).is_err() {
-            return Ok(());
+            return Ok(Vec::new());
         }
     }
     let p = || path.display().to_string();
@@ -137,7 +141,41 @@ fn sniff(path: &Path, text: &Text) -> Result<(), DataError> {
     {
         return Err(DataError::CarriageReturns { path: p() });
     }
-    Ok(())
+    Ok(head)
+}
+
+/// Rows of a text of `size` bytes whose first bytes are `head`: the size after the header
+/// line divided by the mean length of the complete rows in `head` (or, where no row ends
+/// in it, by what follows the header there: a row is at least that long).
+fn rows_from_size(size: u64, head: &[u8]) -> f64 {
+    let Some(h) = head.iter().position(|&b| b == b'\n') else {
+        return 0.0;
+    };
+    let body = &head[h + 1..];
+    let (rows, bytes) = match body.iter().rposition(|&b| b == b'\n') {
+        Some(last) => (
+            body[..=last].iter().filter(|&&b| b == b'\n').count(),
+            last + 1,
+        ),
+        None => (1, body.len()),
+    };
+    let per_row = bytes.max(1) as f64 / rows.max(1) as f64;
+    size.saturating_sub(h as u64 + 1) as f64 / per_row
+}
+
+/// The size in bytes of a source's text, where it is known.
+fn text_size(path: &Path, text: &Text) -> Option<u64> {
+    let meta = |p: &Path| {
+        std::fs::metadata(p)
+            .ok()
+            .filter(|m| m.is_file())
+            .map(|m| m.len())
+    };
+    match text {
+        Text::File => meta(path),
+        Text::Copy(t) => meta(t.path()),
+        Text::Bytes(b) => Some(b.len() as u64),
+    }
 }
 
 fn parse_cell(path: &Path, line: u64, column: &str, raw: &[u8]) -> Result<f64, DataError> {
@@ -227,7 +265,8 @@ impl CsvSource {
             Some(b) => Text::Bytes(b),
             None => copy_if_stream(path)?.map_or(Text::File, Text::Copy),
         };
-        sniff(path, &text)?;
+        let head = sniff(path, &text)?;
+        let rows_hint = text_size(path, &text).map(|size| rows_from_size(size, &head));
         let mut rdr = Self::reader(path, &text)?;
         let header: Vec<String> = match rdr.headers() {
             // (The reader skips a UTF-8 byte-order mark at the start of the file.)
@@ -353,6 +392,36 @@ impl CsvSource {
             spill: true,
             replay: Arc::default(),
             text,
+            rows_hint,
+        })
+    }
+
+    /// The samples of the record, estimated before reading it from the size of its text and
+    /// the bytes per row of its first lines (`None` where the size is unknown).
+    pub fn samples_hint(&self) -> Option<f64> {
+        self.rows_hint
+    }
+
+    /// The memory, in bytes, of the record's streamed columns read whole (estimated, see
+    /// [`Self::samples_hint`]; 0 where the size is unknown).
+    pub fn whole_bytes(&self) -> f64 {
+        self.rows_hint.unwrap_or(0.0) * self.wanted.len() as f64 * 8.0
+    }
+
+    /// Refuse to read the record whole when [`Self::whole_bytes`] is above
+    /// [`crate::limits::MAX_BYTES`], unless `allow`.
+    pub fn check_whole(&self, allow: bool) -> Result<(), DataError> {
+        use crate::limits::{bytes_in_words, MAX_BYTES};
+        let bytes = self.whole_bytes();
+        if allow || bytes <= MAX_BYTES {
+            return Ok(());
+        }
+        Err(DataError::TooLarge {
+            path: self.path.display().to_string(),
+            estimate: bytes_in_words(bytes),
+            rows: format!("{:.1e}", self.rows_hint.unwrap_or(0.0)),
+            columns: self.wanted.len(),
+            limit: bytes_in_words(MAX_BYTES),
         })
     }
 
@@ -554,7 +623,18 @@ impl CsvSource {
 /// finite numbers and a uniform time step (`t` column or `opts.ts`). At least two samples.
 /// For inputs that drive a simulation; identification streams with [`CsvSource`] instead.
 pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, DataError> {
-    read_record_from(path, None, opts)
+    read_record_from(path, None, opts, false)
+}
+
+/// As [`read_record`], refused before reading when the record would take more than
+/// [`crate::limits::MAX_BYTES`] of memory (estimated from the file's size, see
+/// [`CsvSource::check_whole`]) unless `allow_large`.
+pub fn read_record_within(
+    path: &Path,
+    opts: &CsvOptions,
+    allow_large: bool,
+) -> Result<Record, DataError> {
+    read_record_from(path, None, opts, allow_large)
 }
 
 /// As [`read_record`] for a file's bytes held in memory (`path` names it in messages).
@@ -563,13 +643,14 @@ pub fn read_record_bytes(
     bytes: &[u8],
     opts: &CsvOptions,
 ) -> Result<Record, DataError> {
-    read_record_from(path, Some(bytes.into()), opts)
+    read_record_from(path, Some(bytes.into()), opts, false)
 }
 
 fn read_record_from(
     path: &Path,
     bytes: Option<Arc<[u8]>>,
     opts: &CsvOptions,
+    allow_large: bool,
 ) -> Result<Record, DataError> {
     let mut names = Vec::new();
     let src = CsvSource::open_with(
@@ -594,7 +675,16 @@ fn read_record_from(
         2,
     )?
     .without_replay();
-    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+    src.check_whole(allow_large)?;
+    // Reserved for the estimated length (growth by doubling would hold up to three times
+    // the record while a column is moved), unless the estimate is beyond the limit.
+    let reserve = match src.samples_hint() {
+        Some(n) if src.whole_bytes() <= crate::limits::MAX_BYTES => (n as usize).saturating_add(16),
+        _ => 0,
+    };
+    let mut columns: Vec<Vec<f64>> = (0..names.len())
+        .map(|_| Vec::with_capacity(reserve))
+        .collect();
     src.stream(1 << 16, &mut |cols, len| {
         for (c, chunk) in columns.iter_mut().zip(cols) {
             c.extend_from_slice(&chunk[..len]);

@@ -16,7 +16,7 @@ pub mod split;
 mod tests;
 mod text;
 
-pub use csv_file::{read_record, read_record_bytes, CsvSource};
+pub use csv_file::{read_record, read_record_bytes, read_record_within, CsvSource};
 pub use record::RecordSource;
 pub use split::{default_response, split_record, Segment, Split, SplitError, SplitOptions};
 pub use text::MAX_LINE;
@@ -151,6 +151,18 @@ pub enum DataError {
         help("record a longer run (the slowest identification filter needs many time constants)")
     )]
     TooFewSamples { path: String, n: usize, need: usize },
+    #[error("{path}: reading the record whole would take {estimate} of memory ({rows} rows × {columns} columns, estimated from the file's size and the bytes per row of its first lines), above the limit of {limit}")]
+    #[diagnostic(
+        code(dynid::data::too_large),
+        help("this command holds the whole record in memory: keep only the columns it needs, cut the record into shorter ones, or give `--allow-large` to read it anyway")
+    )]
+    TooLarge {
+        path: String,
+        estimate: String,
+        rows: String,
+        columns: usize,
+        limit: String,
+    },
     #[error("{path}: line {line}: the time step is {step} s, but the sample interval is {ts} s")]
     #[diagnostic(
         code(dynid::data::non_uniform_time),

@@ -304,8 +304,10 @@ pub fn split_record(
         .min_duration
         .unwrap_or(2.0 * SETTLE * SPLIT_ORDER as f64 / omega);
     // A segment of `min_len` samples spans `(min_len − 1)·ts ≥ t_min` seconds.
-    let min_len = ((t_min / ts).ceil() as usize + 1).max(MIN_SAMPLES);
-    if n < segments * min_len {
+    let min_len = ((t_min / ts).ceil() as usize)
+        .saturating_add(1)
+        .max(MIN_SAMPLES);
+    if n < segments.saturating_mul(min_len) {
         let fit = n / min_len;
         let help = if fit >= 2 {
             format!(
@@ -314,7 +316,7 @@ pub fn split_record(
         } else {
             format!(
                 "record at least {} samples ({} s) for 2 segments, or give one file per level",
-                2 * min_len,
+                min_len.saturating_mul(2),
                 sig(2.0 * min_len as f64 * ts, 4, false)
             )
         };

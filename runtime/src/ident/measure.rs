@@ -23,6 +23,8 @@ pub fn measure<'m>(
             help: "use the defaults".into(),
         });
     }
+    // Before any sample is read: a model too large for memory is refused with the estimate.
+    memory::check(ir, levels.len(), opts, 0.0, "identification")?;
     let bank = choose_bank(ir, opts)?;
     let mut plan = plan::build_structure(ir, opts.balance.unwrap_or(false), &bank)?;
     let t0 = Instant::now();
@@ -109,10 +111,13 @@ pub fn measure<'m>(
         .unwrap_or_else(|| design::blocks(min_duration, tau, min_samples));
     for (s, src) in stats.iter().zip(levels) {
         let duration = (s.n.saturating_sub(1)) as f64 * s.ts;
-        if duration < settle * (1.0 - 1e-9) || s.n < 4 * n_blocks {
-            let need = ((settle / s.ts).ceil() as usize + 1).max(4 * n_blocks);
+        if duration < settle * (1.0 - 1e-9) || s.n < n_blocks.saturating_mul(4) {
+            // (Saturating: a corner of 1e-300 rad/s asks for more samples than a count holds.)
+            let need = ((settle / s.ts).ceil() as usize)
+                .saturating_add(1)
+                .max(n_blocks.saturating_mul(4));
             let advice = match &designed {
-                Some(c) if s.n >= 4 * n_blocks => format!(
+                Some(c) if s.n >= n_blocks.saturating_mul(4) => format!(
                     "record at least {need} samples, or use filter corners that fit this \
                      record (the lowest at least {:.4} rad/s), e.g. `--filter-corners {}`",
                     design::min_corner(min_duration, bank.order),
@@ -128,7 +133,7 @@ pub fn measure<'m>(
                     format!(
                         "record at least {} samples: with {} filter sections even the fastest \
                          corner this sample rate allows ({fast:.4} rad/s) needs {t_fast:.3} s",
-                        need.max((t_fast / s.ts).ceil() as usize + 1),
+                        need.max(((t_fast / s.ts).ceil() as usize).saturating_add(1)),
                         bank.order,
                     )
                 }

@@ -40,6 +40,9 @@ pub struct IdentifyOptions {
     /// (see [`plan::RootDriver`]). Off (the default): chains of positions and inputs
     /// only. What it gains and costs is measured in docs/method.md §2.
     pub column_chains: bool,
+    /// Run even when the estimated memory ([`memory::estimate`]) is above
+    /// [`crate::limits::MAX_BYTES`]; refused before any sample is read otherwise.
+    pub allow_large: bool,
 }
 
 impl Default for IdentifyOptions {
@@ -56,6 +59,7 @@ impl Default for IdentifyOptions {
             hold: Hold::FirstOrder,
             noise_correction: true,
             column_chains: false,
+            allow_large: false,
         }
     }
 }
@@ -93,7 +97,7 @@ pub enum IdentifyError {
         help("pass one data file per excitation level")
     )]
     NoLevels,
-    #[error("{origin}: {n} samples span {duration:.3} s, too short for the slowest filter (time constant {tau:.3} s)")]
+    #[error("{origin}: {n} samples span {duration:.3} s, too short for the slowest filter (time constant {} s)", dynid_ir::num::sig(*.tau, 4, false))]
     #[diagnostic(code(dynid::identify::too_short), help("{advice}"))]
     TooShort {
         origin: String,
@@ -172,6 +176,17 @@ pub enum IdentifyError {
         origin: String,
         column: String,
         size: f64,
+    },
+    #[error("{what} would take {estimate}, above the limit of {limit}: {drivers}")]
+    #[diagnostic(
+        code(dynid::identify::too_large),
+        help("the memory grows with the measured signals times the filter states (drivers × corners × sections) and with the rows times the unknowns: give the model a `filter corners [...]` line with fewer corners (or `--filter-corners` with fewer values), measure fewer signals (or drive the filters by fewer: `filter corners [...] driven by u`), or give `--allow-large` to run it anyway")
+    )]
+    TooLarge {
+        what: String,
+        estimate: String,
+        limit: String,
+        drivers: String,
     },
     #[error(transparent)]
     #[diagnostic(transparent)]

@@ -149,7 +149,8 @@ pub fn check_steps(steps: f64, what: &str, flag: &str, allow: bool) -> Result<()
         what: what.to_string(),
         estimate: crate::limits::steps_in_words(steps),
         help: format!(
-            "runs above {:.0e} RK4 steps ({}) are refused as a likely mistyped setting:              lower the sub-steps, oversampling, duration or levels, or give `{flag}` to run it anyway",
+            "runs above {:.0e} RK4 steps ({}) are refused as a likely mistyped setting: \
+             lower the sub-steps, oversampling, duration or levels, or give `{flag}` to run it anyway",
             crate::limits::MAX_STEPS,
             crate::limits::duration_in_words(crate::limits::MAX_STEPS / crate::limits::STEPS_PER_SECOND)
         ),
