@@ -335,7 +335,8 @@ mod closed_loop {
         };
         let (amp, period) = (3.0, 0.02);
         let ripple = move |x: f64| amp * (2.0 * PI * x / period).sin();
-        let cases: [(_, Box<dyn Fn(f64, f64) -> f64>); 3] = [
+        type Force = Box<dyn Fn(f64, f64) -> f64>;
+        let cases: [((String, String), Force); 3] = [
             (
                 ServoAxis::cogging(amp, period),
                 Box::new(move |x: f64, _v: f64| ripple(x)),
