@@ -10,10 +10,7 @@
 //! - `servo`: tracking error and force autocorrelation of the standard servo axis, seeds 1–6
 //!   (the bounds of `sim::tests::servo_axis_tracks_its_reference_with_a_coloured_force`);
 //! - `noise`: errors of (d, k, k3, r) with and without the noise correction at 0 / 5 / 10 %
-//!   noise on every channel, seeds 11–13, and the estimated noise levels (`ident::noise`);
-//! - `bias`: noise-free errors, in percent and in standard errors, of the benchmark
-//!   (seeds 1–2) and of a linear SDOF whose filters are driven by the input alone at
-//!   corners 8–32 rad/s, Ts 0.01 and 0.005 s (docs/method.md, §3 and §7).
+//!   noise on every channel, seeds 11–13, and the estimated noise levels (`ident::noise`).
 
 use dynid_ir::ir::FormFilter;
 use dynid_runtime::data::{LevelSource, RecordSource};
@@ -21,7 +18,7 @@ use dynid_runtime::sim::test_models::{integration_error, sdof, tracking, SdofPar
 use dynid_runtime::sim::{self, SimConfig};
 use dynid_runtime::{identify, IdentifyOptions};
 
-const WHICH: [&str; 4] = ["integration", "servo", "noise", "bias"];
+const WHICH: [&str; 3] = ["integration", "servo", "noise"];
 
 fn main() {
     let which = std::env::args().nth(1).unwrap_or_default();
@@ -29,7 +26,6 @@ fn main() {
         "integration" => integration(),
         "servo" => servo(),
         "noise" => noise(),
-        "bias" => bias(),
         _ => {
             eprintln!(
                 "usage: cargo run --release -p dynid-runtime --features test-support \
@@ -123,77 +119,6 @@ fn noise() {
                 }
             }
         }
-    }
-}
-
-fn bias() {
-    let report =
-        |what: &str, ir: &dynid_ir::ir::ModelIr, cfg: &SimConfig, opts: &IdentifyOptions| {
-            let recs = sim::simulate(ir, cfg).expect("simulates").records;
-            let srcs: Vec<RecordSource> = recs
-                .iter()
-                .enumerate()
-                .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
-                .collect();
-            let levels: Vec<&dyn LevelSource> =
-                srcs.iter().map(|s| s as &dyn LevelSource).collect();
-            let id = identify(ir, &levels, opts).expect("identifies");
-            let truth = [("d", 0.4), ("k", 4.0), ("k3", 2.0), ("r", 0.3)];
-            let errs: Vec<String> = id
-                .params
-                .iter()
-                .map(|p| {
-                    let t = truth.iter().find(|(n, _)| *n == p.name).expect("known").1;
-                    format!(
-                        "{} {:+.3}% ({:+.1} se)",
-                        p.name,
-                        100.0 * (p.value - t) / t,
-                        (p.value - t) / p.stderr
-                    )
-                })
-                .collect();
-            println!("{what}: {}", errs.join(", "));
-        };
-    let ir = benchmark();
-    for seed in [1, 2] {
-        let cfg = SimConfig {
-            seed,
-            ..Default::default()
-        };
-        report(
-            &format!("benchmark, seed {seed}"),
-            &ir,
-            &cfg,
-            &IdentifyOptions::default(),
-        );
-    }
-    let lin = sdof(
-        &SdofParams::linear(1.0, 0.4, 4.0),
-        FormFilter::Lowpass { corner: 10.0 },
-        vec![6.0, 15.0, 40.0],
-    );
-    let u = dynid_ir::ir::SignalId(
-        lin.signals
-            .iter()
-            .position(|s| s.name == "u")
-            .expect("an input u") as u32,
-    );
-    for ts in [0.01, 0.005] {
-        let cfg = SimConfig {
-            sample: ts,
-            ..Default::default()
-        };
-        let opts = IdentifyOptions {
-            corners: Some(vec![8.0, 16.0, 32.0]),
-            drivers: Some(vec![u]),
-            ..Default::default()
-        };
-        report(
-            &format!("linear SDOF, filters on u, corners 8-32, Ts {ts}"),
-            &lin,
-            &cfg,
-            &opts,
-        );
     }
 }
 

@@ -12,11 +12,7 @@
 //! splits exactly into time blocks: block `b` (samples `n_b … n_{b+1}`) contributes
 //! `Tₛ (Σ_{[n_b, n_{b+1})} f + ½ f(n_{b+1}) − ½ f(n_b))`. At the block boundaries the full
 //! products `ι qᵀ` are kept as snapshots; they supply both the trapezoid end corrections and
-//! the boundary terms `[ι q]` of the finite-record identities. A column linear in measured
-//! inputs is linear between samples by the filters' own assumption, not smooth: its sums
-//! with the filter states are mapped, after the pass, to the exact integrals for such an
-//! input ([`LinearColumnMap`]), from the same sums and the lag-one products of every
-//! driver with the input, kept per block like the sums.
+//! the boundary terms `[ι q]` of the finite-record identities.
 //!
 //! # Per-block contributions for the standard errors
 //!
@@ -40,7 +36,7 @@
 //! exactly (in the discrete trapezoid rule too) to those. Besides the block sums this needs
 //! `Σ s ι wᵀ` per block, `s` the position in the block in samples.
 
-use super::filter::{BankState, FilterBank, Hold, LinearColumnMap};
+use super::filter::{BankState, FilterBank, Hold};
 use super::plan::Plan;
 use crate::basis::BasisEval;
 use faer::{Accum, MatMut, MatRef, Par};
@@ -463,9 +459,6 @@ struct TaskScratch {
 struct TaskWork {
     /// `Σ ι [w, (tpos + k) w]ᵀ` over the task, row-major `n_rows × 2 n_w`.
     part: Vec<f64>,
-    /// Per (driver, input) pair of [`LevelAccumulator::lag_pairs`]: the lag-one products
-    /// `Σ s[m−1] u[m]`, `Σ s[m] u[m−1]` and the same weighted by the position in the block.
-    lag: Vec<f64>,
     /// `ι` (in the plan's row order) and `w` at the first sample.
     first_iota: Vec<f64>,
     first_w: Vec<f64>,
@@ -511,13 +504,6 @@ pub(crate) struct LevelAccumulator<'a> {
     sums: Vec<Vec<f64>>,
     tsums: Vec<Vec<f64>>,
     snaps: Vec<Vec<f64>>,
-    /// Per block, the lag-one products of [`TaskWork::lag`], four per pair.
-    lags: Vec<Vec<f64>>,
-    /// `(driver, signal of the driver, signal of the input)` for every filter driver and
-    /// every measured input of [`Plan::hold_inputs`] (empty unless the hold is first-order).
-    lag_pairs: Vec<(usize, usize, usize)>,
-    /// Every signal's value at the last sample fed (for the lag products across chunks).
-    last: Vec<f64>,
     tails: Vec<Vec<f64>>,
     work: Vec<TaskWork>,
     /// Pass 2's buffers, one set per worker thread.
@@ -565,19 +551,6 @@ impl<'a> LevelAccumulator<'a> {
             }
         }
         row_map.extend((plan.n_z()..n_i).map(Some));
-        let lag_pairs: Vec<(usize, usize, usize)> = if hold == Hold::FirstOrder {
-            plan.drivers
-                .iter()
-                .enumerate()
-                .flat_map(|(d, s)| {
-                    plan.hold_inputs
-                        .iter()
-                        .map(move |&k| (d, s.index(), plan.y[k].index()))
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
         let mut acc = LevelAccumulator {
             plan,
             eval,
@@ -592,9 +565,6 @@ impl<'a> LevelAccumulator<'a> {
             sums: vec![vec![0.0; n_i * n_w]; n_blocks],
             tsums: vec![vec![0.0; n_i * n_w]; n_blocks],
             snaps: vec![vec![0.0; n_i * n_q]; n_blocks + 1],
-            lags: vec![vec![0.0; 4 * lag_pairs.len()]; n_blocks],
-            lag_pairs,
-            last: Vec::new(),
             tails: vec![Vec::with_capacity(VHAT_WINDOW); plan.vhat_bodies.len()],
             work: Vec::new(),
             scratch: (0..rayon::current_num_threads().max(1))
@@ -809,8 +779,6 @@ impl<'a> LevelAccumulator<'a> {
             cols,
             drivers: &drivers,
             ramp: &self.ramp,
-            lag_pairs: &self.lag_pairs,
-            last: &self.last,
         };
         let pool = &self.scratch;
         tasks
@@ -854,9 +822,6 @@ impl<'a> LevelAccumulator<'a> {
                             }
                         }
                     }
-                    for (d, p) in self.lags[b].iter_mut().zip(&wk.lag) {
-                        *d += p;
-                    }
                 }
                 self.times.filter += std::mem::take(&mut wk.filter);
                 self.times.evaluate += std::mem::take(&mut wk.evaluate);
@@ -875,14 +840,6 @@ impl<'a> LevelAccumulator<'a> {
             self.times.accumulate += clock.elapsed();
         }
         self.state = self.work[tasks.len() - 1].end.take();
-        if !self.lag_pairs.is_empty() {
-            self.last.resize(cols.len(), 0.0);
-            for (l, c) in self.last.iter_mut().zip(cols) {
-                if let Some(v) = c.get(len - 1) {
-                    *l = *v;
-                }
-            }
-        }
         self.pos += len;
         self.root_buf = root_buf;
     }
@@ -920,9 +877,8 @@ impl<'a> LevelAccumulator<'a> {
         }
     }
 
-    pub fn finish(mut self) -> (LevelMoments, PhaseTimes) {
+    pub fn finish(self) -> (LevelMoments, PhaseTimes) {
         assert_eq!(self.pos, self.n_total, "record ended early");
-        self.map_input_columns();
         let lens = self.bounds.windows(2).map(|w| w[1] - w[0]).collect();
         (
             LevelMoments {
@@ -937,51 +893,6 @@ impl<'a> LevelAccumulator<'a> {
             },
             self.times,
         )
-    }
-}
-
-impl LevelAccumulator<'_> {
-    /// Replace the trapezoid sums of every filter state against a column linear in measured
-    /// inputs by the exact integrals for inputs linear between samples (see
-    /// [`LinearColumnMap`]), block by block, for the plain and the position-weighted sums
-    /// alike (so the hat contributions still add up to the whole record's moments).
-    fn map_input_columns(&mut self) {
-        let plan = self.plan;
-        if self.lag_pairs.is_empty() || plan.hold_columns.is_empty() {
-            return;
-        }
-        let (n_w, n, n_in) = (plan.n_w(), plan.order, plan.hold_inputs.len());
-        let mut old = vec![0.0; n];
-        for (c, &lam) in plan.corners.iter().enumerate() {
-            let map = LinearColumnMap::new(lam, n, self.ts);
-            for d in 0..plan.drivers.len() {
-                let sy = plan
-                    .iota_y(plan.drivers[d])
-                    .expect("invariant: drivers are measured");
-                for (col, lin) in &plan.hold_columns {
-                    // The lag products of the column: its inputs' lags with this driver.
-                    let lag = |l: &[f64], which: usize| -> f64 {
-                        lin.iter()
-                            .map(|&(p, a)| a * l[4 * (d * n_in + p) + which])
-                            .sum()
-                    };
-                    for b in 0..self.sums.len() {
-                        for (sums, off) in [(&mut self.sums[b], 0), (&mut self.tsums[b], 2)] {
-                            let (l1, l2) = (lag(&self.lags[b], off), lag(&self.lags[b], off + 1));
-                            let sw = sums[sy * n_w + col];
-                            for (i, o) in old.iter_mut().enumerate() {
-                                *o = sums[plan.state(d, c, i) * n_w + col];
-                            }
-                            for i in 0..n {
-                                let kz: f64 = (0..n).map(|j| map.k[i * n + j] * old[j]).sum();
-                                sums[plan.state(d, c, i) * n_w + col] =
-                                    kz + map.k0[i] * sw + map.k1[i] * l1 + map.k2[i] * l2;
-                            }
-                        }
-                    }
-                }
-            }
-        }
     }
 }
 
@@ -1041,9 +952,6 @@ struct TaskCtx<'c> {
     drivers: &'c [&'c [f64]],
     /// `0, 1, 2, …` up to the task length, as floating-point numbers.
     ramp: &'c [f64],
-    /// See [`LevelAccumulator::lag_pairs`] and [`LevelAccumulator::last`].
-    lag_pairs: &'c [(usize, usize, usize)],
-    last: &'c [f64],
 }
 
 impl TaskCtx<'_> {
@@ -1138,73 +1046,8 @@ impl TaskCtx<'_> {
             let b = MatRef::from_column_major_slice(&sc.w[..], len, 2 * n_w);
             let dst = MatMut::from_row_major_slice_mut(&mut wk.part[..], n_rows, 2 * n_w);
             faer::linalg::matmul::matmul(dst, Accum::Replace, a, b, 1.0, Par::Seq);
-            self.lag_products(t, wk);
         }
         wk.accumulate += clock.elapsed();
-    }
-}
-
-/// Independent lanes of the lag-one sums of a task.
-const LAG_LANES: usize = 4;
-
-impl TaskCtx<'_> {
-    /// The lag-one products of every (driver, input) pair over the task's samples `m`
-    /// (pairs `(m − 1, m)`; none before the record's first sample).
-    fn lag_products(&self, t: &Task, wk: &mut TaskWork) {
-        wk.lag.clear();
-        wk.lag.resize(4 * self.lag_pairs.len(), 0.0);
-        for (p, &(_, si, ui)) in self.lag_pairs.iter().enumerate() {
-            let (s, u) = (
-                &self.cols[si][t.off..t.off + t.len],
-                &self.cols[ui][t.off..t.off + t.len],
-            );
-            let before = if t.off > 0 {
-                Some((self.cols[si][t.off - 1], self.cols[ui][t.off - 1]))
-            } else if t.global > 0 {
-                Some((self.last[si], self.last[ui]))
-            } else {
-                None
-            };
-            let (mut l1, mut l2, mut t1, mut t2) = (0.0, 0.0, 0.0, 0.0);
-            if let Some((s0, u0)) = before {
-                let pos = t.tpos as f64;
-                l1 += s0 * u[0];
-                l2 += s[0] * u0;
-                t1 += pos * s0 * u[0];
-                t2 += pos * s[0] * u0;
-            }
-            // Pairs inside the task, in four independent lanes (vectorised; the order of
-            // the sums depends only on the task, not on the threads).
-            let n = t.len.saturating_sub(1);
-            let (sa, sb, ua, ub) = (&s[..n], &s[1..=n], &u[..n], &u[1..=n]);
-            let ramp = &self.ramp[1..=n];
-            let t0 = t.tpos as f64;
-            let mut acc = [[0.0f64; LAG_LANES]; 4];
-            let chunks = n / LAG_LANES * LAG_LANES;
-            for c in (0..chunks).step_by(LAG_LANES) {
-                for j in 0..LAG_LANES {
-                    let (a, b) = (sa[c + j] * ub[c + j], sb[c + j] * ua[c + j]);
-                    let pos = t0 + ramp[c + j];
-                    acc[0][j] += a;
-                    acc[1][j] += b;
-                    acc[2][j] += pos * a;
-                    acc[3][j] += pos * b;
-                }
-            }
-            for k in chunks..n {
-                let (a, b) = (sa[k] * ub[k], sb[k] * ua[k]);
-                let pos = t0 + ramp[k];
-                acc[0][0] += a;
-                acc[1][0] += b;
-                acc[2][0] += pos * a;
-                acc[3][0] += pos * b;
-            }
-            l1 += acc[0].iter().sum::<f64>();
-            l2 += acc[1].iter().sum::<f64>();
-            t1 += acc[2].iter().sum::<f64>();
-            t2 += acc[3].iter().sum::<f64>();
-            wk.lag[4 * p..4 * p + 4].copy_from_slice(&[l1, l2, t1, t2]);
-        }
     }
 }
 

@@ -19,13 +19,13 @@
 //!
 //! | noise on every channel | uncorrected                  | corrected                    |
 //! |------------------------|------------------------------|------------------------------|
-//! | 0 %                    | −0.01, 0.00, 0.00, −0.02 %   | identical (nothing corrected) |
-//! | 5 %                    | −0.13, −0.12, −0.20, +0.28 % | −0.20, −0.09, +0.09, +0.06 % |
-//! | 10 %                   | −0.06, −0.17, −1.08, +1.01 % | −0.37, −0.15, +0.17, +0.25 % |
-//! | 10 %, clean input      | +0.24, −0.17, −1.10, +0.80 % | −0.08, −0.15, +0.14, +0.04 % |
+//! | 0 %                    | −0.10, −0.02, −0.03, −0.09 % | identical (nothing corrected) |
+//! | 5 %                    | −0.22, −0.15, −0.22, +0.21 % | −0.28, −0.12, +0.07, −0.02 % |
+//! | 10 %                   | −0.16, −0.20, −1.10, +0.93 % | −0.47, −0.18, +0.14, +0.17 % |
+//! | 10 %, clean input      | +0.15, −0.19, −1.12, +0.73 % | −0.17, −0.18, +0.12, −0.04 % |
 //!
 //! The seed-to-seed spread is large next to these means: at 10 % the corrected `r` ranged
-//! −0.34 … +1.16 % and `d` −0.76 … 0.00 %; at 5 % `r` −0.62 … +0.49 %. Noise on the input
+//! −0.42 … +1.08 % and `d` −0.86 … −0.10 %; at 5 % `r` −0.69 … +0.42 %. Noise on the input
 //! moves `d` by about −0.3 % at 10 % (same trajectories, last two rows); it is not
 //! corrected, since the input's floor is dominated by its own form-filter content and its
 //! noise cannot be told from it (below). A single sign kernel (`h = σ`) left `r` at +0.40 %
@@ -76,7 +76,7 @@
 //! [`super::IdentifyOptions::noise_correction`] switches the correction off (the CLI's
 //! `--no-noise-correction`); the noise levels are estimated and reported either way.
 
-use super::filter::{ChainDisc, Hold, LinearColumnMap};
+use super::filter::{ChainDisc, Hold};
 use super::moments::LevelMoments;
 use super::plan::{BasisMoment, Comb, Plan};
 use dynid_ir::ir::{BinaryOp, ExprId, ExprNode, ModelIr, SignalId, UnaryOp};
@@ -605,17 +605,9 @@ pub(crate) fn debias(plan: &Plan, lm: &mut LevelMoments, var_y: &[f64], hold: Ho
         }
         for (c, &lam) in plan.corners.iter().enumerate() {
             let g1 = ChainDisc::new(lam, plan.order, lm.ts, hold).g1;
-            // Columns in measured inputs were integrated exactly for an input linear
-            // between samples, which weights the shared noise differently.
-            let exact = (hold == Hold::FirstOrder)
-                .then(|| LinearColumnMap::new(lam, plan.order, lm.ts).noise_gain);
             for (i, g) in g1.iter().enumerate() {
                 let row = plan.state(d, c, i);
                 for &(col, a) in &cols {
-                    let g = match &exact {
-                        Some(gain) if plan.hold_columns.iter().any(|(h, _)| *h == col) => gain[i],
-                        _ => *g,
-                    };
                     for (sum, &len) in lm.sums.iter_mut().zip(&lm.lens) {
                         sum[row * n_w + col] -= a * g * var_y[k] * len as f64;
                     }

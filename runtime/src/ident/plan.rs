@@ -85,13 +85,6 @@ pub(crate) struct Plan {
     pub fixes: Vec<super::noise::ColumnFix>,
     /// Static columns linear in measured signals: (column, [(index into `y`, coefficient)]).
     pub linear_roots: Vec<(usize, Vec<(usize, f64)>)>,
-    /// Measured inputs (indices into `y`) that columns of `w` are linear in: their moments
-    /// with the filter states are taken exactly for an input linear between samples
-    /// ([`super::filter::LinearColumnMap`]).
-    pub hold_inputs: Vec<usize>,
-    /// Columns of `w` that are linear forms in measured inputs alone: (column,
-    /// [(index into `hold_inputs`, coefficient)]).
-    pub hold_columns: Vec<(usize, Vec<(usize, f64)>)>,
 }
 
 /// A filter chain driven by a static basis column `g` (paper eq. 9: the filters may be
@@ -311,70 +304,11 @@ pub(crate) fn build_structure(
         extra: Vec::new(),
         fixes: Vec::new(),
         linear_roots: Vec::new(),
-        hold_inputs: Vec::new(),
-        hold_columns: Vec::new(),
         constant,
-    })
-    .map(|mut plan| {
-        plan.set_hold_columns(ir);
-        plan
     })
 }
 
 impl Plan {
-    /// Find the columns of `w` that are linear in measured inputs alone (the measured
-    /// inputs themselves and static roots such as `u` or `2 * u`).
-    fn set_hold_columns(&mut self, ir: &ModelIr) {
-        let n_g = self.roots.len();
-        let is_input = |k: usize| matches!(ir.signal(self.y[k]).kind, SignalKind::Input(_));
-        let mut columns: Vec<(usize, Vec<(usize, f64)>)> = Vec::new();
-        for (j, &r) in self.roots.iter().enumerate() {
-            let (f, core) = super::noise::split_factor(ir, r);
-            let Some(lin) = super::noise::linear_form(ir, core) else {
-                continue;
-            };
-            let ys: Option<Vec<(usize, f64)>> = lin
-                .iter()
-                .map(|&(s, a)| {
-                    self.y_of[s.index()]
-                        .filter(|&k| is_input(k))
-                        .map(|k| (k, f * a))
-                })
-                .collect();
-            if let Some(ys) = ys.filter(|v| !v.is_empty()) {
-                columns.push((j, ys));
-            }
-        }
-        for k in (0..self.y.len()).filter(|&k| is_input(k)) {
-            columns.push((n_g + k, vec![(k, 1.0)]));
-        }
-        let mut inputs: Vec<usize> = columns
-            .iter()
-            .flat_map(|(_, l)| l.iter().map(|(k, _)| *k))
-            .collect();
-        inputs.sort_unstable();
-        inputs.dedup();
-        self.hold_columns = columns
-            .into_iter()
-            .map(|(c, l)| {
-                let l = l
-                    .into_iter()
-                    .map(|(k, a)| {
-                        (
-                            inputs
-                                .iter()
-                                .position(|&i| i == k)
-                                .expect("invariant: listed"),
-                            a,
-                        )
-                    })
-                    .collect();
-                (c, l)
-            })
-            .collect();
-        self.hold_inputs = inputs;
-    }
-
     /// Why an unknown column that is zero (or, for a constant force, has no mean) cannot be
     /// identified.
     pub fn zero_column_reason(&self, col: usize) -> String {
