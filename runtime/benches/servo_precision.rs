@@ -15,47 +15,117 @@
 //! Run: `cargo bench -p dynid-runtime --bench servo_precision` (`-- --json` prints one JSON
 //! object instead of the table; `DYNID_BENCH_SEEDS=12` sets the number of seeds, 1…N).
 //!
-//! Measured (2026-11-25, AMD EPYC, 2 shared cores, seeds 1–12;
+//! Measured (2026-11-26, AMD EPYC, 2 shared cores, seeds 1–12;
 //! `cargo bench -p dynid-runtime --bench servo_precision`; RMS error and mean SE in % of the
-//! truth, `cover` the fraction of seeds with |error| < 2 SE, `e/SE` the RMS of error / SE):
+//! truth, `cover` the fraction of seeds with |error| < 2 SE, `e/SE` the RMS of error / SE;
+//! the planned records carry white noise of 1 % of the force's spread on the force, drawn
+//! from the seed — without it every seed would give the same record):
 //!
 //! ```text
+//! servo axis, seeds 1–12: RMS error, mean SE (both % of the truth), coverage |e| < 2 SE, RMS e/SE
+//!
 //! random reference
 //! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.014%    0.022%    100%    0.68      21.4
-//! dynid (defaults)            d    0.472%    0.510%    100%    0.83      21.4
-//! dynid (defaults)            r    1.359%    1.388%    100%    0.81      21.4
-//! dynid (defaults)           f0    1.465%    0.982%    100%    1.00      21.4
-//! IDIM-LS, OLS errors         m    0.029%    0.016%     75%    1.79       8.7
-//! IDIM-LS, OLS errors         d    0.163%    0.088%     58%    1.77       8.7
-//! IDIM-LS, OLS errors         r    0.785%    0.197%      0%    3.96       8.7
-//! IDIM-LS, OLS errors        f0    0.639%    0.872%     92%    0.73       8.7
-//! IDIM-LS, HAC errors         m    0.029%    0.014%     67%    2.08       8.7
-//! IDIM-LS, HAC errors         d    0.163%    0.064%     50%    2.41       8.7
-//! IDIM-LS, HAC errors         r    0.785%    0.169%      0%    4.61       8.7
-//! IDIM-LS, HAC errors        f0    0.639%    0.587%     92%    1.03       8.7
-//! SVF-LS 10 Hz, HAC           m    0.102%    0.022%      0%    4.63     599.6
-//! SVF-LS 10 Hz, HAC           d    0.169%    0.102%     83%    1.70     599.6
-//! SVF-LS 10 Hz, HAC           r    0.681%    0.275%     50%    1.99     599.6
-//! SVF-LS 10 Hz, HAC          f0    1.210%    1.556%    100%    0.74     599.6
-//! SVF-LS 80 Hz, HAC           m    0.027%    0.006%      0%    4.45      90.6
-//! SVF-LS 80 Hz, HAC           d    0.096%    0.037%     33%    3.41      90.6
-//! SVF-LS 80 Hz, HAC           r    0.149%    0.094%     92%    1.48      90.6
-//! SVF-LS 80 Hz, HAC          f0    0.313%    0.417%    100%    0.62      90.6
+//! dynid (defaults)            m    0.014%    0.022%    100%    0.68       6.7
+//! dynid (defaults)            d    0.468%    0.507%    100%    0.83       6.7
+//! dynid (defaults)            r    1.349%    1.381%    100%    0.81       6.7
+//! dynid (defaults)           f0    1.463%    0.979%    100%    1.00       6.7
+//! dynid --column-chains       m    0.041%    0.031%    100%    1.16       6.6
+//! dynid --column-chains       d    0.256%    0.228%     92%    0.96       6.6
+//! dynid --column-chains       r    0.705%    0.582%     92%    1.20       6.6
+//! dynid --column-chains      f0    0.862%    1.004%     92%    0.79       6.6
+//! IDIM-LS, OLS errors         m    0.029%    0.016%     75%    1.79       2.8
+//! IDIM-LS, OLS errors         d    0.163%    0.088%     58%    1.77       2.8
+//! IDIM-LS, OLS errors         r    0.785%    0.197%      0%    3.96       2.8
+//! IDIM-LS, OLS errors        f0    0.639%    0.872%     92%    0.73       2.8
+//! IDIM-LS, HAC errors         m    0.029%    0.014%     67%    2.08       2.8
+//! IDIM-LS, HAC errors         d    0.163%    0.064%     50%    2.41       2.8
+//! IDIM-LS, HAC errors         r    0.785%    0.169%      0%    4.61       2.8
+//! IDIM-LS, HAC errors        f0    0.639%    0.587%     92%    1.03       2.8
+//! SVF-LS 10 Hz, HAC           m    0.102%    0.022%      0%    4.63     142.8
+//! SVF-LS 10 Hz, HAC           d    0.169%    0.102%     83%    1.70     142.8
+//! SVF-LS 10 Hz, HAC           r    0.681%    0.275%     50%    1.99     142.8
+//! SVF-LS 10 Hz, HAC          f0    1.210%    1.556%    100%    0.74     142.8
+//! SVF-LS 80 Hz, HAC           m    0.027%    0.006%      0%    4.45      20.3
+//! SVF-LS 80 Hz, HAC           d    0.096%    0.037%     33%    3.41      20.3
+//! SVF-LS 80 Hz, HAC           r    0.149%    0.094%     92%    1.48      20.3
+//! SVF-LS 80 Hz, HAC          f0    0.313%    0.417%    100%    0.62      20.3
+//!
+//! planned moves
+//! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
+//! dynid (defaults)            m   23.426%    2.846%      0%    8.23       4.9
+//! dynid (defaults)            d   67.197%    6.927%      0%   33.79       4.9
+//! dynid (defaults)            r   67.153%   11.076%      0%    6.06       4.9
+//! dynid (defaults)           f0    6.889%   20.880%    100%    0.33       4.9
+//! dynid --column-chains       m   32.167%    5.193%      0%    6.19       5.7
+//! dynid --column-chains       d   85.204%   16.146%      0%    5.28       5.7
+//! dynid --column-chains       r   90.248%   15.168%      0%    5.95       5.7
+//! dynid --column-chains      f0   10.657%   27.414%    100%    0.39       5.7
+//! IDIM-LS, OLS errors         m    0.025%    0.025%    100%    1.00       1.4
+//! IDIM-LS, OLS errors         d    0.076%    0.147%    100%    0.52       1.4
+//! IDIM-LS, OLS errors         r    0.368%    0.199%     67%    1.84       1.4
+//! IDIM-LS, OLS errors        f0    0.234%    0.914%    100%    0.26       1.4
+//! IDIM-LS, HAC errors         m    0.025%    0.015%     83%    1.64       1.4
+//! IDIM-LS, HAC errors         d    0.076%    0.099%    100%    0.77       1.4
+//! IDIM-LS, HAC errors         r    0.368%    0.157%     17%    2.35       1.4
+//! IDIM-LS, HAC errors        f0    0.234%    0.524%    100%    0.45       1.4
+//! SVF-LS 10 Hz, HAC           m    0.282%    0.098%      0%    2.89     140.9
+//! SVF-LS 10 Hz, HAC           d   15.825%    2.439%      0%    6.49     140.9
+//! SVF-LS 10 Hz, HAC           r   26.551%    2.925%      0%    9.08     140.9
+//! SVF-LS 10 Hz, HAC          f0    2.726%   27.672%    100%    0.10     140.9
+//! SVF-LS 80 Hz, HAC           m    0.014%    0.225%    100%    0.06      20.5
+//! SVF-LS 80 Hz, HAC           d   27.561%    2.601%      0%   10.59      20.5
+//! SVF-LS 80 Hz, HAC           r   47.352%    3.753%      0%   12.62      20.5
+//! SVF-LS 80 Hz, HAC          f0    9.814%   17.156%    100%    0.57      20.5
+//!
+//! planned moves, Stribeck friction not in the model
+//! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
+//! dynid (defaults)            m   33.643%    3.260%      0%   10.32       5.3
+//! dynid (defaults)            d   95.089%    8.419%      0%   11.30       5.3
+//! dynid (defaults)            r   98.974%   13.267%      0%    7.46       5.3
+//! dynid (defaults)           f0    4.112%   12.825%    100%    0.32       5.3
+//! dynid --column-chains       m   39.129%    4.525%      0%    8.65       6.0
+//! dynid --column-chains       d   69.957%    8.109%      0%    8.63       6.0
+//! dynid --column-chains       r   63.467%   10.517%      0%    6.04       6.0
+//! dynid --column-chains      f0   12.687%   11.282%    100%    1.12       6.0
+//! IDIM-LS, OLS errors         m    0.047%    0.032%    100%    1.44       1.4
+//! IDIM-LS, OLS errors         d    3.369%    0.191%      0%   17.65       1.4
+//! IDIM-LS, OLS errors         r    5.596%    0.259%      0%   21.59       1.4
+//! IDIM-LS, OLS errors        f0    0.241%    1.181%    100%    0.20       1.4
+//! IDIM-LS, HAC errors         m    0.047%    0.027%     92%    1.73       1.4
+//! IDIM-LS, HAC errors         d    3.369%    0.405%      0%    8.32       1.4
+//! IDIM-LS, HAC errors         r    5.596%    0.627%      0%    8.93       1.4
+//! IDIM-LS, HAC errors        f0    0.241%    2.024%    100%    0.12       1.4
+//! SVF-LS 10 Hz, HAC           m    0.315%    0.092%      0%    3.44     143.1
+//! SVF-LS 10 Hz, HAC           d   13.450%    2.384%      0%    5.64     143.1
+//! SVF-LS 10 Hz, HAC           r   22.585%    3.043%      0%    7.42     143.1
+//! SVF-LS 10 Hz, HAC          f0    4.661%   37.101%    100%    0.13     143.1
+//! SVF-LS 80 Hz, HAC           m    0.032%    0.176%    100%    0.18      20.9
+//! SVF-LS 80 Hz, HAC           d   20.549%    2.280%      0%    9.01      20.9
+//! SVF-LS 80 Hz, HAC           r   35.287%    3.465%      0%   10.18      20.9
+//! SVF-LS 80 Hz, HAC          f0   19.365%   18.474%    100%    1.05      20.9
 //! ```
 //!
-//! On these records dynid's defaults have honest, slightly conservative errors (every
-//! estimate within 2 SE, RMS of e/SE 0.68–1.0) and the smallest mass error; the
-//! baselines' RMS errors of d, r and f0 are 1.7–2.9× (IDIM-LS) and 4.7–9.1× (SVF-LS at
-//! 80 Hz) smaller, but dominated by biases of their own that their standard errors do not
-//! cover (measured without quantisation in
-//! `baseline::tests::noise_free_servo_axis_is_recovered`): r −0.6 to −1.1 % for IDIM-LS
-//! (the Coulomb column is the sign of the filtered velocity, while the force carries the
-//! filtered sign), the mass +0.03 % (IDIM-LS, SVF-LS at 80 Hz) and +0.1 % (SVF-LS at
-//! 10 Hz). IDIM-LS's Newey–West errors come out below its classical ones (the decimated
-//! residuals are negatively correlated at short lags).
-//! `ms/rec` is the wall time per record with the seeds run in parallel (SVF-LS at 10 Hz
-//! spends it on the Newey–West sum over 382 lags).
+//! **Random reference.** dynid's errors are honest (every estimate within 2 SE with the
+//! defaults) and its mass error the smallest; IDIM-LS's RMS errors of d, r and f0 are 2.9×,
+//! 1.7× and 2.3× smaller, SVF-LS's at 80 Hz 4.9×, 9.1× and 4.7×, but both baselines carry
+//! biases their standard errors do not cover (IDIM-LS r −0.6 to −1.1 %, its classical and
+//! HAC coverage of r 0 %; measured without quantisation in
+//! `baseline::tests::noise_free_servo_axis_is_recovered`). `--column-chains` halves dynid's
+//! d, r and f0 errors and triples its mass error (docs/method.md §2).
+//!
+//! **Planned moves** (a third of every cycle at rest). dynid fails here, with either
+//! setting: the mass off by 23 %, damping and friction by 67 %, at 6–34 of its own standard
+//! errors. At rest the Coulomb force lies anywhere in ±fc while the model says `r·sign(v̂)`,
+//! and every moment of the record (filter states remember the rests) carries that
+//! violation; SVF-LS, which keeps the rows at rest too, fails the same way (d 16–28 %,
+//! r 27–47 %). IDIM-LS drops the rows with |v| < 1 mm/s and stays within 0.03 % (m), 0.08 %
+//! (d), 0.37 % (r), 0.23 % (f0). With a Stribeck term the model lacks, IDIM-LS's friction
+//! split moves by 3–6 % at 9–22 of its standard errors.
+//!
+//! IDIM-LS's Newey–West errors come out below its classical ones (the decimated residuals
+//! are negatively correlated at short lags). `ms/rec` is the wall time per record with the
+//! seeds run in parallel (SVF-LS at 10 Hz spends it on the Newey–West sum over 382 lags).
 
 use dynid_ir::ir::ModelIr;
 use dynid_runtime::baseline::{self, Fit, IdimOptions, SvfOptions};
@@ -77,30 +147,69 @@ const TRUTH: [(&str, f64); 4] = [("m", 50.0), ("d", 120.0), ("r", 15.0), ("f0", 
 enum Trajectory {
     /// The smooth random reference of `tests/servo.rs` (10 cm RMS, corner 5 rad/s).
     Random,
+    /// Planned point-to-point moves ([`ServoAxis::planned`]: 10 cm out and back at 0.4,
+    /// 0.2 and 0.1 m/s, 0.33 s at rest before each move, four identical cycles).
+    Planned,
+    /// The planned moves on an axis whose friction has a Stribeck term that the model
+    /// lacks: 5 N more at rest, falling off over 10 mm/s.
+    PlannedStribeck,
 }
 
 impl Trajectory {
-    const ALL: [Trajectory; 1] = [Trajectory::Random];
+    const ALL: [Trajectory; 3] = [
+        Trajectory::Random,
+        Trajectory::Planned,
+        Trajectory::PlannedStribeck,
+    ];
 
     fn label(self) -> &'static str {
         match self {
             Trajectory::Random => "random reference",
+            Trajectory::Planned => "planned moves",
+            Trajectory::PlannedStribeck => "planned moves, Stribeck friction not in the model",
         }
     }
 }
 
-/// The model and one record of the servo axis moved by `kind` at `seed`.
+/// The identification model and one record of the servo axis moved by `kind` at `seed`
+/// (simulated with the axis's true model, which may hold forces the model lacks).
 fn record(kind: Trajectory, seed: u64) -> (ModelIr, Record) {
-    let mut axis = ServoAxis::standard();
+    let mut axis = match kind {
+        Trajectory::Random => {
+            let mut a = ServoAxis::standard();
+            a.reference.rms = 0.1;
+            a
+        }
+        Trajectory::Planned | Trajectory::PlannedStribeck => ServoAxis::planned(),
+    };
     axis.extra_forces = vec![("offset".into(), "f0 ~ -2.0".into())];
-    match kind {
-        Trajectory::Random => axis.reference.rms = 0.1,
+    if kind == Trajectory::PlannedStribeck {
+        axis.model_error = vec![ServoAxis::stribeck(5.0, 0.01)];
     }
-    let ir = axis.model();
     let mut cfg = axis.config(seed);
     cfg.input_oversample = 10;
-    let mut out = sim::simulate(&ir, &cfg).expect("invariant: the servo axis simulates");
-    (ir, out.records.remove(0))
+    let mut out =
+        sim::simulate(&axis.true_model(), &cfg).expect("invariant: the servo axis simulates");
+    let mut rec = out.records.remove(0);
+    if kind != Trajectory::Random {
+        // A planned record has nothing random in it (the encoder's rounding is
+        // deterministic): the seed draws white noise on the force, 1 % of its spread, as a
+        // drive's current measurement carries.
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let u = rec
+            .names
+            .iter()
+            .position(|n| n == "u")
+            .expect("invariant: the force is recorded");
+        let col = &mut rec.columns[u];
+        let mean = col.iter().sum::<f64>() / col.len() as f64;
+        let sd = (col.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / col.len() as f64).sqrt();
+        let noise = Normal::new(0.0, 0.01 * sd).expect("invariant: a finite spread");
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        col.iter_mut().for_each(|v| *v += noise.sample(&mut rng));
+    }
+    (axis.model(), rec)
 }
 
 /// One estimate: `(value, standard error)` per parameter of [`TRUTH`], `None` where the
@@ -108,8 +217,9 @@ fn record(kind: Trajectory, seed: u64) -> (ModelIr, Record) {
 type Estimate = Vec<Option<(f64, f64)>>;
 
 /// The methods compared, by name.
-const METHODS: [&str; 5] = [
+const METHODS: [&str; 6] = [
     "dynid (defaults)",
+    "dynid --column-chains",
     "IDIM-LS, OLS errors",
     "IDIM-LS, HAC errors",
     "SVF-LS 10 Hz, HAC",
@@ -141,20 +251,22 @@ fn run_all(ir: &ModelIr, rec: &Record) -> Vec<(Estimate, f64)> {
             }
         }
     };
-    let dynid = timed(&|| {
-        let src = RecordSource::new(rec, ir, "servo").expect("invariant: a simulated record");
-        let levels: Vec<&dyn LevelSource> = vec![&src];
-        match dynid_runtime::identify(ir, &levels, &IdentifyOptions::default()) {
-            Ok(id) => TRUTH
-                .iter()
-                .map(|(n, _)| id.param(n).map(|p| (p.value, p.stderr)))
-                .collect(),
-            Err(e) => {
-                eprintln!("identify failed: {e}");
-                vec![None; TRUTH.len()]
+    let dynid = |opts: IdentifyOptions| {
+        timed(&|| {
+            let src = RecordSource::new(rec, ir, "servo").expect("invariant: a simulated record");
+            let levels: Vec<&dyn LevelSource> = vec![&src];
+            match dynid_runtime::identify(ir, &levels, &opts) {
+                Ok(id) => TRUTH
+                    .iter()
+                    .map(|(n, _)| id.param(n).map(|p| (p.value, p.stderr)))
+                    .collect(),
+                Err(e) => {
+                    eprintln!("identify failed: {e}");
+                    vec![None; TRUTH.len()]
+                }
             }
-        }
-    });
+        })
+    };
     let idim = || baseline::idim_ls(rec, "m.x", "u", &IdimOptions::default());
     let t = Instant::now();
     let idim_fit = idim();
@@ -168,7 +280,11 @@ fn run_all(ir: &ModelIr, rec: &Record) -> Vec<(Estimate, f64)> {
         })
     };
     vec![
-        dynid,
+        dynid(IdentifyOptions::default()),
+        dynid(IdentifyOptions {
+            column_chains: true,
+            ..Default::default()
+        }),
         (from_fit(&idim_fit, false), idim_time),
         (from_fit(&idim_fit, true), idim_time),
         svf(10.0),

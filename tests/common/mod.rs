@@ -97,11 +97,22 @@ pub fn dynid() -> std::process::Command {
 
 /// A command's standard error with miette's line wrapping undone.
 pub fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr)
-        .split_whitespace()
-        .filter(|w| *w != "│")
-        .collect::<Vec<_>>()
-        .join(" ")
+    // The report wraps lines at the terminal width and may break a word after a hyphen
+    // (`--allow-` / `large`): a line ending in a letter and a hyphen continues its word on
+    // the next line.
+    let mut out = String::new();
+    let mut glue = false;
+    for line in String::from_utf8_lossy(&o.stderr).lines() {
+        for (k, w) in line.split_whitespace().filter(|w| *w != "│").enumerate() {
+            if !out.is_empty() && !(k == 0 && glue) {
+                out.push(' ');
+            }
+            out.push_str(w);
+        }
+        let b = out.as_bytes();
+        glue = b.len() >= 2 && b[b.len() - 1] == b'-' && b[b.len() - 2].is_ascii_alphabetic();
+    }
+    out
 }
 
 /// `seed` shifted by the environment variable `DYNID_SEED_OFFSET` (default 0). The tests
