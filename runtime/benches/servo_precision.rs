@@ -26,84 +26,84 @@
 //!
 //! random reference
 //! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.014%    0.022%    100%    0.68       6.7
-//! dynid (defaults)            d    0.468%    0.507%    100%    0.83       6.7
-//! dynid (defaults)            r    1.349%    1.381%    100%    0.81       6.7
-//! dynid (defaults)           f0    1.463%    0.979%    100%    1.00       6.7
-//! dynid --column-chains       m    0.041%    0.031%    100%    1.16       6.6
-//! dynid --column-chains       d    0.256%    0.228%     92%    0.96       6.6
-//! dynid --column-chains       r    0.705%    0.582%     92%    1.20       6.6
-//! dynid --column-chains      f0    0.862%    1.004%     92%    0.79       6.6
-//! IDIM-LS, OLS errors         m    0.029%    0.016%     75%    1.79       2.8
-//! IDIM-LS, OLS errors         d    0.163%    0.088%     58%    1.77       2.8
-//! IDIM-LS, OLS errors         r    0.785%    0.197%      0%    3.96       2.8
-//! IDIM-LS, OLS errors        f0    0.639%    0.872%     92%    0.73       2.8
-//! IDIM-LS, HAC errors         m    0.029%    0.014%     67%    2.08       2.8
-//! IDIM-LS, HAC errors         d    0.163%    0.064%     50%    2.41       2.8
-//! IDIM-LS, HAC errors         r    0.785%    0.169%      0%    4.61       2.8
-//! IDIM-LS, HAC errors        f0    0.639%    0.587%     92%    1.03       2.8
-//! SVF-LS 10 Hz, HAC           m    0.102%    0.022%      0%    4.63     142.8
-//! SVF-LS 10 Hz, HAC           d    0.169%    0.102%     83%    1.70     142.8
-//! SVF-LS 10 Hz, HAC           r    0.681%    0.275%     50%    1.99     142.8
-//! SVF-LS 10 Hz, HAC          f0    1.210%    1.556%    100%    0.74     142.8
-//! SVF-LS 80 Hz, HAC           m    0.027%    0.006%      0%    4.45      20.3
-//! SVF-LS 80 Hz, HAC           d    0.096%    0.037%     33%    3.41      20.3
-//! SVF-LS 80 Hz, HAC           r    0.149%    0.094%     92%    1.48      20.3
-//! SVF-LS 80 Hz, HAC          f0    0.313%    0.417%    100%    0.62      20.3
+//! dynid (defaults)            m    0.014%    0.022%    100%    0.68      10.8
+//! dynid (defaults)            d    0.472%    0.510%    100%    0.83      10.8
+//! dynid (defaults)            r    1.359%    1.388%    100%    0.81      10.8
+//! dynid (defaults)           f0    1.465%    0.982%    100%    1.00      10.8
+//! dynid --column-chains       m    0.042%    0.031%    100%    1.16      13.3
+//! dynid --column-chains       d    0.256%    0.228%     92%    0.96      13.3
+//! dynid --column-chains       r    0.702%    0.582%     92%    1.18      13.3
+//! dynid --column-chains      f0    0.864%    1.003%     92%    0.80      13.3
+//! IDIM-LS, OLS errors         m    0.029%    0.016%     75%    1.79       7.5
+//! IDIM-LS, OLS errors         d    0.163%    0.088%     58%    1.77       7.5
+//! IDIM-LS, OLS errors         r    0.785%    0.197%      0%    3.96       7.5
+//! IDIM-LS, OLS errors        f0    0.639%    0.872%     92%    0.73       7.5
+//! IDIM-LS, HAC errors         m    0.029%    0.014%     67%    2.08       7.5
+//! IDIM-LS, HAC errors         d    0.163%    0.064%     50%    2.41       7.5
+//! IDIM-LS, HAC errors         r    0.785%    0.169%      0%    4.61       7.5
+//! IDIM-LS, HAC errors        f0    0.639%    0.587%     92%    1.03       7.5
+//! SVF-LS 10 Hz, HAC           m    0.102%    0.022%      0%    4.63     301.8
+//! SVF-LS 10 Hz, HAC           d    0.169%    0.102%     83%    1.70     301.8
+//! SVF-LS 10 Hz, HAC           r    0.681%    0.275%     50%    1.99     301.8
+//! SVF-LS 10 Hz, HAC          f0    1.210%    1.556%    100%    0.74     301.8
+//! SVF-LS 80 Hz, HAC           m    0.027%    0.006%      0%    4.45      44.3
+//! SVF-LS 80 Hz, HAC           d    0.096%    0.037%     33%    3.41      44.3
+//! SVF-LS 80 Hz, HAC           r    0.149%    0.094%     92%    1.48      44.3
+//! SVF-LS 80 Hz, HAC          f0    0.313%    0.417%    100%    0.62      44.3
 //!
 //! planned moves
 //! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m   23.426%    2.846%      0%    8.23       4.9
-//! dynid (defaults)            d   67.197%    6.927%      0%   33.79       4.9
-//! dynid (defaults)            r   67.153%   11.076%      0%    6.06       4.9
-//! dynid (defaults)           f0    6.889%   20.880%    100%    0.33       4.9
-//! dynid --column-chains       m   32.167%    5.193%      0%    6.19       5.7
-//! dynid --column-chains       d   85.204%   16.146%      0%    5.28       5.7
-//! dynid --column-chains       r   90.248%   15.168%      0%    5.95       5.7
-//! dynid --column-chains      f0   10.657%   27.414%    100%    0.39       5.7
-//! IDIM-LS, OLS errors         m    0.025%    0.025%    100%    1.00       1.4
-//! IDIM-LS, OLS errors         d    0.076%    0.147%    100%    0.52       1.4
-//! IDIM-LS, OLS errors         r    0.368%    0.199%     67%    1.84       1.4
-//! IDIM-LS, OLS errors        f0    0.234%    0.914%    100%    0.26       1.4
-//! IDIM-LS, HAC errors         m    0.025%    0.015%     83%    1.64       1.4
-//! IDIM-LS, HAC errors         d    0.076%    0.099%    100%    0.77       1.4
-//! IDIM-LS, HAC errors         r    0.368%    0.157%     17%    2.35       1.4
-//! IDIM-LS, HAC errors        f0    0.234%    0.524%    100%    0.45       1.4
-//! SVF-LS 10 Hz, HAC           m    0.282%    0.098%      0%    2.89     140.9
-//! SVF-LS 10 Hz, HAC           d   15.825%    2.439%      0%    6.49     140.9
-//! SVF-LS 10 Hz, HAC           r   26.551%    2.925%      0%    9.08     140.9
-//! SVF-LS 10 Hz, HAC          f0    2.726%   27.672%    100%    0.10     140.9
-//! SVF-LS 80 Hz, HAC           m    0.014%    0.225%    100%    0.06      20.5
-//! SVF-LS 80 Hz, HAC           d   27.561%    2.601%      0%   10.59      20.5
-//! SVF-LS 80 Hz, HAC           r   47.352%    3.753%      0%   12.62      20.5
-//! SVF-LS 80 Hz, HAC          f0    9.814%   17.156%    100%    0.57      20.5
+//! dynid (defaults)            m   23.425%    2.846%      0%    8.23       9.0
+//! dynid (defaults)            d   67.193%    6.925%      0%   33.89       9.0
+//! dynid (defaults)            r   67.149%   11.074%      0%    6.06       9.0
+//! dynid (defaults)           f0    6.890%   20.880%    100%    0.33       9.0
+//! dynid --column-chains       m   32.166%    5.193%      0%    6.19      11.4
+//! dynid --column-chains       d   85.203%   16.146%      0%    5.28      11.4
+//! dynid --column-chains       r   90.246%   15.168%      0%    5.95      11.4
+//! dynid --column-chains      f0   10.657%   27.414%    100%    0.39      11.4
+//! IDIM-LS, OLS errors         m    0.025%    0.025%    100%    1.00       2.7
+//! IDIM-LS, OLS errors         d    0.076%    0.147%    100%    0.52       2.7
+//! IDIM-LS, OLS errors         r    0.368%    0.199%     67%    1.84       2.7
+//! IDIM-LS, OLS errors        f0    0.234%    0.914%    100%    0.26       2.7
+//! IDIM-LS, HAC errors         m    0.025%    0.015%     83%    1.64       2.7
+//! IDIM-LS, HAC errors         d    0.076%    0.099%    100%    0.77       2.7
+//! IDIM-LS, HAC errors         r    0.368%    0.157%     17%    2.35       2.7
+//! IDIM-LS, HAC errors        f0    0.234%    0.524%    100%    0.45       2.7
+//! SVF-LS 10 Hz, HAC           m    0.282%    0.098%      0%    2.89     282.0
+//! SVF-LS 10 Hz, HAC           d   15.825%    2.439%      0%    6.49     282.0
+//! SVF-LS 10 Hz, HAC           r   26.551%    2.925%      0%    9.08     282.0
+//! SVF-LS 10 Hz, HAC          f0    2.726%   27.672%    100%    0.10     282.0
+//! SVF-LS 80 Hz, HAC           m    0.014%    0.225%    100%    0.06      44.1
+//! SVF-LS 80 Hz, HAC           d   27.561%    2.601%      0%   10.59      44.1
+//! SVF-LS 80 Hz, HAC           r   47.352%    3.753%      0%   12.62      44.1
+//! SVF-LS 80 Hz, HAC          f0    9.814%   17.156%    100%    0.57      44.1
 //!
 //! planned moves, Stribeck friction not in the model
 //! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m   33.643%    3.260%      0%   10.32       5.3
-//! dynid (defaults)            d   95.089%    8.419%      0%   11.30       5.3
-//! dynid (defaults)            r   98.974%   13.267%      0%    7.46       5.3
-//! dynid (defaults)           f0    4.112%   12.825%    100%    0.32       5.3
-//! dynid --column-chains       m   39.129%    4.525%      0%    8.65       6.0
-//! dynid --column-chains       d   69.957%    8.109%      0%    8.63       6.0
-//! dynid --column-chains       r   63.467%   10.517%      0%    6.04       6.0
-//! dynid --column-chains      f0   12.687%   11.282%    100%    1.12       6.0
-//! IDIM-LS, OLS errors         m    0.047%    0.032%    100%    1.44       1.4
-//! IDIM-LS, OLS errors         d    3.369%    0.191%      0%   17.65       1.4
-//! IDIM-LS, OLS errors         r    5.596%    0.259%      0%   21.59       1.4
-//! IDIM-LS, OLS errors        f0    0.241%    1.181%    100%    0.20       1.4
-//! IDIM-LS, HAC errors         m    0.047%    0.027%     92%    1.73       1.4
-//! IDIM-LS, HAC errors         d    3.369%    0.405%      0%    8.32       1.4
-//! IDIM-LS, HAC errors         r    5.596%    0.627%      0%    8.93       1.4
-//! IDIM-LS, HAC errors        f0    0.241%    2.024%    100%    0.12       1.4
-//! SVF-LS 10 Hz, HAC           m    0.315%    0.092%      0%    3.44     143.1
-//! SVF-LS 10 Hz, HAC           d   13.450%    2.384%      0%    5.64     143.1
-//! SVF-LS 10 Hz, HAC           r   22.585%    3.043%      0%    7.42     143.1
-//! SVF-LS 10 Hz, HAC          f0    4.661%   37.101%    100%    0.13     143.1
-//! SVF-LS 80 Hz, HAC           m    0.032%    0.176%    100%    0.18      20.9
-//! SVF-LS 80 Hz, HAC           d   20.549%    2.280%      0%    9.01      20.9
-//! SVF-LS 80 Hz, HAC           r   35.287%    3.465%      0%   10.18      20.9
-//! SVF-LS 80 Hz, HAC          f0   19.365%   18.474%    100%    1.05      20.9
+//! dynid (defaults)            m   33.643%    3.260%      0%   10.32       9.0
+//! dynid (defaults)            d   95.084%    8.418%      0%   11.30       9.0
+//! dynid (defaults)            r   98.969%   13.265%      0%    7.46       9.0
+//! dynid (defaults)           f0    4.114%   12.826%    100%    0.32       9.0
+//! dynid --column-chains       m   39.129%    4.525%      0%    8.65      11.3
+//! dynid --column-chains       d   69.956%    8.109%      0%    8.63      11.3
+//! dynid --column-chains       r   63.466%   10.516%      0%    6.04      11.3
+//! dynid --column-chains      f0   12.687%   11.282%    100%    1.12      11.3
+//! IDIM-LS, OLS errors         m    0.047%    0.032%    100%    1.44       3.4
+//! IDIM-LS, OLS errors         d    3.369%    0.191%      0%   17.65       3.4
+//! IDIM-LS, OLS errors         r    5.596%    0.259%      0%   21.59       3.4
+//! IDIM-LS, OLS errors        f0    0.241%    1.181%    100%    0.20       3.4
+//! IDIM-LS, HAC errors         m    0.047%    0.027%     92%    1.73       3.4
+//! IDIM-LS, HAC errors         d    3.369%    0.405%      0%    8.32       3.4
+//! IDIM-LS, HAC errors         r    5.596%    0.627%      0%    8.93       3.4
+//! IDIM-LS, HAC errors        f0    0.241%    2.024%    100%    0.12       3.4
+//! SVF-LS 10 Hz, HAC           m    0.315%    0.092%      0%    3.44     280.0
+//! SVF-LS 10 Hz, HAC           d   13.450%    2.384%      0%    5.64     280.0
+//! SVF-LS 10 Hz, HAC           r   22.585%    3.043%      0%    7.42     280.0
+//! SVF-LS 10 Hz, HAC          f0    4.661%   37.101%    100%    0.13     280.0
+//! SVF-LS 80 Hz, HAC           m    0.032%    0.176%    100%    0.18      43.5
+//! SVF-LS 80 Hz, HAC           d   20.549%    2.280%      0%    9.01      43.5
+//! SVF-LS 80 Hz, HAC           r   35.287%    3.465%      0%   10.18      43.5
+//! SVF-LS 80 Hz, HAC          f0   19.365%   18.474%    100%    1.05      43.5
 //! ```
 //!
 //! **Random reference.** dynid's errors are honest (every estimate within 2 SE with the
