@@ -104,7 +104,8 @@ pub fn stderr(o: &std::process::Output) -> String {
     let mut glue = false;
     for line in String::from_utf8_lossy(&o.stderr).lines() {
         for (k, w) in line.split_whitespace().filter(|w| *w != "│").enumerate() {
-            if !out.is_empty() && !(k == 0 && glue) {
+            let continues_word = k == 0 && glue;
+            if !(out.is_empty() || continues_word) {
                 out.push(' ');
             }
             out.push_str(w);
