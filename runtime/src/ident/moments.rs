@@ -525,6 +525,9 @@ pub(crate) struct LevelAccumulator<'a> {
     root_hist: Vec<Vec<f64>>,
     /// Per column driver: its (delayed) values over the current chunk, driver-major.
     root_buf: Vec<f64>,
+    /// With column drivers: every root over the current chunk, root-major, evaluated once
+    /// for the drivers and read again by pass 2 (empty without column drivers).
+    chunk_roots: Vec<f64>,
 }
 
 impl<'a> LevelAccumulator<'a> {
@@ -579,6 +582,7 @@ impl<'a> LevelAccumulator<'a> {
             root_delay: 0,
             root_hist: vec![Vec::new(); plan.root_drivers.len()],
             root_buf: Vec::new(),
+            chunk_roots: Vec::new(),
         };
         acc.set_task_len(TASK_LEN);
         acc
@@ -602,7 +606,8 @@ impl<'a> LevelAccumulator<'a> {
     }
 
     /// Fill `root_buf` with the column drivers' values over the next `len` samples: the
-    /// basis evaluated over the chunk (in tasks, in parallel), each delayed column shifted
+    /// basis evaluated over the chunk into `chunk_roots` (in tasks, in parallel; pass 2
+    /// reads it instead of evaluating again), each delayed column shifted
     /// by the delay through `root_hist` (before the record's first sample a column holds
     /// its first value, as the filters start at rest there).
     fn fill_root_drivers(&mut self, cols: &[&[f64]], len: usize) {
@@ -613,7 +618,8 @@ impl<'a> LevelAccumulator<'a> {
             return;
         }
         let step = self.task_len;
-        let mut g = vec![0.0; n_g * len];
+        let mut g = std::mem::take(&mut self.chunk_roots);
+        g.resize(n_g * len, 0.0);
         let pieces: Vec<(usize, usize)> = (0..len)
             .step_by(step)
             .map(|o| (o, step.min(len - o)))
@@ -658,6 +664,7 @@ impl<'a> LevelAccumulator<'a> {
             dst.copy_from_slice(&all[..len]);
             *hist = all[len..].to_vec();
         }
+        self.chunk_roots = g;
     }
 
     /// Set the kernel widths of the plan's extra columns for this level.
@@ -718,6 +725,7 @@ impl<'a> LevelAccumulator<'a> {
         }
         self.fill_root_drivers(cols, len);
         let root_buf = std::mem::take(&mut self.root_buf);
+        let chunk_roots = std::mem::take(&mut self.chunk_roots);
         let mut drivers: Vec<&[f64]> = plan.drivers.iter().map(|d| cols[d.index()]).collect();
         if !plan.root_drivers.is_empty() {
             drivers.extend(root_buf.chunks_exact(len));
@@ -779,6 +787,7 @@ impl<'a> LevelAccumulator<'a> {
             cols,
             drivers: &drivers,
             ramp: &self.ramp,
+            roots: (!chunk_roots.is_empty()).then_some((&chunk_roots[..], len)),
         };
         let pool = &self.scratch;
         tasks
@@ -842,6 +851,7 @@ impl<'a> LevelAccumulator<'a> {
         self.state = self.work[tasks.len() - 1].end.take();
         self.pos += len;
         self.root_buf = root_buf;
+        self.chunk_roots = chunk_roots;
     }
 
     /// The snapshot `ι qᵀ` at block boundary `b`, the first sample of the piece
@@ -952,6 +962,9 @@ struct TaskCtx<'c> {
     drivers: &'c [&'c [f64]],
     /// `0, 1, 2, …` up to the task length, as floating-point numbers.
     ramp: &'c [f64],
+    /// Every root over the chunk (root-major) and the chunk's length, where the column
+    /// drivers evaluated them already.
+    roots: Option<(&'c [f64], usize)>,
 }
 
 impl TaskCtx<'_> {
@@ -995,8 +1008,15 @@ impl TaskCtx<'_> {
         let clock = Instant::now();
         sc.w.resize(2 * n_w * len, 0.0);
         let (w_g, w_rest) = sc.w.split_at_mut(n_g * len);
-        if n_g > 0 {
-            self.eval.eval_block(&view, len, w_g, &mut sc.scratch);
+        match self.roots {
+            Some((g, chunk)) => {
+                for (r, dst) in w_g.chunks_exact_mut(len).enumerate() {
+                    // shape: `g` is n_g × chunk and the task lies inside the chunk.
+                    dst.copy_from_slice(&g[r * chunk + t.off..r * chunk + t.off + len]);
+                }
+            }
+            None if n_g > 0 => self.eval.eval_block(&view, len, w_g, &mut sc.scratch),
+            None => {}
         }
         for (k, s) in plan.y.iter().enumerate() {
             w_rest[k * len..(k + 1) * len].copy_from_slice(view[s.index()]);
