@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::dynid;
+use common::{assert_refused, dynid};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -95,16 +95,6 @@ fn scaled(src: &Path, dst: &Path, cols: &[&str], scale: f64) {
         out += &(row.join(",") + "\n");
     }
     std::fs::write(dst, out).unwrap();
-}
-
-fn assert_refused(o: &Output, code: &str, also: &[&str]) {
-    let err = common::stderr(o);
-    assert!(!o.status.success(), "accepted: {err}");
-    assert_ne!(o.status.code(), Some(101), "panicked: {err}");
-    assert!(err.contains(code), "no `{code}` in: {err}");
-    for a in also {
-        assert!(err.contains(a), "no `{a}` in: {err}");
-    }
 }
 
 #[test]
@@ -324,29 +314,6 @@ fn a_missing_column_in_a_huge_header_is_named_without_echoing_the_header() {
     assert!(o.stderr.len() < 4096, "{} bytes of error", o.stderr.len());
 }
 
-/// A chain of `n` unit masses from a wall, springs and dampers between neighbours, driven
-/// at the free end, every position measured.
-fn chain_model(n: usize) -> String {
-    let mut s = format!("model chain{n} {{\n");
-    for i in 1..=n {
-        s += &format!("    body m{i} = 1.0\n");
-    }
-    s += &format!("    input u on m{n}\n    measure ");
-    for i in 1..=n {
-        s += &format!("m{i}.x, ");
-    }
-    s += "u\n";
-    for i in 1..=n {
-        let a = if i == 1 {
-            "ground".to_string()
-        } else {
-            format!("m{}", i - 1)
-        };
-        s += &format!("    spring k{i} ({a}, m{i}) ~ 4.0\n    damper d{i} ({a}, m{i}) ~ 0.4\n");
-    }
-    s + "    excite u: lowpass(corner = 10) levels [6, 15, 40]\n}\n"
-}
-
 /// Three short level files of the chain's columns (different values, so that no level is
 /// a copy of another).
 fn chain_levels(dir: &Path, n: usize) -> Vec<PathBuf> {
@@ -377,7 +344,7 @@ fn identification_memory_is_estimated_before_reading_and_refused_with_the_flag_t
     // samples long.
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("chain500.dyn");
-    std::fs::write(&model, chain_model(500)).unwrap();
+    std::fs::write(&model, dynid::runtime::sim::test_models::chain_source(500)).unwrap();
     let data = chain_levels(dir.path(), 500);
     for command in ["identify", "detect", "diagnose"] {
         let mut cmd = dynid();

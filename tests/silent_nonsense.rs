@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{dynid, model_path, stderr};
+use common::{assert_refused, dynid, model_path, stderr};
 use dynid::dsl_parser::compile_file;
 use dynid::dsl_parser::ir::ModelIr;
 use dynid::runtime::ident::{FitCheck, Identification, LikelyCause};
@@ -243,16 +243,6 @@ fn the_cli_reports_the_guard_on_stderr_and_in_json() {
 /// Run `dynid ARGS` in `dir`; the output.
 fn run(dir: &Path, args: &[&str]) -> std::process::Output {
     dynid().current_dir(dir).args(args).output().unwrap()
-}
-
-fn assert_refused(o: &std::process::Output, code: &str, also: &[&str]) {
-    let err = stderr(o);
-    assert!(!o.status.success(), "not refused: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    assert!(err.contains(code), "no `{code}`: {err}");
-    for a in also {
-        assert!(err.contains(a), "no `{a}`: {err}");
-    }
 }
 
 /// `--quantise 1e-320` wrote `-inf` positions and exited 0; `--quantise 1e300` made every

@@ -116,6 +116,19 @@ pub fn stderr(o: &std::process::Output) -> String {
     out
 }
 
+/// `o` is a refusal, not a crash: a non-zero exit other than a panic's, stderr naming
+/// `code` and every text of `also`.
+pub fn assert_refused(o: &std::process::Output, code: &str, also: &[&str]) {
+    let err = stderr(o);
+    assert!(!o.status.success(), "accepted: {err}");
+    assert_ne!(o.status.code(), Some(101), "panicked: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains(code), "no `{code}` in: {err}");
+    for a in also {
+        assert!(err.contains(a), "no `{a}` in: {err}");
+    }
+}
+
 /// `seed` shifted by the environment variable `DYNID_SEED_OFFSET` (default 0). The tests
 /// run on fixed seeds; `DYNID_SEED_OFFSET=1 cargo test --test NAME -- --nocapture` reruns
 /// them on other seeds to measure the spread their bounds are set from.

@@ -195,28 +195,9 @@ pub fn check(
 mod tests {
     use super::*;
 
-    /// A chain of `n` unit masses from a wall, springs and dampers between neighbours,
-    /// driven at the free end, every position measured (as `tests/bounded_work.rs` writes).
+    /// [`crate::sim::test_models::chain_source`], compiled.
     fn chain(n: usize) -> ModelIr {
-        let mut s = format!("model chain{n} {{\n");
-        for i in 1..=n {
-            s += &format!("    body m{i} = 1.0\n");
-        }
-        s += &format!("    input u on m{n}\n    measure ");
-        for i in 1..=n {
-            s += &format!("m{i}.x, ");
-        }
-        s += "u\n";
-        for i in 1..=n {
-            let a = if i == 1 {
-                "ground".to_string()
-            } else {
-                format!("m{}", i - 1)
-            };
-            s += &format!("    spring k{i} ({a}, m{i}) ~ 4.0\n    damper d{i} ({a}, m{i}) ~ 0.4\n");
-        }
-        s += "    excite u: lowpass(corner = 10) levels [6, 15, 40]\n}\n";
-        dsl_parser::compile_str("chain.dyn", &s).unwrap()
+        dsl_parser::compile_str("chain.dyn", &crate::sim::test_models::chain_source(n)).unwrap()
     }
 
     #[test]

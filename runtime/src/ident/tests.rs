@@ -29,6 +29,15 @@ fn sdof_model(extra: &str) -> ModelIr {
     dsl_parser::compile_str("sdof", &src).expect("valid model")
 }
 
+/// The plan of `ir` under `opts` (bank, structure, rows) with the filter corners fixed at
+/// `corners`, as `measure` makes it before streaming.
+fn plan_for(ir: &ModelIr, opts: &IdentifyOptions, corners: &[f64]) -> plan::Plan {
+    let bank = measure::choose_bank(ir, opts).unwrap();
+    let mut plan = plan::build_structure(ir, false, &bank).unwrap();
+    plan.set_corners(ir, corners);
+    plan
+}
+
 /// The Duffing oscillator measured by position and input only.
 fn duffing_model() -> ModelIr {
     dsl_parser::compile_str(
@@ -286,9 +295,7 @@ fn check_identity(corners: &[f64], n_blocks: usize) -> f64 {
         chunk_len: 777,
         ..Default::default()
     };
-    let bank = measure::choose_bank(&ir, &opts).unwrap();
-    let mut plan = plan::build_structure(&ir, false, &bank).unwrap();
-    plan.set_corners(&ir, corners);
+    let plan = plan_for(&ir, &opts, corners);
     let tape = Tape::compile(&ir, &plan.roots);
     let src = RecordSource::new(&rec, &ir, "smooth").unwrap();
     let mut acc = LevelAccumulator::new(&plan, &tape, ts, n, n_blocks, Hold::FirstOrder);
@@ -751,9 +758,7 @@ fn time_parallel_pass_matches_the_serial_recursion() {
         column_chains: true,
         ..Default::default()
     };
-    let bank = measure::choose_bank(&ir, &opts).unwrap();
-    let mut plan = plan::build_structure(&ir, false, &bank).unwrap();
-    plan.set_corners(&ir, &corners);
+    let plan = plan_for(&ir, &opts, &corners);
     let tape = Tape::compile(&ir, &plan.roots);
     let src = RecordSource::new(&rec, &ir, "sdof").unwrap();
     let run = |chunk: usize, task: usize| {
@@ -917,9 +922,7 @@ fn a_delayed_column_driver_does_not_depend_on_the_chunks() {
         column_chains: true,
         ..Default::default()
     };
-    let bank = measure::choose_bank(&ir, &opts).unwrap();
-    let mut plan = plan::build_structure(&ir, false, &bank).unwrap();
-    plan.set_corners(&ir, &corners);
+    let plan = plan_for(&ir, &opts, &corners);
     assert_eq!(plan.root_drivers.len(), 1);
     assert!(plan.root_drivers[0].delayed);
     let tape = Tape::compile(&ir, &plan.roots);

@@ -98,6 +98,30 @@ pub fn two_mass_chain(
     ir
 }
 
+/// The source of a chain of `n` unit masses from a wall, springs and dampers between
+/// neighbours, driven at the free end, every position measured: a model whose size grows
+/// with `n` (for memory estimates and limits).
+pub fn chain_source(n: usize) -> String {
+    let mut s = format!("model chain{n} {{\n");
+    for i in 1..=n {
+        s += &format!("    body m{i} = 1.0\n");
+    }
+    s += &format!("    input u on m{n}\n    measure ");
+    for i in 1..=n {
+        s += &format!("m{i}.x, ");
+    }
+    s += "u\n";
+    for i in 1..=n {
+        let a = if i == 1 {
+            "ground".to_string()
+        } else {
+            format!("m{}", i - 1)
+        };
+        s += &format!("    spring k{i} ({a}, m{i}) ~ 4.0\n    damper d{i} ({a}, m{i}) ~ 0.4\n");
+    }
+    s + "    excite u: lowpass(corner = 10) levels [6, 15, 40]\n}\n"
+}
+
 fn compile(src: &str) -> ModelIr {
     dsl_parser::compile_str("test_model.dyn", src)
         .unwrap_or_else(|e| panic!("test model does not compile: {e:?}\n{src}"))
