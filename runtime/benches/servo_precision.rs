@@ -111,8 +111,8 @@
 //! 1.7× and 2.3× smaller, SVF-LS's at 80 Hz 4.9×, 9.1× and 4.7×, but both baselines carry
 //! biases their standard errors do not cover (IDIM-LS r −0.6 to −1.1 %, its classical and
 //! HAC coverage of r 0 %; measured without quantisation in
-//! `baseline::tests::noise_free_servo_axis_is_recovered`). `--column-chains` halves dynid's
-//! d, r and f0 errors and triples its mass error (docs/method.md §2).
+//! `baseline::tests::noise_free_servo_axis_is_recovered`). `--column-chains` cuts dynid's
+//! d, r and f0 errors by 41–48 % and triples its mass error (docs/method.md §2).
 //!
 //! **Planned moves** (a third of every cycle at rest). dynid fails here, with either
 //! setting: the mass off by 23 %, damping and friction by 67 %, at 6–34 of its own standard
