@@ -29,6 +29,7 @@ pub mod limits;
 pub(crate) mod prefetch;
 pub mod record;
 pub mod refine;
+pub mod set_point;
 pub mod silverbox;
 pub mod sim;
 pub mod tape;

@@ -101,6 +101,9 @@ pub fn run(args: Args) -> miette::Result<()> {
         inputs(&args.model, &args.data),
     )?;
     let ir = super::common::load_model(&args.model)?;
+    if args.refine {
+        super::identify::refuse_control_laws(&ir)?;
+    }
     let csv = args.csv.options(&ir)?;
     let split = args.split.levels(&ir, &args.data, &csv, args.allow_large)?;
     if split.is_none() {
@@ -144,6 +147,25 @@ pub fn run(args: Args) -> miette::Result<()> {
     };
     let d = run_diagnosis(&ir, &records, &origins, args.quiet, args.allow_large)?;
     print!("{}", d.summary());
+    println!(
+        "(free runs: every level driven by its inputs from its {})",
+        dynid_runtime::sim::FREE_RUN_START
+    );
+    let full = match &split {
+        Some(s) => s.records.first().cloned(),
+        None => None,
+    };
+    let hint = closed_loop_hint(&ir, &d, || match full {
+        Some(r) => Ok(r),
+        None => Ok(dynid_runtime::data::read_record_within(
+            &args.data[0],
+            &csv,
+            args.allow_large,
+        )?),
+    })?;
+    if let Some(h) = &hint {
+        println!("\nNote: {h}");
+    }
     let refined = if args.refine {
         let r = refine_corrected(&d, &records)?;
         print!("{}", render_refined(&r.0));
@@ -160,8 +182,44 @@ pub fn run(args: Args) -> miette::Result<()> {
             segments: split.as_ref().map(|s| &s.split),
             refined: refined.as_ref().map(|r| &r.0),
             model_text: refined.as_ref().map(|r| r.1.as_str()),
+            closed_loop_hint: hint.as_deref(),
         },
     )
+}
+
+/// The closed-loop hint: a column of the first record (read by `record`, all columns)
+/// that the model does not read and that a measured position follows, while the nominal
+/// free run of that position drifts (mean NRMSE over the levels ≥
+/// [`set_point::DRIFTS`]). The record is read only when a position drifts.
+fn closed_loop_hint(
+    ir: &ModelIr,
+    d: &Diagnosis,
+    record: impl FnOnce() -> miette::Result<Record>,
+) -> miette::Result<Option<String>> {
+    use dynid_runtime::set_point;
+    let drift = |signal: &str| -> Option<f64> {
+        let v: Vec<f64> = d
+            .nominal
+            .levels
+            .iter()
+            .filter_map(|l| l.signals.iter().find(|g| g.signal == signal))
+            .map(|g| g.nrmse)
+            .collect();
+        (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+    };
+    let drifting = ir.signals.iter().any(|s| {
+        s.measured
+            && matches!(s.kind, dsl_parser::ir::SignalKind::Position(_))
+            && drift(&s.name).is_some_and(|e| !(e < set_point::DRIFTS))
+    });
+    if !drifting {
+        return Ok(None);
+    }
+    let rec = record()?;
+    Ok(set_point::set_points(ir, &rec).into_iter().find_map(|sp| {
+        let e = drift(&sp.position)?;
+        (!(e < set_point::DRIFTS)).then(|| sp.note(if e.is_finite() { e } else { 100.0 }))
+    }))
 }
 
 /// The corrected model refined on every level: the report (start: its covariance values)
@@ -175,6 +233,10 @@ fn refine_corrected(d: &Diagnosis, records: &[Record]) -> miette::Result<(Refine
         .map(|p| fixed.params[p.index()].nominal().unwrap_or(0.0))
         .collect();
     let report = RefineReport::compute(&fixed, &start, records, &[], &RefineOptions::default())?;
+    if !report.refinement.applied {
+        // The model written keeps the corrected model's values (the note says why).
+        return Ok((report, d.fixed_source.clone()));
+    }
     let mut out = fixed.clone();
     for p in &report.refinement.params {
         // An unknown of the model by construction (five significant digits, as diagnose).
@@ -234,6 +296,8 @@ pub struct Extras<'a> {
     pub refined: Option<&'a RefineReport>,
     /// The model to write instead of the corrected one (the refined values).
     pub model_text: Option<&'a str>,
+    /// The note that the record looks closed loop (JSON `closed_loop_hint`).
+    pub closed_loop_hint: Option<&'a str>,
 }
 
 /// The JSON of a diagnosis: its fields, with the extras next to them.
@@ -245,6 +309,10 @@ struct WithExtras<'a> {
     segments: Option<&'a Split>,
     #[serde(skip_serializing_if = "Option::is_none")]
     refined: Option<&'a RefineReport>,
+    /// How every free run of the diagnosis starts.
+    free_run_start: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    closed_loop_hint: Option<&'a str>,
 }
 
 /// [`write_outputs`], with the extras.
@@ -262,6 +330,8 @@ pub fn write_outputs_with(
                 diagnosis: d,
                 segments: extras.segments,
                 refined: extras.refined,
+                free_run_start: dynid_runtime::sim::FREE_RUN_START,
+                closed_loop_hint: extras.closed_loop_hint,
             })
             .into_diagnostic()?,
         ),

@@ -134,6 +134,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let ir = super::common::load_model(&args.model)?;
     let opts = refine_options(&args)?;
     if opts.is_some() {
+        refuse_control_laws(&ir)?;
         check_whole_records(&ir, &args)?;
     }
     let id = identify_files(&ir, &args)?;
@@ -199,6 +200,18 @@ fn refine_options(args: &Args) -> miette::Result<Option<RefineOptions>> {
         weights,
         ..Default::default()
     }))
+}
+
+/// Refuse a refinement of a model with control laws before any work: the refinement
+/// simulates open-loop models driven by the recorded inputs.
+pub fn refuse_control_laws(ir: &ModelIr) -> miette::Result<()> {
+    if ir.controls.is_empty() {
+        return Ok(());
+    }
+    Err(refine::RefineError::ControlLaws {
+        model: ir.name.clone(),
+    }
+    .into())
 }
 
 /// Refuse, before any sample is read, a refinement whose records (read whole, the
@@ -277,7 +290,14 @@ impl RefineReport {
         test: &[Record],
         opts: &RefineOptions,
     ) -> miette::Result<Self> {
-        let r = refine::refine(ir, est, start, opts)?;
+        let bar = progress_bar(opts.max_iter);
+        let r = refine::refine_with_progress(ir, est, start, opts, &|p| {
+            bar.set_length(p.max_iter as u64);
+            bar.set_position(p.iteration as u64);
+            bar.set_message(format!("{:.3e}", p.cost));
+        });
+        bar.finish_and_clear();
+        let r = r?;
         let score = |recs: &[Record]| -> miette::Result<(Vec<FreeRunError>, Vec<FreeRunError>)> {
             if recs.is_empty() {
                 return Ok((Vec::new(), Vec::new()));
@@ -293,6 +313,20 @@ impl RefineReport {
             refinement: r,
         })
     }
+}
+
+/// The refinement's progress bar on stderr (hidden when stderr is not a terminal).
+fn progress_bar(max_iter: usize) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::with_draw_target(
+        Some(max_iter as u64),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "refining [{bar:30}] {pos}/{len} iterations, cost {msg} ({elapsed})",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
 }
 
 /// Both estimates side by side, and their free-run errors.
@@ -312,6 +346,9 @@ pub fn render_refined(rep: &RefineReport) -> String {
         r.cost_start,
         r.cost_end
     );
+    if let Some(note) = &r.note {
+        s.push_str(&format!("refinement {note}\n"));
+    }
     s.push_str(&format!(
         "{:<12} {:>14} {:>14} {:>12} {:>9}\n",
         "parameter", "covariance", "refined", "std. error", "change"
@@ -350,7 +387,10 @@ pub fn render_refined(rep: &RefineReport) -> String {
             ));
         }
     }
-    s.push_str("(each record simulated from its measured initial state, driven by its inputs)\n");
+    s.push_str(&format!(
+        "(each record driven by its inputs from its {})\n",
+        refine::FREE_RUN_START
+    ));
     s
 }
 

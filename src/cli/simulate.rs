@@ -50,7 +50,9 @@ write or remove its own model or --input file is refused before it starts. The f
 is checked first against an estimate of the CSVs' size (about 17 bytes per number).
 
 With --input data.csv the model is instead driven by the measured input columns (named
-like the model's inputs and references, plus a uniform time column `t`), starting from rest, and its
+like the model's inputs and references, plus a uniform time column `t`), starting from the
+measured state of the first sample where the file has the positions (velocities from their
+columns or the first three positions; as every free run dynid scores), else from rest, and its
 response is written to DIR/driven.csv on the same time base — to compare the model with
 reality. The file sets the time base, the length and the inputs, so the flags of the
 excitation (--levels, --duration, --sample, --seed, --noise, --burn-in, --quantise, --pd,
@@ -328,7 +330,13 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
         "--allow-long",
         args.allow_long,
     )?;
-    let response = sim::simulate_driven(ir, &record, args.substeps)
+    // The free-run convention of every comparison with data: from the measured state when
+    // the file holds positions, else from rest.
+    let measured = ir.bodies.iter().enumerate().any(|(b, _)| {
+        record.column(&ir.signals[2 * b].name).is_some()
+            || record.column(&ir.signals[2 * b + 1].name).is_some()
+    });
+    let response = sim::simulate_driven_from(ir, &record, args.substeps, sim::Start::Measured)
         .map_err(miette::Report::new)
         .wrap_err_with(|| format!("driving `{}` with `{}`", ir.name, input.display()))?;
     let params = sim::parameter_values(ir).map_err(miette::Report::new)?;
@@ -342,7 +350,7 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
             .map(|(p, v)| (p.name.clone(), *v))
             .collect::<std::collections::BTreeMap<_, _>>(),
         "substeps": args.substeps,
-        "initial_state": "rest",
+        "initial_state": if measured { sim::FREE_RUN_START } else { "rest (no position or velocity column)" },
         "files": ["driven.csv"],
     });
     let json_path = args.out.join("truth.json");
@@ -365,11 +373,16 @@ fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
         ),
         Format::Text => {
             println!(
-                "simulated `{}` driven by `{}` ({} samples, Ts = {} s, from rest)",
+                "simulated `{}` driven by `{}` ({} samples, Ts = {} s, from {})",
                 ir.name,
                 input.display(),
                 response.len(),
-                response.ts
+                response.ts,
+                if measured {
+                    sim::FREE_RUN_START
+                } else {
+                    "rest: the file has no position or velocity column"
+                }
             );
             print_summary(&summary);
             println!("  {}", json_path.display());

@@ -7,10 +7,12 @@
 //! samples (multiple shooting; by default one sub-record per record). Each sub-record is
 //! simulated from its own initial state, driven by the measured inputs exactly as
 //! [`crate::sim::simulate_driven_from`] does (RK4, `substeps` steps per sample interval,
-//! inputs linear between samples). The initial states are unknowns of their sub-record,
-//! started from the measured state (position from the data, velocity from the data or from
-//! the second-order one-sided difference of the first three positions); a divergence or
-//! a drifting phase then spoils only one sub-record. The cost is
+//! inputs linear between samples). Every record's first sub-record starts from the
+//! measured state ([`FREE_RUN_START`]), as every free-run score of dynid does, so that the
+//! cost minimised over whole records is the score printed afterwards. With multiple
+//! shooting the initial states of the later sub-records are unknowns of their sub-record,
+//! started from the measured state; a divergence or a drifting phase then spoils only one
+//! sub-record. The cost is
 //!
 //! ```text
 //! J(p, x0_1, …) = Σ_records Σ_samples Σ_signals (w_s (y_s,sim − y_s,meas) / σ_s)²
@@ -35,6 +37,12 @@
 //! residuals; free-run residuals are correlated in time, so read them as lower bounds and
 //! compare them between parameters, not with the covariance method's batch-means errors.
 //!
+//! # The score
+//!
+//! Cut into sub-records, the cost is not the free run of whole records: a fit whose
+//! whole-record free-run cost (from the measured state, the same weights) ends above its
+//! start is not applied — the start values are kept and [`Refinement::note`] says why.
+//!
 //! Shape parameters (`deadzone(s, g ~ …)`) stay at their values; models with control laws
 //! are refused (the law would have to be differentiated as well).
 
@@ -44,6 +52,7 @@ mod sens;
 use crate::describe::std_dev;
 use crate::ident::Identification;
 use crate::record::Record;
+pub use crate::sim::FREE_RUN_START;
 use crate::sim::{parameter_values, simulate_driven_from, SimError, Start};
 use dynid_ir::ir::{ModelIr, SignalKind};
 use qr::{Block, RowQr};
@@ -88,11 +97,12 @@ pub enum RefineError {
     )]
     NoUnknowns,
     #[error(
-        "the model `{model}` has control laws; the refinement simulates open-loop models only"
+        "the model `{model}` has control laws; the refinement simulates open-loop models only \
+         (refused before any work)"
     )]
     #[diagnostic(
         code(dynid::refine::control),
-        help("refine the plant model without `control` lines, driven by the recorded inputs")
+        help("refine the plant model without its `reference` and `control` lines, driven by the recorded controller output (the controlled input's column), or leave out --refine")
     )]
     ControlLaws { model: String },
     #[error("{got} start values for {expected} unknown parameters")]
@@ -180,6 +190,19 @@ pub struct Refinement {
     pub signals: Vec<(String, f64)>,
     /// Condition number of the parameters' scaled Jacobian (initial states profiled out).
     pub condition: f64,
+    /// The weighted mean-square free-run error per residual of whole records, every
+    /// record simulated from its measured state ([`FREE_RUN_START`]), at the start values
+    /// and at the values the fit reached. Without sub-records these are `cost_start` and
+    /// `cost_end`.
+    pub free_run_start: f64,
+    pub free_run_end: f64,
+    /// The fitted values were kept; `false`: their whole-record free run is worse than the
+    /// start's (or diverges), and `params[..].value` are the start values.
+    pub applied: bool,
+    /// Why the fitted values were not applied.
+    pub note: Option<String>,
+    /// How every free run of the score starts.
+    pub initial_state: &'static str,
 }
 
 impl Refinement {
@@ -207,6 +230,28 @@ struct Segment {
     record: usize,
     start: usize,
     end: usize,
+}
+
+impl Segment {
+    /// Local unknowns (initial positions and velocities) of the sub-record: none for a
+    /// record's first, which starts from the measured state.
+    fn locals(&self, nb: usize) -> usize {
+        if self.start == 0 {
+            0
+        } else {
+            2 * nb
+        }
+    }
+}
+
+/// Where the refinement stands after an iteration (for a progress display).
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Iterations done and the most allowed.
+    pub iteration: usize,
+    pub max_iter: usize,
+    /// The cost (weighted mean square per residual) at the current values.
+    pub cost: f64,
 }
 
 /// The fixed part of the problem: data columns, segments and weights.
@@ -240,9 +285,20 @@ pub fn refine(
     start: &[f64],
     opts: &RefineOptions,
 ) -> Result<Refinement, RefineError> {
+    refine_with_progress(ir, records, start, opts, &|_| {})
+}
+
+/// [`refine`], calling `progress` after every iteration.
+pub fn refine_with_progress(
+    ir: &ModelIr,
+    records: &[Record],
+    start: &[f64],
+    opts: &RefineOptions,
+    progress: &dyn Fn(Progress),
+) -> Result<Refinement, RefineError> {
     let pb = Problem::new(ir, records, start, opts)?;
     let np = pb.unknowns.len();
-    let nl = 2 * pb.nb;
+    let nls: Vec<usize> = pb.segments.iter().map(|s| s.locals(pb.nb)).collect();
     let mut theta = start.to_vec();
     let mut x0: Vec<Vec<f64>> = pb.segments.iter().map(|s| pb.measured_state(*s)).collect();
     let mut cur = pb.evaluate(&theta, &x0).map_err(|f| match f {
@@ -252,9 +308,11 @@ pub fn refine(
     let cost_start = total(&cur);
     let mut cost = cost_start;
     let mut lambda = 1e-3;
-    let (mut d_local, mut d_shared) = (vec![vec![0.0; nl]; pb.segments.len()], vec![0.0; np]);
+    let mut d_local: Vec<Vec<f64>> = nls.iter().map(|&nl| vec![0.0; nl]).collect();
+    let mut d_shared = vec![0.0; np];
     let mut iterations = 0;
     let mut converged = false;
+    let n_rows: usize = cur.iter().map(|f| f.rows).sum();
     while iterations < opts.max_iter {
         iterations += 1;
         // Moré's scaling: the largest column norms seen so far.
@@ -264,10 +322,18 @@ pub fn refine(
             }
         }
         for (k, dk) in d_shared.iter_mut().enumerate() {
-            let n2: f64 = cur.iter().map(|f| f.column_norm(nl + k).powi(2)).sum();
+            let n2: f64 = cur
+                .iter()
+                .zip(&nls)
+                .map(|(f, &nl)| f.column_norm(nl + k).powi(2))
+                .sum();
             *dk = f64::max(*dk, n2.sqrt()).max(f64::MIN_POSITIVE);
         }
-        let blocks: Vec<Block> = cur.iter().map(|qr| Block { qr, nl }).collect();
+        let blocks: Vec<Block> = cur
+            .iter()
+            .zip(&nls)
+            .map(|(qr, &nl)| Block { qr, nl })
+            .collect();
         let (dp, dl) = qr::lm_step(&blocks, np, lambda, &d_local, &d_shared, 1e-12);
         let theta_new: Vec<f64> = theta
             .iter()
@@ -275,13 +341,19 @@ pub fn refine(
             .zip(&pb.pscale)
             .map(|((t, d), s)| t + d * s)
             .collect();
+        // A sub-record without local unknowns keeps its measured state.
         let x0_new: Vec<Vec<f64>> = x0
             .iter()
             .zip(&dl)
-            .map(|(x, d)| x.iter().zip(d).map(|(a, b)| a + b).collect())
+            .map(|(x, d)| {
+                x.iter()
+                    .enumerate()
+                    .map(|(i, a)| a + d.get(i).copied().unwrap_or(0.0))
+                    .collect()
+            })
             .collect();
         // A trial that diverges or whose model cannot be built counts as a failed step.
-        match pb.evaluate(&theta_new, &x0_new) {
+        converged = match pb.evaluate(&theta_new, &x0_new) {
             Ok(f) if total(&f) < cost => {
                 let c = total(&f);
                 let gain = (cost - c) / cost;
@@ -290,26 +362,31 @@ pub fn refine(
                 cur = f;
                 cost = c;
                 lambda = (lambda * 0.3).max(1e-12);
-                if gain < opts.tol {
-                    converged = true;
-                    break;
-                }
+                gain < opts.tol
             }
             _ => {
                 lambda *= 10.0;
-                if lambda > 1e10 {
-                    // No step in any direction lowers the cost: a (local) minimum.
-                    converged = true;
-                    break;
-                }
+                // No step in any direction lowers the cost: a (local) minimum.
+                lambda > 1e10
             }
+        };
+        progress(Progress {
+            iteration: iterations,
+            max_iter: opts.max_iter,
+            cost: cost / n_rows.max(1) as f64,
+        });
+        if converged {
+            break;
         }
     }
-    let blocks: Vec<Block> = cur.iter().map(|qr| Block { qr, nl }).collect();
+    let blocks: Vec<Block> = cur
+        .iter()
+        .zip(&nls)
+        .map(|(qr, &nl)| Block { qr, nl })
+        .collect();
     let f = qr::shared_factor(&blocks, np);
     let svd = f.svd(false, true);
-    let n_rows: usize = cur.iter().map(|f| f.rows).sum();
-    let dof = n_rows.saturating_sub(np + nl * pb.segments.len()).max(1);
+    let dof = n_rows.saturating_sub(np + nls.iter().sum::<usize>()).max(1);
     let sigma2 = cost / dof as f64;
     let smax = svd.singular_values.max();
     let smin = svd.singular_values.min();
@@ -331,6 +408,36 @@ pub fn refine(
             (sigma2 * var).sqrt() * pb.pscale[k]
         })
         .collect();
+    // The score: whole records from their measured states. Without sub-records it is the
+    // cost itself, which only accepted (lower) steps changed.
+    let whole = pb.segments.len() == records.len();
+    let (free_run_start, free_run_end) = if whole {
+        (cost_start / n_rows as f64, cost / n_rows as f64)
+    } else {
+        (
+            pb.free_run_cost(start) / n_rows as f64,
+            pb.free_run_cost(&theta) / n_rows as f64,
+        )
+    };
+    let applied = free_run_end <= free_run_start;
+    let note = (!applied).then(|| {
+        format!(
+            "not applied: fitted on {} sub-records (multiple shooting), the values give a \
+             worse free run of whole records from their measured states ({} → {}, weighted \
+             mean square); the start values are kept — refine without sub-records or with \
+             longer ones",
+            pb.segments.len(),
+            dynid_ir::num::sig(free_run_start, 4, false),
+            if free_run_end.is_finite() {
+                dynid_ir::num::sig(free_run_end, 4, false)
+            } else {
+                "a divergence".to_string()
+            }
+        )
+    });
+    if !applied {
+        theta = start.to_vec();
+    }
     Ok(Refinement {
         params: pb
             .unknowns
@@ -355,6 +462,15 @@ pub fn refine(
         } else {
             f64::INFINITY
         },
+        free_run_start,
+        free_run_end: if free_run_end.is_finite() {
+            free_run_end
+        } else {
+            f64::MAX
+        },
+        applied,
+        note,
+        initial_state: FREE_RUN_START,
     })
 }
 
@@ -606,6 +722,52 @@ impl<'a> Problem<'a> {
         x0
     }
 
+    /// Σ of the squared weighted residuals of whole records simulated from their measured
+    /// states at `theta` (the score; infinite when a run diverges or cannot be built).
+    fn free_run_cost(&self, theta: &[f64]) -> f64 {
+        let fitted = self.ir.with_nominals(theta);
+        let runs = (0..self.inputs.len())
+            .into_par_iter()
+            .map(|r| {
+                let rec = self.record(r);
+                let sim = simulate_driven_from(&fitted, &rec, self.substeps, Start::Measured)
+                    .map_err(|_| ())?;
+                let mut c = 0.0;
+                for &(b, vel, col, wt) in &self.outputs[r] {
+                    let name = &self.ir.signals[2 * b + usize::from(vel)].name;
+                    let y = sim.column(name).ok_or(())?;
+                    c += y
+                        .iter()
+                        .zip(col)
+                        .map(|(a, m)| (wt * (a - m)).powi(2))
+                        .sum::<f64>();
+                }
+                Ok::<f64, ()>(c)
+            })
+            .collect::<Vec<_>>();
+        runs.into_iter().map(|c| c.unwrap_or(f64::INFINITY)).sum()
+    }
+
+    /// Record `r` with the columns the driven run reads: the inputs and compared signals.
+    fn record(&self, r: usize) -> Record {
+        let mut names = Vec::new();
+        let mut columns = Vec::new();
+        for (i, c) in self.ir.inputs.iter().zip(&self.inputs[r]) {
+            names.push(i.name.clone());
+            columns.push(c.to_vec());
+        }
+        for &(b, vel, col, _) in &self.outputs[r] {
+            names.push(self.ir.signals[2 * b + usize::from(vel)].name.clone());
+            columns.push(col.to_vec());
+        }
+        Record {
+            names,
+            columns,
+            ts: self.ts[r],
+            t0: self.t0[r],
+        }
+    }
+
     /// Simulate all segments with sensitivities and fold their rows.
     fn evaluate(&self, theta: &[f64], x0: &[Vec<f64>]) -> Result<Vec<RowQr>, Fail> {
         let params = self.params(theta);
@@ -627,8 +789,10 @@ impl<'a> Problem<'a> {
         let w = 1 + q;
         let ts = self.ts[s.record];
         let mut rk = SensRk4::new(m, &x0[..nb], &x0[nb..]);
-        let mut qr = RowQr::new(q);
-        let mut row = vec![0.0; q];
+        // The columns kept: the initial state's only where it is a local unknown.
+        let skip = 2 * nb - s.locals(nb);
+        let mut qr = RowQr::new(q - skip);
+        let mut row = vec![0.0; q - skip];
         let inputs = &self.inputs[s.record];
         let mut u0 = vec![0.0; inputs.len()];
         let mut u1 = vec![0.0; inputs.len()];
@@ -636,7 +800,8 @@ impl<'a> Problem<'a> {
             for &(b, vel, col, wt) in &self.outputs[s.record] {
                 let st = if vel { &rk.v } else { &rk.x };
                 let res = wt * (st[b * w] - col[k]);
-                for (j, r) in row.iter_mut().enumerate() {
+                for (i, r) in row.iter_mut().enumerate() {
+                    let j = i + skip;
                     let scale = if j < 2 * nb {
                         1.0
                     } else {

@@ -19,6 +19,12 @@ pub fn simulate_driven(ir: &ModelIr, input: &Record, substeps: usize) -> Result<
     simulate_driven_from(ir, input, substeps, Start::Rest)
 }
 
+/// How every free run that dynid scores starts (the refinement's fit and score, `simulate
+/// --input`, `identify --test`, `diagnose`): [`Start::Measured`], in words for outputs.
+pub const FREE_RUN_START: &str = "measured initial state: positions from the first sample, \
+velocities from their column or, where not measured, from the first three positions \
+(second-order one-sided difference); unmeasured positions at 0";
+
 /// Where a driven run starts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Start {
@@ -27,7 +33,8 @@ pub enum Start {
     Rest,
     /// At the state of the record's first sample: a body's position from its `name.x`
     /// column, its velocity from `name.v` or, without one, from the first three positions
-    /// (second-order one-sided difference); a body without a position column starts at rest.
+    /// (second-order one-sided difference); a body without a position column starts at 0
+    /// with the velocity of its `name.v` column, or at rest without one.
     /// Comparing a model with measured responses then starts without a transient from rest.
     Measured,
 }
@@ -165,6 +172,9 @@ fn set_measured_state(ir: &ModelIr, rec: &Record, rk: &mut Rk4) {
     for b in 0..ir.bodies.len() {
         let name = |k: usize| ir.signals[2 * b + k].name.as_str();
         let Some(x) = rec.column(name(0)).filter(|c| c.len() >= 3 && finite(c)) else {
+            if let Some(v) = rec.column(name(1)).filter(|c| !c.is_empty() && finite(c)) {
+                rk.v[b] = v[0];
+            }
             continue;
         };
         rk.x[b] = x[0];

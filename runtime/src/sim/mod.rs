@@ -85,7 +85,7 @@ pub mod test_models;
 
 pub use config::{check_steps, integration_steps, SimConfig};
 pub use control::{PdControl, ReferenceSpec, VelocitySource};
-pub use driven::{simulate_driven, simulate_driven_from, Start};
+pub use driven::{simulate_driven, simulate_driven_from, Start, FREE_RUN_START};
 pub use planned::{Moves, Setpoint, Trajectory};
 
 use config::{check_config, config_error, sample_counts, stream_seed, Stream};
