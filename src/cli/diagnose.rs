@@ -167,7 +167,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         println!("\nNote: {h}");
     }
     let refined = if args.refine {
-        let r = refine_corrected(&d, &records)?;
+        let r = refine_corrected(&d, &records, args.quiet)?;
         print!("{}", render_refined(&r.0));
         Some(r)
     } else {
@@ -224,7 +224,11 @@ fn closed_loop_hint(
 
 /// The corrected model refined on every level: the report (start: its covariance values)
 /// and the model's text with the refined values.
-fn refine_corrected(d: &Diagnosis, records: &[Record]) -> miette::Result<(RefineReport, String)> {
+fn refine_corrected(
+    d: &Diagnosis,
+    records: &[Record],
+    quiet: bool,
+) -> miette::Result<(RefineReport, String)> {
     let fixed = dsl_parser::compile_str(&d.model, &d.fixed_source)
         .map_err(|e| miette::miette!("the corrected model does not compile: {e}"))?;
     let start: Vec<f64> = fixed
@@ -232,7 +236,8 @@ fn refine_corrected(d: &Diagnosis, records: &[Record]) -> miette::Result<(Refine
         .iter()
         .map(|p| fixed.params[p.index()].nominal().unwrap_or(0.0))
         .collect();
-    let report = RefineReport::compute(&fixed, &start, records, &[], &RefineOptions::default())?;
+    let opts = RefineOptions::default();
+    let report = RefineReport::compute(&fixed, &start, records, &[], &opts, quiet)?;
     if !report.refinement.applied {
         // The model written keeps the corrected model's values (the note says why).
         return Ok((report, d.fixed_source.clone()));

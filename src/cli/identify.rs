@@ -47,8 +47,12 @@ on the free-run (simulation) error of all levels, with the Jacobian from forward
 sensitivities of the simulation. Both estimates are printed side by side with their
 free-run RMS errors on the estimation files and on the --test files:
   dynid identify models/sdof_duffing.dyn data/level_*.csv --refine --test test/level_1.csv
-Long records: --segment SECONDS cuts them into sub-records, each started from its own
-fitted initial state (multiple shooting). --weight m1.x=2 weighs a compared signal.";
+Every record is simulated from its measured initial state (velocities not measured: from
+the first three positions), in the fit as in the scores. Long records: --segment SECONDS
+cuts them into sub-records, the later ones started from fitted initial states (multiple
+shooting); a fit whose whole-record free run ends worse than its start is not applied and
+says why. --weight m1.x=2 weighs a compared signal. Models with control laws are refused
+before any work (refine the plant, driven by the recorded controller output).";
 
 /// Arguments of `dynid identify`.
 #[derive(clap::Args, Debug)]
@@ -277,20 +281,26 @@ pub fn refine_files(
         opts.segment = Some(((s / r.ts).round() as usize).max(3));
     }
     let test = read_all(ir, args, &args.test)?;
-    RefineReport::compute(ir, &refine::start_from(ir, id), &est, &test, &opts)
+    RefineReport::compute(ir, &refine::start_from(ir, id), &est, &test, &opts, false)
 }
 
 impl RefineReport {
     /// Refine `start` on the estimation records `est` and score both value sets on `est`
-    /// and on the `test` records.
+    /// and on the `test` records; the iterations show on a progress bar on stderr unless
+    /// `quiet` (hidden anyway when stderr is not a terminal).
     pub fn compute(
         ir: &ModelIr,
         start: &[f64],
         est: &[Record],
         test: &[Record],
         opts: &RefineOptions,
+        quiet: bool,
     ) -> miette::Result<Self> {
-        let bar = progress_bar(opts.max_iter);
+        let bar = if quiet {
+            indicatif::ProgressBar::hidden()
+        } else {
+            progress_bar(opts.max_iter)
+        };
         let r = refine::refine_with_progress(ir, est, start, opts, &|p| {
             bar.set_length(p.max_iter as u64);
             bar.set_position(p.iteration as u64);

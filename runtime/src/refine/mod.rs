@@ -73,6 +73,11 @@ pub struct RefineOptions {
     pub max_iter: usize,
     /// Stop when an accepted step lowers the cost by less than this fraction.
     pub tol: f64,
+    /// Fit every record's initial state too (a procedure with a score of its own, such as
+    /// the Silverbox benchmark's from rest); by default a record's first sub-record starts
+    /// from the measured state ([`FREE_RUN_START`]) as every free-run score does, and a
+    /// fit whose score ends worse than its start is not applied.
+    pub estimate_initial: bool,
 }
 
 impl Default for RefineOptions {
@@ -83,6 +88,7 @@ impl Default for RefineOptions {
             weights: Vec::new(),
             max_iter: 60,
             tol: 1e-9,
+            estimate_initial: false,
         }
     }
 }
@@ -230,13 +236,15 @@ struct Segment {
     record: usize,
     start: usize,
     end: usize,
+    /// The initial state is fitted even for a record's first sub-record.
+    estimated: bool,
 }
 
 impl Segment {
     /// Local unknowns (initial positions and velocities) of the sub-record: none for a
     /// record's first, which starts from the measured state.
     fn locals(&self, nb: usize) -> usize {
-        if self.start == 0 {
+        if self.start == 0 && !self.estimated {
             0
         } else {
             2 * nb
@@ -410,7 +418,7 @@ pub fn refine_with_progress(
         .collect();
     // The score: whole records from their measured states. Without sub-records it is the
     // cost itself, which only accepted (lower) steps changed.
-    let whole = pb.segments.len() == records.len();
+    let whole = pb.segments.len() == records.len() && !opts.estimate_initial;
     let (free_run_start, free_run_end) = if whole {
         (cost_start / n_rows as f64, cost / n_rows as f64)
     } else {
@@ -419,7 +427,7 @@ pub fn refine_with_progress(
             pb.free_run_cost(&theta) / n_rows as f64,
         )
     };
-    let applied = free_run_end <= free_run_start;
+    let applied = opts.estimate_initial || free_run_end <= free_run_start;
     let note = (!applied).then(|| {
         format!(
             "not applied: fitted on {} sub-records (multiple shooting), the values give a \
@@ -654,6 +662,7 @@ impl<'a> Problem<'a> {
                     record: r,
                     start: a,
                     end: b,
+                    estimated: opts.estimate_initial,
                 });
             }
         }
