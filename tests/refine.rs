@@ -81,11 +81,15 @@ fn refined_estimate_is_at_least_as_accurate_as_the_covariance_one() {
         worst(&er) <= worst(&ec),
         "refined {er:?} vs covariance {ec:?}"
     );
-    // Seed offsets 0–3: worst refined error 0.008 %, 0.007 %, 0.013 %, 0.006 % (covariance
-    // 0.18 %, 0.19 %, 0.53 %, 0.60 %); the bound is 3× the largest. The test records' free-run
-    // error is printed, not asserted: at this noise it moves either way by up to 45 %
-    // (0.048 → 0.070 at offset 3) although the refined parameters are 50× closer.
-    assert!(worst(&er) < 4e-4, "{er:?}");
+    // Seed offsets 0–3 (`DYNID_SEED_OFFSET=k cargo test --test refine -- --nocapture`):
+    // worst refined error 0.045 %, 0.055 %, 0.38 %, 0.024 % (covariance 0.18 %, 0.19 %,
+    // 0.53 %, 0.60 %); the bound is 3× the largest. Every record starts from its measured
+    // state, the velocity from a difference of three positions with 2 % noise: that start
+    // error goes into the parameters (fitting the initial states instead gave 0.006–0.013 %,
+    // but a score the printed free run did not share). The test records' free-run error is
+    // printed, not asserted: at this noise it moves either way by up to 45 % (0.048 → 0.070
+    // at offset 3) although the refined parameters are closer.
+    assert!(worst(&er) < 1.2e-2, "{er:?}");
     // Standard errors are finite and positive.
     assert!(r
         .params

@@ -199,7 +199,7 @@ pub struct Refinement {
     /// The weighted mean-square free-run error per residual of whole records, every
     /// record simulated from its measured state ([`FREE_RUN_START`]), at the start values
     /// and at the values the fit reached. Without sub-records these are `cost_start` and
-    /// `cost_end`.
+    /// `cost_end`. `free_run_end` is `f64::MAX` when the fitted values' free run diverges.
     pub free_run_start: f64,
     pub free_run_end: f64,
     /// The fitted values were kept; `false`: their whole-record free run is worse than the
