@@ -210,7 +210,7 @@ fn closed_loop_hint(
     let drifting = ir.signals.iter().any(|s| {
         s.measured
             && matches!(s.kind, dsl_parser::ir::SignalKind::Position(_))
-            && drift(&s.name).is_some_and(|e| !(e < set_point::DRIFTS))
+            && drift(&s.name).is_some_and(|e| e >= set_point::DRIFTS)
     });
     if !drifting {
         return Ok(None);
@@ -218,7 +218,7 @@ fn closed_loop_hint(
     let rec = record()?;
     Ok(set_point::set_points(ir, &rec).into_iter().find_map(|sp| {
         let e = drift(&sp.position)?;
-        (!(e < set_point::DRIFTS)).then(|| sp.note(if e.is_finite() { e } else { 100.0 }))
+        (e >= set_point::DRIFTS).then(|| sp.note(if e.is_finite() { e } else { 100.0 }))
     }))
 }
 
