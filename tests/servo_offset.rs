@@ -153,6 +153,18 @@ fn diagnose_names_a_withheld_constant_force_and_coulomb_friction() {
     );
     let text = d.summary();
     println!("{text}");
+    for c in &d.ranking {
+        println!(
+            "  {} at {}: {} ± {} cv {} gap {:?} {}",
+            c.effect.kind(),
+            c.location.label(),
+            c.value,
+            c.stderr,
+            c.cv_residual,
+            c.gap,
+            c.note
+        );
+    }
     let kinds: Vec<&str> = d.found.iter().map(|f| f.effect.kind()).collect();
     assert_eq!(kinds.len(), 2, "{text}");
     assert!(kinds.contains(&"constant_force"), "{text}");
@@ -285,13 +297,16 @@ fn detect_reports_a_mean_the_linear_model_cannot_explain() {
 
 #[test]
 fn diagnose_gives_the_levels_too_alike_warning_of_detect() {
-    // `models/servo_axis.dyn` (the random set point) at three levels of one intensity: the
-    // velocity spans a factor near 1, so no drift of `d` could show.
+    // `models/servo_axis_planned.dyn` at three levels of one speed (the planned moves
+    // repeat, as the cycles of one record do; 1 % noise on every channel keeps the records
+    // apart): the velocity spans a factor 1, so no drift of `d` could show.
     use dynid::runtime::data::LevelSource;
     use dynid::runtime::detect::{detect_from_data, levels_too_alike, DetectOptions};
-    let ir = dsl_parser::compile_file(&common::model_path("servo_axis.dyn")).expect("model");
+    let ir =
+        dsl_parser::compile_file(&common::model_path("servo_axis_planned.dyn")).expect("model");
     let cfg = SimConfig {
-        levels: Some(vec![0.6; 3]),
+        levels: Some(vec![1.0; 3]),
+        noise: 0.01,
         duration: 25.0,
         sample: 1e-3,
         seed: common::seed(6),
@@ -329,4 +344,57 @@ fn diagnose_gives_the_levels_too_alike_warning_of_detect() {
             w.message
         );
     }
+}
+
+#[test]
+fn identify_cli_warns_of_a_withheld_constant_force_on_stderr_and_in_json() {
+    // `models/servo_axis.dyn` with the constant force makes the data; `identify` is given
+    // the model without it.
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::fs::read_to_string(common::model_path("servo_axis.dyn")).unwrap();
+    let with = src.replacen(
+        "    excite",
+        &format!("    force off (ground, m) = f0 ~ {OFFSET:?}\n    excite"),
+        1,
+    );
+    let truth = dir.path().join("truth.dyn");
+    std::fs::write(&truth, with).unwrap();
+    let data = dir.path().join("data");
+    let out = common::dynid()
+        .arg("simulate")
+        .arg(&truth)
+        .args(["--duration", "25", "--sample", "0.001", "--burn-in", "2"])
+        .args(["--input-oversample", "10", "--quantise", "1e-6"])
+        .args(["--seed", &common::seed(7).to_string(), "--out"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let json = dir.path().join("id.json");
+    let out = common::dynid()
+        .arg("identify")
+        .arg(common::model_path("servo_axis.dyn"))
+        .args((1..=3).map(|k| data.join(format!("level_{k}.csv"))))
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let err = common::stderr(&out);
+    assert!(out.status.success(), "{err}");
+    println!("{err}");
+    assert!(
+        err.contains("warning:")
+            && err.contains("unmodelled constant force")
+            && err.contains("N on `m`"),
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let w = v["fit_warnings"].as_array().expect("fit_warnings");
+    assert!(
+        w.iter().any(|w| w["cause"] == "constant_force"
+            && w["message"]
+                .as_str()
+                .is_some_and(|m| m.contains("N on `m`"))),
+        "{v}"
+    );
 }

@@ -156,8 +156,9 @@ pub fn diagnose(
         .collect();
     let pooled = m.identify_pooled();
     // What the identification's guard says of the data (a sensor offset, a wrong fixed
-    // mass, a record given twice) holds for every fit below. A missing force is what the
-    // diagnosis itself looks for, so that warning is left to the search.
+    // mass, a record given twice) holds for every fit below. A missing force (a constant
+    // one included) is what the diagnosis itself looks for, so that warning is left to
+    // the search.
     {
         let srcs = gap::sources(&ir, &data)?;
         let refs: Vec<&dyn crate::data::LevelSource> = srcs
@@ -355,10 +356,14 @@ pub fn diagnose(
     // signal's mean, which is all a constant force changes in a model that holds
     // otherwise: a corrected model with a constant force that matches as the nominal one
     // does (within the acceptance margin `min_abs_shrink`) and follows the measured paths
-    // more closely (pathwise gap) is a finding.
+    // more closely (pathwise gap) is a finding — on a body no force of which depends on
+    // its position: on one held by a spring, a zero offset `x0` of the position sensor
+    // gives the same mean as a constant force `−k·x0`, and the guard's note names both.
     if !found.is_empty() && nominal.gap < CONSISTENT_GAP {
         let smaller = current_gap.gap < nominal.gap;
-        let mean_shown = found.iter().any(|f| f.effect == Effect::ConstantForce)
+        let mean_shown = found
+            .iter()
+            .any(|f| f.effect == Effect::ConstantForce && !position_dependent(&ir, &f.location.b))
             && current_gap.gap <= nominal.gap + opts.min_abs_shrink
             && current_gap.pathwise < nominal.pathwise;
         if !(smaller || mean_shown) {
@@ -505,4 +510,20 @@ pub fn diagnose(
         fixed_source: fixed,
         spectra,
     })
+}
+
+/// Whether a force in the equation of `body` depends on a position (a spring, a nonlinear
+/// stiffness): only then can a zero offset of a position sensor act as a constant force.
+fn position_dependent(ir: &ModelIr, body: &str) -> bool {
+    ir.equations
+        .iter()
+        .filter(|e| ir.bodies[e.body.index()].name == body)
+        .flat_map(|e| &e.terms)
+        .any(|t| match t.basis {
+            dynid_ir::ir::Basis::Expr(x) => ir
+                .expr_signals(x)
+                .iter()
+                .any(|s| matches!(ir.signal(*s).kind, SignalKind::Position(_))),
+            dynid_ir::ir::Basis::Deriv { .. } => false,
+        })
 }

@@ -71,6 +71,10 @@ pub enum LikelyCause {
     /// A constant force explains the residual: a position sensor's zero offset, or an
     /// unmodelled constant force.
     SensorOffset,
+    /// A constant force explains the residual, and no force of the model depends on a
+    /// position (so a sensor's zero offset enters no equation): an unmodelled constant
+    /// force (gravity on an inclined axis, a cable, an amplifier's bias).
+    ConstantForce,
     /// A body or an element that the data show is not in the model.
     MissingBody,
     /// The equation's mass is fixed in the model (not identified) and likely wrong, or a
@@ -174,7 +178,7 @@ pub(crate) fn check(
             _ => None,
         };
         let (cause, why) = match (&offset, fixed_mass, freed) {
-            (Some(o), _, _) => (LikelyCause::SensorOffset, o.advice(Some(&r.equation))),
+            (Some(o), _, _) => (o.cause(), o.advice(Some(&r.equation))),
             (None, Some(mass), Some((value, after))) => (
                 LikelyCause::WrongMass,
                 format!(
@@ -209,7 +213,7 @@ pub(crate) fn check(
     }
     for (name, pooled, nearest, t) in disagree {
         let (cause, why) = match &offset {
-            Some(o) => (LikelyCause::SensorOffset, o.advice(None)),
+            Some(o) => (o.cause(), o.advice(None)),
             None => (
                 LikelyCause::LevelsInconsistent,
                 "no single set of parameters describes the levels: a level from another \
@@ -315,6 +319,14 @@ struct Offset {
 }
 
 impl Offset {
+    fn cause(&self) -> LikelyCause {
+        if self.position_dependent {
+            LikelyCause::SensorOffset
+        } else {
+            LikelyCause::ConstantForce
+        }
+    }
+
     /// What to do, for the equation of `body` where there is one.
     fn advice(&self, body: Option<&str>) -> String {
         let pos = match &self.position {
