@@ -212,7 +212,7 @@ class Identification:
     @property
     def fit_warnings(self) -> List[Any]:
         """Residuals the model cannot explain, each with ``check``, ``cause``
-        (``sensor_offset``, ``wrong_mass``, ``missing_body``, ...) and ``message``."""
+        (``sensor_offset``, ``constant_force``, ``wrong_mass``, ``missing_body``, ...) and ``message``."""
         return self._d.get("fit_warnings", [])
 
     def _rows(self) -> List[List[str]]:

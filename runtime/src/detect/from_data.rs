@@ -486,7 +486,8 @@ pub fn level_fits(
 }
 
 /// [`level_fits`] followed by [`detect`], with the jackknife's degrees of freedom filled in
-/// when `detect_opts.se_dof` is `None`.
+/// when `detect_opts.se_dof` is `None`, and the means the linear model cannot explain
+/// ([`super::unexplained_means`]).
 pub fn detect_from_data(
     ir: &ModelIr,
     levels: &[&dyn LevelSource],
@@ -499,6 +500,7 @@ pub fn detect_from_data(
     if opts.se_dof.is_none() {
         opts.se_dof = Some(fits.n_blocks as f64 - 1.0);
     }
-    let det = detect(&fits.input, extra, &opts)?;
+    let mut det = detect(&fits.input, extra, &opts)?;
+    det.constant_forces = super::unexplained_means(ir, levels, ident_opts)?;
     Ok((det, fits))
 }

@@ -28,6 +28,7 @@
 mod candidate;
 mod fit;
 pub mod from_data;
+pub mod offset;
 mod quad;
 mod render;
 pub mod resolution;
@@ -41,9 +42,10 @@ pub use candidate::{Candidate, Dependence, Distribution, ShapeParam};
 pub use from_data::{
     detect_from_data, held_inertia, level_fits, FromDataError, LevelFits, SigmaVSource,
 };
+pub use offset::{unexplained_means, ConstantForceFinding};
 pub use quad::NormalRule;
 pub use render::{fmt_g, fmt_pm};
-pub use resolution::{levels_too_alike, LevelsTooAlike};
+pub use resolution::{levels_too_alike, levels_too_alike_in, LevelsTooAlike};
 pub use types::{
     DetectError, DetectOptions, Detection, DetectionInput, ElementFinding, ElementIntensity,
     Estimate, HeldParam, Linearisation, ParamCurve, ParamCurveResult, Prediction, Role, Suspected,
@@ -265,6 +267,7 @@ pub fn detect(
         held: input.held.clone(),
         measured_s,
         measured_v,
+        constant_forces: Vec::new(),
     })
 }
 

@@ -136,6 +136,10 @@ impl Detection {
                 fmt_g(e.c_hat)
             );
         }
+        for c in &self.constant_forces {
+            let _ = writeln!(out);
+            let _ = writeln!(out, "Mean not explained by the linear model: {}", c.message);
+        }
         if !self.measured_s.is_empty() || !self.measured_v.is_empty() {
             let _ = writeln!(out);
             let what = |v: &[String], sig: &str| {

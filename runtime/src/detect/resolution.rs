@@ -143,6 +143,22 @@ pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooA
     out
 }
 
+/// The warnings of [`levels_too_alike`] that `dynid detect` gives on `levels` for the model
+/// `ir`: its per-level fits with the default detection settings (the jackknife's degrees
+/// of freedom filled in as [`super::detect_from_data`] does), without the search for
+/// constant forces. For a front end that does not run the detection itself (the diagnosis).
+pub fn levels_too_alike_in(
+    ir: &dynid_ir::ir::ModelIr,
+    levels: &[&dyn crate::data::LevelSource],
+    ident_opts: &crate::ident::IdentifyOptions,
+) -> Result<Vec<LevelsTooAlike>, super::FromDataError> {
+    let mut opts = DetectOptions::default();
+    let fits = super::level_fits(ir, levels, ident_opts, opts.hold_inertia)?;
+    opts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
+    let det = super::detect(&fits.input, &[], &opts)?;
+    Ok(levels_too_alike(&det, &opts))
+}
+
 /// The span in σ below which the levels themselves are too alike (the recommendation of
 /// the detection's help: a factor ≥ 3).
 const WIDE_SPAN: f64 = 3.0;

@@ -379,6 +379,10 @@ pub struct Detection {
     pub measured_s: Vec<String>,
     #[serde(default)]
     pub measured_v: Vec<String>,
+    /// Means of the data that the linear model cannot explain: a constant force on a body
+    /// ([`super::unexplained_means`], filled by [`super::detect_from_data`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub constant_forces: Vec<super::ConstantForceFinding>,
 }
 
 #[derive(Debug, thiserror::Error, miette::Diagnostic)]

@@ -20,6 +20,10 @@ pub enum Effect {
         gap: f64,
     },
     Prestress,
+    /// A constant force on a body (gravity on an inclined axis, a cable, an amplifier's
+    /// bias): the element `force off (ground, m) = f0`, its basis the number 1. Its sites
+    /// are the bodies against ground; its value is a force in N.
+    ConstantForce,
 }
 
 impl Effect {
@@ -31,7 +35,13 @@ impl Effect {
             Effect::QuadraticDamping => "quadratic damping v*abs(v)".into(),
             Effect::Backlash { gap } => format!("backlash deadzone(s, {})", num::exact(*gap)),
             Effect::Prestress => "prestress sign(s)".into(),
+            Effect::ConstantForce => "constant force".into(),
         }
+    }
+    /// The unit of the effect's value where it is a force (the constant force, in N); the
+    /// other coefficients have the units of force per unit of their basis.
+    pub fn unit(&self) -> Option<&'static str> {
+        matches!(self, Effect::ConstantForce).then_some("N")
     }
     /// Short kind name, stable for machines.
     pub fn kind(&self) -> &'static str {
@@ -42,6 +52,7 @@ impl Effect {
             Effect::QuadraticDamping => "quadratic_damping",
             Effect::Backlash { .. } => "backlash",
             Effect::Prestress => "prestress",
+            Effect::ConstantForce => "constant_force",
         }
     }
     /// The effect's basis function of an element's relative displacement `s` and velocity
@@ -57,6 +68,8 @@ impl Effect {
             }
             Effect::Backlash { gap } => arena.intern(ExprNode::Deadzone(s, gap.to_bits())),
             Effect::Prestress => arena.unary(UnaryOp::Sign, s),
+            // The basis the language gives a term that is a parameter alone.
+            Effect::ConstantForce => arena.constant(1.0),
         }
     }
     pub(super) fn param_stem(&self) -> &'static str {
@@ -67,6 +80,7 @@ impl Effect {
             Effect::QuadraticDamping => "q",
             Effect::Backlash { .. } => "kb",
             Effect::Prestress => "f0",
+            Effect::ConstantForce => "offset",
         }
     }
     pub(super) fn needs_velocity(&self) -> bool {
@@ -74,9 +88,12 @@ impl Effect {
     }
     /// Friction, damping, backlash and preload dissipate or resist: a negative coefficient
     /// is unphysical. A cubic term may harden or soften; the sign of a quadratic term only
-    /// says in which direction the spring is stiffer.
+    /// says in which direction the spring is stiffer; a constant force pushes either way.
     pub(super) fn sign_ok(&self, p: f64) -> bool {
-        matches!(self, Effect::Cubic | Effect::QuadraticStiffness) || p >= 0.0
+        matches!(
+            self,
+            Effect::Cubic | Effect::QuadraticStiffness | Effect::ConstantForce
+        ) || p >= 0.0
     }
 }
 
@@ -126,6 +143,29 @@ pub(super) fn locations(ir: &ModelIr) -> Vec<Location> {
     out
 }
 
+/// The sites of a constant force: every body against ground, written `(ground, body)` (the
+/// element pushes the body by `−f0`, as `force off (ground, m) = f0` does), with the
+/// elements that already join the body to ground. A constant force between two bodies is
+/// an internal force, which no rig supplies unaided.
+pub(super) fn constant_force_sites(ir: &ModelIr, locs: &[Location]) -> Vec<Location> {
+    ir.bodies
+        .iter()
+        .map(|body| {
+            let b = body.name.clone();
+            let elements = locs
+                .iter()
+                .find(|l| (l.a == "ground" && l.b == b) || (l.b == "ground" && l.a == b))
+                .map(|l| l.elements.clone())
+                .unwrap_or_default();
+            Location {
+                a: "ground".into(),
+                b,
+                elements,
+            }
+        })
+        .collect()
+}
+
 /// A model variant: the model with the added force elements.
 pub(super) struct Variant {
     pub(super) ir: ModelIr,
@@ -170,6 +210,7 @@ mod tests {
             (Effect::QuadraticDamping, "r ~ 0 * v * abs(v)"),
             (Effect::Backlash { gap: 0.25 }, "r ~ 0 * deadzone(s, 0.25)"),
             (Effect::Prestress, "r ~ 0 * sign(s)"),
+            (Effect::ConstantForce, "r ~ 0"),
         ];
         for loc in &locations(&ir) {
             for (effect, text) in cases {

@@ -1,7 +1,7 @@
 //! The candidate search: every effect at every site on top of the current model, ranked by
 //! the cross-validated covariance residual; the best few scored by the withheld free-run gap.
 
-use super::effects::{add_effect, locations, Effect, Location, Variant};
+use super::effects::{add_effect, constant_force_sites, locations, Effect, Location, Variant};
 use super::gap::Data;
 use super::gap::{cross_validate, cv_gap, measure_all};
 use super::types::{CandidateScore, DiagnoseOptions, FoundEffect, ModelGap};
@@ -113,10 +113,18 @@ pub(super) fn search_step(
             }
         }
     }
+    // A constant force on each body. Where the data carry no mean (centred records) its
+    // column is zero and identification names it unidentifiable: the candidate then has
+    // no value and is not scored ("not resolved by the data").
+    for loc in constant_force_sites(ir, &locs) {
+        if !already(Effect::ConstantForce.kind(), &loc) {
+            cands.push((Effect::ConstantForce, loc));
+        }
+    }
     if skipped_velocity && !notes.iter().any(|s| s.contains("velocities")) {
         notes.push(
             "velocities are neither measured nor estimable from positions: Coulomb friction and \
-             quadratic damping candidates were skipped (cubic, quadratic stiffness, backlash and prestress were searched)"
+             quadratic damping candidates were skipped (cubic, quadratic stiffness, backlash, prestress and constant force were searched)"
                 .into(),
         );
     }

@@ -153,10 +153,12 @@ impl Diagnosis {
                     let conf = confidence(f.value / f.stderr, step.map_or(0.0, |x| 100.0 * x));
                     let _ = writeln!(
                         s,
-                        "{} missing effect: {} at {}{}",
+                        "{} missing effect: {} at {}{}{}",
                         if k == 0 { "Most likely" } else { "Also" },
                         f.effect.name(),
                         f.location.label(),
+                        f.unit
+                            .map_or(String::new(), |u| format!(": {} {u}", fmt_num(f.value))),
                         if f.location.elements.is_empty() {
                             " (body to ground)".to_string()
                         } else {

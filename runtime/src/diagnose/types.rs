@@ -204,6 +204,9 @@ pub struct FoundEffect {
     pub param: String,
     pub value: f64,
     pub stderr: f64,
+    /// The unit of `value` where it is a force (`"N"` for a constant force).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit: Option<&'static str>,
     /// A backlash's gap is profiled once the backlash is accepted (the value is in
     /// `effect`): its standard error, `None` when the profile is flat at its minimum.
     pub shape_stderr: Option<f64>,

@@ -71,6 +71,10 @@ pub enum LikelyCause {
     /// A constant force explains the residual: a position sensor's zero offset, or an
     /// unmodelled constant force.
     SensorOffset,
+    /// A constant force explains the residual, and no force of the model depends on a
+    /// position (so a sensor's zero offset enters no equation): an unmodelled constant
+    /// force (gravity on an inclined axis, a cable, an amplifier's bias).
+    ConstantForce,
     /// A body or an element that the data show is not in the model.
     MissingBody,
     /// The equation's mass is fixed in the model (not identified) and likely wrong, or a
@@ -174,7 +178,7 @@ pub(crate) fn check(
             _ => None,
         };
         let (cause, why) = match (&offset, fixed_mass, freed) {
-            (Some(o), _, _) => (LikelyCause::SensorOffset, o.advice(Some(&r.equation))),
+            (Some(o), _, _) => (o.cause(), o.advice(Some(&r.equation))),
             (None, Some(mass), Some((value, after))) => (
                 LikelyCause::WrongMass,
                 format!(
@@ -209,7 +213,7 @@ pub(crate) fn check(
     }
     for (name, pooled, nearest, t) in disagree {
         let (cause, why) = match &offset {
-            Some(o) => (LikelyCause::SensorOffset, o.advice(None)),
+            Some(o) => (o.cause(), o.advice(None)),
             None => (
                 LikelyCause::LevelsInconsistent,
                 "no single set of parameters describes the levels: a level from another \
@@ -306,9 +310,23 @@ struct Offset {
     residual: f64,
     /// `(signal, mean, mean / std)` over the levels.
     position: Option<(String, f64, f64)>,
+    /// The probe's constant force on each body, `(body, f0, its standard error)`, as
+    /// `force off (ground, body) = f0` writes it (in N).
+    forces: Vec<(String, f64, f64)>,
+    /// Whether a force of the model depends on a position (a spring, a nonlinear
+    /// stiffness): only then can a zero offset of a position sensor act as a constant force.
+    position_dependent: bool,
 }
 
 impl Offset {
+    fn cause(&self) -> LikelyCause {
+        if self.position_dependent {
+            LikelyCause::SensorOffset
+        } else {
+            LikelyCause::ConstantForce
+        }
+    }
+
     /// What to do, for the equation of `body` where there is one.
     fn advice(&self, body: Option<&str>) -> String {
         let pos = match &self.position {
@@ -318,13 +336,52 @@ impl Offset {
             ),
             None => String::new(),
         };
+        // The constant force on the equation's body, else on every body.
+        let sized: Vec<String> = self
+            .forces
+            .iter()
+            .filter(|(b, ..)| body.is_none_or(|e| e == b))
+            .map(|(b, f, se)| {
+                format!(
+                    "{} ± {} N on `{b}`",
+                    dynid_ir::num::sig(*f, 3, false),
+                    dynid_ir::num::sig(*se, 2, false)
+                )
+            })
+            .collect();
+        let sized = if sized.is_empty() {
+            String::new()
+        } else {
+            format!(" (identified: {})", sized.join(", "))
+        };
+        let f0 = match self
+            .forces
+            .iter()
+            .find(|(b, ..)| body.is_none_or(|e| e == b))
+        {
+            Some((_, f, _)) => format!(" ~ {}", dynid_ir::num::sig(*f, 3, false)),
+            None => String::new(),
+        };
+        if !self.position_dependent {
+            // No force depends on a position: a zero offset of a position sensor enters no
+            // equation, so the constant force is a force.
+            return format!(
+                "with a constant force on every body{sized} the residual falls to {:.1} %: \
+                 the data carry a mean force the model cannot produce, so the likely cause \
+                 is an unmodelled constant force (gravity on an inclined axis, a cable, an \
+                 amplifier's bias) — add it to the model (`force off (ground, {}) = \
+                 f0{f0}`); the other estimates are biased until then",
+                100.0 * self.residual,
+                body.unwrap_or("BODY")
+            );
+        }
         format!(
-            "with a constant force on every body the residual falls to {:.1} %, so the \
-             likely cause is a zero offset of a position sensor{pos} or an unmodelled \
+            "with a constant force on every body{sized} the residual falls to {:.1} %, so \
+             the likely cause is a zero offset of a position sensor{pos} or an unmodelled \
              constant force (gravity, a preload, an amplifier bias) — subtract the sensor's \
              reading at rest from its column, or add a constant force to the model \
-             (`force off (ground, {}) = f0`), which takes up an offset `x0` of a body held \
-             by a spring `k` as `f0 = −k·x0`",
+             (`force off (ground, {}) = f0{f0}`), which takes up an offset `x0` of a body \
+             held by a spring `k` as `f0 = −k·x0`",
             100.0 * self.residual,
             body.unwrap_or("BODY")
         )
@@ -382,9 +439,11 @@ fn offset_probe(
     let before = worst(id);
     let mut probe = ir.clone();
     let one = |a: &mut dynid_ir::ir::ExprArena, _, _| a.constant(1.0);
+    let mut params: Vec<(String, String)> = Vec::with_capacity(ir.bodies.len());
     for b in &ir.bodies {
         let name = probe.fresh_name("offset_probe");
         let param = probe.fresh_name("f_offset_probe");
+        params.push((b.name.clone(), param.clone()));
         probe
             .add_force(
                 &name,
@@ -419,8 +478,28 @@ fn offset_probe(
                 .map(|(m, z)| (s.name.clone(), m, z))
         })
         .max_by(|a, b| a.2.total_cmp(&b.2));
+    let forces = params
+        .iter()
+        .filter_map(|(b, p)| {
+            let e = fit.param(p)?;
+            (e.value.is_finite() && e.stderr.is_finite()).then(|| (b.clone(), e.value, e.stderr))
+        })
+        .collect();
+    let position_dependent = ir
+        .equations
+        .iter()
+        .flat_map(|e| &e.terms)
+        .any(|t| match t.basis {
+            dynid_ir::ir::Basis::Expr(e) => ir
+                .expr_signals(e)
+                .iter()
+                .any(|s| matches!(ir.signal(*s).kind, SignalKind::Position(_))),
+            dynid_ir::ir::Basis::Deriv { .. } => false,
+        });
     Some(Offset {
         residual: after,
         position,
+        forces,
+        position_dependent,
     })
 }
