@@ -190,3 +190,62 @@ fn identify_names_its_flags_apart_from_the_segments_of_diagnose() {
     assert!(!text.contains("--segment "), "{text}");
     assert!(!text.contains("--segments"), "{text}");
 }
+
+#[test]
+fn gaps_are_printed_in_the_signals_units_beside_the_percentages() {
+    let p = planned();
+    let stdout = String::from_utf8_lossy(&p.out.stdout);
+    // The closed loop holds the position: its gap is micrometres, the force carries the
+    // information in newtons.
+    assert!(stdout.contains("Per signal (mean over levels"), "{stdout}");
+    let line = |name: &str| {
+        stdout
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("{name} ")) && l.contains("nominal"))
+            .unwrap_or_else(|| panic!("no line for {name} in\n{stdout}"))
+            .to_string()
+    };
+    let (x, u) = (line("m.x"), line("u"));
+    assert!(x.contains("µm)") || x.contains("mm)"), "{x}");
+    assert!(
+        u.contains(" N)") || u.contains(" mN)") || u.contains(" kN)"),
+        "{u}"
+    );
+    assert!(
+        stdout.contains("Where: worst signals (nominal): "),
+        "{stdout}"
+    );
+    assert!(stdout.contains("(RMS "), "{stdout}");
+    for level in p.json["nominal"]["levels"].as_array().unwrap() {
+        for s in level["signals"].as_array().unwrap() {
+            let unit = s["unit"].as_str().unwrap();
+            match s["signal"].as_str().unwrap() {
+                "m.x" => assert_eq!(unit, "m"),
+                "u" => assert_eq!(unit, "N"),
+                other => panic!("unexpected signal {other}"),
+            }
+            let rms = s["rms_error"].as_f64().unwrap();
+            assert!(rms.is_finite() && rms > 0.0, "{s}");
+            assert!(s["std_diff"].as_f64().unwrap().is_finite(), "{s}");
+        }
+    }
+    // The report's table has the same figures in units.
+    assert!(p.report.contains("free-run RMS error"), "report table");
+}
+
+#[test]
+fn the_report_shows_time_traces_and_fine_spectra() {
+    let r = &planned().report;
+    assert!(r.contains("<h2>Time traces</h2>"));
+    for what in [
+        "whole record",
+        "zoomed",
+        "Free-run error of u",
+        "Free-run error of m.x",
+    ] {
+        assert!(r.contains(what), "no {what:?} in the report");
+    }
+    assert!(r.contains("time (s)") && r.contains("frequency (Hz)"));
+    // Every figure drew (no "figure not drawn").
+    assert!(!r.contains("figure not drawn"), "a figure failed");
+}
