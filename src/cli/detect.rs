@@ -35,6 +35,9 @@ segment table (time span, samples, σ) goes to stderr and into the JSON:
 
   dynid detect models/sdof_linear.dyn run_up.csv --segments 4
 
+A record of one repeated trajectory is cut at its cycles instead (--cut, see `dynid
+diagnose --help`); cycles of one amplitude cannot show a drift, and a warning says so.
+
 Levels (files or segments) whose σ are too alike for the drift test to resolve an effect
 of a quarter of a parameter's value get a warning (stderr, JSON `warnings`): their
 `linear` then only rules out larger effects.

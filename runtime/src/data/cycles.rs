@@ -79,13 +79,26 @@ impl Cycles {
             .fold((f64::INFINITY, 0.0f64), |(lo, hi), s| {
                 (lo.min(s.sigma), hi.max(s.sigma))
             });
-        !(hi / lo >= ALIKE_RATIO)
+        // A NaN ratio (no segment, or σ not finite) counts as alike: nothing drifts.
+        hi / lo < ALIKE_RATIO || (hi / lo).is_nan()
     }
 }
+
+/// Most samples whose autocorrelation is computed directly; a longer record is first
+/// averaged over blocks of consecutive samples (its FFT buffers stay below 1 GiB).
+const MAX_DIRECT: usize = 1 << 22;
 
 /// The period of `x` (samples, fractional) and the autocorrelation there, or `None` when
 /// the record does not repeat at least twice (see the module documentation).
 pub fn find_period(x: &[f64]) -> Option<(f64, f64)> {
+    if x.len() > MAX_DIRECT {
+        let f = x.len().div_ceil(MAX_DIRECT);
+        let means: Vec<f64> = x
+            .chunks_exact(f)
+            .map(|c| c.iter().sum::<f64>() / f as f64)
+            .collect();
+        return find_period(&means).map(|(p, r)| (p * f as f64, r));
+    }
     let n = x.len();
     if n < 2 * MIN_SAMPLES || x.iter().any(|v| !v.is_finite()) {
         return None;

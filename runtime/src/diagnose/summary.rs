@@ -57,9 +57,13 @@ fn gap_table(rows: &[(&str, &ModelGap)]) -> String {
     s
 }
 
-/// Means over the levels of one signal's gaps in a model's gap: (statistical %, free-run
-/// RMS error in the unit, unit); `None` when no level has the signal.
-pub fn signal_means(g: &ModelGap, signal: &str) -> Option<(f64, f64, String)> {
+/// One signal's mean gaps over the levels: (statistical %, free-run RMS error in the
+/// unit, unit).
+pub type SignalMeans = (f64, f64, String);
+
+/// Means over the levels of one signal's gaps in a model's gap; `None` when no level has
+/// the signal.
+pub fn signal_means(g: &ModelGap, signal: &str) -> Option<SignalMeans> {
     let v: Vec<&super::SignalGap> = g
         .levels
         .iter()
@@ -129,7 +133,7 @@ impl Diagnosis {
         let _ = writeln!(s);
         // Where.
         let worst: Vec<String> = {
-            let mut sig: Vec<(String, Option<(f64, f64, String)>)> = self
+            let mut sig: Vec<(String, Option<SignalMeans>)> = self
                 .response_signals
                 .iter()
                 .map(|name| (name.clone(), signal_means(&self.nominal, name)))
