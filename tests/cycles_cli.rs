@@ -229,6 +229,22 @@ fn gaps_are_printed_in_the_signals_units_beside_the_percentages() {
             assert!(s["std_diff"].as_f64().unwrap().is_finite(), "{s}");
         }
     }
+    // The figures of docs/diagnosis.md (179 µm and 14.8 N, nominal, mean over the cycles),
+    // within a factor 2 so that a change of the free-run start does not break them silently.
+    let mean_rms = |name: &str| {
+        let v: Vec<f64> = p.json["nominal"]["levels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|l| l["signals"].as_array().unwrap().iter())
+            .filter(|s| s["signal"] == name)
+            .map(|s| s["rms_error"].as_f64().unwrap())
+            .collect();
+        v.iter().sum::<f64>() / v.len() as f64
+    };
+    let (x_rms, u_rms) = (mean_rms("m.x"), mean_rms("u"));
+    assert!((90e-6..360e-6).contains(&x_rms), "m.x RMS {x_rms}");
+    assert!((7.0..30.0).contains(&u_rms), "u RMS {u_rms}");
     // The report's table has the same figures in units.
     assert!(p.report.contains("free-run RMS error"), "report table");
 }
