@@ -1,8 +1,10 @@
 //! Helpers shared by the subcommands.
 
 use dsl_parser::ir::ModelIr;
+use dsl_parser::ir::SignalKind;
+use dsl_parser::num::sig;
+use dynid_runtime::data::{cut_cycles, Cycles, Split, SplitOptions};
 use dynid_runtime::data::{default_response, read_record_within, split_record, CsvOptions};
-use dynid_runtime::data::{Split, SplitOptions};
 use dynid_runtime::record::Record;
 use miette::miette;
 use std::path::{Path, PathBuf};
@@ -103,22 +105,41 @@ pub fn at_least_two(s: &str) -> Result<usize, String> {
     }
 }
 
+/// Where one data file is cut (`--cut`).
+#[derive(clap::ValueEnum, Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum CutAt {
+    /// At the cycles of a repeated trajectory when the record repeats with one amplitude,
+    /// else by amplitude.
+    #[default]
+    Auto,
+    /// At the cycles of a repeated trajectory (refused when the record does not repeat).
+    Cycles,
+    /// By the local amplitude of the response.
+    Amplitude,
+}
+
 /// How one data file is cut into levels (`detect` and `diagnose`).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct SplitArgs {
-    /// With ONE data file: cut it into N contiguous segments by amplitude, one level each
-    /// [default: 3].
+    /// With ONE data file: cut it into N contiguous segments, one level each [default: one
+    /// per cycle of a repeated trajectory, else 3 by amplitude].
     #[arg(long, value_name = "N", value_parser = at_least_two)]
     pub segments: Option<usize>,
     /// With ONE data file: judge the amplitude by this signal [default: the first measured
     /// position of the model].
     #[arg(long = "split-by", value_name = "SIGNAL")]
     pub split_by: Option<String>,
+    /// With ONE data file: cut at the cycles of a repeated trajectory (found by the
+    /// autocorrelation of the model's references, the judged response, then its inputs),
+    /// or by amplitude.
+    #[arg(long = "cut", value_enum, default_value_t = CutAt::Auto, value_name = "AT")]
+    pub cut: CutAt,
 }
 
 /// One data file cut into levels by [`SplitArgs`].
 pub struct SplitLevels {
-    /// One record per segment, quietest first, each with all columns of the file.
+    /// One record per segment (by amplitude: quietest first; at cycles: in time order),
+    /// each with all columns of the file.
     pub records: Vec<Record>,
     /// `file [t0–t1 s]` per segment.
     pub origins: Vec<String>,
@@ -137,10 +158,11 @@ impl SplitArgs {
         allow_large: bool,
     ) -> miette::Result<Option<SplitLevels>> {
         if data.len() > 1 {
-            let flag = match (&self.segments, &self.split_by) {
-                (Some(_), _) => "--segments",
-                (None, Some(_)) => "--split-by",
-                (None, None) => return Ok(None),
+            let flag = match (&self.segments, &self.split_by, self.cut) {
+                (Some(_), _, _) => "--segments",
+                (None, Some(_), _) => "--split-by",
+                (None, None, CutAt::Auto) => return Ok(None),
+                (None, None, _) => "--cut",
             };
             return Err(miette!(
                 code = "dynid::split::several_files",
@@ -166,11 +188,16 @@ impl SplitArgs {
             })?,
         };
         let record = read_record_within(path, csv, allow_large)?;
-        let opts = SplitOptions {
-            segments: self.segments.unwrap_or(3),
-            ..Default::default()
+        let split = match self.at_cycles(ir, &record, &origin, &signal)? {
+            Some(split) => split,
+            None => {
+                let opts = SplitOptions {
+                    segments: self.segments.unwrap_or(3),
+                    ..Default::default()
+                };
+                split_record(&record, &origin, &signal, &opts)?
+            }
         };
-        let split = split_record(&record, &origin, &signal, &opts)?;
         eprint!("{origin}: {}", split.table());
         let origins = (0..split.segments.len())
             .map(|i| split.label(&origin, i))
@@ -180,6 +207,74 @@ impl SplitArgs {
             origins,
             split,
         }))
+    }
+
+    /// The record cut at its cycles, when `--cut` allows it and a signal repeats (in auto
+    /// mode only with one amplitude over the cycles); `None`: cut by amplitude.
+    fn at_cycles(
+        &self,
+        ir: &ModelIr,
+        record: &Record,
+        origin: &str,
+        response: &str,
+    ) -> miette::Result<Option<Split>> {
+        if self.cut == CutAt::Amplitude {
+            return Ok(None);
+        }
+        // A reference is the planned trajectory itself; the response follows it; an input
+        // repeats with it.
+        let names = |pick: fn(&SignalKind) -> bool| -> Vec<String> {
+            ir.signals
+                .iter()
+                .filter(|s| pick(&s.kind) && s.name != response)
+                .filter(|s| record.column(&s.name).is_some())
+                .map(|s| s.name.clone())
+                .collect()
+        };
+        let mut candidates = names(|k| matches!(k, SignalKind::Reference(_)));
+        candidates.push(response.to_string());
+        candidates.extend(names(|k| matches!(k, SignalKind::Input(_))));
+        let found = candidates.iter().find_map(|c| {
+            cut_cycles(record, c, response, None)
+                .and_then(Result::ok)
+                .map(|s| (c, s))
+        });
+        let Some((by, per_cycle)) = found else {
+            if self.cut == CutAt::Cycles {
+                return Err(miette!(
+                    code = "dynid::split::no_cycles",
+                    help = "cut it by amplitude (`--cut amplitude`), or give one file per level",
+                    "{origin}: no signal repeats at least twice ({} checked: autocorrelation \
+                     below {} at every lag up to half the record)",
+                    candidates.join(", "),
+                    dynid_runtime::data::cycles::MIN_CORRELATION
+                ));
+            }
+            return Ok(None);
+        };
+        if self.cut == CutAt::Auto && !Cycles::alike_amplitudes(&per_cycle) {
+            return Ok(None);
+        }
+        match self.segments {
+            None => Ok(Some(per_cycle)),
+            Some(n) => match cut_cycles(record, by, response, Some(n)) {
+                Some(Ok(split)) => Ok(Some(split)),
+                _ => {
+                    let count = per_cycle.cycles.as_ref().map_or(0, |c| c.cycles);
+                    let period = per_cycle.cycles.as_ref().map_or(0.0, |c| c.period);
+                    Err(miette!(
+                        code = "dynid::split::few_cycles",
+                        help = format!(
+                            "give `--segments {count}` or fewer (whole cycles per segment), or \
+                             cut by amplitude with `--cut amplitude`"
+                        ),
+                        "{origin}: `{by}` repeats every {} s, {count} whole cycles: too few for \
+                         {n} segments of whole cycles",
+                        sig(period, 5, false)
+                    ))
+                }
+            },
+        }
     }
 }
 

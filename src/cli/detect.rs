@@ -35,6 +35,9 @@ segment table (time span, samples, σ) goes to stderr and into the JSON:
 
   dynid detect models/sdof_linear.dyn run_up.csv --segments 4
 
+A record of one repeated trajectory is cut at its cycles instead (--cut, see `dynid
+diagnose --help`); cycles of one amplitude cannot show a drift, and a warning says so.
+
 Levels (files or segments) whose σ are too alike for the drift test to resolve an effect
 of a quarter of a parameter's value get a warning (stderr, JSON `warnings`): their
 `linear` then only rules out larger effects.
@@ -108,6 +111,10 @@ pub fn run(args: Args) -> miette::Result<()> {
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
     let split = args.split.levels(&ir, &args.data, &csv, args.allow_large)?;
+    let cycle_note = split.as_ref().and_then(|s| cycles_note(&s.split));
+    if let Some(n) = &cycle_note {
+        eprintln!("warning: {n}");
+    }
     if split.is_none() {
         super::duplicates::refuse_duplicate_levels(
             &args.data,
@@ -161,6 +168,7 @@ pub fn run(args: Args) -> miette::Result<()> {
                 "jackknife_blocks": fits.n_blocks,
                 "segments": split.as_ref().map(|s| &s.split),
                 "warnings": warnings,
+                "cycles_note": cycle_note,
             }))
             .into_diagnostic()?;
             staged.write(out, text.as_bytes())?;
@@ -174,6 +182,9 @@ pub fn run(args: Args) -> miette::Result<()> {
     print!("{}", det.render_table());
     for w in &warnings {
         eprintln!("warning: {}", w.message);
+    }
+    if let Some(n) = &cycle_note {
+        eprintln!("warning: {n}");
     }
     let estimated: Vec<&str> = fits
         .input
@@ -190,4 +201,37 @@ pub fn run(args: Args) -> miette::Result<()> {
         );
     }
     result
+}
+
+/// What segments cut at the cycles of one trajectory can tell detection: nothing about an
+/// effect when their amplitudes are alike (`None` for a cut by amplitude, or cycles whose
+/// amplitudes differ).
+fn cycles_note(split: &dynid_runtime::data::Split) -> Option<String> {
+    use dynid_runtime::data::Cycles;
+    let c = split.cycles.as_ref()?;
+    if !Cycles::alike_amplitudes(split) {
+        return None;
+    }
+    let (lo, hi) = split
+        .segments
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), s| {
+            (lo.min(s.sigma), hi.max(s.sigma))
+        });
+    Some(format!(
+        "the {} segments are cycles of one repeated trajectory (`{}` every {} s) with one \
+         amplitude (σ of `{}` {} to {}, ratio {:.2}, below {}): detection reads an effect \
+         from how the linear parameters drift between levels of different amplitude, so these \
+         segments cannot show one, and a `linear` verdict from them rules nothing out. Record \
+         the trajectory at several speeds or amplitudes (one file each), or run `dynid \
+         diagnose`, for which cycles are legitimate pieces",
+        split.segments.len(),
+        c.signal,
+        dsl_parser::num::sig(c.period, 5, false),
+        split.signal,
+        dsl_parser::num::sig(lo, 4, false),
+        dsl_parser::num::sig(hi, 4, false),
+        hi / lo,
+        dynid_runtime::data::cycles::ALIKE_RATIO
+    ))
 }

@@ -46,6 +46,12 @@ goes to stderr and into the JSON (`segments`):
 
   dynid diagnose models/sdof_linear.dyn run_up.csv --segments 3
 
+A record of one repeated trajectory (planned moves) is cut at its cycles instead: the
+period from the autocorrelation of the references, the response, then the inputs, the cuts
+where the signal rests, --segments N pieces of whole cycles (default one per cycle); the
+table says which signal repeats, its period and the cuts. --cut cycles|amplitude forces
+either way.
+
 With --refine the corrected model's values start an output-error refinement on all levels
 (Levenberg-Marquardt on the free-run error, as `identify --refine`): both sets of values and
 their free-run errors are printed side by side (in-sample: the levels the refinement fitted),

@@ -48,7 +48,7 @@ sensitivities of the simulation. Both estimates are printed side by side with th
 free-run RMS errors on the estimation files and on the --test files:
   dynid identify models/sdof_duffing.dyn data/level_*.csv --refine --test test/level_1.csv
 Every record is simulated from its measured initial state (velocities not measured: from
-the first three positions), in the fit as in the scores. Long records: --segment SECONDS
+the first three positions), in the fit as in the scores. Long records: --shooting SECONDS
 cuts them into sub-records, the later ones started from fitted initial states (multiple
 shooting); a fit whose whole-record free run ends worse than its start is not applied and
 says why. --weight m1.x=2 weighs a compared signal. Models with control laws are refused
@@ -103,9 +103,18 @@ pub struct Args {
     #[arg(long = "weight", value_name = "SIGNAL=W", requires = "refine")]
     pub weight: Vec<String>,
     /// Longest sub-record of the refinement in seconds (multiple shooting); default: whole
-    /// records.
-    #[arg(long = "segment", value_name = "SECONDS", requires = "refine")]
+    /// records. (`--segment` is an old name of this flag.)
+    #[arg(
+        long = "shooting",
+        alias = "segment",
+        value_name = "SECONDS",
+        requires = "refine"
+    )]
     pub segment: Option<f64>,
+    /// Not an option of identify: `detect` and `diagnose` cut one record into levels with
+    /// `--segments N`; identify fits every file whole (refused with that explanation).
+    #[arg(long, hide = true, value_name = "N", num_args = 0..=1)]
+    pub segments: Option<Option<String>>,
     /// RK4 sub-steps per sample interval of the refinement's simulations.
     #[arg(long, default_value_t = DEFAULT_SUBSTEPS, value_parser = super::common::at_least_one, requires = "refine")]
     pub substeps: usize,
@@ -131,6 +140,17 @@ pub struct RefineReport {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
+    if args.segments.is_some() {
+        return Err(miette!(
+            code = "dynid::identify::segments",
+            help = "give the record whole to identify; `dynid diagnose MODEL.dyn ONE.csv \
+                    --segments N` cuts it into levels (at the cycles of a repeated trajectory, \
+                    or by amplitude) and withholds each in turn; the refinement's sub-records \
+                    are `--refine --shooting SECONDS`",
+            "identify does not cut records into segments: it fits all samples of every file \
+             together, and a cut would only add filter start-up transients at every seam"
+        ));
+    }
     check_outputs(
         [(args.json.as_deref(), "the JSON output")],
         inputs(&args.model, &args.data).chain(args.test.iter().map(PathBuf::as_path)),
@@ -194,8 +214,8 @@ fn refine_options(args: &Args) -> miette::Result<Option<RefineOptions>> {
         if !(s.is_finite() && s > 0.0) {
             return Err(miette!(
                 code = "dynid::refine::segment",
-                help = "give the longest sub-record in seconds, e.g. `--segment 20`",
-                "--segment {s} is not a positive duration"
+                help = "give the longest sub-record in seconds, e.g. `--shooting 20`",
+                "--shooting {s} is not a positive duration"
             ));
         }
     }
@@ -633,6 +653,7 @@ mod tests {
             test: Vec::new(),
             weight: Vec::new(),
             segment: None,
+            segments: None,
             substeps: DEFAULT_SUBSTEPS,
             allow_long: false,
             allow_large: false,
@@ -683,6 +704,7 @@ mod tests {
             test: Vec::new(),
             weight: Vec::new(),
             segment: None,
+            segments: None,
             substeps: DEFAULT_SUBSTEPS,
             allow_long: false,
             allow_large: false,

@@ -6,7 +6,9 @@ use std::fmt::Write;
 use plotters::prelude::*;
 
 use super::register_font;
-use dynid_runtime::diagnose::{fmt_gap, fmt_num, fmt_shrink, Diagnosis, ModelGap, Spectrum};
+use dynid_runtime::diagnose::{
+    fmt_gap, fmt_num, fmt_shrink, fmt_si, Diagnosis, ModelGap, Spectrum, Trace,
+};
 
 const COLORS: [RGBColor; 4] = [
     RGBColor(25, 60, 160),
@@ -247,6 +249,178 @@ fn spectrum_svg(sp: &Spectrum) -> Result<String, String> {
     Ok(svg)
 }
 
+/// Most points of one drawn series: longer series are cut into buckets, each drawn as its
+/// minimum and maximum (the envelope a denser plot would show).
+const TRACE_POINTS: usize = 1500;
+
+/// `(t, x)` of `x[a..b]` (sample `k` at `t0 + k·ts`), at most [`TRACE_POINTS`] points.
+fn envelope(x: &[f64], t0: f64, ts: f64, a: usize, b: usize, scale: f64) -> Vec<(f64, f64)> {
+    let n = b.saturating_sub(a);
+    let half = TRACE_POINTS / 2;
+    if n <= TRACE_POINTS {
+        return (a..b).map(|k| (t0 + k as f64 * ts, x[k] * scale)).collect();
+    }
+    let mut out = Vec::with_capacity(2 * half);
+    for j in 0..half {
+        let (lo, hi) = (a + j * n / half, a + (j + 1) * n / half);
+        let (mut kmin, mut kmax) = (lo, lo);
+        for k in lo..hi {
+            if x[k] < x[kmin] {
+                kmin = k;
+            }
+            if x[k] > x[kmax] {
+                kmax = k;
+            }
+        }
+        let (k1, k2) = (kmin.min(kmax), kmin.max(kmax));
+        out.push((t0 + k1 as f64 * ts, x[k1] * scale));
+        out.push((t0 + k2 as f64 * ts, x[k2] * scale));
+    }
+    out
+}
+
+/// The window of a trace to zoom into: two dominant periods of the measured signal (from
+/// its mean-crossing rate), at most a third of the record and at least 200 samples,
+/// centred where the nominal model's free run is farthest from the measurement.
+fn trace_window(tr: &Trace) -> (usize, usize) {
+    let x = &tr.measured;
+    let n = x.len();
+    let mean = x.iter().sum::<f64>() / n.max(1) as f64;
+    let sd = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n.max(1) as f64).sqrt();
+    let (mut side, mut crossings) = (0i8, 0usize);
+    for &v in x {
+        let now = if v > mean + 0.05 * sd {
+            1
+        } else if v < mean - 0.05 * sd {
+            -1
+        } else {
+            0
+        };
+        if now != 0 && now != side {
+            crossings += usize::from(side != 0);
+            side = now;
+        }
+    }
+    let len = if crossings >= 2 {
+        (2.0 * 2.0 * n as f64 / crossings as f64) as usize
+    } else {
+        n
+    }
+    .min(n / 3)
+    .max(200.min(n));
+    let worst = tr.models.first().map_or(0, |(_, y)| {
+        (0..n.min(y.len()))
+            .max_by(|&a, &b| (y[a] - x[a]).abs().total_cmp(&(y[b] - x[b]).abs()))
+            .unwrap_or(0)
+    });
+    let a = worst.saturating_sub(len / 2).min(n - len);
+    (a, a + len)
+}
+
+/// The SI prefix (scale and unit) that suits values up to `peak` in `unit`.
+fn scaled_unit(peak: f64, unit: &str) -> (f64, String) {
+    let text = fmt_si(peak, unit);
+    let shown = text.split(' ').nth(1).unwrap_or(unit).to_string();
+    let prefix = shown.strip_suffix(unit).unwrap_or("");
+    let scale = match prefix {
+        "M" => 1e-6,
+        "k" => 1e-3,
+        "m" => 1e3,
+        "µ" => 1e6,
+        "n" => 1e9,
+        _ => 1.0,
+    };
+    (scale, shown)
+}
+
+/// One panel of a trace: the measured signal and the models' free runs over samples
+/// `a..b` (`error`: each model minus the measurement instead).
+fn trace_svg(tr: &Trace, (a, b): (usize, usize), error: bool) -> Result<String, String> {
+    let x = &tr.measured;
+    let series: Vec<(String, Vec<f64>)> = if error {
+        tr.models
+            .iter()
+            .map(|(name, y)| {
+                let e = y.iter().zip(x).map(|(y, x)| y - x).collect();
+                (format!("{name} − measured"), e)
+            })
+            .collect()
+    } else {
+        std::iter::once(("measured".to_string(), x.clone()))
+            .chain(tr.models.iter().cloned())
+            .collect()
+    };
+    let peak = series
+        .iter()
+        .flat_map(|(_, v)| v[a..b].iter())
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let (scale, unit) = scaled_unit(peak, &tr.unit);
+    let pts: Vec<(String, Vec<(f64, f64)>)> = series
+        .iter()
+        .map(|(name, v)| (name.clone(), envelope(v, tr.t0, tr.ts, a, b, scale)))
+        .collect();
+    let (ylo, yhi) = pts
+        .iter()
+        .flat_map(|s| s.1.iter().map(|p| p.1))
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), y| {
+            (l.min(y), h.max(y))
+        });
+    if !(ylo.is_finite() && yhi.is_finite()) {
+        return Err("no finite values to draw".into());
+    }
+    let pad = 0.05 * (yhi - ylo).max(1e-12);
+    let (t_a, t_b) = (
+        tr.t0 + a as f64 * tr.ts,
+        tr.t0 + (b - 1).max(a + 1) as f64 * tr.ts,
+    );
+    let title = match (error, a == 0 && b == x.len()) {
+        (true, _) => format!("Free-run error of {} (level {})", tr.signal, tr.level + 1),
+        (false, true) => format!("{} (level {}), whole record", tr.signal, tr.level + 1),
+        (false, false) => format!("{} (level {}), zoomed", tr.signal, tr.level + 1),
+    };
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (520, 320)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 17))
+            .margin(10)
+            .x_label_area_size(36)
+            .y_label_area_size(60)
+            .build_cartesian_2d(t_a..t_b, (ylo - pad)..(yhi + pad))
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("time (s)")
+            .y_desc(if unit.is_empty() {
+                tr.signal.clone()
+            } else {
+                format!("{} ({unit})", tr.signal)
+            })
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for (i, (name, p)) in pts.iter().enumerate() {
+            let (color, width) = match (error, i) {
+                (false, 0) => (BLACK, 2),
+                (false, i) => (COLORS[i % COLORS.len()], 1),
+                (true, i) => (COLORS[(i + 1) % COLORS.len()], 1),
+            };
+            chart
+                .draw_series(LineSeries::new(p.clone(), color.stroke_width(width)))
+                .map_err(|e| e.to_string())?
+                .label(name.clone())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2))
+                });
+        }
+        legend_and_present(&mut chart, &root, 12)?;
+    }
+    Ok(svg)
+}
+
 /// Draws the series legend in the upper right corner and writes the figure out.
 fn legend_and_present<'a, DB, CT>(
     chart: &mut ChartContext<'a, DB, CT>,
@@ -333,7 +507,7 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
     figure(&mut h, bars_svg(d));
     let _ = write!(
         h,
-        "<table><tr><th class=\"l\">signal</th><th class=\"l\">model</th><th>statistical gap %</th><th>spectral error %</th><th>std error %</th><th>PSD gap (log10)</th><th>pathwise NRMSE %</th></tr>"
+        "<table><tr><th class=\"l\">signal</th><th class=\"l\">model</th><th>statistical gap %</th><th>spectral error %</th><th>std error %</th><th>PSD gap (log10)</th><th>pathwise NRMSE %</th><th>free-run RMS error</th><th>std difference</th></tr>"
     );
     for sig in &d.response_signals {
         let models = if d.found.is_empty() {
@@ -356,9 +530,11 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
                 Some(v) => format!("{v:.digits$}"),
                 None => "–".into(),
             };
+            let unit = rows.first().map_or("", |s| s.unit.as_str());
+            let si = |v: Option<f64>| v.map_or("–".into(), |v| fmt_si(v, unit));
             let _ = write!(
                 h,
-                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
                 esc(sig),
                 esc(&m.label),
                 cell(mean(|s| s.statistical), 1, false),
@@ -366,6 +542,8 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
                 cell(mean(|s| s.std_error), 1, true),
                 cell(mean(|s| s.psd_gap), 3, false),
                 cell(mean(|s| s.nrmse), 1, false),
+                si(mean(|s| s.rms_error)),
+                si(mean(|s| s.std_diff)),
             );
         }
     }
@@ -434,6 +612,23 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
     );
     for sp in &d.spectra {
         figure(&mut h, spectrum_svg(sp));
+    }
+
+    let _ = write!(
+        h,
+        "<h2>Time traces</h2><p>The level of the spectra: measured and free runs (from the measured initial state, driven by the measured inputs) over the whole record, zoomed on a window of two dominant periods (at most a third of the record) around the largest nominal error, and the free-run error there in the signal's unit.</p>"
+    );
+    for tr in &d.traces {
+        if tr.measured.is_empty() {
+            continue;
+        }
+        let n = tr.measured.len();
+        figure(&mut h, trace_svg(tr, (0, n), false));
+        let w = trace_window(tr);
+        if w != (0, n) {
+            figure(&mut h, trace_svg(tr, w, false));
+        }
+        figure(&mut h, trace_svg(tr, w, true));
     }
 
     let _ = write!(

@@ -8,6 +8,7 @@
 
 mod csv_file;
 mod csv_parse;
+pub mod cycles;
 #[doc(hidden)]
 pub mod fuzz;
 mod record;
@@ -17,6 +18,7 @@ mod tests;
 mod text;
 
 pub use csv_file::{read_record, read_record_bytes, read_record_within, CsvSource};
+pub use cycles::{cut_cycles, find_period, Cycles};
 pub use record::RecordSource;
 pub use split::{default_response, split_record, Segment, Split, SplitError, SplitOptions};
 pub use text::MAX_LINE;

@@ -92,18 +92,23 @@ pub struct Segment {
     pub sigma: f64,
 }
 
-/// The segments of a record, sorted by [`Segment::sigma`], smallest first.
+/// The segments of a record: cut by amplitude, sorted by [`Segment::sigma`], smallest
+/// first; cut at cycles ([`super::cycles`]), in time order.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Split {
     /// The signal whose amplitude was judged.
     pub signal: String,
-    /// Its dominant angular frequency (rad/s).
+    /// Its dominant angular frequency (rad/s); cut at cycles, `2π / period`.
     pub omega: f64,
-    /// Shortest segment allowed, in samples.
+    /// Shortest segment allowed, in samples; cut at cycles, the shortest segment.
     pub min_len: usize,
-    /// Window of the local RMS, in samples.
+    /// Window of the local RMS, in samples; cut at cycles, the period rounded.
     pub window: usize,
     pub segments: Vec<Segment>,
+    /// Cut at the cycles of a repeated signal: the period and the cuts (`None`: cut by
+    /// amplitude).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cycles: Option<super::cycles::Cycles>,
 }
 
 impl Split {
@@ -136,13 +141,21 @@ impl Split {
 
     /// The segments as a table: level, time span, samples, σ.
     pub fn table(&self) -> String {
-        let mut out = format!(
-            "segments by the amplitude of `{}` (dominant frequency {} rad/s, shortest \
-             segment {} samples):\n  level  time span (s)           samples   σ\n",
-            self.signal,
-            sig(self.omega, 4, false),
-            self.min_len
-        );
+        let head = match &self.cycles {
+            Some(c) => format!(
+                "segments at the cycles of a repeated trajectory: {}; σ of `{}`",
+                c.describe(),
+                self.signal
+            ),
+            None => format!(
+                "segments by the amplitude of `{}` (dominant frequency {} rad/s, shortest \
+                 segment {} samples)",
+                self.signal,
+                sig(self.omega, 4, false),
+                self.min_len
+            ),
+        };
+        let mut out = format!("{head}:\n  level  time span (s)           samples   σ\n");
         for (i, s) in self.segments.iter().enumerate() {
             let span = format!("{} – {}", sig(s.t_start, 6, false), sig(s.t_end, 6, false));
             out += &format!(
@@ -407,6 +420,7 @@ pub fn split_record(
         min_len,
         window: w,
         segments: segs,
+        cycles: None,
     })
 }
 

@@ -53,9 +53,21 @@ pub(super) struct Data<'a> {
     pub(super) response: Vec<String>,
 }
 
-/// Power spectra of the response signals on one level: (signal, frequencies, measured
-/// PSD, simulated PSD).
-pub(super) type LevelSpectra = Vec<(String, Vec<f64>, Vec<f64>, Vec<f64>)>;
+/// One response signal of a free run, kept for the report: spectra ([`metrics::welch_fine`])
+/// and time series of the measured and the simulated signal after the discard.
+pub(super) struct SignalRun {
+    pub(super) signal: String,
+    pub(super) freqs: Vec<f64>,
+    pub(super) measured_psd: Vec<f64>,
+    pub(super) sim_psd: Vec<f64>,
+    /// Time of the first kept sample.
+    pub(super) t0: f64,
+    pub(super) measured: Vec<f64>,
+    pub(super) sim: Vec<f64>,
+}
+
+/// The response signals of one level's free run, for the report.
+pub(super) type LevelSpectra = Vec<SignalRun>;
 
 /// Free-run gap of `ir` (with its nominal values) on level `w`.
 pub(super) fn level_gap(
@@ -110,7 +122,7 @@ pub(super) fn level_gap(
             continue;
         };
         let (y, m) = (&y[start..], &m[start..]);
-        let (f, pm) = metrics::welch(m, rec.ts, 4096);
+        let (_, pm) = metrics::welch(m, rec.ts, 4096);
         let (_, ps) = metrics::welch(y, rec.ts, 4096);
         let sm = metrics::std_dev(m);
         if pm.iter().skip(1).sum::<f64>().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
@@ -118,7 +130,11 @@ pub(super) fn level_gap(
             continue;
         }
         let psd_gap = metrics::psd_gap(&ps, &pm);
-        let std_error = 100.0 * (metrics::std_dev(y) - sm) / sm;
+        let std_diff = metrics::std_dev(y) - sm;
+        let std_error = 100.0 * std_diff / sm;
+        let rms_error = (y.iter().zip(m).map(|(a, b)| (a - b) * (a - b)).sum::<f64>()
+            / m.len().max(1) as f64)
+            .sqrt();
         let spectral = metrics::spectral_error(psd_gap);
         signals.push(SignalGap {
             signal: name.clone(),
@@ -127,9 +143,22 @@ pub(super) fn level_gap(
             psd_gap,
             spectral,
             statistical: 0.5 * (spectral + std_error.abs()),
+            unit: unit_of(ir, name).into(),
+            rms_error,
+            std_diff,
         });
         if want_psd {
-            spectra.push((name.clone(), f, pm, ps));
+            let (freqs, measured_psd) = metrics::welch_fine(m, rec.ts);
+            let (_, sim_psd) = metrics::welch_fine(y, rec.ts);
+            spectra.push(SignalRun {
+                signal: name.clone(),
+                freqs,
+                measured_psd,
+                sim_psd,
+                t0: rec.t0 + start as f64 * rec.ts,
+                measured: m.to_vec(),
+                sim: y.to_vec(),
+            });
         }
     }
     if signals.is_empty() {
@@ -158,6 +187,17 @@ pub(super) fn level_gap(
         },
         want_psd.then_some(spectra),
     )
+}
+
+/// The SI unit of the signal `name` of `ir` (see [`SignalGap::unit`]).
+pub(super) fn unit_of(ir: &ModelIr, name: &str) -> &'static str {
+    use dynid_ir::ir::SignalKind;
+    match ir.signals.iter().find(|s| s.name == name).map(|s| s.kind) {
+        Some(SignalKind::Position(_)) => "m",
+        Some(SignalKind::Velocity(_)) => "m/s",
+        Some(SignalKind::Input(_)) => "N",
+        _ => "",
+    }
 }
 
 /// A model's gap from its per-level gaps: the means over the levels where the gap is

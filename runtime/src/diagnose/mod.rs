@@ -21,7 +21,7 @@ pub mod types;
 
 pub use effects::{Effect, Location};
 pub use gap::read_record;
-pub use summary::fmt_shrink;
+pub use summary::{fmt_shrink, signal_means};
 pub use types::*;
 
 use crate::ident::Identification;
@@ -60,6 +60,35 @@ pub fn fmt_gap(v: f64) -> String {
     } else {
         "unavailable".into()
     }
+}
+
+/// A value in `unit` with the SI prefix that puts three significant digits before the
+/// point or near it: `1.23e-5` m → "12.3 µm", `35.2` N → "35.2 N", `0.004` m/s → "4 mm/s";
+/// "unavailable" when not finite.
+pub fn fmt_si(v: f64, unit: &str) -> String {
+    if !v.is_finite() {
+        return "unavailable".into();
+    }
+    if v == 0.0 || unit.is_empty() {
+        return format!("{} {unit}", num::sig(v, 3, false))
+            .trim_end()
+            .into();
+    }
+    const PREFIXES: [(f64, &str); 6] = [
+        (1e6, "M"),
+        (1e3, "k"),
+        (1.0, ""),
+        (1e-3, "m"),
+        (1e-6, "µ"),
+        (1e-9, "n"),
+    ];
+    let a = v.abs();
+    let (scale, prefix) = PREFIXES
+        .iter()
+        .find(|(s, _)| a >= *s * 0.9995)
+        .copied()
+        .unwrap_or((1e-9, "n"));
+    format!("{} {prefix}{unit}", num::sig(v / scale, 3, false))
 }
 
 /// [`fmt_gap`] of a gap that may be unavailable.
@@ -124,7 +153,7 @@ pub fn diagnose(
     // Before: the nominal model on every level.
     let nominal_runs: Vec<_> = (0..n)
         .into_par_iter()
-        .map(|w| level_gap(&ir, &data, w, opts, true))
+        .map(|w| level_gap(&ir, &data, w, opts, false))
         .collect();
     let nominal_levels: Vec<LevelGap> = nominal_runs.iter().map(|r| r.0.clone()).collect();
     if nominal_levels.iter().all(|l| l.gap.is_none()) {
@@ -444,23 +473,43 @@ pub fn diagnose(
             true,
         ))
     };
+    let nominal_run = level_gap(&ir, &data, big, opts, true).1;
     let mut spectra = Vec::new();
-    if let (Some(nom), Some(re)) = (&nominal_runs[big].1, &reid_runs.1) {
+    let mut traces = Vec::new();
+    if let (Some(nom), Some(re)) = (&nominal_run, &reid_runs.1) {
         let cor = corrected_runs.as_ref().and_then(|r| r.1.as_ref());
-        for (k, ((sig, f, pm, ps), (_, _, _, pr))) in nom.iter().zip(re).enumerate() {
+        for (k, (n, r)) in nom.iter().zip(re).enumerate() {
+            let c = cor.and_then(|c| c.get(k));
             let mut models = vec![
-                ("nominal".to_string(), ps.clone()),
-                ("re-identified (level withheld)".to_string(), pr.clone()),
+                ("nominal".to_string(), n.sim_psd.clone()),
+                (
+                    "re-identified (level withheld)".to_string(),
+                    r.sim_psd.clone(),
+                ),
             ];
-            if let Some((_, _, _, pc)) = cor.and_then(|c| c.get(k)) {
-                models.push(("corrected (level withheld)".into(), pc.clone()));
+            let mut runs = vec![
+                ("nominal".to_string(), n.sim.clone()),
+                ("re-identified (level withheld)".to_string(), r.sim.clone()),
+            ];
+            if let Some(c) = c {
+                models.push(("corrected (level withheld)".into(), c.sim_psd.clone()));
+                runs.push(("corrected (level withheld)".into(), c.sim.clone()));
             }
             spectra.push(Spectrum {
-                signal: sig.clone(),
+                signal: n.signal.clone(),
                 level: big,
-                freqs: f.clone(),
-                measured: pm.clone(),
+                freqs: n.freqs.clone(),
+                measured: n.measured_psd.clone(),
                 models,
+            });
+            traces.push(Trace {
+                signal: n.signal.clone(),
+                unit: gap::unit_of(&ir, &n.signal).into(),
+                level: big,
+                t0: n.t0,
+                ts: levels[big].ts,
+                measured: n.measured.clone(),
+                models: runs,
             });
         }
     }
@@ -509,6 +558,7 @@ pub fn diagnose(
         notes,
         fixed_source: fixed,
         spectra,
+        traces,
     })
 }
 

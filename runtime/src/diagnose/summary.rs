@@ -2,7 +2,7 @@
 
 use super::types::{Diagnosis, ModelGap, MovedParam, Verdict};
 use super::Effect;
-use super::{fmt_gap, fmt_num, fmt_opt_gap, shrink};
+use super::{fmt_gap, fmt_num, fmt_opt_gap, fmt_si, shrink};
 
 /// A shrink as "N % `word`" (e.g. "N % smaller"), "N % larger" when the gap grew, "N×
 /// larger" when it more than doubled (a percentage of a gap near zero says nothing), or
@@ -57,6 +57,52 @@ fn gap_table(rows: &[(&str, &ModelGap)]) -> String {
     s
 }
 
+/// One signal's mean gaps over the levels: (statistical %, free-run RMS error in the
+/// unit, unit).
+pub type SignalMeans = (f64, f64, String);
+
+/// Means over the levels of one signal's gaps in a model's gap; `None` when no level has
+/// the signal.
+pub fn signal_means(g: &ModelGap, signal: &str) -> Option<SignalMeans> {
+    let v: Vec<&super::SignalGap> = g
+        .levels
+        .iter()
+        .filter_map(|l| l.signals.iter().find(|s| s.signal == signal))
+        .collect();
+    let n = v.len() as f64;
+    let first = v.first()?;
+    Some((
+        v.iter().map(|s| s.statistical).sum::<f64>() / n,
+        v.iter().map(|s| s.rms_error).sum::<f64>() / n,
+        first.unit.clone(),
+    ))
+}
+
+/// Per response signal and model: the statistical gap with the free-run RMS error in the
+/// signal's unit beside it (a position gap of 0.0 % may be micrometres that matter; the
+/// force of a closed loop often carries the information).
+fn signal_table(signals: &[String], rows: &[(&str, &ModelGap)]) -> String {
+    use std::fmt::Write;
+    let mut s = String::from(
+        "Per signal (mean over levels; statistical gap, free-run RMS error in the signal's unit):\n",
+    );
+    let width = signals.iter().map(|n| n.chars().count()).max().unwrap_or(0);
+    for name in signals {
+        let cells: Vec<String> = rows
+            .iter()
+            .filter_map(|(label, g)| {
+                let (gap, rms, unit) = signal_means(g, name)?;
+                let label = label.split(' ').next().unwrap_or(label);
+                Some(format!("{label} {} ({})", fmt_gap(gap), fmt_si(rms, &unit)))
+            })
+            .collect();
+        if !cells.is_empty() {
+            let _ = writeln!(s, "  {name:<width$}  {}", cells.join(" → "));
+        }
+    }
+    s
+}
+
 impl Diagnosis {
     /// A short human summary: verdict, location, effect, shrink, evidence.
     pub fn summary(&self) -> String {
@@ -83,29 +129,26 @@ impl Diagnosis {
             rows.push(("corrected model (withheld level)", &self.corrected));
         }
         s += &gap_table(&rows);
+        s += &signal_table(&self.response_signals, &rows);
         let _ = writeln!(s);
         // Where.
         let worst: Vec<String> = {
-            let mut sig: Vec<(String, Option<f64>)> = self
+            let mut sig: Vec<(String, Option<SignalMeans>)> = self
                 .response_signals
                 .iter()
-                .map(|name| {
-                    let v: Vec<f64> = self
-                        .nominal
-                        .levels
-                        .iter()
-                        .filter_map(|l| l.signals.iter().find(|g| &g.signal == name))
-                        .map(|g| g.statistical)
-                        .collect();
-                    let mean = (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
-                    (name.clone(), mean)
-                })
+                .map(|name| (name.clone(), signal_means(&self.nominal, name)))
                 .collect();
-            let key = |v: &Option<f64>| v.unwrap_or(f64::NEG_INFINITY);
+            let key =
+                |v: &Option<(f64, f64, String)>| v.as_ref().map_or(f64::NEG_INFINITY, |v| v.0);
             sig.sort_by(|a, b| key(&b.1).total_cmp(&key(&a.1)));
             sig.iter()
                 .take(3)
-                .map(|(n, v)| format!("{n} {}", fmt_opt_gap(*v)))
+                .map(|(n, v)| match v {
+                    Some((g, rms, unit)) => {
+                        format!("{n} {} (RMS {})", fmt_gap(*g), fmt_si(*rms, unit))
+                    }
+                    None => format!("{n} {}", fmt_opt_gap(None)),
+                })
                 .collect()
         };
         let _ = writeln!(s, "Where: worst signals (nominal): {}", worst.join(", "));
@@ -326,6 +369,19 @@ mod tests {
             pathwise,
             levels: Vec::new(),
         }
+    }
+
+    #[test]
+    fn values_in_units_take_the_prefix_that_fits() {
+        use crate::diagnose::fmt_si;
+        assert_eq!(fmt_si(1.23e-5, "m"), "12.3 µm");
+        assert_eq!(fmt_si(-3e-6, "m"), "-3 µm");
+        assert_eq!(fmt_si(0.0834, "m"), "83.4 mm");
+        assert_eq!(fmt_si(35.24, "N"), "35.2 N");
+        assert_eq!(fmt_si(0.004, "m/s"), "4 mm/s");
+        assert_eq!(fmt_si(0.9996, "N"), "1 N");
+        assert_eq!(fmt_si(0.0, "N"), "0 N");
+        assert_eq!(fmt_si(f64::NAN, "N"), "unavailable");
     }
 
     #[test]

@@ -111,6 +111,14 @@ pub struct SignalGap {
     pub spectral: f64,
     /// Statistical gap of the signal: `(spectral + |std_error|) / 2`, in %.
     pub statistical: f64,
+    /// The signal's unit (models are written in SI units): `m` for a position, `m/s` for
+    /// a velocity, `N` for an input force.
+    pub unit: String,
+    /// Free-run RMS error (simulated − measured) in the signal's unit: the pathwise gap
+    /// before it is divided by the measured std.
+    pub rms_error: f64,
+    /// std(sim) − std(meas) in the signal's unit.
+    pub std_diff: f64,
 }
 
 /// Response gap of a model on one level.
@@ -277,6 +285,24 @@ pub struct Diagnosis {
     /// Spectra for the report (not serialised).
     #[serde(skip)]
     pub spectra: Vec<Spectrum>,
+    /// Free runs for the report, on the level of [`Diagnosis::spectra`] (not serialised).
+    #[serde(skip)]
+    pub traces: Vec<Trace>,
+}
+
+/// One response signal on one level in time: measured, and the free run of each model
+/// (after the discarded start).
+#[derive(Clone, Debug)]
+pub struct Trace {
+    pub signal: String,
+    /// The signal's unit (see [`SignalGap::unit`]).
+    pub unit: String,
+    pub level: usize,
+    /// Time of the first sample and the sample interval (s).
+    pub t0: f64,
+    pub ts: f64,
+    pub measured: Vec<f64>,
+    pub models: Vec<(String, Vec<f64>)>,
 }
 
 /// Power spectra of one response signal on one level: measured and per model.
