@@ -459,10 +459,15 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
 }
 
 /// One line where rests were left out: how many, per level, and the speed below which a
-/// body counted as standing still.
+/// body counted as standing still (on the first level that has rests). Nothing where no
+/// level has one.
 fn rest_line(id: &dynid_runtime::ident::Identification) -> String {
-    let found: Vec<&dynid_runtime::ident::RestSummary> =
-        id.levels.iter().filter_map(|l| l.rests.as_ref()).collect();
+    let found: Vec<&dynid_runtime::ident::RestSummary> = id
+        .levels
+        .iter()
+        .filter_map(|l| l.rests.as_ref())
+        .filter(|r| r.intervals > 0)
+        .collect();
     let Some(first) = found.first() else {
         return String::new();
     };
@@ -486,7 +491,7 @@ fn rest_line(id: &dynid_runtime::ident::Identification) -> String {
         .collect();
     format!(
         "rests left out of the moments (friction is anywhere in ±r at rest): {} per level; at \
-         rest: speed below {} % of the RMS (first level: {}) for at least {} ms (--keep-rests \
+         rest: speed below {} % of the RMS ({}) for at least {} ms (--keep-rests \
          keeps them)\n",
         per_level.join(" / "),
         100.0 * dynid_runtime::ident::rests::REST_FRACTION,

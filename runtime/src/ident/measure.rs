@@ -193,7 +193,7 @@ pub fn measure<'m>(
     } else {
         rests::bodies(ir, &plan.roots)
     };
-    let found: Vec<Option<(Vec<(usize, usize)>, RestSummary)>> = if rest_bodies.is_empty() {
+    let found: Vec<Option<(rests::Intervals, RestSummary)>> = if rest_bodies.is_empty() {
         vec![None; levels.len()]
     } else {
         crate::first_error_in_order(
@@ -202,6 +202,32 @@ pub fn measure<'m>(
                 .map(|src| rests::find(ir, &rest_bodies, *src, opts.chunk_len).map(Some)),
         )?
     };
+
+    // Rests are left out only where enough motion remains for the blocks of the standard
+    // errors (a record that hardly moves is identified as it is).
+    let moving = |r: &[(usize, usize)], summary: &RestSummary, n: usize| {
+        !r.is_empty() && n.saturating_sub(summary.samples) >= n_blocks.saturating_mul(4)
+    };
+    let found: Vec<Option<(rests::Intervals, RestSummary)>> = found
+        .into_iter()
+        .zip(&stats)
+        .map(|(f, st)| {
+            f.map(|(r, summary)| {
+                if r.is_empty() || moving(&r, &summary, st.n) {
+                    (r, summary)
+                } else {
+                    (
+                        Vec::new(),
+                        RestSummary {
+                            intervals: 0,
+                            samples: 0,
+                            ..summary
+                        },
+                    )
+                }
+            })
+        })
+        .collect();
 
     let t_pass = Instant::now();
     let results: Vec<(LevelMoments, PhaseTimes)> = crate::first_error_in_order(
@@ -213,7 +239,7 @@ pub fn measure<'m>(
             .enumerate()
             .map(|(level, (((src, st), var), rest))| {
                 let mut acc = match rest {
-                    Some((r, _)) if !r.is_empty() => {
+                    Some((r, summary)) if moving(r, summary, st.n) => {
                         let (bounds, kept) = rests::layout(st.n, n_blocks, r);
                         LevelAccumulator::with_blocks(
                             &plan, eval, st.ts, st.n, bounds, kept, opts.hold,
