@@ -89,7 +89,7 @@ pub struct Args {
     #[arg(long = "column-chains")]
     pub column_chains: bool,
     /// Keep the rests in the moments: by default the intervals where a body with a
-    /// `sign` of its velocity stands still (speed below 1 % of its RMS for at least 50 ms)
+    /// `sign` of its own velocity stands still (speed below 1 % of its RMS for at least 50 ms)
     /// are left out, since its friction force is then anywhere in ±r and the model does
     /// not hold there (docs/method.md §7)
     #[arg(long = "keep-rests")]

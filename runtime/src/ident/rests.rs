@@ -10,7 +10,7 @@
 //! functions of the data like any other, so the identities hold on every motion run
 //! whatever the filters remember, and no settling margin is needed.
 //!
-//! A sample is at rest when the speed of a body that carries a `sign` of its velocity is
+//! A sample is at rest when the speed of a body that carries a `sign` of its own velocity is
 //! at most [`REST_FRACTION`] of that body's RMS speed, and a rest is a run of such samples
 //! at least [`MIN_REST`] long (a velocity reversal passes zero in a few samples and is
 //! what `sign(v)` describes). The speed is the central difference of the measured
@@ -40,15 +40,16 @@ pub struct RestSummary {
     pub threshold: Vec<(String, f64)>,
 }
 
-/// The bodies whose equations hold a `sign` of their own velocity (or any velocity): a
-/// rest of such a body breaks the model.
+/// The bodies whose own velocity (against the ground) is the argument of a `sign`: a rest
+/// of such a body breaks the model. (A `sign` of a relative velocity, between two bodies,
+/// is not looked at: its rests are those of the difference, not of either body.)
 pub(crate) fn bodies(ir: &ModelIr, roots: &[dynid_ir::ir::ExprId]) -> Vec<BodyId> {
     let mut out = Vec::new();
     for &r in roots {
         let needed = ir.needed_nodes(&[r]);
         for (i, _) in needed.iter().enumerate().filter(|(_, n)| **n) {
             if let ExprNode::Unary(UnaryOp::Sign, a) = ir.exprs[i] {
-                for s in ir.expr_signals(a) {
+                if let [s] = ir.expr_signals(a)[..] {
                     if let SignalKind::Velocity(b) = ir.signal(s).kind {
                         if !out.contains(&b) {
                             out.push(b);

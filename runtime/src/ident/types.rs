@@ -41,7 +41,7 @@ pub struct IdentifyOptions {
     /// only. What it gains and costs is measured in docs/method.md §2.
     pub column_chains: bool,
     /// Keep the rests in the moments. By default the intervals where a body with a
-    /// `sign` of its velocity stands still are left out (see [`super::rests`]): at rest
+    /// `sign` of its own velocity stands still are left out (see [`super::rests`]): at rest
     /// its friction force is anywhere in `±r` and the model does not hold.
     pub keep_rests: bool,
     /// Run even when the estimated memory ([`memory::estimate`]) is above
