@@ -327,7 +327,6 @@ impl LevelMoments {
     #[cfg(test)]
     pub fn hat(&self, j: usize) -> MomentView {
         let (n_i, n_w, n_q) = (self.n_i, self.n_w, self.n_q);
-        let nb = self.n_blocks();
         let mut m = vec![0.0; n_i * n_w];
         let mut m_d = vec![0.0; n_i * n_w];
         let mut bnd = vec![0.0; n_i * n_q];
