@@ -35,6 +35,15 @@
 //! record ends, exactly as in the whole-record moments, and the hat contributions sum
 //! exactly (in the discrete trapezoid rule too) to those. Besides the block sums this needs
 //! `Σ s ι wᵀ` per block, `s` the position in the block in samples.
+//!
+//! # Blocks left out (rests)
+//!
+//! A block may be dropped ([`LevelMoments::kept`], see [`super::rests`]): the moments are
+//! then those of the runs of kept blocks, each run integrated like a record of its own.
+//! The whole-record view sums the kept blocks and takes `[ι q]` at the two ends of every
+//! run; a hat has only its kept halves and a jump (a point value) where a run begins or
+//! ends; everything is divided by the kept length. Without dropped blocks every formula
+//! is the one above, operation for operation.
 
 use super::filter::{BankState, FilterBank, Hold};
 use super::plan::Plan;
