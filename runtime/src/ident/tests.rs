@@ -346,7 +346,8 @@ fn check_identity_with(corners: &[f64], n_blocks: usize, rest: &[(usize, usize)]
             // The trapezoid rule over the kept blocks, per record interval kept.
             let trap = |f: &dyn Fn(usize) -> f64| {
                 let (mut s, mut len) = (0.0, 0usize);
-                for (_, w) in bounds.windows(2).enumerate().filter(|(b, _)| lm.kept[*b]) {
+                let kept = bounds.windows(2).zip(&lm.kept).filter(|(_, k)| **k);
+                for (w, _) in kept {
                     s += (w[0]..=w[1]).map(f).sum::<f64>() - 0.5 * (f(w[0]) + f(w[1]));
                     len += w[1] - w[0];
                 }
