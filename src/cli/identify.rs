@@ -92,6 +92,12 @@ pub struct Args {
     /// damping and friction, see docs/method.md §2)
     #[arg(long = "column-chains")]
     pub column_chains: bool,
+    /// Keep the rests in the moments: by default the intervals where a body with a
+    /// `sign` of its own velocity stands still (speed below 1 % of its RMS for at least 50 ms)
+    /// are left out, since its friction force is then anywhere in ±r and the model does
+    /// not hold there (docs/method.md §7)
+    #[arg(long = "keep-rests")]
+    pub keep_rests: bool,
     /// Refine the covariance estimate by minimising the free-run simulation error.
     #[arg(long)]
     pub refine: bool,
@@ -438,6 +444,7 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
         balance: Some(args.balance && !args.no_balance),
         noise_correction: !args.no_noise_correction,
         column_chains: args.column_chains,
+        keep_rests: args.keep_rests,
         allow_large: args.allow_large,
         ..Default::default()
     };
@@ -516,8 +523,51 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
             cut.join(" / ")
         ));
     }
+    s.push_str(&rest_line(id));
     s.push_str(&noise_line(&id.noise));
     s
+}
+
+/// One line where rests were left out: how many, per level, and the speed below which a
+/// body counted as standing still (on the first level that has rests). Nothing where no
+/// level has one.
+fn rest_line(id: &dynid_runtime::ident::Identification) -> String {
+    let found: Vec<&dynid_runtime::ident::RestSummary> = id
+        .levels
+        .iter()
+        .filter_map(|l| l.rests.as_ref())
+        .filter(|r| r.intervals > 0)
+        .collect();
+    let Some(first) = found.first() else {
+        return String::new();
+    };
+    let per_level: Vec<String> = id
+        .levels
+        .iter()
+        .map(|l| match &l.rests {
+            Some(r) => format!(
+                "{} ({} samples, {:.0}%)",
+                r.intervals,
+                r.samples,
+                100.0 * r.samples as f64 / l.samples.max(1) as f64
+            ),
+            None => "-".into(),
+        })
+        .collect();
+    let thr: Vec<String> = first
+        .threshold
+        .iter()
+        .map(|(b, t)| format!("{b} {}", print::fmt_num(*t)))
+        .collect();
+    format!(
+        "rests left out of the moments (friction is anywhere in ±r at rest): {} per level; at \
+         rest: speed below {} % of the RMS ({}) for at least {} ms (--keep-rests \
+         keeps them)\n",
+        per_level.join(" / "),
+        100.0 * dynid_runtime::ident::rests::REST_FRACTION,
+        thr.join(", "),
+        1e3 * dynid_runtime::ident::rests::MIN_REST
+    )
 }
 
 /// One line: the estimated noise per signal and what was done about it.
@@ -649,6 +699,7 @@ mod tests {
             balance: false,
             no_noise_correction: false,
             column_chains: false,
+            keep_rests: false,
             refine: false,
             test: Vec::new(),
             weight: Vec::new(),
@@ -700,6 +751,7 @@ mod tests {
             balance: false,
             no_noise_correction: false,
             column_chains: false,
+            keep_rests: false,
             refine: false,
             test: Vec::new(),
             weight: Vec::new(),

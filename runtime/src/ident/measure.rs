@@ -187,15 +187,66 @@ pub fn measure<'m>(
         })
         .collect();
 
+    // Rests of bodies with a Coulomb term: left out of the moments (see [`rests`]).
+    let rest_bodies = if opts.keep_rests {
+        Vec::new()
+    } else {
+        rests::bodies(ir, &plan.roots)
+    };
+    let found: Vec<Option<(rests::Intervals, RestSummary)>> = if rest_bodies.is_empty() {
+        vec![None; levels.len()]
+    } else {
+        crate::first_error_in_order(
+            levels
+                .par_iter()
+                .map(|src| rests::find(ir, &rest_bodies, *src, opts.chunk_len).map(Some)),
+        )?
+    };
+
+    // Rests are left out only where enough motion remains for the blocks of the standard
+    // errors (a record that hardly moves is identified as it is).
+    let moving = |r: &[(usize, usize)], summary: &RestSummary, n: usize| {
+        !r.is_empty() && n.saturating_sub(summary.samples) >= n_blocks.saturating_mul(4)
+    };
+    let found: Vec<Option<(rests::Intervals, RestSummary)>> = found
+        .into_iter()
+        .zip(&stats)
+        .map(|(f, st)| {
+            f.map(|(r, summary)| {
+                if r.is_empty() || moving(&r, &summary, st.n) {
+                    (r, summary)
+                } else {
+                    (
+                        Vec::new(),
+                        RestSummary {
+                            intervals: 0,
+                            samples: 0,
+                            ..summary
+                        },
+                    )
+                }
+            })
+        })
+        .collect();
+
     let t_pass = Instant::now();
     let results: Vec<(LevelMoments, PhaseTimes)> = crate::first_error_in_order(
         sources
             .par_iter()
             .zip(&stats)
             .zip(&noise_var)
+            .zip(&found)
             .enumerate()
-            .map(|(level, ((src, st), var))| {
-                let mut acc = LevelAccumulator::new(&plan, eval, st.ts, st.n, n_blocks, opts.hold);
+            .map(|(level, (((src, st), var), rest))| {
+                let mut acc = match rest {
+                    Some((r, summary)) if moving(r, summary, st.n) => {
+                        let (bounds, kept) = rests::layout(st.n, n_blocks, r);
+                        LevelAccumulator::with_blocks(
+                            &plan, eval, st.ts, st.n, bounds, kept, opts.hold,
+                        )
+                    }
+                    _ => LevelAccumulator::new(&plan, eval, st.ts, st.n, n_blocks, opts.hold),
+                };
                 // Delayed column drivers wait out the widest velocity window of the level.
                 let widest = estimators
                     .get(level)
@@ -237,7 +288,9 @@ pub fn measure<'m>(
     let infos = stats
         .iter()
         .zip(levels)
-        .map(|(s, src)| LevelInfo {
+        .zip(&lm)
+        .zip(&found)
+        .map(|(((s, src), m), rest)| LevelInfo {
             origin: src.origin(),
             samples: s.n,
             ts: s.ts,
@@ -259,7 +312,8 @@ pub fn measure<'m>(
                 .zip(&s.noise_var)
                 .map(|(sig, v)| (ir.signal(*sig).name.clone(), v.sqrt()))
                 .collect(),
-            blocks: n_blocks,
+            blocks: m.kept_blocks(),
+            rests: rest.as_ref().map(|(_, summary)| summary.clone()),
         })
         .collect();
     let centred = stats

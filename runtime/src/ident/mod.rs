@@ -54,6 +54,7 @@ pub mod noise;
 mod plan;
 pub mod print;
 mod restrict;
+pub mod rests;
 mod screen;
 pub mod shape;
 mod solve;
@@ -83,6 +84,7 @@ pub const SIGNIFICANCE_T: f64 = 2.0;
 /// any rounding error of a non-vanishing moment.
 const ZERO_COLUMN: f64 = 1e-250;
 pub use noise::NoiseSummary;
+pub use rests::RestSummary;
 
 use crate::basis::BasisEval;
 use crate::data::{DataError, LevelSource};

@@ -35,6 +35,15 @@
 //! record ends, exactly as in the whole-record moments, and the hat contributions sum
 //! exactly (in the discrete trapezoid rule too) to those. Besides the block sums this needs
 //! `Σ s ι wᵀ` per block, `s` the position in the block in samples.
+//!
+//! # Blocks left out (rests)
+//!
+//! A block may be dropped ([`LevelMoments::kept`], see [`super::rests`]): the moments are
+//! then those of the runs of kept blocks, each run integrated like a record of its own.
+//! The whole-record view sums the kept blocks and takes `[ι q]` at the two ends of every
+//! run; a hat has only its kept halves and a jump (a point value) where a run begins or
+//! ends; everything is divided by the kept length. Without dropped blocks every formula
+//! is the one above, operation for operation.
 
 use super::filter::{BankState, FilterBank, Hold};
 use super::plan::Plan;
@@ -83,6 +92,8 @@ pub(crate) struct LevelMoments {
     pub lens: Vec<usize>,
     /// `ι qᵀ` at each block boundary (row-major `n_i × n_q`), `blocks + 1` of them.
     pub snaps: Vec<Vec<f64>>,
+    /// Per block: whether its moments count (`false` for a rest, see [`super::rests`]).
+    pub kept: Vec<bool>,
 }
 
 /// Time-averaged moments `⟨φ ι w⟩` and boundary terms `[φ ι q]/T` for a weight `φ`
@@ -179,10 +190,10 @@ impl<'a> Hat<'a> {
             m += if rising { rise } else { full - rise };
             m_d += sign * full / len;
         };
-        if self.j > 0 {
+        if lm.kept_before(self.j) {
             add(self.j - 1, true);
         }
-        if self.j < lm.n_blocks() {
+        if lm.kept_after(self.j) {
             add(self.j, false);
         }
         (m / self.intervals, m_d / self.t)
@@ -192,25 +203,26 @@ impl<'a> Hat<'a> {
     #[inline]
     fn q_entry(&self, i: usize, k: usize) -> (f64, f64) {
         let lm = self.lm;
-        let (n_q, nb) = (lm.n_q, lm.n_blocks());
+        let n_q = lm.n_q;
         let mut bnd_d = 0.0;
         let mut add = |b: usize, rising: bool| {
             let len = lm.lens[b] as f64;
             let sign = if rising { 1.0 } else { -1.0 };
             bnd_d += sign * (lm.snaps[b + 1][i * n_q + k] - lm.snaps[b][i * n_q + k]) / len;
         };
-        if self.j > 0 {
+        let (before, after) = (lm.kept_before(self.j), lm.kept_after(self.j));
+        if before {
             add(self.j - 1, true);
         }
-        if self.j < nb {
+        if after {
             add(self.j, false);
         }
         let mut bnd = 0.0;
-        if self.j == 0 {
-            bnd -= lm.snaps[0][i * n_q + k];
+        if after && !before {
+            bnd -= lm.snaps[self.j][i * n_q + k];
         }
-        if self.j == nb {
-            bnd += lm.snaps[nb][i * n_q + k];
+        if before && !after {
+            bnd += lm.snaps[self.j][i * n_q + k];
         }
         (bnd / self.t, bnd_d / (self.t * lm.ts))
     }
@@ -250,15 +262,38 @@ impl LevelMoments {
         self.lens.len()
     }
 
+    /// Blocks whose moments count.
+    pub fn kept_blocks(&self) -> usize {
+        self.kept.iter().filter(|k| **k).count()
+    }
+
+    /// Whether the block before boundary `j` exists and counts.
+    #[inline]
+    fn kept_before(&self, j: usize) -> bool {
+        j > 0 && self.kept[j - 1]
+    }
+
+    /// Whether the block after boundary `j` exists and counts.
+    #[inline]
+    fn kept_after(&self, j: usize) -> bool {
+        j < self.n_blocks() && self.kept[j]
+    }
+
+    /// Sample intervals of the blocks that count.
     fn intervals(&self) -> usize {
-        self.lens.iter().sum()
+        self.lens
+            .iter()
+            .zip(&self.kept)
+            .filter(|(_, k)| **k)
+            .map(|(l, _)| l)
+            .sum()
     }
 
     /// The moments of the whole record.
     pub fn view(&self) -> MomentView {
         let (n_i, n_w, n_q) = (self.n_i, self.n_w, self.n_q);
         let mut m = vec![0.0; n_i * n_w];
-        for b in 0..self.n_blocks() {
+        for b in (0..self.n_blocks()).filter(|&b| self.kept[b]) {
             let (s0, s1) = (&self.snaps[b], &self.snaps[b + 1]);
             for i in 0..n_i {
                 for j in 0..n_w {
@@ -267,8 +302,19 @@ impl LevelMoments {
                 }
             }
         }
-        let (first, last) = (&self.snaps[0], &self.snaps[self.n_blocks()]);
-        let bnd: Vec<f64> = last.iter().zip(first).map(|(a, b)| a - b).collect();
+        // `[ι q]` over every run of kept blocks: the whole record's ends without rests.
+        let mut bnd = vec![0.0; n_i * n_q];
+        for j in 0..=self.n_blocks() {
+            let (before, after) = (self.kept_before(j), self.kept_after(j));
+            if before == after {
+                continue;
+            }
+            let sign = if after { -1.0 } else { 1.0 };
+            // (`0 − s + e` is bit for bit the `e − s` of a record without rests.)
+            bnd.iter_mut()
+                .zip(&self.snaps[j])
+                .for_each(|(b, s)| *b += sign * s);
+        }
         self.normalise(m, bnd, vec![], vec![])
     }
 
@@ -276,10 +322,10 @@ impl LevelMoments {
     pub fn hat_weight(&self, j: usize) -> f64 {
         let nb = self.n_blocks();
         let mut w = 0.0;
-        if j > 0 {
+        if self.kept_before(j) {
             w += 0.5 * self.lens[j - 1] as f64;
         }
-        if j < nb {
+        if j < nb && self.kept[j] {
             w += 0.5 * self.lens[j] as f64;
         }
         w / self.intervals() as f64
@@ -290,7 +336,6 @@ impl LevelMoments {
     #[cfg(test)]
     pub fn hat(&self, j: usize) -> MomentView {
         let (n_i, n_w, n_q) = (self.n_i, self.n_w, self.n_q);
-        let nb = self.n_blocks();
         let mut m = vec![0.0; n_i * n_w];
         let mut m_d = vec![0.0; n_i * n_w];
         let mut bnd = vec![0.0; n_i * n_q];
@@ -315,21 +360,23 @@ impl LevelMoments {
                 }
             }
         };
-        if j > 0 {
+        let (before, after) = (self.kept_before(j), self.kept_after(j));
+        if before {
             add(j - 1, true);
         }
-        if j < nb {
+        if after {
             add(j, false);
         }
-        // φ jumps only at the record ends: φ_0(0) = 1, φ_nb(T) = 1.
-        if j == 0 {
+        // φ jumps only at the ends of a run of kept blocks (the record's ends without
+        // rests): φ_0(0) = 1, φ_nb(T) = 1.
+        if after && !before {
             bnd.iter_mut()
-                .zip(&self.snaps[0])
+                .zip(&self.snaps[j])
                 .for_each(|(b, s)| *b -= s);
         }
-        if j == nb {
+        if before && !after {
             bnd.iter_mut()
-                .zip(&self.snaps[nb])
+                .zip(&self.snaps[j])
                 .for_each(|(b, s)| *b += s);
         }
         self.normalise(m, bnd, m_d, bnd_d)
@@ -498,6 +545,7 @@ pub(crate) struct LevelAccumulator<'a> {
     ts: f64,
     n_total: usize,
     bounds: Vec<usize>,
+    kept: Vec<bool>,
     pos: usize,
     /// The bank's state at the last sample fed (meaningless before the first).
     state: Option<BankState>,
@@ -543,6 +591,26 @@ impl<'a> LevelAccumulator<'a> {
         let bounds: Vec<usize> = (0..=n_blocks)
             .map(|b| ((b as u128 * (n_total - 1) as u128) / n_blocks as u128) as usize)
             .collect();
+        Self::with_blocks(plan, eval, ts, n_total, bounds, vec![true; n_blocks], hold)
+    }
+
+    /// As [`Self::new`] with given block boundaries (`0 … n_total − 1`, increasing) and,
+    /// per block, whether its moments count (see [`super::rests`]).
+    pub fn with_blocks(
+        plan: &'a Plan,
+        eval: &'a dyn BasisEval,
+        ts: f64,
+        n_total: usize,
+        bounds: Vec<usize>,
+        kept: Vec<bool>,
+        hold: Hold,
+    ) -> Self {
+        assert_eq!(
+            bounds.len(),
+            kept.len() + 1,
+            "invariant: one flag per block"
+        );
+        let n_blocks = kept.len();
         let bank = FilterBank::new(&plan.corners, plan.n_drivers(), plan.order, ts, hold);
         let (n_i, n_w, n_q) = (plan.n_i(), plan.n_w(), plan.n_q());
         let mut row_map = vec![None; bank.n_rows()];
@@ -563,6 +631,7 @@ impl<'a> LevelAccumulator<'a> {
             ts,
             n_total,
             bounds,
+            kept,
             pos: 0,
             state: None,
             sums: vec![vec![0.0; n_i * n_w]; n_blocks],
@@ -900,6 +969,7 @@ impl<'a> LevelAccumulator<'a> {
                 tsums: self.tsums,
                 lens,
                 snaps: self.snaps,
+                kept: self.kept,
             },
             self.times,
         )

@@ -110,7 +110,7 @@ pub(crate) fn sandwich_stderr(
                 Par::Seq,
             );
         }
-        let nb = lm.n_blocks() as f64;
+        let nb = lm.kept_blocks() as f64;
         let dof = nb / (nb - 1.0).max(1.0);
         for k in 0..na {
             let s0: f64 = (0..nh).map(|j| u[(j, k)] * u[(j, k)]).sum();

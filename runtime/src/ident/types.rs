@@ -40,6 +40,10 @@ pub struct IdentifyOptions {
     /// (see [`plan::RootDriver`]). Off (the default): chains of positions and inputs
     /// only. What it gains and costs is measured in docs/method.md §2.
     pub column_chains: bool,
+    /// Keep the rests in the moments. By default the intervals where a body with a
+    /// `sign` of its own velocity stands still are left out (see [`super::rests`]): at rest
+    /// its friction force is anywhere in `±r` and the model does not hold.
+    pub keep_rests: bool,
     /// Run even when the estimated memory ([`memory::estimate`]) is above
     /// [`crate::limits::MAX_BYTES`]; refused before any sample is read otherwise.
     pub allow_large: bool,
@@ -59,6 +63,7 @@ impl Default for IdentifyOptions {
             hold: Hold::FirstOrder,
             noise_correction: true,
             column_chains: false,
+            keep_rests: false,
             allow_large: false,
         }
     }
@@ -233,8 +238,12 @@ pub struct LevelInfo {
     pub mean: BTreeMap<String, f64>,
     /// Estimated white measurement-noise standard deviation per measured signal.
     pub noise: BTreeMap<String, f64>,
-    /// Time blocks of the standard errors over this level.
+    /// Time blocks of the standard errors over this level (those that count: rests left
+    /// out are not among them).
     pub blocks: usize,
+    /// Rests left out of this level's moments (`None`: the model has no `sign` of a
+    /// velocity, or rests were kept on request).
+    pub rests: Option<super::rests::RestSummary>,
 }
 
 /// The filter bank that was used.

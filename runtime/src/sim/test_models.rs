@@ -297,6 +297,26 @@ impl ServoAxis {
     }
 }
 
+/// Add white noise of `fraction` of the spread of `column` to it, drawn from `seed`: a
+/// planned record has nothing random in it (the encoder's rounding is deterministic), so
+/// the seed draws the noise a drive's current measurement carries, and every seed gives
+/// another record.
+pub fn add_noise(rec: &mut crate::record::Record, column: &str, fraction: f64, seed: u64) {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let Some(k) = rec.names.iter().position(|n| n == column) else {
+        return;
+    };
+    let col = &mut rec.columns[k];
+    let mean = col.iter().sum::<f64>() / col.len().max(1) as f64;
+    let sd = (col.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / col.len().max(1) as f64).sqrt();
+    let Ok(noise) = Normal::new(0.0, fraction * sd) else {
+        return;
+    };
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    col.iter_mut().for_each(|v| *v += noise.sample(&mut rng));
+}
+
 /// The benchmark SDOF model at its three levels (6, 15, 40; low-pass 10 rad/s), `duration`
 /// seconds after a 30 s burn-in, simulated with `substeps` and with `4 × substeps` RK4
 /// sub-steps: the largest (over levels and signals) RMS difference relative to the
