@@ -557,12 +557,12 @@ fn rest_line(id: &dynid_runtime::ident::Identification) -> String {
     let thr: Vec<String> = first
         .threshold
         .iter()
-        .map(|(b, t)| format!("{b} {}", print::fmt_num(*t)))
+        .map(|(b, t)| format!("{b} {} m/s", print::fmt_num(*t)))
         .collect();
     format!(
-        "rests left out of the moments (friction is anywhere in ±r at rest): {} per level; at \
-         rest: speed below {} % of the RMS ({}) for at least {} ms (--keep-rests \
-         keeps them)\n",
+        "rests left out of the moments (at rest a Coulomb force is anywhere within its bound): {} \
+         per level; at rest: speed below {} % of the RMS ({}) for at \
+         least {} ms (--keep-rests keeps them)\n",
         per_level.join(" / "),
         100.0 * dynid_runtime::ident::rests::REST_FRACTION,
         thr.join(", "),

@@ -203,10 +203,13 @@ pub fn measure<'m>(
         )?
     };
 
-    // Rests are left out only where enough motion remains for the blocks of the standard
+    // Rests are left out only where they are a real share of the level
+    // ([`rests::MIN_REST_SHARE`]) and enough motion remains for the blocks of the standard
     // errors (a record that hardly moves is identified as it is).
     let moving = |r: &[(usize, usize)], summary: &RestSummary, n: usize| {
-        !r.is_empty() && n.saturating_sub(summary.samples) >= n_blocks.saturating_mul(4)
+        !r.is_empty()
+            && summary.samples as f64 >= rests::MIN_REST_SHARE * n as f64
+            && n.saturating_sub(summary.samples) >= n_blocks.saturating_mul(4)
     };
     let found: Vec<Option<(rests::Intervals, RestSummary)>> = found
         .into_iter()
