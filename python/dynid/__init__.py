@@ -459,13 +459,27 @@ class Model:
         filter_corners: Optional[Sequence[float]] = None,
         noise_correction: bool = True,
         balance: bool = False,
+        column_chains: bool = False,
+        keep_rests: bool = False,
+        allow_large: bool = False,
     ) -> Identification:
         """Identify the unknown parameters from one level per item of ``data``, all levels
         pooled, as ``dynid identify``. Bad data raise DataError (a ValueError) naming the
-        level, column and sample."""
+        level, column and sample. The keywords are the command's flags: ``column_chains``
+        (``--column-chains``), ``keep_rests`` (``--keep-rests``: keep the rests of bodies
+        with a Coulomb term in the moments), ``allow_large`` (``--allow-large``: run work
+        whose memory estimate is above the limit)."""
         levels = _levels(self._m, data, sample)
         corners = None if filter_corners is None else [float(c) for c in filter_corners]
-        js, eq = self._m.identify(levels, corners, bool(noise_correction), bool(balance))
+        js, eq = self._m.identify(
+            levels,
+            corners,
+            bool(noise_correction),
+            bool(balance),
+            bool(column_chains),
+            bool(keep_rests),
+            bool(allow_large),
+        )
         return Identification(_json.loads(js), eq)
 
 

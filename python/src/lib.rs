@@ -626,7 +626,8 @@ impl CompiledModel {
     }
 
     /// Identify the unknown parameters from all levels pooled: `(json, equations)`.
-    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false))]
+    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false))]
+    #[allow(clippy::too_many_arguments)]
     fn identify(
         &self,
         py: Python<'_>,
@@ -634,6 +635,9 @@ impl CompiledModel {
         corners: Option<Vec<f64>>,
         noise_correction: bool,
         balance: bool,
+        column_chains: bool,
+        keep_rests: bool,
+        allow_large: bool,
     ) -> PyResult<(String, String)> {
         guarded(py, || {
             let ir = &self.ir;
@@ -642,6 +646,9 @@ impl CompiledModel {
                 corners,
                 balance: Some(balance),
                 noise_correction,
+                column_chains,
+                keep_rests,
+                allow_large,
                 ..Default::default()
             };
             let id = py
