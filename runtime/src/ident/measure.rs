@@ -118,8 +118,9 @@ pub fn measure<'m>(
                 .max(n_blocks.saturating_mul(4));
             let advice = match &designed {
                 Some(c) if s.n >= n_blocks.saturating_mul(4) => format!(
-                    "record at least {need} samples, or use filter corners that fit this \
-                     record (the lowest at least {:.4} rad/s), e.g. `--filter-corners {}`",
+                    "record at least {}, or use filter corners that fit this record (the \
+                     lowest at least {:.4} rad/s), e.g. `--filter-corners {}`",
+                    samples_needed(need, settle),
                     design::min_corner(min_duration, bank.order),
                     c.iter()
                         .map(|v| format!("{v:.4}"))
@@ -131,9 +132,12 @@ pub fn measure<'m>(
                     let fast = design::max_corner(s.ts) / 2.0;
                     let t_fast = design::min_duration(&[fast], bank.order);
                     format!(
-                        "record at least {} samples: with {} filter sections even the fastest \
+                        "record at least {}: with {} filter sections even the fastest \
                          corner this sample rate allows ({fast:.4} rad/s) needs {t_fast:.3} s",
-                        need.max(((t_fast / s.ts).ceil() as usize).saturating_add(1)),
+                        samples_needed(
+                            need.max(((t_fast / s.ts).ceil() as usize).saturating_add(1)),
+                            settle.max(t_fast)
+                        ),
                         bank.order,
                     )
                 }
@@ -788,6 +792,19 @@ fn non_finite_term(
         at: src.locate(k),
         value,
         advice,
+    }
+}
+
+/// "N samples" for a count a record can have; for a count that no record holds (a corner
+/// of 1e-300 rad/s asks for more samples than a 64-bit count) the duration instead.
+fn samples_needed(n: usize, seconds: f64) -> String {
+    if n < 1 << 53 {
+        format!("{n} samples")
+    } else {
+        format!(
+            "{} s of data (more samples than any record holds)",
+            dynid_ir::num::sig(seconds, 4, false)
+        )
     }
 }
 
