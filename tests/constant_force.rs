@@ -13,7 +13,6 @@ use dynid::dsl_parser::{self, ir::ModelIr};
 use dynid::runtime::data::LevelSource;
 use dynid::runtime::detect::{self, DetectOptions, Verdict};
 use dynid::runtime::diagnose::{self, DiagnoseOptions};
-use dynid::runtime::record::Record;
 use dynid::runtime::IdentifyOptions;
 use std::path::Path;
 
@@ -46,21 +45,6 @@ fn assert_within(case: &str, errs: &[(String, f64)], default: f64, tol: &[(&str,
             100.0 * bound
         );
     }
-}
-
-/// Every column minus its mean: data without a mean, as a logger that removes the DC
-/// part records it.
-fn centred(recs: &[Record]) -> Vec<Record> {
-    recs.iter()
-        .map(|r| {
-            let mut r = r.clone();
-            for c in &mut r.columns {
-                let m = c.iter().sum::<f64>() / c.len() as f64;
-                c.iter_mut().for_each(|v| *v -= m);
-            }
-            r
-        })
-        .collect()
 }
 
 #[test]
@@ -125,7 +109,7 @@ fn sdof_offset_five_percent_noise() {
 #[test]
 fn data_without_a_mean_name_the_offset_unidentifiable() {
     let ir = model("sdof_offset");
-    let recs = centred(&common::simulate(&ir, 2000.0, 0.0, 22));
+    let recs = common::centred(&common::simulate(&ir, 2000.0, 0.0, 22));
     let id = common::identify_records(&ir, &recs);
     assert!(id.param("f0").is_none(), "{:?}", id.params);
     let u = id

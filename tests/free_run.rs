@@ -15,6 +15,11 @@ use dynid::runtime::refine::{self, RefineOptions, FREE_RUN_START};
 use dynid::runtime::sim::{self, test_models::ServoAxis};
 use std::path::Path;
 
+/// The servo axis without its controller, friction or offset: an open-loop model of the
+/// closed-loop records.
+const OPEN_LOOP_AXIS: &str = "model axis {\n body m ~ 50\n input u on m\n measure m.x, u\n \
+     damper d (ground, m) ~ 120\n}\n";
+
 /// The servo axis of `ServoAxis::standard` (random set point, closed loop, 1 µm encoder)
 /// for `duration` s: the open-loop model `servo_axis` (m, d, r unknown; driven by `u`) and
 /// its record (`m.x`, `u`, `m.x_ref`).
@@ -112,12 +117,7 @@ fn simulate_input_starts_from_the_measured_state_as_the_scores_do() {
     let csv = dir.path().join("rec.csv");
     write_csv(&csv, &rec);
     let model = dir.path().join("axis.dyn");
-    std::fs::write(
-        &model,
-        "model axis {\n body m ~ 50\n input u on m\n measure m.x, u\n \
-         damper d (ground, m) ~ 120\n}\n",
-    )
-    .unwrap();
+    std::fs::write(&model, OPEN_LOOP_AXIS).unwrap();
     let o = dynid()
         .arg("simulate")
         .arg(&model)
@@ -212,12 +212,7 @@ fn an_open_loop_model_on_a_closed_loop_record_gets_the_set_point_hint() {
         })
         .collect();
     let model = dir.path().join("axis.dyn");
-    std::fs::write(
-        &model,
-        "model axis {\n body m ~ 50\n input u on m\n measure m.x, u\n \
-         damper d (ground, m) ~ 120\n}\n",
-    )
-    .unwrap();
+    std::fs::write(&model, OPEN_LOOP_AXIS).unwrap();
     let json = dir.path().join("d.json");
     let o = dynid()
         .arg("diagnose")

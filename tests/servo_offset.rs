@@ -88,20 +88,6 @@ fn run(ir: &ModelIr, recs: &[Record]) -> Diagnosis {
         .expect("diagnoses")
 }
 
-/// Every column minus its mean: data as a logger that removes the DC part records them.
-fn centred(recs: &[Record]) -> Vec<Record> {
-    recs.iter()
-        .map(|r| {
-            let mut r = r.clone();
-            for c in &mut r.columns {
-                let m = c.iter().sum::<f64>() / c.len() as f64;
-                c.iter_mut().for_each(|v| *v -= m);
-            }
-            r
-        })
-        .collect()
-}
-
 /// The share of the attainable shrink the corrected model of `d` reaches, with `floor` the
 /// true model's withheld (re-identified) gap on the same data.
 fn share(d: &Diagnosis, floor: f64) -> f64 {
@@ -197,7 +183,7 @@ fn diagnose_names_a_withheld_constant_force_and_coulomb_friction() {
 fn centred_records_get_no_constant_force() {
     // Without a mean in the data the column of a constant force is zero: it is no
     // candidate, whatever else the data show.
-    let recs = centred(&records(3));
+    let recs = common::centred(&records(3));
     let d = run(&axis("servo_axis_no_offset", &[], &[]), &recs);
     let text = d.summary();
     println!("{text}");
@@ -300,7 +286,7 @@ fn detect_reports_a_mean_the_linear_model_cannot_explain() {
         "{text}"
     );
     // Centred records carry no mean: nothing to report.
-    let d = detect(&linear, &centred(&recs));
+    let d = detect(&linear, &common::centred(&recs));
     assert!(d.constant_forces.is_empty(), "{}", d.render_table());
     // A model that has the constant force gets no second one.
     let d = detect(&truth(), &recs);

@@ -164,3 +164,18 @@ pub fn setup_linear_levels(dir: &std::path::Path) -> (std::path::PathBuf, Vec<st
         .collect();
     (model, levels)
 }
+
+/// Every column minus its mean: data without a mean, as a logger that removes the DC
+/// part records it.
+pub fn centred(recs: &[Record]) -> Vec<Record> {
+    recs.iter()
+        .map(|r| {
+            let mut r = r.clone();
+            for c in &mut r.columns {
+                let m = c.iter().sum::<f64>() / c.len() as f64;
+                c.iter_mut().for_each(|v| *v -= m);
+            }
+            r
+        })
+        .collect()
+}
