@@ -29,7 +29,7 @@ pub const MIN_REST: f64 = 0.05;
 /// Rests are left out only where they hold at least this share of a level's samples. Rare
 /// slow passages of a randomly excited record are mostly velocity reversals, which
 /// `sign(v)` describes, and on quantised positions a reversal reads as a short rest
-/// (`tests/velocity_estimate.rs`: leaving such passages out moved `d` by 1.6 %); a planned
+/// (`tests/velocity_estimate.rs`: with this share set to 0, `d` moved by +1.6 %); a planned
 /// trajectory with dwells rests for 19–40 % of its samples.
 pub const MIN_REST_SHARE: f64 = 0.05;
 
