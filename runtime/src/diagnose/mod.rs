@@ -305,7 +305,7 @@ pub fn diagnose(
             &current,
             &found,
             &data,
-            current_gap.gap,
+            &current_gap,
             opts,
             &mut notes,
             progress,
@@ -383,17 +383,19 @@ pub fn diagnose(
     // whole search, not step by step: a constant force and a friction both missing each
     // leave part of the bias until the other is added. The statistical gap does not see a
     // signal's mean, which is all a constant force changes in a model that holds
-    // otherwise: a corrected model with a constant force that matches as the nominal one
-    // does (within the acceptance margin `min_abs_shrink`) and follows the measured paths
+    // otherwise: a corrected model with a constant force that still matches (a gap below
+    // `CONSISTENT_GAP`, or within the acceptance margin `min_abs_shrink` of the nominal
+    // one — the rule the search accepts a constant force by) and follows the measured paths
     // more closely (pathwise gap) is a finding — on a body no force of which depends on
     // its position: on one held by a spring, a zero offset `x0` of the position sensor
     // gives the same mean as a constant force `−k·x0`, and the guard's note names both.
     if !found.is_empty() && nominal.gap < CONSISTENT_GAP {
         let smaller = current_gap.gap < nominal.gap;
-        let mean_shown = found
-            .iter()
-            .any(|f| f.effect == Effect::ConstantForce && !position_dependent(&ir, &f.location.b))
-            && current_gap.gap <= nominal.gap + opts.min_abs_shrink
+        let mean_shown = found.iter().any(|f| {
+            f.effect == Effect::ConstantForce
+                && !crate::ident::guard::position_dependent(&ir, Some(&f.location.b))
+        }) && (current_gap.gap < CONSISTENT_GAP
+            || current_gap.gap <= nominal.gap + opts.min_abs_shrink)
             && current_gap.pathwise < nominal.pathwise;
         if !(smaller || mean_shown) {
             let names: Vec<String> = found
@@ -560,20 +562,4 @@ pub fn diagnose(
         spectra,
         traces,
     })
-}
-
-/// Whether a force in the equation of `body` depends on a position (a spring, a nonlinear
-/// stiffness): only then can a zero offset of a position sensor act as a constant force.
-fn position_dependent(ir: &ModelIr, body: &str) -> bool {
-    ir.equations
-        .iter()
-        .filter(|e| ir.bodies[e.body.index()].name == body)
-        .flat_map(|e| &e.terms)
-        .any(|t| match t.basis {
-            dynid_ir::ir::Basis::Expr(x) => ir
-                .expr_signals(x)
-                .iter()
-                .any(|s| matches!(ir.signal(*s).kind, SignalKind::Position(_))),
-            dynid_ir::ir::Basis::Deriv { .. } => false,
-        })
 }

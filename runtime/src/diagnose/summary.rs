@@ -193,7 +193,17 @@ impl Diagnosis {
             Verdict::MissingEffect => {
                 for (k, f) in self.found.iter().enumerate() {
                     let step = shrink(f.gap_before, f.gap_after);
-                    let conf = confidence(f.value / f.stderr, step.map_or(0.0, |x| 100.0 * x));
+                    // The statistical gap does not see a signal's mean, all that a
+                    // constant force changes: its confidence counts the pathwise shrink.
+                    let mean_only = f.effect == Effect::ConstantForce
+                        && step.is_none_or(|x| x <= 0.0)
+                        && f.pathwise_gap_after < f.pathwise_gap_before;
+                    let seen = if mean_only {
+                        shrink(f.pathwise_gap_before, f.pathwise_gap_after)
+                    } else {
+                        step
+                    };
+                    let conf = confidence(f.value / f.stderr, seen.map_or(0.0, |x| 100.0 * x));
                     let _ = writeln!(
                         s,
                         "{} missing effect: {} at {}{}{}",
@@ -217,7 +227,12 @@ impl Diagnosis {
                         f.value.abs() / f.stderr,
                         fmt_gap(f.gap_before),
                         fmt_gap(f.gap_after),
-                        fmt_shrink(step, "smaller"),
+                        fmt_shrink(step, "smaller")
+                            + if mean_only {
+                                ", a mean the statistical gap does not see"
+                            } else {
+                                ""
+                            },
                         fmt_gap(f.pathwise_gap_before),
                         fmt_gap(f.pathwise_gap_after),
                         conf

@@ -160,14 +160,13 @@ pub(crate) fn check(
             }
             Some(_) => None,
         });
-        let share = if r.per_level.len() > 1 {
-            format!(
-                "{:.0}–{:.0} % of its filtered data unexplained at every level",
-                100.0 * lo,
-                100.0 * hi
-            )
+        let (lo_pc, hi_pc) = (format!("{:.0}", 100.0 * lo), format!("{:.0}", 100.0 * hi));
+        let share = if r.per_level.len() > 1 && lo_pc != hi_pc {
+            format!("{lo_pc}–{hi_pc} % of its filtered data unexplained at every level")
+        } else if r.per_level.len() > 1 {
+            format!("{hi_pc} % of its filtered data unexplained at every level")
         } else {
-            format!("{:.0} % of its filtered data unexplained", 100.0 * hi)
+            format!("{hi_pc} % of its filtered data unexplained")
         };
         let seen = format!(
             "the equation of `{}` leaves {share} (a model that holds leaves a few per cent)",
@@ -485,21 +484,49 @@ fn offset_probe(
             (e.value.is_finite() && e.stderr.is_finite()).then(|| (b.clone(), e.value, e.stderr))
         })
         .collect();
-    let position_dependent = ir
-        .equations
-        .iter()
-        .flat_map(|e| &e.terms)
-        .any(|t| match t.basis {
-            dynid_ir::ir::Basis::Expr(e) => ir
-                .expr_signals(e)
-                .iter()
-                .any(|s| matches!(ir.signal(*s).kind, SignalKind::Position(_))),
-            dynid_ir::ir::Basis::Deriv { .. } => false,
-        });
+    let position_dependent = position_dependent(ir, None);
     Some(Offset {
         residual: after,
         position,
         forces,
         position_dependent,
     })
+}
+
+/// Whether a force in the equation of `body` (of any body, for `None`) depends on a
+/// position (a spring, a nonlinear stiffness): only then can a zero offset of a position
+/// sensor act as a constant force.
+/// A position seen only through `sin` or `cos` (a force periodic along the travel, such
+/// as a guide's friction ripple or cogging) does not count: an offset shifts its phase,
+/// not its mean.
+pub(crate) fn position_dependent(ir: &ModelIr, body: Option<&str>) -> bool {
+    ir.equations
+        .iter()
+        .filter(|e| body.is_none_or(|b| ir.bodies[e.body.index()].name == b))
+        .flat_map(|e| &e.terms)
+        .any(|t| match t.basis {
+            dynid_ir::ir::Basis::Expr(x) => reads_position_outside_periodic(ir, x),
+            dynid_ir::ir::Basis::Deriv { .. } => false,
+        })
+}
+
+/// Whether the expression `x` reads a position other than inside a `sin` or `cos`. The
+/// nodes are in topological order (operands before their use), so one forward sweep over
+/// the nodes up to `x` decides it, without recursion.
+fn reads_position_outside_periodic(ir: &ModelIr, x: dynid_ir::ir::ExprId) -> bool {
+    use dynid_ir::ir::{ExprNode, UnaryOp};
+    let mut reads = vec![false; x.index() + 1];
+    for i in 0..=x.index() {
+        reads[i] = match ir.exprs[i] {
+            ExprNode::Const(_) => false,
+            ExprNode::Signal(s) => matches!(ir.signal(s).kind, SignalKind::Position(_)),
+            ExprNode::Unary(UnaryOp::Sin | UnaryOp::Cos, _) => false,
+            ExprNode::Unary(_, a)
+            | ExprNode::Powi(a, _)
+            | ExprNode::Deadzone(a, _)
+            | ExprNode::Saturate(a, _) => reads[a.index()],
+            ExprNode::Binary(_, a, b) => reads[a.index()] || reads[b.index()],
+        };
+    }
+    reads[x.index()]
 }

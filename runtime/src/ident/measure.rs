@@ -195,7 +195,7 @@ pub fn measure<'m>(
     let rest_bodies = if opts.keep_rests {
         Vec::new()
     } else {
-        rests::bodies(ir, &plan.roots)
+        rests::bodies(ir)
     };
     let found: Vec<Option<(rests::Intervals, RestSummary)>> = if rest_bodies.is_empty() {
         vec![None; levels.len()]

@@ -10,14 +10,15 @@
 //! functions of the data like any other, so the identities hold on every motion run
 //! whatever the filters remember, and no settling margin is needed.
 //!
-//! A sample is at rest when the speed of a body that carries a `sign` of its own velocity is
+//! A sample is at rest when the speed of a body that carries a `sign` of its own velocity
+//! in a term with an unknown coefficient ([`bodies`]) is
 //! at most [`REST_FRACTION`] of that body's RMS speed, and a rest is a run of such samples
 //! at least [`MIN_REST`] long (a velocity reversal passes zero in a few samples and is
 //! what `sign(v)` describes). The speed is the central difference of the measured
 //! position (or the measured velocity), both measured in a first pass over the level.
 
 use crate::data::LevelSource;
-use dynid_ir::ir::{BodyId, ExprNode, ModelIr, SignalKind, UnaryOp};
+use dynid_ir::ir::{Basis, BodyId, ExprNode, ModelIr, SignalKind, UnaryOp};
 use serde::Serialize;
 
 /// A sample is at rest below this fraction of the RMS speed.
@@ -47,12 +48,27 @@ pub struct RestSummary {
     pub threshold: Vec<(String, f64)>,
 }
 
-/// The bodies whose own velocity (against the ground) is the argument of a `sign`: a rest
-/// of such a body breaks the model. (A `sign` of a relative velocity, between two bodies,
-/// is not looked at: its rests are those of the difference, not of either body.)
-pub(crate) fn bodies(ir: &ModelIr, roots: &[dynid_ir::ir::ExprId]) -> Vec<BodyId> {
+/// The bodies whose own velocity (against the ground) is the argument of a `sign` in a
+/// term with an unknown coefficient (a friction to identify): a rest of such a body breaks
+/// the model being fitted. (A `sign` of a relative velocity, between two bodies, is not
+/// looked at: its rests are those of the difference, not of either body. A `sign` in a
+/// known force, a guide's friction ripple of given size, is not either: leaving the rests
+/// out for it would fit the model's unknowns on the motion alone, which only the friction
+/// the model identifies needs — without that friction in the model, on a record with
+/// dwells, the fit on motion alone is far worse than on the whole record.)
+pub(crate) fn bodies(ir: &ModelIr) -> Vec<BodyId> {
+    let unknown = ir.unknowns();
     let mut out = Vec::new();
-    for &r in roots {
+    let identified = ir
+        .equations
+        .iter()
+        .flat_map(|e| &e.terms)
+        .filter(|t| t.coef.param.is_some_and(|p| unknown.contains(&p)))
+        .filter_map(|t| match t.basis {
+            Basis::Expr(x) => Some(x),
+            Basis::Deriv { .. } => None,
+        });
+    for r in identified {
         let needed = ir.needed_nodes(&[r]);
         for (i, _) in needed.iter().enumerate().filter(|(_, n)| **n) {
             if let ExprNode::Unary(UnaryOp::Sign, a) = ir.exprs[i] {
@@ -66,6 +82,7 @@ pub(crate) fn bodies(ir: &ModelIr, roots: &[dynid_ir::ir::ExprId]) -> Vec<BodyId
             }
         }
     }
+    out.sort();
     out
 }
 
