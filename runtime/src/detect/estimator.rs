@@ -48,12 +48,22 @@ const P_STEPS: usize = 240;
 /// RK4 steps per sample of the driven runs.
 const SUBSTEPS: usize = 4;
 
+/// Builds a force basis from the element's s and v.
+type BasisFn = Box<dyn Fn(&mut ExprArena, ExprId, ExprId) -> ExprId>;
+
+/// A single-effect template of the element: effect, coefficient name, its estimate, the
+/// shape θ and the element's linear parts, as the statistical linearisation fitted them.
+struct Single {
+    effect: String,
+    coef: String,
+    p: f64,
+    theta: f64,
+    linear_parts: Vec<(String, f64)>,
+}
+
 /// The force basis of a built-in candidate as an expression of the element's s and v, with
 /// its shape θ; `None` for a candidate the language cannot write (a user-declared one).
-fn basis_of(
-    name: &str,
-    theta: f64,
-) -> Option<Box<dyn Fn(&mut ExprArena, ExprId, ExprId) -> ExprId>> {
+fn basis_of(name: &str, theta: f64) -> Option<BasisFn> {
     Some(match name {
         "cubic stiffness" => Box::new(|a: &mut ExprArena, s, _| a.intern(ExprNode::Powi(s, 3))),
         "Coulomb friction" => Box::new(|a: &mut ExprArena, _, v| a.unary(UnaryOp::Sign, v)),
@@ -381,7 +391,7 @@ pub(crate) fn refine(
             })
             .collect();
         // Single-effect templates of the element, with their p and shape.
-        let singles: Vec<(String, String, f64, f64, Vec<(String, f64)>)> = det.elements[ti]
+        let singles: Vec<Single> = det.elements[ti]
             .ranking
             .iter()
             .filter(|f| f.effects.len() == 1)
@@ -403,8 +413,13 @@ pub(crate) fn refine(
                             .map(|n| (n.to_string(), e.value))
                     })
                     .collect();
-                (p.is_finite() && p != 0.0)
-                    .then(|| (c.name.clone(), c.coef_name.clone(), p, theta, linear_parts))
+                (p.is_finite() && p != 0.0).then(|| Single {
+                    effect: c.name.clone(),
+                    coef: c.coef_name.clone(),
+                    p,
+                    theta,
+                    linear_parts,
+                })
             })
             .collect();
         if singles.is_empty() {
@@ -420,7 +435,13 @@ pub(crate) fn refine(
         let runs: Vec<Option<Curves>> = jobs
             .par_iter()
             .map(|&(c, k)| {
-                let (effect, _, p, theta, linear_parts) = &singles[c];
+                let Single {
+                    effect,
+                    p,
+                    theta,
+                    linear_parts,
+                    ..
+                } = &singles[c];
                 let mut model = base.clone();
                 for (param, v) in linear_parts {
                     let _ = model.set_nominal(param, *v);
@@ -445,14 +466,14 @@ pub(crate) fn refine(
         let trials: Vec<Trial> = singles
             .iter()
             .enumerate()
-            .filter_map(|(c, (effect, coef, p, _, _))| {
+            .filter_map(|(c, single)| {
                 let curves: Vec<Curves> = (0..P_FACTORS.len())
                     .map(|k| runs[c * P_FACTORS.len() + k].clone())
                     .collect::<Option<_>>()?;
                 Some(Trial {
-                    effect: effect.clone(),
-                    coef_name: coef.clone(),
-                    ps: P_FACTORS.iter().map(|f| f * p).collect(),
+                    effect: single.effect.clone(),
+                    coef_name: single.coef.clone(),
+                    ps: P_FACTORS.iter().map(|f| f * single.p).collect(),
                     curves,
                 })
             })
