@@ -440,3 +440,142 @@ fn cubic_coulomb_levels(n: usize) -> ModelIr {
         .collect();
     ir
 }
+
+/// The detection matrix: each built-in effect alone at one element of a single mass, of
+/// the coupling of two masses and of the middle of a four-mass chain, at the three levels
+/// 6/15/40, without and with 5 % measurement noise, over seeds 1–5; and the three linear
+/// structures as controls. Prints per case how often the effect was named exactly, with
+/// an extra effect, missed, and how often another element was flagged.
+///
+/// `DYNID_DETECT_MATRIX=1 cargo test --test detect_models matrix -- --nocapture`
+/// (`DYNID_MATRIX_SECONDS` sets the seconds per level, default 300).
+#[test]
+fn matrix() {
+    if std::env::var_os("DYNID_DETECT_MATRIX").is_none() {
+        return;
+    }
+    let seconds: f64 = std::env::var("DYNID_MATRIX_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(300.0);
+    let rows = matrix_rows(&Structure::ALL, &Effect::ALL, &[0.0, 0.05], 1..6, seconds);
+    print_matrix(&rows, seconds);
+}
+
+use detect_common::{classify, detect_case, Effect, Outcome, Structure};
+
+struct MatrixRow {
+    case: String,
+    outcomes: Vec<Outcome>,
+}
+
+fn matrix_rows(
+    structures: &[Structure],
+    effects: &[Effect],
+    noises: &[f64],
+    seeds: std::ops::Range<u64>,
+    seconds: f64,
+) -> Vec<MatrixRow> {
+    let mut cases: Vec<(Structure, Option<Effect>, f64)> = Vec::new();
+    for &s in structures {
+        for &n in noises {
+            for &e in effects {
+                cases.push((s, Some(e), n));
+            }
+            cases.push((s, None, n));
+        }
+    }
+    let run = |&(s, e, n): &(Structure, Option<Effect>, f64)| {
+        let outcomes = seeds
+            .clone()
+            .map(|seed| {
+                let d = detect_case(&s.source(e), &s.source(None), seconds, n, seed);
+                classify(&d, s.element(), e)
+            })
+            .collect();
+        MatrixRow {
+            case: format!(
+                "{} {} noise {:.0} %",
+                s.label(),
+                e.map_or("linear", Effect::name),
+                100.0 * n
+            ),
+            outcomes,
+        }
+    };
+    // Two workers: the matrix is dozens of independent simulations.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let out = std::sync::Mutex::new(Vec::new());
+    std::thread::scope(|sc| {
+        for _ in 0..2 {
+            sc.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(c) = cases.get(i) else { break };
+                let row = run(c);
+                out.lock()
+                    .expect("invariant: no worker panics holding the lock")
+                    .push((i, row));
+            });
+        }
+    });
+    let mut rows = out.into_inner().expect("invariant: workers joined");
+    rows.sort_by_key(|r| r.0);
+    rows.into_iter().map(|r| r.1).collect()
+}
+
+fn print_matrix(rows: &[MatrixRow], seconds: f64) {
+    println!("| case ({seconds} s per level) | named exactly | extra effect | missed | neighbour flagged |");
+    println!("|---|---|---|---|---|");
+    let count = |r: &MatrixRow, f: fn(&Outcome) -> bool| r.outcomes.iter().filter(|o| f(o)).count();
+    for r in rows {
+        let n = r.outcomes.len();
+        println!(
+            "| {} | {}/{n} | {}/{n} | {}/{n} | {}/{n} |",
+            r.case,
+            count(r, |o| o.exact),
+            count(r, |o| o.extra),
+            count(r, |o| o.missed),
+            count(r, |o| o.neighbour),
+        );
+    }
+}
+
+/// The part of the matrix that runs by default: the hardening spring (where the
+/// statistical-linearisation templates read the fit's own damping artefact as a second
+/// effect) at the single mass without noise and in the middle of the chain with 5 % noise,
+/// with both linear controls, over seeds 1–5 at 300 s per level. Measured by `matrix`
+/// (docs/detection.md): named exactly on 5 of 5 seeds in both cases, no extra effect, no
+/// neighbour or control flagged; before the estimator's templates, 4 of 5 each with an
+/// extra effect on the fifth. The bounds allow one seed fewer in all.
+#[test]
+fn matrix_hardening_spring() {
+    let mut rows = matrix_rows(&[Structure::Sdof], &[Effect::Cubic], &[0.0], 1..6, 300.0);
+    rows.extend(matrix_rows(
+        &[Structure::Chain4],
+        &[Effect::Cubic],
+        &[0.05],
+        1..6,
+        300.0,
+    ));
+    print_matrix(&rows, 300.0);
+    let all: Vec<Outcome> = rows
+        .iter()
+        .filter(|r| !r.case.contains("linear"))
+        .flat_map(|r| r.outcomes.iter().copied())
+        .collect();
+    let count = |f: fn(&Outcome) -> bool| all.iter().filter(|o| f(o)).count();
+    assert_eq!(all.len(), 10);
+    assert!(
+        count(|o| o.exact) >= 9,
+        "named exactly on fewer than 9 of 10"
+    );
+    assert!(
+        count(|o| o.extra) <= 1,
+        "an extra effect on more than 1 of 10"
+    );
+    assert_eq!(count(|o| o.missed), 0, "missed");
+    assert!(
+        rows.iter().flat_map(|r| &r.outcomes).all(|o| !o.neighbour),
+        "another element (or a linear control) flagged"
+    );
+}

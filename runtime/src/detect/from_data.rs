@@ -501,6 +501,7 @@ pub fn detect_from_data(
         opts.se_dof = Some(fits.n_blocks as f64 - 1.0);
     }
     let mut det = detect(&fits.input, extra, &opts)?;
+    super::estimator::refine(ir, levels, ident_opts, &opts, &fits, &mut det);
     det.constant_forces = super::unexplained_means(ir, levels, ident_opts)?;
     Ok((det, fits))
 }

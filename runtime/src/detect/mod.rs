@@ -26,6 +26,7 @@
 //! report; this file is the pipeline from the curves to the verdicts.
 
 mod candidate;
+mod estimator;
 mod fit;
 pub mod from_data;
 pub mod offset;
@@ -48,8 +49,8 @@ pub use render::{fmt_g, fmt_pm};
 pub use resolution::{levels_too_alike, levels_too_alike_in, LevelsTooAlike};
 pub use types::{
     DetectError, DetectOptions, Detection, DetectionInput, ElementFinding, ElementIntensity,
-    Estimate, HeldParam, Linearisation, ParamCurve, ParamCurveResult, Prediction, Role, Suspected,
-    TemplateFit, Verdict,
+    Estimate, EstimatorFit, HeldParam, Linearisation, ParamCurve, ParamCurveResult, Prediction,
+    Role, Suspected, TemplateFit, Verdict,
 };
 
 use fit::{CurveData, ElementData};
@@ -290,6 +291,8 @@ fn explain_element(
         constant_aicc: fit::aicc(constant_chi2, k_const, n),
         c_hat: 1.0,
         suspected: None,
+        estimator: Vec::new(),
+        explained_by: None,
     };
     if finding.drifting.is_empty() {
         return finding;

@@ -88,6 +88,38 @@ impl Detection {
             if let Verdict::Nonlinear { summary, .. } = &e.verdict {
                 let _ = writeln!(out, "  {summary}");
             }
+            if !e.estimator.is_empty() {
+                let tried: Vec<String> = e
+                    .estimator
+                    .iter()
+                    .map(|f| {
+                        let what = if f.explains {
+                            "explains all".to_string()
+                        } else if f.still_drifting.is_empty() {
+                            "not simulated at every level".to_string()
+                        } else {
+                            format!("leaves {} drifting", f.still_drifting.join(", "))
+                        };
+                        format!(
+                            "{} {} = {} (χ² {}/{}, {what})",
+                            f.effect,
+                            f.coef_name,
+                            fmt_pm(f.value, f.stderr),
+                            fmt_g(f.chi2),
+                            f.dof
+                        )
+                    })
+                    .collect();
+                let _ = writeln!(
+                    out,
+                    "  through the estimator (simulated at the measured inputs, refitted per \
+                     level):\n    {}",
+                    tried.join(";\n    ")
+                );
+            }
+            if let Some(why) = &e.explained_by {
+                let _ = writeln!(out, "  drifts ({}), but {why}", e.drifting.join(", "));
+            }
             if let Some(x) = &e.suspected {
                 let _ = writeln!(
                     out,

@@ -127,7 +127,19 @@ pub struct DetectOptions {
     /// Over which distributions of s and v the templates are linearised.
     #[serde(default)]
     pub linearisation: Linearisation,
+    /// [`detect_from_data`]: samples per level of the simulated levels that predict each
+    /// candidate's drift for this estimator (`detect::estimator`); 0 turns that off and
+    /// leaves the statistical-linearisation verdicts.
+    #[serde(default = "sim_samples")]
+    pub sim_samples: usize,
 }
+
+fn sim_samples() -> usize {
+    SIM_SAMPLES
+}
+
+/// Default of [`DetectOptions::sim_samples`]: 1000 s at the models' 10 ms.
+pub const SIM_SAMPLES: usize = 100_000;
 
 /// The distributions statistical linearisation averages over.
 ///
@@ -165,6 +177,7 @@ impl Default for DetectOptions {
             builtins: true,
             hold_inertia: true,
             linearisation: Linearisation::default(),
+            sim_samples: SIM_SAMPLES,
         }
     }
 }
@@ -342,6 +355,38 @@ pub struct ElementFinding {
     /// A second effect suspected besides a single-effect verdict (see [`Suspected`]).
     #[serde(default)]
     pub suspected: Option<Suspected>,
+    /// The element's single effects tried through the estimator itself (simulated and
+    /// refitted per level, see `detect::estimator`), the explaining ones first, then by χ².
+    #[serde(default)]
+    pub estimator: Vec<EstimatorFit>,
+    /// Why a drifting element is reported linear: a neighbour's effect predicts its drift.
+    #[serde(default)]
+    pub explained_by: Option<String>,
+}
+
+/// A single effect tried through the estimator: its coefficient fitted so that the
+/// measured curves of the element and its neighbours, minus the drift the effect predicts
+/// for this fit on these inputs, are as constant as possible.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EstimatorFit {
+    /// e.g. `cubic stiffness`.
+    pub effect: String,
+    /// e.g. `k3`.
+    pub coef_name: String,
+    #[serde(with = "nan_as_null")]
+    pub value: f64,
+    /// From the χ² profile in the coefficient (Δχ² = 1).
+    #[serde(with = "nan_as_null")]
+    pub stderr: f64,
+    /// χ² about each curve's mean after the predicted drift is removed, summed over the
+    /// element's and its neighbours' curves, with `dof` degrees of freedom.
+    #[serde(with = "nan_as_null")]
+    pub chi2: f64,
+    pub dof: usize,
+    /// The element's curves that still drift once the predicted drift is removed.
+    pub still_drifting: Vec<String>,
+    /// None does: the effect alone explains the element.
+    pub explains: bool,
 }
 
 /// A second effect in an element whose verdict names one: another curve of the element
