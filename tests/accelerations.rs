@@ -79,9 +79,12 @@ fn sdof_from_accelerations_as_from_positions() {
     let e_a = common::error_row("sdof, accelerations, 5 % noise", &acc, &id_a);
     let id_p = common::identify_records(&pos, &simulate(&pos, 1000.0, seed, 1));
     let e_p = common::error_row("sdof, positions, 5 % noise", &pos, &id_p);
-    // Seeds 31–36: accelerations k 0.10 %, d 1.4 %; positions k 0.26 %, d 1.6 % (largest).
-    assert_within("sdof accelerations", &e_a, &[("k", 0.004), ("d", 0.04)]);
-    assert_within("sdof positions", &e_p, &[("k", 0.008), ("d", 0.04)]);
+    // Seeds 31–36, largest errors: accelerations k −0.27 %, d +1.10 %; positions k −0.22 %,
+    // d −1.56 %. From accelerations k comes out low on every seed (−0.03 … −0.27 %, mean
+    // −0.15 %) against a standard error of ±0.06 %: a small bias of k that its standard
+    // error does not cover (positions: k −0.22 … +0.17 %, standard error ±0.16 %).
+    assert_within("sdof accelerations", &e_a, &[("k", 0.007), ("d", 0.025)]);
+    assert_within("sdof positions", &e_p, &[("k", 0.006), ("d", 0.04)]);
 }
 
 #[test]
@@ -94,16 +97,25 @@ fn two_mass_from_accelerations_as_from_positions() {
     let id_p = common::identify_records(&pos, &simulate(&pos, 1000.0, seed, 1));
     let e_p = common::error_row("two_mass, positions, 5 % noise", &pos, &id_p);
     assert!(id_a.unidentifiable.is_empty(), "{:?}", id_a.unidentifiable);
-    let bounds = [
-        ("m2", 0.01),
-        ("k1", 0.04),
-        ("d1", 0.04),
-        ("k2", 0.03),
-        ("d2", 0.12),
+    // Seeds 41–46, largest errors: accelerations m2 +0.32 %, k1 −0.67 %, d1 −0.66 %,
+    // k2 +0.35 %, d2 +1.76 %; positions m2 −0.79 %, k1 −0.57 %, d1 −1.45 %, k2 −0.78 %,
+    // d2 −6.4 %.
+    let acc_bounds = [
+        ("m2", 0.008),
+        ("k1", 0.017),
+        ("d1", 0.017),
+        ("k2", 0.009),
+        ("d2", 0.045),
     ];
-    // Seeds 41–46 (largest): see the table printed by the command in the module doc.
-    assert_within("two_mass accelerations", &e_a, &bounds);
-    assert_within("two_mass positions", &e_p, &bounds);
+    let pos_bounds = [
+        ("m2", 0.02),
+        ("k1", 0.015),
+        ("d1", 0.035),
+        ("k2", 0.02),
+        ("d2", 0.15),
+    ];
+    assert_within("two_mass accelerations", &e_a, &acc_bounds);
+    assert_within("two_mass positions", &e_p, &pos_bounds);
 }
 
 #[test]
@@ -117,15 +129,17 @@ fn sdof_from_accelerations_with_input_content_between_samples() {
     let e_a = common::error_row("sdof, accelerations, input ×10", &acc, &id_a);
     let id_p = common::identify_records(&pos, &simulate(&pos, 1000.0, seed, 10));
     let e_p = common::error_row("sdof, positions, input ×10", &pos, &id_p);
+    // Seeds 51–56, largest errors: accelerations k −0.22 %, d +0.57 %; positions k −0.45 %,
+    // d −2.2 %.
     assert_within(
         "sdof accelerations, input ×10",
         &e_a,
-        &[("k", 0.006), ("d", 0.05)],
+        &[("k", 0.006), ("d", 0.015)],
     );
     assert_within(
         "sdof positions, input ×10",
         &e_p,
-        &[("k", 0.01), ("d", 0.05)],
+        &[("k", 0.012), ("d", 0.05)],
     );
     // Neither is far worse than the other on the same seed.
     assert!(max_abs(&e_a) < 3.0 * max_abs(&e_p) + 0.01);
