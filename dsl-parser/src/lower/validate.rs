@@ -104,7 +104,7 @@ impl Lowerer<'_> {
             let id = BodyId(i as u32);
             if !measured(ir.position(id))
                 && !measured(ir.velocity(id))
-                && !ir.acceleration(id).is_some_and(|a| measured(a))
+                && !ir.acceleration(id).is_some_and(measured)
             {
                 self.err(
                     ErrorKind::UnmeasuredSignal,
