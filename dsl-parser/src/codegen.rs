@@ -302,6 +302,7 @@ fn model_struct(ir: &ModelIr, source: &str, n: &Names, opts: &CodegenOptions) ->
                 SignalKind::Velocity(_) => "velocity",
                 SignalKind::Input(_) => "input",
                 SignalKind::Reference(_) => "reference",
+                SignalKind::Acceleration(_) => "acceleration",
             };
             let d = doc(&format!(" Index of signal `{}` ({what}).", s.name));
             let i = Literal::usize_unsuffixed(i);

@@ -10,8 +10,8 @@ The package runs the same Rust runtime as the ``dynid`` command line::
     result.parameters                                  # value, stderr per parameter
 
 Data are a list with one level each: a ``pandas.DataFrame`` or a dict of 1-D arrays, with
-a column per measured signal (``m1.x``, ``m1.v``, ``u``) and a uniform time column ``t``
-(or give ``sample=TS``). Float64 columns are read without a copy. Without pandas,
+a column per measured signal (``m1.x``, ``m1.v``, ``m1.a`` of an accelerometer, ``u``)
+and a uniform time column ``t`` (or give ``sample=TS``). Float64 columns are read without a copy. Without pandas,
 ``simulate`` returns dicts of NumPy arrays and ``.parameters`` is a dict of arrays.
 """
 

@@ -5,7 +5,10 @@
 //!   DAG is hash-consed, so structurally equal sub-expressions share one id.
 //! - `bodies[i]` is degree of freedom `i`; its position and velocity signals are
 //!   `signals[2 i]` and `signals[2 i + 1]`; input `j` is `signals[2 n_bodies + j]`;
-//!   reference `k` is `signals[2 n_bodies + n_inputs + k]`.
+//!   reference `k` is `signals[2 n_bodies + n_inputs + k]`; after the references come the
+//!   acceleration signals `name.a` of the bodies measured by accelerometers (body order,
+//!   one each, present only for those bodies: a model without them has the same signal
+//!   table, and the same JSON, as before accelerations existed).
 //! - `equations[i]` is the equation of motion of body `i`, written as `Σ coef · basis = 0`
 //!   (input forces appear as terms with a known coefficient −1).
 //! - Every parameter is used by at least one term (validation rejects unused parameters).
@@ -49,8 +52,8 @@ typed_id!(
     ExprId
 );
 
-/// What a signal is. Signal names: body `m1` gives `m1.x` and `m1.v`; input `u` is `u`;
-/// reference `r` is `r`.
+/// What a signal is. Signal names: body `m1` gives `m1.x` and `m1.v` (and `m1.a` where its
+/// acceleration is measured); input `u` is `u`; reference `r` is `r`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum SignalKind {
     Position(BodyId),
@@ -58,6 +61,9 @@ pub enum SignalKind {
     Input(InputId),
     /// A measured set point: read only by control laws, never by a force.
     Reference(ReferenceId),
+    /// The measured acceleration `ẍ` of a body (an accelerometer). It is a column of the
+    /// data only: forces never read it (the inertia term `m ẍ` is a derivative basis).
+    Acceleration(BodyId),
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -434,6 +440,22 @@ impl ModelIr {
     pub fn reference_signal(&self, r: ReferenceId) -> SignalId {
         SignalId((2 * self.bodies.len() + self.inputs.len()) as u32 + r.0)
     }
+    /// The measured acceleration signal of body `b`, if the body has an accelerometer.
+    pub fn acceleration(&self, b: BodyId) -> Option<SignalId> {
+        let first = 2 * self.bodies.len() + self.inputs.len() + self.references.len();
+        (first..self.signals.len())
+            .find(|&k| self.signals[k].kind == SignalKind::Acceleration(b))
+            .map(|k| SignalId(k as u32))
+    }
+    /// Whether body `b` is measured by its acceleration alone (neither its position nor its
+    /// velocity is a column of the data): its linear terms are formed from the acceleration
+    /// by filters with zeros at the origin, and nonlinear terms in its motion are refused.
+    pub fn acceleration_only(&self, b: BodyId) -> bool {
+        self.acceleration(b)
+            .is_some_and(|a| self.signal(a).measured)
+            && !self.signal(self.position(b)).measured
+            && !self.signal(self.velocity(b)).measured
+    }
     /// The control law of input `i`, if it is computed in closed loop.
     pub fn control_of(&self, i: InputId) -> Option<&ControlIr> {
         self.controls.iter().find(|c| c.input == i)
@@ -585,6 +607,49 @@ impl ModelIr {
         needed
     }
 
+    /// `e` as a linear form `Σ aₖ sₖ` in signals (no constant offset), if it is one.
+    pub fn linear_form(&self, e: ExprId) -> Option<Vec<(SignalId, f64)>> {
+        let scale =
+            |v: Vec<(SignalId, f64)>, f: f64| v.into_iter().map(|(s, a)| (s, a * f)).collect();
+        match self.exprs[e.index()] {
+            ExprNode::Signal(s) => Some(vec![(s, 1.0)]),
+            ExprNode::Unary(UnaryOp::Neg, a) => Some(scale(self.linear_form(a)?, -1.0)),
+            ExprNode::Binary(op, a, b) => {
+                let (na, nb) = (self.exprs[a.index()], self.exprs[b.index()]);
+                match op {
+                    BinaryOp::Add | BinaryOp::Sub => {
+                        let mut out = self.linear_form(a)?;
+                        let sign = if op == BinaryOp::Add { 1.0 } else { -1.0 };
+                        for (s, c) in self.linear_form(b)? {
+                            match out.iter_mut().find(|(t, _)| *t == s) {
+                                Some(e) => e.1 += sign * c,
+                                None => out.push((s, sign * c)),
+                            }
+                        }
+                        out.retain(|(_, c)| *c != 0.0);
+                        Some(out)
+                    }
+                    BinaryOp::Mul => match (na, nb) {
+                        (ExprNode::Const(c), _) => {
+                            Some(scale(self.linear_form(b)?, f64::from_bits(c)))
+                        }
+                        (_, ExprNode::Const(c)) => {
+                            Some(scale(self.linear_form(a)?, f64::from_bits(c)))
+                        }
+                        _ => None,
+                    },
+                    BinaryOp::Div => match nb {
+                        ExprNode::Const(c) if f64::from_bits(c) != 0.0 => {
+                            Some(scale(self.linear_form(a)?, 1.0 / f64::from_bits(c)))
+                        }
+                        _ => None,
+                    },
+                }
+            }
+            _ => None,
+        }
+    }
+
     /// The signals an expression depends on.
     pub fn expr_signals(&self, e: ExprId) -> Vec<SignalId> {
         let needed = self.needed_nodes(&[e]);
@@ -620,7 +685,8 @@ impl ModelIr {
             }
         }
         let nb = self.bodies.len();
-        if self.signals.len() != 2 * nb + self.inputs.len() + self.references.len() {
+        let first_acc = 2 * nb + self.inputs.len() + self.references.len();
+        if self.signals.len() < first_acc || self.signals.len() > first_acc + nb {
             return Err("signal table does not match bodies, inputs and references".into());
         }
         for (i, b) in self.bodies.iter().enumerate() {
@@ -778,6 +844,34 @@ impl ModelIr {
                     ));
                 }
             }
+        }
+        let first_acc = 2 * nb + self.inputs.len() + nr;
+        let mut last: Option<usize> = None;
+        for (k, s) in self.signals.iter().enumerate() {
+            let acc = match s.kind {
+                SignalKind::Acceleration(b) => Some(b),
+                _ => None,
+            };
+            if k < first_acc {
+                if acc.is_some() {
+                    return Err(format!("acceleration signal `{}` is out of place", s.name));
+                }
+                continue;
+            }
+            let Some(b) = acc else {
+                return Err(format!(
+                    "signal `{}` after the references is no acceleration",
+                    s.name
+                ));
+            };
+            body(b, &format!("acceleration signal `{}`", s.name))?;
+            if last.is_some_and(|l| l >= b.index()) {
+                return Err(format!(
+                    "acceleration signals are not in body order at `{}`",
+                    s.name
+                ));
+            }
+            last = Some(b.index());
         }
         for x in &self.reference_excitation {
             if x.reference.index() >= nr {

@@ -300,6 +300,9 @@ pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
             let mut pieces = Vec::new();
             let (mut is_static, mut velocities, mut derivative) = (false, Vec::new(), false);
             let mut constant = false;
+            // Terms of bodies measured only by accelerations: formed from `b.a` by the
+            // band-pass instruments (`ẍ` is the acceleration itself).
+            let mut integrated: Vec<String> = Vec::new();
             for t in &terms {
                 let b = match (terms.len(), t.basis, t.coef.scale) {
                     // A lone positive term needs no parentheses.
@@ -315,6 +318,27 @@ pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
                     format!("{} {b}", fmt_num(a))
                 };
                 pieces.push((t.coef.scale < 0.0, text));
+                let accel_only = |body: BodyId| {
+                    ir.acceleration_only(body)
+                        .then(|| ir.acceleration(body))
+                        .flatten()
+                        .map(|a| ir.signal(a).name.clone())
+                };
+                let from_acc: Vec<String> = match t.basis {
+                    Basis::Expr(e) => ir
+                        .expr_signals(e)
+                        .into_iter()
+                        .filter_map(|s| match ir.signal(s).kind {
+                            SignalKind::Position(b) | SignalKind::Velocity(b) => accel_only(b),
+                            _ => None,
+                        })
+                        .collect(),
+                    Basis::Deriv { body, .. } => accel_only(body).into_iter().collect(),
+                };
+                if !from_acc.is_empty() {
+                    integrated.extend(from_acc);
+                    continue;
+                }
                 match t.basis {
                     Basis::Expr(e) if ir.is_constant(e) => constant = true,
                     Basis::Expr(_) => is_static = true,
@@ -339,6 +363,14 @@ pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
             }
             if derivative {
                 kinds.push("derivative (moved onto the filter)".to_string());
+            }
+            if !integrated.is_empty() {
+                integrated.sort();
+                integrated.dedup();
+                kinds.push(format!(
+                    "from {} (integrals moved onto band-pass filters)",
+                    integrated.join(", ")
+                ));
             }
             rows.push(ColumnRow {
                 column: ir.params[p.index()].name.clone(),

@@ -244,6 +244,16 @@ impl Lowerer<'_> {
                 Some(&(Decl::Body(b), _)) => match field.name.as_str() {
                     "x" => Some(LExpr::Sig(SignalId(2 * b.0))),
                     "v" => Some(LExpr::Sig(SignalId(2 * b.0 + 1))),
+                    "a" => {
+                        self.err(
+                            ErrorKind::InvalidSignal,
+                            format!("a force cannot read the acceleration `{name}.a`"),
+                            r.span,
+                            "acceleration",
+                            format!("an acceleration is measured (`measure {name}.a`), not a force law's argument: inertia is the body's mass; write the force in `{name}.x` or `{name}.v`"),
+                        );
+                        None
+                    }
                     other => {
                         self.err(
                             ErrorKind::InvalidSignal,

@@ -22,6 +22,26 @@ impl Lowerer<'_> {
             })
             .collect();
         if !lists.is_empty() {
+            // An accelerometer `b.a` adds the body's acceleration signal after the
+            // references (body order), so models without one keep their signal table.
+            let mut acc: Vec<BodyId> = lists
+                .iter()
+                .flat_map(|l| l.iter())
+                .filter(|r| r.field.as_ref().is_some_and(|f| f.name == "a"))
+                .filter_map(|r| match self.names.get(&r.base.name) {
+                    Some(&(Decl::Body(b), _)) => Some(b),
+                    _ => None,
+                })
+                .collect();
+            acc.sort();
+            acc.dedup();
+            for b in acc {
+                ir.signals.push(SignalIr {
+                    name: format!("{}.a", ir.bodies[b.index()].name),
+                    kind: SignalKind::Acceleration(b),
+                    measured: true,
+                });
+            }
             for s in ir.signals.iter_mut() {
                 s.measured = false;
             }
@@ -393,7 +413,7 @@ impl Lowerer<'_> {
                 format!("`{full}` is not a signal"),
                 r.span,
                 "not a signal",
-                format!("a body has a position `{b}.x` and a velocity `{b}.v`"),
+                format!("a body has a position `{b}.x` and a velocity `{b}.v` (and, in `measure` only, an acceleration `{b}.a`)"),
             );
         } else {
             let help = match closest(&full, ir.signals.iter().map(|s| s.name.as_str())) {

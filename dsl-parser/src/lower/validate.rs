@@ -15,6 +15,42 @@ impl Lowerer<'_> {
                 if t.basis == e.v {
                     continue;
                 }
+                // Motion of a body measured only by its acceleration: linear terms are
+                // formed from the acceleration, nonlinear ones are refused.
+                let acc_only: Vec<BodyId> = ir
+                    .expr_signals(t.basis)
+                    .into_iter()
+                    .filter_map(|s| match ir.signal(s).kind {
+                        SignalKind::Position(b) | SignalKind::Velocity(b)
+                            if ir.acceleration_only(b) =>
+                        {
+                            Some(b)
+                        }
+                        _ => None,
+                    })
+                    .collect();
+                if let Some(&b) = acc_only.first() {
+                    if ir.linear_form(t.basis).is_none() {
+                        let term = crate::print::render_expr(ir, t.basis);
+                        let body = &ir.bodies[b.index()].name;
+                        let span = term_spans
+                            .get(ei)
+                            .and_then(|s| s.get(ti))
+                            .copied()
+                            .unwrap_or(ir.spans.elements[ei]);
+                        self.err(
+                            ErrorKind::AccelerationNonlinear,
+                            format!(
+                                "term `{term}` of `{}` is nonlinear in the motion of `{body}`, which is measured only by its acceleration",
+                                e.name
+                            ),
+                            span,
+                            "nonlinear in an unmeasured displacement or velocity",
+                            format!("add `{body}.x` (or `{body}.v`) to `measure`: from `{body}.a` alone only terms linear in the body's position and velocity are formed"),
+                        );
+                        continue;
+                    }
+                }
                 // An unmeasured velocity of a body whose position is measured is estimated
                 // from the position at identification.
                 let missing: Vec<SignalId> = ir
@@ -22,7 +58,10 @@ impl Lowerer<'_> {
                     .into_iter()
                     .filter(|&s| !measured(s))
                     .filter(|&s| match ir.signal(s).kind {
-                        SignalKind::Velocity(b) => !measured(ir.position(b)),
+                        SignalKind::Velocity(b) => {
+                            !measured(ir.position(b)) && !ir.acceleration_only(b)
+                        }
+                        SignalKind::Position(b) => !ir.acceleration_only(b),
                         _ => true,
                     })
                     .collect();
@@ -63,7 +102,10 @@ impl Lowerer<'_> {
         }
         for (i, b) in ir.bodies.iter().enumerate() {
             let id = BodyId(i as u32);
-            if !measured(ir.position(id)) && !measured(ir.velocity(id)) {
+            if !measured(ir.position(id))
+                && !measured(ir.velocity(id))
+                && !ir.acceleration(id).is_some_and(measured)
+            {
                 self.err(
                     ErrorKind::UnmeasuredSignal,
                     format!("the motion of body `{}` is not measured", b.name),

@@ -57,6 +57,12 @@ pub enum FromDataError {
         help("check that the element's signals are measured and the record is excited")
     )]
     NoMotion { origin: String, element: String },
+    #[error("element `{element}` moves with body `{body}`, which is measured only by its acceleration: detection needs the element's displacement")]
+    #[diagnostic(
+        code(dynid::detect::acceleration_only),
+        help("measure `{body}.x` (or `{body}.v`) as well: the parameter curves of detection and diagnosis are drawn over each element's displacement amplitude and its distribution, which accelerations alone do not give yet; `identify` forms the linear terms from `{body}.a` alone")
+    )]
+    AccelerationOnly { element: String, body: String },
 }
 
 /// How an element's σ_v was obtained.
@@ -380,9 +386,22 @@ pub fn level_fits(
     if levels.len() < 2 {
         return Err(DetectError::TooFewLevels(levels.len()).into());
     }
+    let groups = groups(ir);
+    for g in &groups {
+        let e = &ir.elements[g.members[0]];
+        let only = [e.nodes.0, e.nodes.1].into_iter().find_map(|n| match n {
+            dynid_ir::ir::Node::Body(b) if ir.acceleration_only(b) => Some(b),
+            _ => None,
+        });
+        if let Some(b) = only {
+            return Err(FromDataError::AccelerationOnly {
+                element: g.name.clone(),
+                body: ir.bodies[b.index()].name.clone(),
+            });
+        }
+    }
     let tape = Tape::compile(ir, &ir.eval_roots());
     let moments = measure(ir, &tape, levels, opts)?;
-    let groups = groups(ir);
     // Inertia is not a force element: statistical linearisation turns a nonlinear force
     // into an equivalent stiffness and damping, never into a mass. Fitted freely per
     // level, an unknown mass trades off against the stiffness (on a short level both

@@ -126,7 +126,7 @@ pub fn diagnose(
         .iter()
         .map(|s| ir.signal(*s))
         .filter(|s| match s.kind {
-            SignalKind::Position(_) | SignalKind::Velocity(_) => true,
+            SignalKind::Position(_) | SignalKind::Velocity(_) | SignalKind::Acceleration(_) => true,
             SignalKind::Input(i) => ir.control_of(i).is_some(),
             SignalKind::Reference(_) => false,
         })

@@ -79,12 +79,25 @@ pub(super) fn search_step(
     let locs = locations(ir);
     let mut cands: Vec<(Effect, Location)> = Vec::new();
     let mut skipped_velocity = false;
+    // A nonlinear force in the motion of a body measured only by its acceleration cannot
+    // be formed yet (identification refuses it): such sites are not searched, and said so.
+    let accel_only = |node: &str| {
+        ir.bodies
+            .iter()
+            .position(|b| b.name == node)
+            .is_some_and(|b| ir.acceleration_only(dynid_ir::ir::BodyId(b as u32)))
+    };
+    let mut skipped_accel: Vec<String> = Vec::new();
     let already = |kind: &str, loc: &Location| {
         found
             .iter()
             .any(|f| f.effect.kind() == kind && f.location.a == loc.a && f.location.b == loc.b)
     };
     for loc in &locs {
+        if accel_only(&loc.a) || accel_only(&loc.b) {
+            skipped_accel.push(loc.label());
+            continue;
+        }
         for eff in [
             Effect::Cubic,
             Effect::QuadraticStiffness,
@@ -120,6 +133,14 @@ pub(super) fn search_step(
         if !already(Effect::ConstantForce.kind(), &loc) {
             cands.push((Effect::ConstantForce, loc));
         }
+    }
+    if !skipped_accel.is_empty() && !notes.iter().any(|s| s.contains("accelerations alone")) {
+        notes.push(format!(
+            "no nonlinear effect was searched at {}: a body there is measured by accelerations \
+             alone, whose displacement and velocity the nonlinear terms need (measure its \
+             position to search there)",
+            skipped_accel.join(", ")
+        ));
     }
     if skipped_velocity && !notes.iter().any(|s| s.contains("velocities")) {
         notes.push(

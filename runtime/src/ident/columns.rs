@@ -148,6 +148,12 @@ pub(crate) fn term_moment(ins: &Instrument, basis: &BasisMoment, v: &impl Window
                     - v.mean_d(a, w)
             }
         }
+        // The integrals of a band-pass instrument: no boundary term (the velocity and
+        // position at the ends are not measured), and no `φ'` term in a hat window (the
+        // hats' contributions then sum exactly to the record's; each carries a boundary
+        // error of its own, which the standard errors count as spread).
+        BasisMoment::D1Acc(w) => -v.mean(ins.i1.as_ref().expect(ROW_NEEDS_DERIVATIVES), w),
+        BasisMoment::D0Acc(w) => v.mean(ins.i2.as_ref().expect(ROW_NEEDS_DERIVATIVES), w),
         BasisMoment::D2Pos(x, q) => {
             let a1 = ins.a1.as_ref().expect(ROW_NEEDS_DERIVATIVES);
             v.mean(ins.a2.as_ref().expect(ROW_NEEDS_DERIVATIVES), x) - v.bnd(a1, x)

@@ -178,6 +178,21 @@ pub fn measure<'m>(
     } else {
         estimators.iter().map(|e| e as &dyn LevelSource).collect()
     };
+    // Positions and velocities of acceleration-only bodies that roots read: zeros.
+    let zero_filled: Vec<accel::ZeroFill> = if plan.absent.is_empty() {
+        Vec::new()
+    } else {
+        let slots: Vec<usize> = plan.absent.iter().map(|s| s.index()).collect();
+        sources
+            .iter()
+            .map(|s| accel::ZeroFill::new(*s, slots.clone()))
+            .collect()
+    };
+    let sources: Vec<&dyn LevelSource> = if zero_filled.is_empty() {
+        sources
+    } else {
+        zero_filled.iter().map(|z| z as &dyn LevelSource).collect()
+    };
     let estimated = plan
         .estimated
         .iter()
@@ -433,7 +448,7 @@ pub(super) fn choose_bank(
             .filter(|s| {
                 matches!(
                     ir.signal(*s).kind,
-                    SignalKind::Position(_) | SignalKind::Input(_)
+                    SignalKind::Position(_) | SignalKind::Input(_) | SignalKind::Acceleration(_)
                 )
             })
             .collect(),
@@ -445,7 +460,16 @@ pub(super) fn choose_bank(
             _ => false,
         })
     });
-    let min_degree = if needs_second { 3 } else { 2 };
+    // Integrals of accelerations need band-pass instruments `ζᵢ''` with `i ≥ 4`.
+    let accelerations =
+        (0..ir.bodies.len()).any(|b| ir.acceleration_only(dynid_ir::ir::BodyId(b as u32)));
+    let min_degree = if accelerations {
+        super::plan::ACC_MIN_DEGREE
+    } else if needs_second {
+        3
+    } else {
+        2
+    };
     let order = opts
         .order
         .or(spec.map(|f| f.order as usize))

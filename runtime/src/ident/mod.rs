@@ -43,6 +43,7 @@
 //! moments; the first pass estimates each signal's noise level and the moments of such
 //! terms are de-biased where it is significant (see [`noise`]).
 
+mod accel;
 mod columns;
 pub mod design;
 pub mod filter;

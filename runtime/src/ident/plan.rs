@@ -10,6 +10,11 @@
 use super::IdentifyError;
 use dynid_ir::ir::{Basis, BodyId, ExprId, ModelIr, ParamKind, SignalId, SignalKind};
 
+/// Lowest degree of the chain state `J` of a band-pass instrument `J''`: the instrument
+/// then holds sections 2 … of its chain, none of which weighs the current sample of the
+/// driver (relative degree ≥ 2, as every other instrument).
+pub(crate) const ACC_MIN_DEGREE: usize = 4;
+
 /// A sparse linear combination of the row signals `ι`.
 pub(crate) type Comb = Vec<(usize, f64)>;
 
@@ -26,6 +31,13 @@ pub(crate) enum BasisMoment {
     /// `ẍ` from positions only (`x` at column `w`, end-point velocity at snapshot column
     /// `q`): `⟨a'' x⟩ − [a' x]/T + [a v̂]/T`.
     D2Pos(usize, usize),
+    /// `ẋ` of a body measured only by its acceleration `a` (column `w`), with a band-pass
+    /// instrument `a = J''`: `⟨J'' ẋ⟩ = −⟨J' a⟩ + [J' ẋ]/T`, the boundary term dropped (the
+    /// velocity is not measured; see docs/method.md, accelerations).
+    D1Acc(usize),
+    /// `x` of a body measured only by its acceleration (column `w`):
+    /// `⟨J'' x⟩ = ⟨J a⟩ + [J' x − J ẋ]/T`, the boundary term dropped.
+    D0Acc(usize),
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -49,6 +61,10 @@ pub(crate) struct Instrument {
     pub a2: Option<Comb>,
     /// Power balance `v_l`: used only in equation `l`, where `⟨v_l ẍ_l⟩ = [v_l²/2]/T`.
     pub power: Option<BodyId>,
+    /// A band-pass instrument `a = J''` (a filter state differentiated twice): its
+    /// antiderivatives `J'` and `J`, which integrate a measured acceleration.
+    pub i1: Option<Comb>,
+    pub i2: Option<Comb>,
 }
 
 #[derive(Clone, Debug)]
@@ -85,6 +101,13 @@ pub(crate) struct Plan {
     pub fixes: Vec<super::noise::ColumnFix>,
     /// Static columns linear in measured signals: (column, [(index into `y`, coefficient)]).
     pub linear_roots: Vec<(usize, Vec<(usize, f64)>)>,
+    /// Some term integrates a measured acceleration ([`BasisMoment::D1Acc`],
+    /// [`BasisMoment::D0Acc`]): band-pass instruments are added.
+    pub integrates: bool,
+    /// Signals of bodies measured only by their acceleration that static roots read: the
+    /// data has no column for them, so they are streamed as zeros (the terms that use them
+    /// are formed from the acceleration instead, never from these roots).
+    pub absent: Vec<SignalId>,
 }
 
 /// A filter chain driven by a static basis column `g` (paper eq. 9: the filters may be
@@ -158,6 +181,7 @@ pub(crate) fn build_structure(
     let n_g = roots.len();
     let mut vhat_bodies = Vec::new();
     let mut estimated = Vec::new();
+    let mut absent: Vec<SignalId> = Vec::new();
     let mut equations = Vec::new();
     for (l, eq) in ir.equations.iter().enumerate() {
         let mut terms = Vec::new();
@@ -173,6 +197,57 @@ pub(crate) fn build_structure(
                 None => TermCoef::Known(t.coef.scale),
             };
             let basis = match t.basis {
+                Basis::Expr(e)
+                    if ir
+                        .expr_signals(e)
+                        .iter()
+                        .any(|&s| accel_only_signal(ir, s).is_some()) =>
+                {
+                    // Linear in the motion of bodies measured only by accelerations: one
+                    // term per signal, each formed from the acceleration by the band-pass
+                    // instruments (measured signals of the form stay static columns).
+                    let body_of = ir
+                        .expr_signals(e)
+                        .into_iter()
+                        .find_map(|s| accel_only_signal(ir, s))
+                        .expect("invariant: an acceleration-only signal is present");
+                    let nonlinear = || IdentifyError::AccelerationNonlinear {
+                        equation: ir.bodies[l].name.clone(),
+                        term: dynid_ir::print::render_expr(ir, e),
+                        body: ir.bodies[body_of.index()].name.clone(),
+                    };
+                    let lin = super::noise::linear_form(ir, e).ok_or_else(nonlinear)?;
+                    for (s, c) in lin {
+                        let part = match accel_only_signal(ir, s) {
+                            Some(b) => {
+                                let a = ir.acceleration(b).expect("invariant: accelerometer");
+                                let aw = n_g + y_of[a.index()].expect("invariant: measured");
+                                match ir.signal(s).kind {
+                                    SignalKind::Position(_) => BasisMoment::D0Acc(aw),
+                                    _ => BasisMoment::D1Acc(aw),
+                                }
+                            }
+                            None => match y_of[s.index()] {
+                                Some(k) => BasisMoment::Static(n_g + k),
+                                None => return Err(nonlinear()),
+                            },
+                        };
+                        for r in ir.expr_signals(e) {
+                            if accel_only_signal(ir, r).is_some() && !absent.contains(&r) {
+                                absent.push(r);
+                            }
+                        }
+                        let coef = match coef.clone() {
+                            TermCoef::Unknown { col, scale } => TermCoef::Unknown {
+                                col,
+                                scale: scale * c,
+                            },
+                            TermCoef::Known(v) => TermCoef::Known(v * c),
+                        };
+                        terms.push(PlanTerm { coef, basis: part });
+                    }
+                    continue;
+                }
                 Basis::Expr(e) => {
                     for s in ir.expr_signals(e) {
                         if y_of[s.index()].is_some() {
@@ -208,7 +283,18 @@ pub(crate) fn build_structure(
                     let vs = ir.velocity(body);
                     let xw = y_of[xs.index()].map(|k| n_g + k);
                     let vw = y_of[vs.index()].map(|k| n_g + k);
+                    // A measured acceleration is the second derivative itself.
+                    let aw = ir
+                        .acceleration(body)
+                        .and_then(|a| y_of[a.index()])
+                        .map(|k| n_g + k);
                     match (order, vw, xw) {
+                        (2, _, _) if aw.is_some() => {
+                            BasisMoment::Static(aw.expect("invariant: checked"))
+                        }
+                        (1, None, None) if aw.is_some() => {
+                            BasisMoment::D1Acc(aw.expect("invariant: checked"))
+                        }
                         (1, Some(v), _) => BasisMoment::Static(v),
                         (1, None, Some(x)) => BasisMoment::D1Pos(x),
                         (2, Some(v), _) => BasisMoment::D2Vel(v, body),
@@ -242,6 +328,19 @@ pub(crate) fn build_structure(
         equations.push(terms);
     }
     let n_w = n_g + y.len();
+    let integrates = equations
+        .iter()
+        .flatten()
+        .any(|t| matches!(t.basis, BasisMoment::D1Acc(_) | BasisMoment::D0Acc(_)));
+    // Roots reading an acceleration-only body's motion beyond those split above (none
+    // but the split ones reach here: any other is refused) still get evaluated, on zeros.
+    for &r in &roots {
+        for s in ir.expr_signals(r) {
+            if accel_only_signal(ir, s).is_some() && !absent.contains(&s) {
+                absent.push(s);
+            }
+        }
+    }
     let constant = (0..unknowns.len())
         .map(|col| {
             let mut terms = equations.iter().flatten().filter(
@@ -305,7 +404,18 @@ pub(crate) fn build_structure(
         fixes: Vec::new(),
         linear_roots: Vec::new(),
         constant,
+        integrates,
+        absent,
     })
+}
+
+/// The body whose position or velocity `s` is, if that body is measured only by its
+/// acceleration.
+fn accel_only_signal(ir: &ModelIr, s: SignalId) -> Option<BodyId> {
+    match ir.signal(s).kind {
+        SignalKind::Position(b) | SignalKind::Velocity(b) if ir.acceleration_only(b) => Some(b),
+        _ => None,
+    }
 }
 
 impl Plan {
@@ -343,6 +453,34 @@ impl Plan {
                         a1,
                         a2,
                         power: None,
+                        i1: None,
+                        i2: None,
+                    });
+                }
+                if !self.integrates {
+                    continue;
+                }
+                // Band-pass instruments `ζᵢ''` (a double zero at s = 0): `ζᵢ'` and `ζᵢ` are
+                // their integrals, stable filters of the same driver. Degree ≥ 4 keeps the
+                // first section (which weighs the current sample) out of `ζᵢ''`.
+                for i in (self.min_degree.max(ACC_MIN_DEGREE) - 1)..self.order {
+                    let j = vec![(self.state(d, c, i), 1.0)];
+                    let Some(j1) = self.deriv(ir, &j) else {
+                        continue;
+                    };
+                    let Some(a) = self.deriv(ir, &j1) else {
+                        continue;
+                    };
+                    let a1 = self.deriv(ir, &a);
+                    let a2 = a1.as_ref().and_then(|a1| self.deriv(ir, a1));
+                    inst.push(Instrument {
+                        label: format!("ζ{}''({driver}, λ={lam:.3})", i + 1),
+                        a,
+                        a1,
+                        a2,
+                        power: None,
+                        i1: Some(j1),
+                        i2: Some(j),
                     });
                 }
             }
@@ -361,6 +499,8 @@ impl Plan {
                     a1: Some(vec![(vi, 1.0)]),
                     a2: None,
                     power: None,
+                    i1: None,
+                    i2: None,
                 });
                 inst.push(Instrument {
                     label: format!("{}.v (power balance)", body.name),
@@ -368,6 +508,8 @@ impl Plan {
                     a1: None,
                     a2: None,
                     power: Some(bid),
+                    i1: None,
+                    i2: None,
                 });
             }
         }
@@ -454,6 +596,8 @@ impl Plan {
             BasisMoment::D1Pos(x) => (ins.a1.as_ref(), x),
             BasisMoment::D2Vel(v, _) => (ins.a1.as_ref(), v),
             BasisMoment::D2Pos(x, _) => (ins.a2.as_ref(), x),
+            BasisMoment::D1Acc(w) => (ins.i1.as_ref(), w),
+            BasisMoment::D0Acc(w) => (ins.i2.as_ref(), w),
         };
         let Some(comb) = comb else { return true };
         let hazards = self.same_sample(ir, comb);
@@ -502,5 +646,7 @@ fn computable(ins: &Instrument, b: &BasisMoment) -> bool {
         BasisMoment::D1Pos(_) => ins.a1.is_some(),
         BasisMoment::D2Vel(_, body) => ins.a1.is_some() || ins.power == Some(body),
         BasisMoment::D2Pos(_, _) => ins.a2.is_some(),
+        BasisMoment::D1Acc(_) => ins.i1.is_some(),
+        BasisMoment::D0Acc(_) => ins.i2.is_some(),
     }
 }

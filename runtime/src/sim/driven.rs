@@ -102,6 +102,9 @@ pub fn simulate_driven_from(
     }
     let mut res = Resolution::new(mech.n_bodies);
     let measured = ir.measured_signals();
+    let has_acc = measured
+        .iter()
+        .any(|&s| matches!(ir.signal(s).kind, SignalKind::Acceleration(_)));
     let mut out: Vec<Vec<f64>> = measured.iter().map(|_| Vec::with_capacity(n)).collect();
     let mut u0 = vec![0.0; cols.len()];
     let mut u1 = vec![0.0; cols.len()];
@@ -129,6 +132,9 @@ pub fn simulate_driven_from(
                     when,
                 ));
             }
+        }
+        if has_acc {
+            rk.refresh_accel(&mech, &u0);
         }
         for (col, &s) in out.iter_mut().zip(&measured) {
             col.push(signal_value(ir, s, &rk, &u0, &r));
@@ -198,5 +204,7 @@ pub(super) fn signal_value(
         SignalKind::Velocity(b) => rk.v[b.index()],
         SignalKind::Input(InputId(i)) => u[i as usize],
         SignalKind::Reference(k) => r.get(k.index()).copied().unwrap_or(0.0),
+        // Current after `Rk4::refresh_accel` at this state and these inputs.
+        SignalKind::Acceleration(b) => rk.acc[b.index()],
     }
 }

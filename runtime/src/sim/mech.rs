@@ -251,6 +251,8 @@ pub(crate) struct Rk4 {
     /// `advance` works on slices of one known length.
     stages: Vec<f64>,
     scratch: MechScratch,
+    /// The accelerations at the state and inputs of the last [`Rk4::refresh_accel`].
+    pub(crate) acc: Vec<f64>,
 }
 
 impl Rk4 {
@@ -262,7 +264,20 @@ impl Rk4 {
             v: vec![0.0; nb],
             stages: vec![0.0; 7 * nb],
             scratch: mech.scratch(),
+            acc: vec![0.0; nb],
         }
+    }
+
+    /// The exact accelerations `ẍ = M⁻¹ f(x, v, u)` at the current state and inputs `u`
+    /// (the equations of motion evaluated, not differenced), into [`Rk4::acc`]: what an
+    /// accelerometer on each body reads at this instant.
+    pub(crate) fn refresh_accel(&mut self, mech: &Mechanics, u: &[f64]) {
+        let nb = mech.n_bodies;
+        mech.put_inputs(&mut self.scratch, u, u, 0.0);
+        for i in 0..nb {
+            Mechanics::put_body(&mut self.scratch, i, self.x[i], self.v[i]);
+        }
+        mech.accel::<0>(&mut self.scratch, &mut self.acc);
     }
 
     /// Advance over one sample interval of length `ts` in `substeps` RK4 steps. The inputs

@@ -483,6 +483,9 @@ fn simulate_level(
             .chain([control_scale]),
     );
     let measured = ir.measured_signals();
+    let has_acc = measured
+        .iter()
+        .any(|&s| matches!(ir.signal(s).kind, SignalKind::Acceleration(_)));
     let mut names: Vec<String> = measured
         .iter()
         .map(|&s| ir.signal(s).name.clone())
@@ -556,6 +559,9 @@ fn simulate_level(
                 }
             }
             if j == 0 && k >= n_burn {
+                if has_acc {
+                    rk.refresh_accel(mech, &u0);
+                }
                 for (v, &s) in row.iter_mut().zip(&measured) {
                     *v = signal_value(ir, s, &rk, &u0, &r);
                 }

@@ -1,0 +1,206 @@
+//! Structures measured by accelerometers and a force sensor: the linear SDOF and two-mass
+//! models identified from accelerations alone (`models/*_accel.dyn`), beside the same
+//! models measured by positions, on records of the same seed, with 5 % noise on every
+//! channel (inputs included).
+//!
+//! Bounds are about 2–3 times the largest error over six seeds, the test's own and the
+//! five after it: `for o in 0 1 2 3 4 5; do DYNID_SEED_OFFSET=$o cargo test --release
+//! --test accelerations -- --nocapture; done` prints one table row per case and seed.
+
+mod common;
+
+use dynid::dsl_parser::{self, ir::ModelIr};
+use dynid::runtime::ident::IdentifyError;
+use dynid::runtime::sim;
+use dynid::runtime::IdentifyOptions;
+use std::path::Path;
+
+fn model(name: &str) -> (ModelIr, String) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("models/{name}.dyn"));
+    let src = std::fs::read_to_string(&path).unwrap();
+    let ir = dsl_parser::compile_str(&format!("{name}.dyn"), &src)
+        .unwrap_or_else(|e| panic!("{name}: {e:?}"));
+    (ir, src)
+}
+
+/// The same model measured by positions instead of accelerations.
+fn by_positions(src: &str, from: &str, to: &str) -> ModelIr {
+    let text = src.replace(from, to);
+    assert_ne!(text, src, "the measure line `{from}` is in the model");
+    dsl_parser::compile_str("positions.dyn", &text).unwrap_or_else(|e| panic!("{e:?}"))
+}
+
+fn max_abs(errs: &[(String, f64)]) -> f64 {
+    errs.iter().map(|(_, e)| e.abs()).fold(0.0, f64::max)
+}
+
+fn assert_within(case: &str, errs: &[(String, f64)], tol: &[(&str, f64)]) {
+    for (n, e) in errs {
+        let bound = tol
+            .iter()
+            .find(|(p, _)| p == n)
+            .map(|&(_, b)| b)
+            .unwrap_or_else(|| panic!("{case}: no bound for `{n}`"));
+        assert!(
+            e.abs() < bound,
+            "{case}: `{n}` off by {:+.3}% (bound {}%)",
+            100.0 * e,
+            100.0 * bound
+        );
+    }
+}
+
+/// Records of `ir` with the input simulated `oversample` times finer than the samples
+/// (1: linear between samples, as the filters assume).
+fn simulate(
+    ir: &ModelIr,
+    duration: f64,
+    seed: u64,
+    oversample: usize,
+) -> Vec<dynid::runtime::record::Record> {
+    let cfg = sim::SimConfig {
+        duration,
+        sample: 0.01,
+        seed: common::seed(seed),
+        noise: 0.05,
+        noise_on_inputs: true,
+        input_oversample: oversample,
+        ..Default::default()
+    };
+    sim::simulate(ir, &cfg).expect("simulation").records
+}
+
+#[test]
+fn sdof_from_accelerations_as_from_positions() {
+    let (acc, src) = model("sdof_linear_accel");
+    let pos = by_positions(&src, "measure m.a, u", "measure m.x, u");
+    let seed = 31;
+    let id_a = common::identify_records(&acc, &simulate(&acc, 1000.0, seed, 1));
+    let e_a = common::error_row("sdof, accelerations, 5 % noise", &acc, &id_a);
+    let id_p = common::identify_records(&pos, &simulate(&pos, 1000.0, seed, 1));
+    let e_p = common::error_row("sdof, positions, 5 % noise", &pos, &id_p);
+    // Seeds 31–36, largest errors: accelerations k −0.27 %, d +1.10 %; positions k −0.22 %,
+    // d −1.56 %. From accelerations k comes out low on every seed (−0.03 … −0.27 %, mean
+    // −0.15 %) against a standard error of ±0.06 %: a small bias of k that its standard
+    // error does not cover (positions: k −0.22 … +0.17 %, standard error ±0.16 %).
+    assert_within("sdof accelerations", &e_a, &[("k", 0.007), ("d", 0.025)]);
+    assert_within("sdof positions", &e_p, &[("k", 0.006), ("d", 0.04)]);
+}
+
+#[test]
+fn two_mass_from_accelerations_as_from_positions() {
+    let (acc, src) = model("two_mass_linear_accel");
+    let pos = by_positions(&src, "measure m1.a, m2.a, u", "measure m1.x, m2.x, u");
+    let seed = 41;
+    let id_a = common::identify_records(&acc, &simulate(&acc, 1000.0, seed, 1));
+    let e_a = common::error_row("two_mass, accelerations, 5 % noise", &acc, &id_a);
+    let id_p = common::identify_records(&pos, &simulate(&pos, 1000.0, seed, 1));
+    let e_p = common::error_row("two_mass, positions, 5 % noise", &pos, &id_p);
+    assert!(id_a.unidentifiable.is_empty(), "{:?}", id_a.unidentifiable);
+    // Seeds 41–46, largest errors: accelerations m2 +0.32 %, k1 −0.67 %, d1 −0.66 %,
+    // k2 +0.35 %, d2 +1.76 %; positions m2 −0.79 %, k1 −0.57 %, d1 −1.45 %, k2 −0.78 %,
+    // d2 −6.4 %.
+    let acc_bounds = [
+        ("m2", 0.008),
+        ("k1", 0.017),
+        ("d1", 0.017),
+        ("k2", 0.009),
+        ("d2", 0.045),
+    ];
+    let pos_bounds = [
+        ("m2", 0.02),
+        ("k1", 0.015),
+        ("d1", 0.035),
+        ("k2", 0.02),
+        ("d2", 0.15),
+    ];
+    assert_within("two_mass accelerations", &e_a, &acc_bounds);
+    assert_within("two_mass positions", &e_p, &pos_bounds);
+}
+
+#[test]
+fn sdof_from_accelerations_with_input_content_between_samples() {
+    // The force simulated ten times finer than the samples: the filters' first-order
+    // hold no longer describes it exactly, as on a real shaker.
+    let (acc, src) = model("sdof_linear_accel");
+    let pos = by_positions(&src, "measure m.a, u", "measure m.x, u");
+    let seed = 51;
+    let id_a = common::identify_records(&acc, &simulate(&acc, 1000.0, seed, 10));
+    let e_a = common::error_row("sdof, accelerations, input ×10", &acc, &id_a);
+    let id_p = common::identify_records(&pos, &simulate(&pos, 1000.0, seed, 10));
+    let e_p = common::error_row("sdof, positions, input ×10", &pos, &id_p);
+    // Seeds 51–56, largest errors: accelerations k −0.22 %, d +0.57 %; positions k −0.45 %,
+    // d −2.2 %.
+    assert_within(
+        "sdof accelerations, input ×10",
+        &e_a,
+        &[("k", 0.006), ("d", 0.015)],
+    );
+    assert_within(
+        "sdof positions, input ×10",
+        &e_p,
+        &[("k", 0.012), ("d", 0.05)],
+    );
+    // Neither is far worse than the other on the same seed.
+    assert!(max_abs(&e_a) < 3.0 * max_abs(&e_p) + 0.01);
+}
+
+#[test]
+fn simulated_acceleration_is_the_equation_of_motion_at_each_sample() {
+    // Noise-free: m a = u − k x − d v at every sample, with x and v from the same run.
+    let (_, src) = model("sdof_linear_accel");
+    let both = by_positions(&src, "measure m.a, u", "measure m.x, m.v, m.a, u");
+    let cfg = sim::SimConfig {
+        duration: 20.0,
+        sample: 0.01,
+        seed: 3,
+        noise: 0.0,
+        ..Default::default()
+    };
+    let recs = sim::simulate(&both, &cfg).expect("simulation").records;
+    let r = &recs[0];
+    let (x, v, a, u) = (
+        r.column("m.x").unwrap(),
+        r.column("m.v").unwrap(),
+        r.column("m.a").unwrap(),
+        r.column("u").unwrap(),
+    );
+    let scale = a.iter().map(|a| a.abs()).fold(0.0, f64::max);
+    for k in 0..x.len() {
+        let want = u[k] - 4.0 * x[k] - 0.4 * v[k];
+        assert!(
+            (a[k] - want).abs() <= 1e-12 * scale.max(1.0),
+            "sample {k}: a = {} but u − k x − d v = {want}",
+            a[k]
+        );
+    }
+}
+
+#[test]
+fn nonlinear_term_of_an_acceleration_only_body_is_refused_from_json() {
+    // The compiler refuses it (`dyn::acceleration_nonlinear`); an IR read from JSON is
+    // checked again by identification.
+    let text = "model m {\n body m = 1.0\n input u on m\n spring k (ground, m) ~ 4.0\n \
+                force c (ground, m) = k3 ~ 0.5 * s^3\n measure m.x, m.a, u\n \
+                excite u: lowpass(corner = 10) levels [6, 15]\n}\n";
+    let mut ir = dsl_parser::compile_str("m.dyn", text).unwrap();
+    let recs = simulate(&ir, 200.0, 1, 1);
+    let x = ir.signal_id("m.x").unwrap();
+    ir.signals[x.index()].measured = false;
+    let recs: Vec<_> = recs
+        .into_iter()
+        .map(|mut r| {
+            let i = r.names.iter().position(|n| n == "m.x").unwrap();
+            r.names.remove(i);
+            r.columns.remove(i);
+            r
+        })
+        .collect();
+    match common::identify_with(&ir, &recs, &IdentifyOptions::default()) {
+        Err(e @ IdentifyError::AccelerationNonlinear { .. }) => {
+            let text = e.to_string();
+            assert!(text.contains("`m.a`") && text.contains("^3"), "{text}");
+        }
+        other => panic!("expected the acceleration-only refusal, got {other:?}"),
+    }
+}
