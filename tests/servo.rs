@@ -8,8 +8,8 @@
 //! record, the velocity in the Coulomb term is estimated from the encoder positions.
 //!
 //! What the method reaches here (`cargo test --test servo -- --nocapture`, seeds 1–12):
-//! mass within 0.03 %, viscous friction within 1.2 %, Coulomb friction within 3.4 % (10 of
-//! 12 seeds within 2 %), offset within 4.7 %; standard errors 0.01–0.05 % (m), 0.15–1 % (d),
+//! mass within 0.03 %, viscous friction within 1.1 %, Coulomb friction within 3.3 % (10 of
+//! 12 seeds within 2 %), offset within 4.6 %; standard errors 0.01–0.05 % (m), 0.15–1 % (d),
 //! 0.5–2.7 % (r), 0.4–2.5 % (f0). The Coulomb coefficient is limited by what one 25 s
 //! record carries, not by the estimated velocity: with the velocity measured instead, the
 //! RMS errors over the same seeds are 0.63 % (d) and 1.73 % (r), against 0.47 % and 1.36 %
@@ -126,8 +126,8 @@ fn servo_axis_from_encoder_and_force_alone() {
         assert_eq!(id.estimated.len(), 1, "the velocity is estimated");
         let errs = errors(&id);
         println!("seed {seed}: {}", row(&errs));
-        // Seeds 1–12: m 0.03 %, d 1.2 %, r 3.4 %, f0 4.7 % at most (module documentation,
-        // checked below); each bound about twice that.
+        // Seeds 1–12: m 0.03 %, d 1.12 %, r 3.31 %, f0 4.61 % at most (module documentation;
+        // d and r checked below against README.md); each bound about twice that.
         for (((name, _), (e, s)), w) in TRUTH.iter().zip(&errs).zip(&mut worst) {
             *w = w.max(100.0 * e.abs());
             let bound = match *name {

@@ -104,9 +104,9 @@ fn coulomb_from_quantised_positions_within_three_percent() {
     quantise(&mut recs, 1e-3);
     let id = common::identify_records(&ir, &recs);
     let e = errors("cubic+Coulomb, x quantised 1e-3, u", &ir, &id);
-    // Seeds 22–26 (`DYNID_SEED_OFFSET=0…4`): largest errors d +0.24 %, k −0.25 %, k3 +0.18 %,
-    // r −0.52 %.
-    for (n, tol) in [("d", 0.006), ("k", 0.006), ("k3", 0.005), ("r", 0.012)] {
+    // Seeds 22–26 (`DYNID_SEED_OFFSET=0…4`): largest errors d +0.58 %, k −0.20 %, k3 +0.14 %,
+    // r −1.18 % (the test's seed: d +0.58 %, r −1.18 %); the bounds about twice those.
+    for (n, tol) in [("d", 0.012), ("k", 0.005), ("k3", 0.003), ("r", 0.025)] {
         bound("quantised positions", &e, n, tol);
     }
     figures::check(

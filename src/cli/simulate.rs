@@ -499,7 +499,11 @@ mod tests {
             assert_eq!(code, want, "{e}");
             assert!(e.contains(line), "{e}");
         };
-        is(err("u\n1\n2\n"), "dynid::data::missing_column", "`t`");
+        is(
+            err("u\n1\n2\n"),
+            "dynid::data::no_sample_interval",
+            "no `t` column",
+        );
         is(err("t,u\n0,1\n0.1\n"), "dynid::data::ragged", "line 3");
         let nan = err("t,u\n0,1\n0.1,NaN\n");
         assert!(nan.1.contains("`u`"), "{}", nan.1);
