@@ -69,8 +69,9 @@ fn simulate_then_identify_writes_json() {
 }
 
 /// Run `identify` on one prepared file (a valid level copied for the others) and return
-/// stderr; checks the exit status and that no `--json` file appears.
-fn refused(dir: &Path, bad: &Path, extra: &[&str]) -> String {
+/// stderr; checks the exit status, that the error carries `code` and that no `--json` file
+/// appears.
+fn refused(dir: &Path, bad: &Path, extra: &[&str], code: &str) -> String {
     let json = dir.join("out.json");
     let mut args = vec![
         "identify".to_string(),
@@ -85,6 +86,7 @@ fn refused(dir: &Path, bad: &Path, extra: &[&str]) -> String {
     assert!(!o.status.success(), "accepted {}", bad.display());
     assert!(!json.exists(), "partial output after: {err}");
     assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains(code), "no `{code}` in: {err}");
     err
 }
 
@@ -116,46 +118,46 @@ fn bad_data_is_refused_with_file_and_line() {
     };
 
     let p = write(d, "missing.csv", &valid.replace("m.v", "vel"));
-    let e = refused(d, &p, &[]);
+    let e = refused(d, &p, &[], "dynid::data::missing_column");
     assert!(e.contains("missing.csv") && e.contains("`m.v`"), "{e}");
 
     let p = write(d, "nan.csv", &with_line(10, "0.09,NaN,1,0.5"));
-    let e = refused(d, &p, &[]);
+    let e = refused(d, &p, &[], "dynid::data::non_finite");
     assert!(
         e.contains("nan.csv") && e.contains("line 11") && e.contains("`m.x`"),
         "{e}"
     );
 
     let p = write(d, "ragged.csv", &with_line(20, "0.19,1,2"));
-    let e = refused(d, &p, &[]);
+    let e = refused(d, &p, &[], "dynid::data::ragged");
     assert!(
         e.contains("ragged.csv") && e.contains("line 21") && e.contains("found 3"),
         "{e}"
     );
 
     let p = write(d, "empty.csv", "");
-    let e = refused(d, &p, &[]);
+    let e = refused(d, &p, &[], "dynid::data::empty");
     assert!(e.contains("empty.csv") && e.contains("empty"), "{e}");
 
     let p = write(d, "short.csv", &rows(50, 0.01));
-    let e = refused(d, &p, &[]);
+    let e = refused(d, &p, &[], "dynid::data::too_few_samples");
     assert!(
         e.contains("short.csv") && e.contains("only 50 samples"),
         "{e}"
     );
 
     let p = write(d, "jump.csv", &with_line(100, "1.50,0,1,0.5"));
-    let e = refused(d, &p, &[]);
+    let e = refused(d, &p, &[], "dynid::data::non_uniform_time");
     assert!(
         e.contains("jump.csv") && e.contains("line 101") && e.contains("time step"),
         "{e}"
     );
 
     let p = write(d, "ok.csv", &valid);
-    let e = refused(d, &p, &["--frobnicate"]);
+    let e = refused(d, &p, &["--frobnicate"], "--frobnicate");
     assert!(e.contains("--frobnicate"), "{e}");
 
-    let e = refused(d, &d.join("nowhere.csv"), &[]);
+    let e = refused(d, &d.join("nowhere.csv"), &[], "dynid::data::io");
     assert!(
         e.contains("nowhere.csv") && e.contains("cannot read"),
         "{e}"

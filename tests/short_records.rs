@@ -7,6 +7,7 @@
 //! 3 4; do DYNID_SEED_OFFSET=$o cargo test --test short_records -- --nocapture; done`.
 
 mod common;
+mod figures;
 
 use dynid::dsl_parser::{self, ir::ModelIr};
 use dynid::runtime::ident::{Identification, IdentifyError};
@@ -31,6 +32,13 @@ fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
 
 /// Every unknown within `tol` of its nominal value; prints the errors and the corners.
 fn check(case: &str, ir: &ModelIr, id: &Identification, tol: f64) {
+    if let Err(e) = within(case, ir, id, tol) {
+        panic!("{e}");
+    }
+}
+
+/// [`check`], telling instead of failing.
+fn within(case: &str, ir: &ModelIr, id: &Identification, tol: f64) -> Result<(), String> {
     let mut row = Vec::new();
     let mut worst = (String::new(), 0.0f64);
     for (name, e) in common::relative_errors(case, ir, id) {
@@ -50,13 +58,16 @@ fn check(case: &str, ir: &ModelIr, id: &Identification, tol: f64) {
         row.join(", "),
         corners.join(", ")
     );
-    assert!(
-        worst.1.abs() < tol,
-        "{case}: `{}` off by {:+.2}% (bound {}%)",
-        worst.0,
-        100.0 * worst.1,
-        100.0 * tol
-    );
+    if worst.1.abs() < tol {
+        Ok(())
+    } else {
+        Err(format!(
+            "{case}: `{}` off by {:+.2}% (bound {}%)",
+            worst.0,
+            100.0 * worst.1,
+            100.0 * tol
+        ))
+    }
 }
 
 #[test]
@@ -67,7 +78,9 @@ fn cubic_coulomb_25_s_at_1_khz_within_five_percent() {
     assert_eq!(recs[0].len(), 25_000);
     let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
         .expect("25 s records identify");
-    // Seeds 31–35 (`DYNID_SEED_OFFSET=0…4`): largest error r +0.08 %.
+    // Seeds 31–35 (`DYNID_SEED_OFFSET=0…4`): largest error r +0.08 %. The bound is the one
+    // docs/method.md states.
+    figures::check("docs/method.md", "short_records.cubic_coulomb", 0.2);
     check("sdof_cubic_coulomb, 3 × 25 s at 1 kHz", &ir, &id, 0.002);
 }
 
@@ -83,16 +96,30 @@ const RIG: &str = "model rig {
     excite u: lowpass(corner = 200) levels [2000, 8000, 32000]
 }";
 
+/// Over seeds: one seed of five (33) is off by −12 % in all four parameters alike (m, k, d,
+/// r), a failure of the method on that record rather than spread, so the bound is asserted
+/// as a rate. Seeds 32–36 (`DYNID_SEEDS=5`, the suite's form): largest error d −0.89 % on
+/// the four that hold; RATE_LONG.
 #[test]
 fn si_rig_25_s_at_1_khz_within_five_percent() {
     let ir = dsl_parser::compile_str("rig", RIG).unwrap();
-    let recs = simulate(&ir, 25.0, 0.0, 32);
-    let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
-        .expect("25 s records identify");
-    // Seeds 32, 34, 35, 36 (`DYNID_SEED_OFFSET=0, 2, 3, 4`): largest error d −0.89 %. Seed
-    // 33 is off by −12 % in all four parameters alike (m, k, d, r): a failure of the method
-    // on that record, not spread, and not covered by this bound.
-    check("SI rig with friction, 3 × 25 s at 1 kHz", &ir, &id, 0.02);
+    // The bound is the one docs/method.md states (with the failing seed).
+    figures::check("docs/method.md", "short_records.si_rig", 2.0);
+    // `simulate` shifts each seed by `DYNID_SEED_OFFSET`.
+    let n = common::seed_count(5);
+    let mut pass = 0;
+    for seed in (32..).take(n) {
+        let recs = simulate(&ir, 25.0, 0.0, seed);
+        let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
+            .expect("25 s records identify");
+        let case = format!("SI rig, 3 × 25 s at 1 kHz, seed {}", common::seed(seed));
+        match within(&case, &ir, &id, 0.02) {
+            Ok(()) => pass += 1,
+            Err(e) => println!("FAILS: {e}"),
+        }
+    }
+    println!("SI rig: within 2 % on {pass} of {n} seeds");
+    assert!(5 * pass >= 4 * n, "{pass} of {n} seeds");
 }
 
 #[test]

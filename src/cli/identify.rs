@@ -710,9 +710,14 @@ mod tests {
             allow_large: false,
         };
         let id = identify_files(&ir, &args).unwrap();
+        // Three noise-free levels of 400 s, as in tests/cli_identify.rs, whose seeds 5–9 gave
+        // at most 0.19 % (r); this seed (`cargo test -p dynid --bin dynid identifies_from_csv
+        // -- --nocapture`) gives d −0.12 %, k −0.02 %, k3 −0.04 %, r −0.06 %. The bound is
+        // 0.4 %, about twice the largest.
         for (n, t) in [("d", 0.4), ("k", 4.0), ("k3", 2.0), ("r", 0.3)] {
             let p = id.param(n).unwrap();
-            assert!((p.value / t - 1.0).abs() < 0.03, "{n}: {p:?}");
+            eprintln!("{n} {:+.3} %", 100.0 * (p.value / t - 1.0));
+            assert!((p.value / t - 1.0).abs() < 0.004, "{n}: {p:?}");
         }
         let text = render(&ir, &id);
         assert!(text.starts_with("m1: 1.000 m1.x'' + "), "{text}");
@@ -761,7 +766,10 @@ mod tests {
             allow_long: false,
             allow_large: false,
         };
-        let e = format!("{:?}", identify_files(&ir, &args).unwrap_err());
+        let e = identify_files(&ir, &args).unwrap_err();
+        let code = e.code().map(|c| c.to_string());
+        let e = format!("{e:?}");
+        assert_eq!(code.as_deref(), Some("dynid::data::missing_column"), "{e}");
         assert!(e.contains("bad.csv") && e.contains("`m1.v`"), "{e}");
     }
 }

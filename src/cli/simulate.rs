@@ -489,23 +489,38 @@ mod tests {
     #[test]
     fn input_csv_errors_name_line_and_column() {
         let dir = tempfile::tempdir().unwrap();
+        // The error's code, and its text (which must name the line and column).
         let err = |text: &str| {
-            format!(
-                "{:?}",
-                read_input_csv(&write(dir.path(), "a.csv", text), false).unwrap_err()
-            )
+            let e = read_input_csv(&write(dir.path(), "a.csv", text), false).unwrap_err();
+            let code = e.code().map(|c| c.to_string()).unwrap_or_default();
+            (code, format!("{e:?}"))
         };
-        assert!(err("u\n1\n2\n").contains("no `t` column"));
-        assert!(err("t,u\n0,1\n0.1\n").contains("line 3"));
-        let e = err("t,u\n0,1\n0.1,NaN\n");
-        assert!(
-            e.contains("line 3") && e.contains("`u`") && e.contains("not a finite number"),
-            "{e}"
+        let is = |(code, e): (String, String), want: &str, line: &str| {
+            assert_eq!(code, want, "{e}");
+            assert!(e.contains(line), "{e}");
+        };
+        is(
+            err("u\n1\n2\n"),
+            "dynid::data::no_sample_interval",
+            "no `t` column",
         );
-        assert!(err("t,u\n0,1\n0.1,x\n").contains("not a number"));
-        // A step of two intervals: a dropped sample, named as such.
-        assert!(err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n").contains("line 4: a sample is missing"));
-        assert!(err("t,u\n0,1\n0.1,2\n0.25,2\n0.35,1\n").contains("line 4: the time step"));
+        is(err("t,u\n0,1\n0.1\n"), "dynid::data::ragged", "line 3");
+        let nan = err("t,u\n0,1\n0.1,NaN\n");
+        assert!(nan.1.contains("`u`"), "{}", nan.1);
+        is(nan, "dynid::data::non_finite", "line 3");
+        is(
+            err("t,u\n0,1\n0.1,x\n"),
+            "dynid::data::not_a_number",
+            "line 3",
+        );
+        // A step of two intervals: a dropped sample, named as such (the same code as an
+        // uneven step, told apart by the message).
+        let (code, e) = err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n");
+        assert_eq!(code, "dynid::data::non_uniform_time", "{e}");
+        assert!(e.contains("line 4: a sample is missing"), "{e}");
+        let (code, e) = err("t,u\n0,1\n0.1,2\n0.25,2\n0.35,1\n");
+        assert_eq!(code, "dynid::data::non_uniform_time", "{e}");
+        assert!(e.contains("line 4: the time step"), "{e}");
         let r = read_input_csv(
             &write(dir.path(), "b.csv", "t,u\n1,1\n1.5,2\n2,3\n\n"),
             false,

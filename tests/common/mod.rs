@@ -143,6 +143,22 @@ pub fn seed(seed: u64) -> u64 {
     }
 }
 
+/// The seeds of a verdict asserted as a rate: `count` seeds from `first` (shifted by
+/// `DYNID_SEED_OFFSET`). `DYNID_SEEDS=N` runs N seeds instead: the long form, which
+/// measures the rate the suite's short form asserts (`DYNID_SEEDS=20 cargo test --release
+/// --test NAME -- --nocapture`).
+pub fn rate_seeds(first: u64, count: usize) -> Vec<u64> {
+    let first = seed(first);
+    (first..first + seed_count(count) as u64).collect()
+}
+
+/// `count`, or the number `DYNID_SEEDS` gives (the long form of a rate over seeds).
+pub fn seed_count(count: usize) -> usize {
+    std::env::var("DYNID_SEEDS").map_or(count, |n| {
+        n.parse::<usize>().expect("DYNID_SEEDS is a whole number")
+    })
+}
+
 /// A copy of the linear SDOF model and three short levels of it in `dir`.
 pub fn setup_linear_levels(dir: &std::path::Path) -> (std::path::PathBuf, Vec<std::path::PathBuf>) {
     let model = dir.join("sdof_linear.dyn");

@@ -938,24 +938,66 @@ mod tests {
 
     type Path = fn(&FilterBank, &mut BankState, &[&[f64]], usize, Option<(&mut [f64], usize)>);
 
-    /// The vector paths of [`FilterBank::advance`] this processor can run.
+    /// The vector paths of [`FilterBank::advance`] this processor can run. Each path is
+    /// reported as `vector path NAME: tested` or `vector path NAME: SKIPPED (why)` (shown
+    /// with `--nocapture`, and in the output of a failing test), so that a run on a
+    /// processor without AVX-512 says so. `DYNID_REQUIRE_VECTOR_PATHS=avx,avx512` turns a
+    /// skip of a named path into a failure (for a machine known to have it).
     fn vector_paths() -> Vec<(&'static str, Path)> {
         #[allow(unused_mut)]
         let mut paths: Vec<(&'static str, Path)> = Vec::new();
+        #[allow(unused_mut)]
+        let mut skipped: Vec<(&'static str, &'static str)> = Vec::new();
         #[cfg(target_arch = "x86_64")]
         {
             if simd::has_avx_fma() {
                 // SAFETY: the processor has what the path needs (checked just above).
                 paths.push(("avx", |b, s, d, l, o| unsafe { b.advance_avx(s, d, l, o) }));
+            } else {
+                skipped.push(("avx", "the processor lacks avx and fma"));
             }
             if simd::has_avx512() {
                 // SAFETY: the processor has what the path needs (checked just above).
                 paths.push(("avx512", |b, s, d, l, o| unsafe {
                     b.advance_avx512(s, d, l, o)
                 }));
+            } else {
+                skipped.push(("avx512", "the processor lacks avx512f"));
             }
         }
+        #[cfg(not(target_arch = "x86_64"))]
+        skipped.extend([("avx", "not x86_64"), ("avx512", "not x86_64")]);
+        for (name, _) in &paths {
+            eprintln!("vector path {name}: tested");
+        }
+        for (name, why) in &skipped {
+            eprintln!("vector path {name}: SKIPPED ({why})");
+        }
+        let required = std::env::var("DYNID_REQUIRE_VECTOR_PATHS").unwrap_or_default();
+        for name in required.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            assert!(
+                paths.iter().any(|(p, _)| *p == name),
+                "DYNID_REQUIRE_VECTOR_PATHS names `{name}`, which this processor cannot run \
+                 (tested: {:?}, skipped: {skipped:?})",
+                paths.iter().map(|(p, _)| *p).collect::<Vec<_>>()
+            );
+        }
         paths
+    }
+
+    /// Which vector paths this processor runs and which the tests skip: `.ci/run` shows
+    /// this test's output, so a CI machine without AVX-512 states it.
+    #[test]
+    fn vector_paths_tested_and_skipped() {
+        let paths = vector_paths();
+        #[cfg(target_arch = "x86_64")]
+        assert_eq!(
+            paths.iter().any(|(n, _)| *n == "avx512"),
+            simd::has_avx512(),
+            "the AVX-512 path is tested exactly where the processor has it"
+        );
+        #[cfg(not(target_arch = "x86_64"))]
+        assert!(paths.is_empty());
     }
 
     /// The bank (structure of arrays, fed in uneven pieces) against the per-chain recursion
@@ -970,6 +1012,7 @@ mod tests {
         let many: Vec<f64> = (0..13).map(|c| 0.3 * 1.35f64.powi(c)).collect();
         let cases = (1..=13).map(|nc| (MAX_ORDER, many[..nc].to_vec()));
         let cases = cases.chain((1..=MAX_ORDER).map(|o| (o, vec![0.3, 1.1, 2.5, 6.0, 19.0])));
+        let paths = vector_paths();
         for (order, corners) in cases {
             let bank = FilterBank::new(&corners, drivers.len(), order, ts, Hold::FirstOrder);
             let stride = bank.n_rows() + 3;
@@ -995,7 +1038,7 @@ mod tests {
             let mut out_any = vec![f64::NAN; (n - 1) * stride];
             let ds: Vec<&[f64]> = drivers.iter().map(|s| &s[1..]).collect();
             bank.advance_any(&mut st_any, &ds, n - 1, Some((&mut out_any, stride)));
-            for (name, path) in vector_paths() {
+            for &(name, path) in &paths {
                 let (st_v, out_v) = run(path);
                 assert_eq!(st_v, st_any, "{name}, order {order}");
                 assert!(

@@ -9,6 +9,9 @@ use crate::record::Record;
 use crate::sim::{self, SimConfig};
 use std::sync::OnceLock;
 
+#[path = "../../../tests/figures/mod.rs"]
+mod figures;
+
 /// Seconds per level, as in the method's reference measurements.
 const DURATION: f64 = 2000.0;
 
@@ -125,7 +128,14 @@ fn sdof_noise_free_within_one_percent() {
             id.condition,
             id.filter.corners
         );
-        assert!(e.iter().all(|e| e.abs() < 0.01), "{}", fmt_errs(&e));
+        // The known bias of noise-free data (docs/method.md, "Known bias"): d −0.12 % and
+        // r −0.08 % without balancing, the doc's figures to their last digit (fixed data);
+        // every error within 0.3 %, 2.5 times the largest.
+        if !balance {
+            figures::check("docs/method.md", "bias.d", 100.0 * e[0]);
+            figures::check("docs/method.md", "bias.r", 100.0 * e[3]);
+        }
+        assert!(e.iter().all(|e| e.abs() < 0.003), "{}", fmt_errs(&e));
         assert!(id.unidentifiable.is_empty());
         // The standard errors are of the size of the errors, not orders of magnitude off.
         for (p, e) in id.params.iter().zip(&e) {
@@ -518,10 +528,10 @@ proptest::proptest! {
             let b = split.param(&a.name).unwrap();
             // Both estimates see (nearly) the same data; they differ by the filter start
             // and the boundary terms at the cut. Measured: up to 1.0 standard errors of the
-            // whole record (Duffing, positions only, 261 s, seed 651). Not always: a random
-            // case (sdof, velocity measured, 259.6 s, seed 601) gave k = 3.825 ± 0.052 whole
-            // vs 4.066 ± 0.056 split (4.6 SE; truth 4), unexplained so far. The cases are
-            // drawn from a fixed seed so that the suite is deterministic.
+            // whole record (Duffing, positions only, 261 s, seed 651). A random case once
+            // gave 4.6 SE (sdof, velocity measured, 259.6 s, seed 601): pinned, with what was
+            // found about it, in `split_record_case_601`. The cases are drawn from a fixed
+            // seed so that the suite is deterministic.
             proptest::prop_assert!((a.value - b.value).abs() < 2.0 * a.stderr.max(b.stderr), "{:?} {:?}", a, b);
         }
     }
@@ -717,15 +727,19 @@ fn mean_noisy_errors(eta: f64, duration: f64, correction: bool) -> Vec<f64> {
     mean
 }
 
+/// The figures of docs/method.md ("Measurement noise"): the largest mean error with the
+/// correction at 5 % and 10 % noise, k3 and r without it at 10 %. The seeds are fixed, so
+/// each is the doc's to its last digit.
 #[test]
 fn noise_correction_removes_the_errors_in_variables_bias() {
-    for (eta, target) in [(0.05, 0.003), (0.1, 0.006)] {
+    for (eta, name) in [(0.05, "noise.corrected_5"), (0.1, "noise.corrected_10")] {
         let e = mean_noisy_errors(eta, 2000.0, true);
         eprintln!(
             "noise {eta}, corrected: mean (d, k, k3, r) {}",
             fmt_errs(&e)
         );
-        assert!(e.iter().all(|e| e.abs() <= target), "{}", fmt_errs(&e));
+        let worst = e.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+        figures::check("docs/method.md", name, 100.0 * worst);
     }
     // Without the correction the cubic stiffness is biased low by about −1 % at 10 %.
     let e = mean_noisy_errors(0.1, 2000.0, false);
@@ -733,7 +747,8 @@ fn noise_correction_removes_the_errors_in_variables_bias() {
         "noise 0.1, uncorrected: mean (d, k, k3, r) {}",
         fmt_errs(&e)
     );
-    assert!(e[2] < -0.008, "{}", fmt_errs(&e));
+    figures::check("docs/method.md", "noise.uncorrected_k3", 100.0 * e[2]);
+    figures::check("docs/method.md", "noise.uncorrected_r", 100.0 * e[3]);
 }
 
 #[test]
@@ -981,4 +996,62 @@ fn a_delayed_column_driver_does_not_depend_on_the_chunks() {
             }
         }
     }
+}
+
+/// The case a random draw of `duplicated_record_halves_the_variance_and_split_agrees` once
+/// found outside its bound (sdof, velocity measured, 5 % noise, one level of 15, 259.6 s,
+/// seed 601): k = 3.825 ± 0.052 whole against 4.066 ± 0.056 split, 4.6 standard errors
+/// apart (truth 4). Re-measured on the current method (`cargo test -p dynid-runtime
+/// split_record_case_601 -- --nocapture`): whole k = 3.822 ± 0.134, split 4.009 ± 0.048
+/// (1.4 standard errors of the larger apart), halves 3.922 ± 0.135 and 3.827 ± 0.164. The
+/// whole record's standard error of k is now 2.6 times the one recorded and covers the
+/// difference: that was the 4.6. Not explained: the split estimate (k, and k3 = 1.98 against
+/// 2.08 and 2.28) lies outside both halves' and its standard errors are about a third of
+/// each half's, where two independent halves would give 1/√2 — pooling the two halves of
+/// one level as two levels gains more than their data hold. Pinned here, so that both the
+/// agreement and the pooled standard error are watched on this record.
+#[test]
+fn split_record_case_601() {
+    let ir = sdof_model("");
+    let recs = simulate_short(&ir, &[15.0], 259.6, 0.05, 601);
+    let one = run(&ir, &recs, &IdentifyOptions::default());
+    let n = recs[0].len();
+    let halves = [slice(&recs[0], 0, n / 2), slice(&recs[0], n / 2, n)];
+    let split = run(&ir, &halves, &IdentifyOptions::default());
+    let h: Vec<Identification> = halves
+        .iter()
+        .map(|r| run(&ir, std::slice::from_ref(r), &IdentifyOptions::default()))
+        .collect();
+    for a in &one.params {
+        let b = split.param(&a.name).unwrap();
+        let (c, d) = (h[0].param(&a.name).unwrap(), h[1].param(&a.name).unwrap());
+        eprintln!(
+            "{}: whole {:.4} ± {:.4}, split {:.4} ± {:.4}, halves {:.4} ± {:.4} / {:.4} ± {:.4}",
+            a.name, a.value, a.stderr, b.value, b.stderr, c.value, c.stderr, d.value, d.stderr
+        );
+        // The bound of the property test.
+        assert!(
+            (a.value - b.value).abs() < 2.0 * a.stderr.max(b.stderr),
+            "{a:?} {b:?}"
+        );
+    }
+    // Both within two of their standard errors of the truth (k: 1.3 and 0.2 measured).
+    for id in [&one, &split] {
+        let k = id.param("k").unwrap();
+        assert!((k.value - 4.0).abs() < 2.0 * k.stderr, "{k:?}");
+    }
+    // The pooled standard error of k, against each half's (measured 0.35 and 0.29 of them):
+    // if it grows to 1/√2 the anomaly is gone and this comment must go with it.
+    let ratio = |i: usize| split.param("k").unwrap().stderr / h[i].param("k").unwrap().stderr;
+    eprintln!(
+        "pooled/half standard error of k: {:.2}, {:.2}",
+        ratio(0),
+        ratio(1)
+    );
+    assert!(
+        ratio(0) < 0.5 && ratio(1) < 0.5,
+        "{} {}",
+        ratio(0),
+        ratio(1)
+    );
 }

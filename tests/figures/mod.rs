@@ -1,0 +1,142 @@
+//! Figures quoted in the docs, read where they stand and checked against what a test
+//! measures, so that a stale figure fails the suite.
+//!
+//! In a Markdown file (README.md, ARCHITECTURE.md, docs/*.md) a figure that a test produces
+//! is followed by a marker, an HTML comment that renders as nothing:
+//!
+//! ```text
+//! | **silverbox_cubic** | 4 | **0.488**<!-- figure: silverbox.cubic.arrow --> | … |
+//! f0 comes out within 0.03 %<!-- figure: constant_force.f0 -->
+//! ```
+//!
+//! The figure is the number just before the marker (a `%`, `**` or a unit word between the
+//! two is skipped; `−` is read as a minus sign). The test that measures it calls
+//! [`check`] with the measured value: the value must round to the figure as written (to
+//! its last printed digit), or lie within the tolerance given to [`check_within`].
+//! `tests/doc_figures.rs` checks that every marker in the docs is read by some test.
+#![allow(dead_code)] // each test binary uses a subset
+
+use std::path::Path;
+
+/// A figure as the doc writes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Figure {
+    pub value: f64,
+    /// Digits after the decimal point as written (`0.488`: 3, `14`: 0).
+    pub decimals: u32,
+}
+
+impl Figure {
+    /// Half a unit of the last printed digit: the rounding the written figure allows.
+    pub fn rounding(&self) -> f64 {
+        0.5 * 10f64.powi(-(self.decimals as i32))
+    }
+}
+
+/// The marker text for `name`.
+pub fn marker(name: &str) -> String {
+    format!("<!-- figure: {name} -->")
+}
+
+/// The repository root: the first directory up from the package's manifest that holds
+/// `Cargo.lock` (this file is also included by the unit tests of `runtime/`).
+pub fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .find(|p| p.join("Cargo.lock").exists())
+        .expect("the workspace root holds Cargo.lock")
+}
+
+/// The figure marked `name` in `text`; panics (naming `doc`) when the marker is missing,
+/// appears twice, or has no number before it.
+pub fn figure_in(doc: &str, text: &str, name: &str) -> Figure {
+    let m = marker(name);
+    let mut at = text.match_indices(&m).map(|(i, _)| i);
+    let i = at
+        .next()
+        .unwrap_or_else(|| panic!("{doc}: no marker `{m}`: the figure was moved or removed"));
+    assert!(at.next().is_none(), "{doc}: marker `{m}` appears twice");
+    number_before(&text[..i]).unwrap_or_else(|| {
+        let start = text[..i].char_indices().rev().nth(30).map_or(0, |(k, _)| k);
+        panic!("{doc}: no number before `{m}`: …{}", &text[start..i])
+    })
+}
+
+/// The figure marked `name` in the file `doc` (relative to the repository root).
+pub fn figure(doc: &str, name: &str) -> Figure {
+    let text = std::fs::read_to_string(root().join(doc))
+        .unwrap_or_else(|e| panic!("{doc} cannot be read: {e}"));
+    figure_in(doc, &text, name)
+}
+
+/// Assert that `measured` rounds to the figure marked `name` in `doc` as written.
+pub fn check(doc: &str, name: &str, measured: f64) {
+    let f = figure(doc, name);
+    check_within(doc, name, measured, f.rounding());
+}
+
+/// Assert that `measured` lies within `tol` of the figure marked `name` in `doc` (for a
+/// figure that rounds a value which differs a little between machines).
+pub fn check_within(doc: &str, name: &str, measured: f64, tol: f64) {
+    let text = std::fs::read_to_string(root().join(doc))
+        .unwrap_or_else(|e| panic!("{doc} cannot be read: {e}"));
+    check_text(doc, &text, name, measured, Some(tol));
+}
+
+/// [`check_within`] on the text of `doc` (`tol`: `None` for the figure's rounding).
+pub fn check_text(doc: &str, text: &str, name: &str, measured: f64, tol: Option<f64>) {
+    let f = figure_in(doc, text, name);
+    let tol = tol.unwrap_or(f.rounding());
+    eprintln!(
+        "figure {name} ({doc}): written {}, measured {measured}",
+        f.value
+    );
+    assert!(
+        measured.is_finite() && (measured - f.value).abs() <= tol * (1.0 + 1e-9) + 1e-12,
+        "{doc} says {} for `{name}`, the test measures {measured} (allowed ± {tol}): \
+         update the doc or find what changed",
+        f.value
+    );
+}
+
+/// Every marker name in `text`, in order.
+pub fn markers_in(text: &str) -> Vec<&str> {
+    text.match_indices("<!-- figure: ")
+        .filter_map(|(i, m)| {
+            let rest = &text[i + m.len()..];
+            rest.find(" -->").map(|e| &rest[..e])
+        })
+        .collect()
+}
+
+/// The number that ends `before` (skipping blanks, `%`, `*`, `` ` `` and a unit word).
+fn number_before(before: &str) -> Option<Figure> {
+    let t = before.trim_end_matches([' ', '%', '*', '`']);
+    // A unit or word right after the number (`0.488 mV`, `68 %`): skip one word.
+    let t = match t.char_indices().next_back() {
+        Some((_, c)) if c.is_alphabetic() => {
+            let w = t.trim_end_matches(|c: char| c.is_alphabetic() || c == '/');
+            w.trim_end_matches([' ', '%', '*'])
+        }
+        _ => t,
+    };
+    let start = t
+        .char_indices()
+        .rev()
+        .take_while(|(_, c)| c.is_ascii_digit() || *c == '.')
+        .last()
+        .map(|(k, _)| k)?;
+    let digits = &t[start..];
+    let sign = match t[..start].chars().next_back() {
+        Some('−' | '-') => -1.0,
+        _ => 1.0,
+    };
+    let value: f64 = digits.parse().ok()?;
+    let decimals = digits
+        .find('.')
+        .map_or(0, |p| (digits.len() - p - 1) as u32);
+    Some(Figure {
+        value: sign * value,
+        decimals,
+    })
+}
