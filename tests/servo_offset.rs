@@ -503,7 +503,9 @@ fn planned_axis_workflow_names_a_withheld_offset_friction_or_both() {
         );
     }
     // `models/servo_axis_planned.dyn` is the model without the constant force.
-    let cases: [(&str, &[&str], &[&str], &[&str]); 3] = [
+    // (name, lines added, lines dropped, the effects to find)
+    type Case<'a> = (&'a str, &'a [&'a str], &'a [&'a str], &'a [&'a str]);
+    let cases: [Case; 3] = [
         ("no_offset", &[], &[], &["constant_force"]),
         (
             "no_friction",

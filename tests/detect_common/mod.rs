@@ -1,6 +1,7 @@
 //! Helpers of detection on simulated data, shared by `tests/detect_models.rs` and
 //! `examples/detect_measurements.rs`: compile a model of `models/`, simulate its levels,
 //! run detection with the linear counterpart.
+#![allow(dead_code)] // the example uses a subset (the hit-rate matrix is the tests')
 
 use dynid::dsl_parser::{compile_file, ir::ModelIr};
 use dynid::runtime::data::{LevelSource, RecordSource};

@@ -387,7 +387,8 @@ fn by_rests(
     cands: &[(Effect, Location)],
     opts: &DiagnoseOptions,
 ) -> Vec<Vec<(Effect, Location)>> {
-    let mut groups: Vec<(Vec<dynid_ir::ir::BodyId>, Vec<(Effect, Location)>)> = Vec::new();
+    type Group = (Vec<dynid_ir::ir::BodyId>, Vec<(Effect, Location)>);
+    let mut groups: Vec<Group> = Vec::new();
     for c in cands {
         let key = match add_effect(ir, c.0, &c.1) {
             Some((cir, _)) if !opts.ident.keep_rests => crate::ident::rests::bodies(&cir),
