@@ -8,6 +8,7 @@ pub mod demo;
 pub mod detect;
 pub mod diagnose;
 pub mod duplicates;
+pub mod excitation;
 pub mod identify;
 pub mod silverbox;
 pub mod simulate;
