@@ -9,6 +9,7 @@ pub mod detect;
 pub mod diagnose;
 pub mod duplicates;
 pub mod excitation;
+pub mod frf;
 pub mod identify;
 pub mod silverbox;
 pub mod simulate;
