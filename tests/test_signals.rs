@@ -238,7 +238,7 @@ fn detect_names_the_duffing_spring_from_multisine_levels_and_draws_the_frf() {
     let out = String::from_utf8_lossy(&o.stdout);
     let line = out
         .lines()
-        .find(|l| l.contains("(ground, m)"))
+        .find(|l| l.starts_with("Element") && l.contains("(ground, m)"))
         .unwrap_or_else(|| panic!("no element line:\n{out}"));
     assert!(line.contains("cubic stiffness"), "{out}");
     let frf_png = dir.path().join("curves-frf.png");
@@ -256,15 +256,58 @@ fn detect_names_the_duffing_spring_from_multisine_levels_and_draws_the_frf() {
         assert_eq!(l["measured"]["freq_hz"].as_array().unwrap().len(), 398);
     }
     // The model fitted at the lowest level (the most linear) follows the measured FRF of
-    // the position near the resonance (0.318 Hz): within 5 % in magnitude.
+    // the position over the resonance band 0.2–0.5 Hz: the median of log(|model| /
+    // |measured|) over its lines was −0.9 % (line by line the nonlinear distortion
+    // scatters them by 16 % on average); 3 % allows 3x.
     let low = &frf[0];
     let f = low["measured"]["freq_hz"].as_array().unwrap();
-    let k = f
-        .iter()
-        .position(|x| (x.as_f64().unwrap() - 0.32).abs() < 0.002)
-        .unwrap();
     let mag = |h: &serde_json::Value| h[0].as_f64().unwrap().hypot(h[1].as_f64().unwrap());
-    let meas = mag(&low["measured"]["h"][0][k]);
-    let model = mag(&low["model"][0][k]);
-    assert!((model / meas - 1.0).abs() < 0.05, "{model} vs {meas}");
+    let mut r: Vec<f64> = (0..f.len())
+        .filter(|&k| (0.2..=0.5).contains(&f[k].as_f64().unwrap()))
+        .map(|k| (mag(&low["model"][0][k]) / mag(&low["measured"]["h"][0][k])).ln())
+        .collect();
+    r.sort_by(f64::total_cmp);
+    let median = r[r.len() / 2];
+    assert!(median.abs() < 0.03, "median log ratio {median}");
+}
+
+/// A test signal without its band, or with periods that do not split the record, is
+/// refused before any file is written, with the flag to fix.
+#[test]
+fn bad_test_signals_are_refused_with_the_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "simulate".to_string(),
+            common::model_path("sdof_duffing.dyn").display().to_string(),
+            "--duration".into(),
+            "10.01".into(),
+            "--out".into(),
+            out.display().to_string(),
+        ];
+        args.extend(extra.iter().map(|s| s.to_string()));
+        common::dynid().args(&args).output().unwrap()
+    };
+    let o = run(&["--signal", "multisine"]);
+    assert!(!o.status.success());
+    let e = common::stderr(&o);
+    assert!(e.contains("--band-hz"), "{e}");
+    // 1001 samples do not split into 4 periods; 7 or 11 would.
+    let o = run(&["--signal", "multisine", "--band-hz", "0.5,3"]);
+    assert!(!o.status.success());
+    let e = common::stderr(&o);
+    assert!(
+        e.contains("1001 samples in 4 periods") && e.contains("--periods"),
+        "{e}"
+    );
+    // A band above the Nyquist frequency (50 Hz).
+    let o = run(&["--signal", "sweep", "--band-hz", "1,80", "--periods", "1"]);
+    assert!(!o.status.success());
+    assert!(
+        common::stderr(&o).contains("Nyquist"),
+        "{}",
+        common::stderr(&o)
+    );
+    assert!(!out.join("level_1.csv").exists());
 }

@@ -130,11 +130,13 @@ fn column<DB: DrawingBackend>(
         .filter(|m| *m > 0.0 && m.is_finite())
         .fold((f64::INFINITY, 0.0f64), |(a, b), m| (a.min(m), b.max(m)));
     let (y0, y1) = if mlo.is_finite() && mhi > mlo {
-        // Room at the top for the legend.
-        let span = mhi.log10() - mlo.log10();
+        // Room above the highest peak for the legend (two entries per level), so that it
+        // hides no data.
+        let span = (mhi.log10() - mlo.log10()).max(0.5);
+        let entries = 2.0 * levels.len() as f64;
         (
             mlo.log10() - 0.05 * span,
-            mhi.log10() + 0.35 * span.max(0.5),
+            mhi.log10() + (0.1 + 0.085 * entries) * span,
         )
     } else {
         (-3.0, 1.0)
