@@ -336,7 +336,7 @@ enum Slot {
 fn classify(ir: &ModelIr, s: usize) -> Option<Slot> {
     let nb = ir.bodies.len();
     if s < 2 * nb {
-        Some(if s % 2 == 0 {
+        Some(if s.is_multiple_of(2) {
             Slot::X(s / 2)
         } else {
             Slot::V(s / 2)
@@ -576,8 +576,10 @@ mod tests {
         let (e, at) = worst(&frf, wn, z, ts, 0.05, 1.0);
         eprintln!("welch worst relative error 0.05–1 Hz: {e:.2e} at {at} Hz");
         assert!(e < 0.11, "{e} at {at} Hz");
-        let (lo, _) = worst(&frf, wn, z, ts, 0.05, 0.318 - 0.064);
-        let (hi, _) = worst(&frf, wn, z, ts, 0.318 + 0.064, 1.0);
+        // f_n = ω_n / 2π, and B = 2ζ f_n the half-power band.
+        let (f_n, band) = (wn / (2.0 * PI), 2.0 * z * wn / (2.0 * PI));
+        let (lo, _) = worst(&frf, wn, z, ts, 0.05, f_n - band);
+        let (hi, _) = worst(&frf, wn, z, ts, f_n + band, 1.0);
         eprintln!("welch worst relative error off the peak band: {lo:.2e} below, {hi:.2e} above");
         assert!(lo.max(hi) < OFF_PEAK, "{lo} {hi}");
         let c = frf.coherence[0]
@@ -646,7 +648,7 @@ mod tests {
             ir.position(dynid_ir::ir::BodyId(0)),
             ir.velocity(dynid_ir::ir::BodyId(0)),
         ];
-        let f = [0.1, 0.318, 1.0];
+        let f = [0.1, 1.0 / PI, 1.0];
         let h = model_frf(&ir, &lm, 0, &outs, &f);
         for (k, &fk) in f.iter().enumerate() {
             // m = 2, k = 8, d = 0.8: ω_n = 2, ζ = 0.1, H = 1/(m(ω_n² − ω² + 2jζω_nω)).

@@ -62,6 +62,20 @@ pub struct SignalArgs {
     pub sweep_law: LawArg,
 }
 
+impl Default for SignalArgs {
+    /// The form filters (no test signal), with the flags' defaults.
+    fn default() -> Self {
+        SignalArgs {
+            signal: SignalKind::Random,
+            band_hz: None,
+            periods: 4,
+            grid: GridArg::Full,
+            phases: PhasesArg::Random,
+            sweep_law: LawArg::Log,
+        }
+    }
+}
+
 impl SignalArgs {
     /// The test signal asked for (`None`: the form filters).
     pub fn signal(&self) -> miette::Result<Option<TestSignal>> {

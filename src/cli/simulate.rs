@@ -551,6 +551,7 @@ mod tests {
             smooth_reference: false,
             tachometer: false,
             out,
+            excitation: Default::default(),
             input: None,
             format: Format::Json,
             allow_long: false,

@@ -103,7 +103,7 @@ impl TestSignal {
                 "give at least one period (or sweep) per record".into(),
             ));
         }
-        if n % p != 0 {
+        if !n.is_multiple_of(p) {
             return Err((
                 format!("{n} samples in {p} periods"),
                 format!(
@@ -164,7 +164,7 @@ impl TestSignal {
 /// A divisor of `n` near `p` (for a help line).
 fn divisor_near(n: usize, p: usize) -> usize {
     (1..=n.max(1))
-        .filter(|d| n % d == 0)
+        .filter(|d| n.is_multiple_of(*d))
         .min_by_key(|d| d.abs_diff(p))
         .unwrap_or(1)
 }

@@ -180,7 +180,8 @@ pub fn simulate_signal_into(
             .map_err(|(what, help)| config_error(&what, &help))?;
     }
     let params = parameter_values(ir)?;
-    let plan = ExcitationPlan::new(ir, cfg)?;
+    let mut plan = ExcitationPlan::new(ir, cfg)?;
+    plan.signal = signal.copied();
     let mech = Mechanics::new(ir, &params)?;
     assert_eq!(
         sinks.len(),
@@ -188,9 +189,10 @@ pub fn simulate_signal_into(
         "invariant: one sink per level (`level_count`)"
     );
     crate::first_error_in_order(
-        sinks.par_iter_mut().enumerate().map(|(k, sink)| {
-            simulate_level(ir, &mech, &plan, cfg, signal, k, progress, &mut **sink)
-        }),
+        sinks
+            .par_iter_mut()
+            .enumerate()
+            .map(|(k, sink)| simulate_level(ir, &mech, &plan, cfg, k, progress, &mut **sink)),
     )?;
     let mut truth = Truth::new(ir, cfg, &params, &plan.level_table(ir), &plan.levels);
     truth.signal = signal.copied();
@@ -232,6 +234,8 @@ struct ExcitationPlan {
     /// The same for each reference of the model's control laws (`None`: held at 0).
     references: Vec<Option<(FormFilter, Vec<f64>)>>,
     control: Option<ControlPlan>,
+    /// The multisine or sweep replacing the inputs' form filters.
+    signal: Option<TestSignal>,
 }
 
 /// The resolved controller of a closed-loop run.
@@ -377,6 +381,7 @@ impl ExcitationPlan {
             filters,
             references,
             control,
+            signal: None,
         })
     }
 
@@ -478,11 +483,11 @@ fn simulate_level(
     mech: &Mechanics,
     plan: &ExcitationPlan,
     cfg: &SimConfig,
-    signal: Option<&TestSignal>,
     level: usize,
     progress: &(dyn Fn(u64) + Sync),
     sink: &mut dyn SampleSink,
 ) -> Result<(), SimError> {
+    let signal = plan.signal.as_ref();
     let fine = cfg.input_oversample;
     let h = cfg.sample / fine as f64;
     let substeps = cfg.substeps.div_ceil(fine);
