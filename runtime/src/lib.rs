@@ -24,6 +24,7 @@ pub mod describe;
 pub mod detect;
 pub mod diagnose;
 mod fft;
+pub mod frf;
 pub mod ident;
 pub mod limits;
 pub(crate) mod prefetch;

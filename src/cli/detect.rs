@@ -63,8 +63,12 @@ pub struct Args {
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
     /// Plot the parameter curves with the best templates: `.svg` or `.png` (by the name).
+    /// The frequency response per level (measured H1 with coherence, and the linear model
+    /// fitted at each level) goes beside it as FILE-frf.svg / FILE-frf.png.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub frf: super::frf::FrfArgs,
     #[command(flatten)]
     pub csv: CsvArgs,
     #[command(flatten)]
@@ -80,10 +84,12 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
+    let frf_plot = args.plot.as_deref().map(super::frf::frf_plot_path);
     check_outputs(
         [
             (args.json.as_deref(), "the JSON output"),
             (args.plot.as_deref(), "the plot"),
+            (frf_plot.as_deref(), "the frequency-response plot"),
         ],
         inputs(&args.model, &args.data),
     )?;
@@ -155,6 +161,11 @@ pub fn run(args: Args) -> miette::Result<()> {
     // The options the test ran with (the jackknife's degrees of freedom filled in).
     dopts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
     let warnings = levels_too_alike(&det, &dopts);
+    let frfs = if args.json.is_some() || args.plot.is_some() {
+        super::frf::level_frfs(&ir, &levels, &det, &fits.fits, args.frf.frf_periods)?
+    } else {
+        Vec::new()
+    };
 
     // Write all outputs or none (the plot format follows the extension, which the staged
     // name keeps).
@@ -169,6 +180,7 @@ pub fn run(args: Args) -> miette::Result<()> {
                 "segments": split.as_ref().map(|s| &s.split),
                 "warnings": warnings,
                 "cycles_note": cycle_note,
+                "frf": frfs,
             }))
             .into_diagnostic()?;
             staged.write(out, text.as_bytes())?;
@@ -176,6 +188,11 @@ pub fn run(args: Args) -> miette::Result<()> {
         if let Some(out) = &args.plot {
             let tmp = staged.temp_for(out)?;
             draw_curves(&det, &tmp).wrap_err_with(|| format!("cannot write {}", out.display()))?;
+        }
+        if let (Some(out), false) = (&frf_plot, frfs.is_empty()) {
+            let tmp = staged.temp_for(out)?;
+            dynid::plot::draw_frf(&frfs, &tmp)
+                .wrap_err_with(|| format!("cannot write {}", out.display()))?;
         }
         staged.commit()
     })();

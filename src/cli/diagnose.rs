@@ -70,9 +70,13 @@ pub struct Args {
     /// split into levels (see --segments).
     #[arg(required = true)]
     pub data: Vec<PathBuf>,
-    /// Write an HTML report (opens offline) to this file.
+    /// Write an HTML report (opens offline) to this file; it shows the frequency response
+    /// per level (measured H1 with coherence, and the model with the parameters identified
+    /// at each level).
     #[arg(long, value_name = "HTML")]
     pub report: Option<PathBuf>,
+    #[command(flatten)]
+    pub frf: super::frf::FrfArgs,
     /// Write the diagnosis as JSON to this file.
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -172,6 +176,11 @@ pub fn run(args: Args) -> miette::Result<()> {
     if let Some(h) = &hint {
         println!("\nNote: {h}");
     }
+    let frfs = if args.report.is_some() || args.json.is_some() {
+        super::frf::diagnosis_frfs(&ir, &records, &d, args.frf.frf_periods)?
+    } else {
+        Vec::new()
+    };
     let refined = if args.refine {
         let r = refine_corrected(&d, &records, args.quiet)?;
         print!("{}", render_refined(&r.0));
@@ -189,6 +198,7 @@ pub fn run(args: Args) -> miette::Result<()> {
             refined: refined.as_ref().map(|r| &r.0),
             model_text: refined.as_ref().map(|r| r.1.as_str()),
             closed_loop_hint: hint.as_deref(),
+            frf: Some(&frfs),
         },
     )
 }
@@ -309,6 +319,8 @@ pub struct Extras<'a> {
     pub model_text: Option<&'a str>,
     /// The note that the record looks closed loop (JSON `closed_loop_hint`).
     pub closed_loop_hint: Option<&'a str>,
+    /// The frequency response per level (report figure, JSON `frf`).
+    pub frf: Option<&'a [dynid_runtime::frf::LevelFrf]>,
 }
 
 /// The JSON of a diagnosis: its fields, with the extras next to them.
@@ -324,6 +336,8 @@ struct WithExtras<'a> {
     free_run_start: &'static str,
     #[serde(skip_serializing_if = "Option::is_none")]
     closed_loop_hint: Option<&'a str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    frf: Option<&'a [dynid_runtime::frf::LevelFrf]>,
 }
 
 /// [`write_outputs`], with the extras.
@@ -334,7 +348,17 @@ pub fn write_outputs_with(
     model: Option<&Path>,
     extras: Extras,
 ) -> miette::Result<()> {
-    let html = report.map(|_| dynid::plot::render_html(d));
+    let html = report.map(|_| {
+        let h = dynid::plot::render_html(d);
+        match extras.frf.filter(|f| !f.is_empty()) {
+            Some(f) => h.replacen(
+                "</body>",
+                &format!("{}</body>", dynid::plot::report::frf_section(f)),
+                1,
+            ),
+            None => h,
+        }
+    });
     let js = match json {
         Some(_) => Some(
             serde_json::to_string_pretty(&WithExtras {
@@ -343,6 +367,7 @@ pub fn write_outputs_with(
                 refined: extras.refined,
                 free_run_start: dynid_runtime::sim::FREE_RUN_START,
                 closed_loop_hint: extras.closed_loop_hint,
+                frf: extras.frf.filter(|f| !f.is_empty()),
             })
             .into_diagnostic()?,
         ),

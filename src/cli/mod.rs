@@ -8,6 +8,8 @@ pub mod demo;
 pub mod detect;
 pub mod diagnose;
 pub mod duplicates;
+pub mod excitation;
+pub mod frf;
 pub mod identify;
 pub mod silverbox;
 pub mod simulate;

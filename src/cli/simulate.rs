@@ -22,6 +22,15 @@ seconds are recorded every --sample seconds. The columns are `t` and every measu
 (`m1.x`, `m1.v`, …, inputs). --noise adds white measurement noise with a standard deviation
 of that fraction of each signal's standard deviation. The same --seed gives the same data.
 
+--signal multisine drives every excited input with a multisine instead (level = RMS of
+the input): the lines k/T of --band-hz LOW,HIGH (in Hz), T = --duration / --periods so the
+record holds whole periods (the samples must split evenly), --grid full or odd (odd
+harmonics only), --phases random (per level) or schroeder. --signal sweep drives them with
+a sine sweep (level = amplitude) from LOW to HIGH Hz, --sweep-law log or linear, repeated
+--periods times per record. Both are evaluated exactly at every input point and linear in
+between, as the form filters are (a DAC with a reconstruction filter, no zero-order
+hold); the burn-in runs whole periods, and the record starts at a period's start.
+
 --input-oversample N simulates the input processes N times per sample interval and
 drives the mechanics with that finer input, so the data carries input content between
 samples (the intensity keeps its meaning); samples are point values. --quantise Q rounds
@@ -144,6 +153,8 @@ pub struct Args {
     /// Output directory (created if missing; an earlier run's files there are replaced).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    #[command(flatten)]
+    pub excitation: super::excitation::SignalArgs,
     /// Drive the model with the inputs in this CSV instead of the form filters.
     #[arg(long, value_name = "CSV")]
     pub input: Option<PathBuf>,
@@ -214,7 +225,10 @@ fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
         [],
     )?;
     let bar = progress_bar(sim::total_samples(&cfg, n_levels));
-    let out = dynid::output::simulate_to_dir(ir, &cfg, &args.out, &|n| bar.inc(n));
+    let signal = args.excitation.signal()?;
+    let out = dynid::output::simulate_signal_to_dir(ir, &cfg, signal.as_ref(), &args.out, &|n| {
+        bar.inc(n)
+    });
     bar.finish_and_clear();
     let (truth, written) = out?;
     let mut paths: Vec<PathBuf> = written.iter().map(|w| w.path.clone()).collect();
@@ -552,6 +566,7 @@ mod tests {
             smooth_reference: false,
             tachometer: false,
             out,
+            excitation: Default::default(),
             input: None,
             format: Format::Json,
             allow_long: false,

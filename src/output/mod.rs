@@ -17,8 +17,8 @@ mod sim;
 pub mod target;
 
 pub use sim::{
-    csv_bytes, run_files, run_outputs, simulate_to_dir, stage_driven, stage_levels,
-    write_simulation, LevelWritten,
+    csv_bytes, run_files, run_outputs, simulate_signal_to_dir, simulate_to_dir, stage_driven,
+    stage_levels, write_simulation, LevelWritten,
 };
 pub use target::{check_out_dir, check_output, check_space, parent_dir, resolve, Target};
 

@@ -130,6 +130,18 @@ pub fn simulate_to_dir(
     dir: &Path,
     progress: &(dyn Fn(u64) + Sync),
 ) -> miette::Result<(Truth, Vec<LevelWritten>)> {
+    simulate_signal_to_dir(ir, cfg, None, dir, progress)
+}
+
+/// [`simulate_to_dir`] with the inputs driven by a multisine or sweep
+/// ([`sim::simulate_signal_into`]).
+pub fn simulate_signal_to_dir(
+    ir: &ModelIr,
+    cfg: &SimConfig,
+    signal: Option<&sim::TestSignal>,
+    dir: &Path,
+    progress: &(dyn Fn(u64) + Sync),
+) -> miette::Result<(Truth, Vec<LevelWritten>)> {
     let n = sim::level_count(ir, cfg)?;
     let rows = (cfg.duration / cfg.sample).ceil().max(0.0) as u64 + 1;
     let columns = ir.measured_signals().len() + 1 + usize::from(cfg.control.is_some());
@@ -163,7 +175,7 @@ pub fn simulate_to_dir(
         }
         let mut sinks: Vec<&mut dyn SampleSink> =
             files.iter_mut().map(|f| f as &mut dyn SampleSink).collect();
-        let simulated = sim::simulate_into(ir, cfg, progress, &mut sinks);
+        let simulated = sim::simulate_signal_into(ir, cfg, signal, progress, &mut sinks);
         drop(sinks);
         if let Some((f, name)) = files
             .iter_mut()

@@ -7,9 +7,11 @@
 //! no system font libraries.
 
 pub mod curves;
+pub mod frf;
 pub mod report;
 
 pub use curves::{draw_curves, plot_curves};
+pub use frf::{draw_frf, frf_svg_string};
 pub use report::render_html;
 
 use plotters::style::FontStyle;

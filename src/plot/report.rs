@@ -668,3 +668,28 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
     );
     h
 }
+
+/// The report's section of the frequency response per level (inline SVG, see
+/// [`super::frf`]); a figure that cannot be drawn is said so in its place.
+pub fn frf_section(frfs: &[dynid_runtime::frf::LevelFrf]) -> String {
+    let fig = match super::frf::frf_svg_string(frfs) {
+        Ok(svg) => format!("<div class=\"fig\">{svg}</div>"),
+        Err(e) => format!("<p>The figure could not be drawn: {}</p>", esc(&e)),
+    };
+    let method = match frfs.first().map(|f| f.measured.method) {
+        Some(dynid_runtime::frf::FrfMethod::Periodic { period }) => format!(
+            "averaged over whole periods of {period} samples at the excited lines"
+        ),
+        Some(dynid_runtime::frf::FrfMethod::Welch { segment }) => format!(
+            "H1 = S<sub>uy</sub>/S<sub>uu</sub> over Hann-windowed segments of {segment} samples, 50 % overlap"
+        ),
+        None => String::new(),
+    };
+    format!(
+        "<h2>Frequency response per level</h2><p>Measured ({method}; coherence below) \
+         and the linear part of the model with the parameters identified at each level \
+         (dashed, H(jω) = −(−ω²M + jωD + K)<sup>−1</sup>B). A peak that moves or broadens \
+         with the level is a nonlinearity; a model curve that misses the measured one at \
+         every level is a linear modelling error.</p>{fig}"
+    )
+}

@@ -6,6 +6,7 @@
 //! exponential (Van Loan 1978); draws use the Cholesky factor of `Q`. The first state is
 //! drawn from the stationary distribution, so the record is stationary from sample 0.
 
+use super::excitation::{SignalSampler, TestSignal};
 use super::planned::{Moves, PlannedSampler};
 use dynid_ir::ir::FormFilter;
 use nalgebra::DMatrix;
@@ -167,6 +168,8 @@ impl FormFilterSampler {
 pub(crate) enum Excitation {
     Random(FormFilterSampler),
     Planned(PlannedSampler),
+    /// A multisine or sweep ([`super::excitation`]).
+    Signal(SignalSampler),
 }
 
 impl Excitation {
@@ -200,10 +203,25 @@ impl Excitation {
         }
     }
 
-    /// Draw the state from the stationary distribution (a planned trajectory draws nothing).
+    /// `signal` at `level` on the fine grid for a record of `n` samples after `burn_in`.
+    pub(crate) fn signal(
+        signal: &TestSignal,
+        level: f64,
+        sample: f64,
+        fine: usize,
+        burn_in: usize,
+        n: usize,
+    ) -> Result<Self, String> {
+        SignalSampler::new(signal, level, sample, fine, burn_in, n).map(Excitation::Signal)
+    }
+
+    /// Draw the state from the stationary distribution, or a multisine's phases (a planned
+    /// trajectory draws nothing).
     pub(crate) fn start(&mut self, rng: &mut impl Rng) {
-        if let Excitation::Random(s) = self {
-            s.start(rng);
+        match self {
+            Excitation::Random(s) => s.start(rng),
+            Excitation::Signal(s) => s.start(rng),
+            Excitation::Planned(_) => {}
         }
     }
 
@@ -213,6 +231,7 @@ impl Excitation {
         match self {
             Excitation::Random(s) => s.step(rng),
             Excitation::Planned(p) => p.step(),
+            Excitation::Signal(s) => s.step(),
         }
     }
 
@@ -222,6 +241,7 @@ impl Excitation {
         match self {
             Excitation::Random(s) => s.output(),
             Excitation::Planned(p) => p.setpoint().position,
+            Excitation::Signal(s) => s.output(),
         }
     }
 
@@ -231,6 +251,8 @@ impl Excitation {
         match self {
             Excitation::Random(s) => s.derivative(),
             Excitation::Planned(p) => p.setpoint().velocity,
+            // Test signals drive inputs only, never a controller's reference.
+            Excitation::Signal(_) => 0.0,
         }
     }
 
@@ -240,6 +262,7 @@ impl Excitation {
         match self {
             Excitation::Random(s) => s.output_std(),
             Excitation::Planned(p) => p.scale(),
+            Excitation::Signal(s) => s.output_std(),
         }
     }
 }

@@ -73,6 +73,7 @@ mod config;
 pub mod control;
 mod driven;
 mod error;
+pub mod excitation;
 pub(crate) mod excite;
 mod law;
 pub(crate) mod mech;
@@ -86,6 +87,7 @@ pub mod test_models;
 pub use config::{check_steps, integration_steps, SimConfig};
 pub use control::{PdControl, ReferenceSpec, VelocitySource};
 pub use driven::{simulate_driven, simulate_driven_from, Start, FREE_RUN_START};
+pub use excitation::{Grid, Phases, SweepLaw, TestSignal};
 pub use planned::{Moves, Setpoint, Trajectory};
 
 use config::{check_config, config_error, sample_counts, stream_seed, Stream};
@@ -158,9 +160,28 @@ pub fn simulate_into(
     progress: &(dyn Fn(u64) + Sync),
     sinks: &mut [&mut dyn SampleSink],
 ) -> Result<Truth, SimError> {
+    simulate_signal_into(ir, cfg, None, progress, sinks)
+}
+
+/// [`simulate_into`] with every excited input driven by `signal` (a multisine or sweep,
+/// see [`excitation`]) at the levels of the run instead of its form filter; `None` is
+/// [`simulate_into`]. The truth records the signal.
+pub fn simulate_signal_into(
+    ir: &ModelIr,
+    cfg: &SimConfig,
+    signal: Option<&TestSignal>,
+    progress: &(dyn Fn(u64) + Sync),
+    sinks: &mut [&mut dyn SampleSink],
+) -> Result<Truth, SimError> {
     check_config(cfg)?;
+    if let Some(sig) = signal {
+        let (_, n) = sample_counts(cfg);
+        sig.check(n, cfg.sample, cfg.input_oversample)
+            .map_err(|(what, help)| config_error(&what, &help))?;
+    }
     let params = parameter_values(ir)?;
-    let plan = ExcitationPlan::new(ir, cfg)?;
+    let mut plan = ExcitationPlan::new(ir, cfg)?;
+    plan.signal = signal.copied();
     let mech = Mechanics::new(ir, &params)?;
     assert_eq!(
         sinks.len(),
@@ -173,13 +194,25 @@ pub fn simulate_into(
             .enumerate()
             .map(|(k, sink)| simulate_level(ir, &mech, &plan, cfg, k, progress, &mut **sink)),
     )?;
-    Ok(Truth::new(
-        ir,
-        cfg,
-        &params,
-        &plan.level_table(ir),
-        &plan.levels,
-    ))
+    let mut truth = Truth::new(ir, cfg, &params, &plan.level_table(ir), &plan.levels);
+    truth.signal = signal.copied();
+    Ok(truth)
+}
+
+/// [`simulate`] with every excited input driven by `signal` (see [`simulate_signal_into`]).
+pub fn simulate_signal(
+    ir: &ModelIr,
+    cfg: &SimConfig,
+    signal: &TestSignal,
+) -> Result<SimOutput, SimError> {
+    let n = level_count(ir, cfg)?;
+    let mut records: Vec<Record> = (0..n).map(|_| Record::default()).collect();
+    let mut sinks: Vec<&mut dyn SampleSink> = records
+        .iter_mut()
+        .map(|r| r as &mut dyn SampleSink)
+        .collect();
+    let truth = simulate_signal_into(ir, cfg, Some(signal), &|_| {}, &mut sinks)?;
+    Ok(SimOutput { records, truth })
 }
 
 /// Total number of samples [`simulate_with_progress`] reports for `cfg` and `n_levels`.
@@ -201,6 +234,8 @@ struct ExcitationPlan {
     /// The same for each reference of the model's control laws (`None`: held at 0).
     references: Vec<Option<(FormFilter, Vec<f64>)>>,
     control: Option<ControlPlan>,
+    /// The multisine or sweep replacing the inputs' form filters.
+    signal: Option<TestSignal>,
 }
 
 /// The resolved controller of a closed-loop run.
@@ -346,6 +381,7 @@ impl ExcitationPlan {
             filters,
             references,
             control,
+            signal: None,
         })
     }
 
@@ -451,15 +487,16 @@ fn simulate_level(
     progress: &(dyn Fn(u64) + Sync),
     sink: &mut dyn SampleSink,
 ) -> Result<(), SimError> {
+    let signal = plan.signal.as_ref();
     let fine = cfg.input_oversample;
     let h = cfg.sample / fine as f64;
     let substeps = cfg.substeps.div_ceil(fine);
     let (n_burn, n) = sample_counts(cfg);
     let mut rng = StdRng::seed_from_u64(stream_seed(cfg.seed, level, Stream::Excitation));
-    let mut samplers = start_samplers(&plan.filters, level, cfg, n_burn, &mut rng);
+    let mut samplers = start_samplers(&plan.filters, level, cfg, signal, n_burn, &mut rng);
     // References are drawn after the inputs from the same stream, so a model without
     // references gives the same inputs as before they existed.
-    let mut ref_samplers = start_samplers(&plan.references, level, cfg, n_burn, &mut rng);
+    let mut ref_samplers = start_samplers(&plan.references, level, cfg, None, n_burn, &mut rng);
     let mut laws = law::Laws::new(ir);
     let mut control = plan.control.as_ref().map(|c| {
         let r = &c.spec.reference;
@@ -608,11 +645,12 @@ fn simulate_level(
 }
 
 /// The excitations of one level (`None` where a signal is not excited), started from `rng`
-/// in order.
+/// in order; `signal` replaces every form filter.
 fn start_samplers(
     plans: &[Option<(FormFilter, Vec<f64>)>],
     level: usize,
     cfg: &SimConfig,
+    signal: Option<&TestSignal>,
     n_burn: usize,
     rng: &mut StdRng,
 ) -> Vec<Option<Excitation>> {
@@ -620,6 +658,17 @@ fn start_samplers(
         .iter()
         .map(|f| {
             f.as_ref().map(|(filter, levels)| {
+                if let Some(sig) = signal {
+                    return Excitation::signal(
+                        sig,
+                        levels[level],
+                        cfg.sample,
+                        cfg.input_oversample,
+                        n_burn,
+                        sample_counts(cfg).1,
+                    )
+                    .expect("invariant: the signal and levels were checked when planning");
+                }
                 Excitation::new(
                     filter,
                     levels[level],

@@ -39,6 +39,9 @@ pub struct Truth {
     /// Data files written, in level order (filled in by the writer of the files).
     #[serde(default)]
     pub files: Vec<String>,
+    /// The multisine or sweep that replaced the form filters of the inputs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub signal: Option<super::TestSignal>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -89,6 +92,7 @@ impl Truth {
             quantise: cfg.quantise,
             control: cfg.control.clone(),
             files: Vec::new(),
+            signal: None,
         }
     }
 }
