@@ -38,10 +38,10 @@ use dynid::runtime::sim::{self, SimConfig};
 /// The rig's constant force, as the language writes it (`force off (ground, m) = f0`).
 const OFFSET: f64 = -3.2;
 
-/// `models/servo_axis_planned.dyn` with `lines` added before `excite`, without the lines
-/// that start with one of `drop`.
-fn axis(name: &str, lines: &[&str], drop: &[&str]) -> ModelIr {
-    let src = std::fs::read_to_string(common::model_path("servo_axis.dyn")).unwrap();
+/// The source of `models/FILE` with `lines` added before `excite`, without the lines that
+/// start with one of `drop`.
+fn edited_source(file: &str, lines: &[&str], drop: &[&str]) -> String {
+    let src = std::fs::read_to_string(common::model_path(file)).unwrap();
     let mut out = String::new();
     for l in src.lines() {
         if drop.iter().any(|d| l.trim_start().starts_with(d)) {
@@ -55,6 +55,12 @@ fn axis(name: &str, lines: &[&str], drop: &[&str]) -> ModelIr {
         out.push_str(l);
         out.push('\n');
     }
+    out
+}
+
+/// `models/servo_axis.dyn` edited as [`edited_source`] does, compiled as `name`.
+fn axis(name: &str, lines: &[&str], drop: &[&str]) -> ModelIr {
+    let out = edited_source("servo_axis.dyn", lines, drop);
     dsl_parser::compile_str(name, &out).unwrap_or_else(|e| panic!("{name}: {e:?}\n{out}"))
 }
 
@@ -398,24 +404,9 @@ fn identify_cli_warns_of_a_withheld_constant_force_on_stderr_and_in_json() {
 }
 
 /// `models/servo_axis_planned.dyn` (the axis on planned moves with dwells, its guide's
-/// known friction ripple in the model) as source text, with `lines` added before `excite`
-/// and without the lines that start with one of `drop`.
+/// known friction ripple in the model) edited as [`edited_source`] does.
 fn planned_source(lines: &[&str], drop: &[&str]) -> String {
-    let src = std::fs::read_to_string(common::model_path("servo_axis_planned.dyn")).unwrap();
-    let mut out = String::new();
-    for l in src.lines() {
-        if drop.iter().any(|d| l.trim_start().starts_with(d)) {
-            continue;
-        }
-        if l.trim_start().starts_with("excite") {
-            for x in lines {
-                out.push_str(&format!("    {x}\n"));
-            }
-        }
-        out.push_str(l);
-        out.push('\n');
-    }
-    out
+    edited_source("servo_axis_planned.dyn", lines, drop)
 }
 
 /// The planned-moves workflow of the README, run through the command line: the axis with

@@ -15,6 +15,12 @@ impl Lowerer<'_> {
                 if t.basis == e.v {
                     continue;
                 }
+                // Where a message points: the term, else its element.
+                let span = term_spans
+                    .get(ei)
+                    .and_then(|s| s.get(ti))
+                    .copied()
+                    .unwrap_or(ir.spans.elements[ei]);
                 // Motion of a body measured only by its acceleration: linear terms are
                 // formed from the acceleration, nonlinear ones are refused.
                 let acc_only: Vec<BodyId> = ir
@@ -33,11 +39,6 @@ impl Lowerer<'_> {
                     if ir.linear_form(t.basis).is_none() {
                         let term = crate::print::render_expr(ir, t.basis);
                         let body = &ir.bodies[b.index()].name;
-                        let span = term_spans
-                            .get(ei)
-                            .and_then(|s| s.get(ti))
-                            .copied()
-                            .unwrap_or(ir.spans.elements[ei]);
                         self.err(
                             ErrorKind::AccelerationNonlinear,
                             format!(
@@ -81,11 +82,6 @@ impl Lowerer<'_> {
                 } else {
                     format!("add {} to `measure`: a static term is computed from the data sample by sample", names.join(" and "))
                 };
-                let span = term_spans
-                    .get(ei)
-                    .and_then(|s| s.get(ti))
-                    .copied()
-                    .unwrap_or(ir.spans.elements[ei]);
                 self.err(
                     ErrorKind::UnmeasuredSignal,
                     format!(

@@ -181,34 +181,6 @@ fn estimator_curves(
     )
 }
 
-/// One element of the grouped detection with its nodes.
-struct Site {
-    name: String,
-    nodes: (Node, Node),
-}
-
-fn sites(ir: &ModelIr) -> Vec<Site> {
-    ir.element_groups()
-        .into_iter()
-        .map(|g| {
-            let names: Vec<&str> = g
-                .members
-                .iter()
-                .map(|e| ir.elements[e.index()].name.as_str())
-                .collect();
-            Site {
-                name: format!(
-                    "{} ({}, {})",
-                    names.join("/"),
-                    ir.node_name(g.nodes.0),
-                    ir.node_name(g.nodes.1)
-                ),
-                nodes: g.nodes,
-            }
-        })
-        .collect()
-}
-
 fn shares_body(a: (Node, Node), b: (Node, Node)) -> bool {
     [a.0, a.1]
         .iter()
@@ -359,7 +331,7 @@ pub(crate) fn refine(
         sim_ident.corners = Some(f.filter.corners.clone());
         sim_ident.order = Some(f.filter.order);
     }
-    let sites = sites(ir);
+    let sites = super::from_data::groups(ir);
     // The linear part at the levels' values: held masses at their held values, every other
     // unknown at the weighted mean of its curve.
     let mut base = ir.clone();

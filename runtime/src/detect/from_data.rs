@@ -87,12 +87,14 @@ pub struct LevelFits {
 }
 
 /// One grouped element: the IR elements between the same two nodes.
-struct Group {
-    name: String,
-    members: Vec<usize>,
+pub(super) struct Group {
+    /// As detection names it: `k/d (ground, m)`.
+    pub(super) name: String,
+    pub(super) members: Vec<usize>,
+    pub(super) nodes: (dynid_ir::ir::Node, dynid_ir::ir::Node),
 }
 
-fn groups(ir: &ModelIr) -> Vec<Group> {
+pub(super) fn groups(ir: &ModelIr) -> Vec<Group> {
     ir.element_groups()
         .into_iter()
         .map(|g| {
@@ -109,6 +111,7 @@ fn groups(ir: &ModelIr) -> Vec<Group> {
                     ir.node_name(g.nodes.1)
                 ),
                 members: g.members.iter().map(|e| e.index()).collect(),
+                nodes: g.nodes,
             }
         })
         .collect()

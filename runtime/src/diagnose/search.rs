@@ -465,6 +465,7 @@ fn shared_pass(
 mod tests {
     use super::super::{diagnose, DiagnoseOptions, Diagnosis};
     use crate::sim::{simulate, SimConfig};
+    use dynid_ir::ir::ModelIr;
 
     /// The model `base` with `lines` inserted before its closing brace.
     fn with_lines(base: &str, lines: &[&str]) -> String {
@@ -489,14 +490,20 @@ mod tests {
             noise,
             ..Default::default()
         };
-        let recs = simulate(&truth, &cfg).unwrap().records;
+        both_on(&model, &truth, &cfg)
+    }
+
+    /// Diagnose the records `cfg` simulates of `truth` with `model`, once with the shared
+    /// pass and once with one pass per candidate.
+    fn both_on(model: &ModelIr, truth: &ModelIr, cfg: &SimConfig) -> (Diagnosis, Diagnosis) {
+        let recs = simulate(truth, cfg).unwrap().records;
         let origins: Vec<String> = (1..=recs.len()).map(|k| format!("level{k}")).collect();
         let run = |shared: bool| {
             let opts = DiagnoseOptions {
                 shared_pass: shared,
                 ..Default::default()
             };
-            diagnose(&model, &recs, &origins, &opts, &|_, _| {}).unwrap()
+            diagnose(model, &recs, &origins, &opts, &|_, _| {}).unwrap()
         };
         (run(true), run(false))
     }
@@ -589,16 +596,7 @@ mod tests {
             quantise: Some(1e-6),
             ..Default::default()
         };
-        let recs = simulate(&truth, &cfg).unwrap().records;
-        let origins: Vec<String> = (1..=recs.len()).map(|k| format!("level{k}")).collect();
-        let run = |shared: bool| {
-            let opts = DiagnoseOptions {
-                shared_pass: shared,
-                ..Default::default()
-            };
-            diagnose(&model, &recs, &origins, &opts, &|_, _| {}).unwrap()
-        };
-        let (a, b) = (run(true), run(false));
+        let (a, b) = both_on(&model, &truth, &cfg);
         assert_same(&a, &b);
         let resolved = a.ranking.iter().filter(|c| c.value.is_finite()).count();
         assert!(
