@@ -80,7 +80,57 @@ fn diagnosis_writes_report_json_and_a_model_that_compiles() {
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert!(v.is_object());
-    assert!(std::fs::read_to_string(&report).unwrap().contains("<html"));
+    // `parameters` is the corrected model (every found effect added), not the model as
+    // given re-fitted (`moved`): each value is the one the written model holds (rounded
+    // there to five significant digits), and each found effect's coefficient is there.
+    let ir = dynid()
+        .arg("compile")
+        .arg(&fixed)
+        .args(["--emit", "json"])
+        .output()
+        .unwrap();
+    assert!(ir.status.success(), "{}", stderr(&ir));
+    let ir: serde_json::Value = serde_json::from_slice(&ir.stdout).unwrap();
+    let params = v["parameters"].as_array().expect("parameters");
+    assert!(!params.is_empty(), "{v}");
+    for p in params {
+        let (name, value) = (p["name"].as_str().unwrap(), p["value"].as_f64().unwrap());
+        let written = ir["params"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|q| q["name"] == name)
+            .and_then(|q| q["kind"]["Unknown"]["nominal"].as_f64())
+            .unwrap_or_else(|| panic!("{name} not an unknown of the corrected model"));
+        assert!(
+            (written - value).abs() <= 1e-4 * value.abs(),
+            "{name}: {value} in parameters, {written} in the model"
+        );
+        assert!(p["stderr"].as_f64().is_some_and(|e| e > 0.0), "{p}");
+    }
+    for f in v["found"].as_array().unwrap() {
+        let p = params
+            .iter()
+            .find(|p| p["name"] == f["param"])
+            .unwrap_or_else(|| panic!("found {f} not in parameters"));
+        assert_eq!(p["kind"], "found effect");
+        assert_eq!(p["value"], f["value"]);
+    }
+    let html = std::fs::read_to_string(&report).unwrap();
+    assert!(html.contains("<html"));
+    // Figures say what they show and in which unit; the summary wraps instead of being cut.
+    for label in [
+        "Parameters of the corrected model",
+        "statistical gap (%)",
+        "value / value on level 1 (± 1 SE)",
+        "frequency (Hz)",
+        "log10 PSD (m²/Hz)",
+        "log10 PSD ((m/s)²/Hz)",
+        "time (s)",
+        "white-space:pre-wrap",
+    ] {
+        assert!(html.contains(label), "the report lacks `{label}`");
+    }
     let compiled = dynid().arg("compile").arg(&fixed).output().unwrap();
     assert!(compiled.status.success(), "{}", stderr(&compiled));
 }

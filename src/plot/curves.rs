@@ -12,7 +12,9 @@ use plotters::prelude::*;
 use super::{register_font, PlotError};
 use crate::output::Staged;
 use dsl_parser::num;
-use dynid_runtime::detect::{fmt_g, fmt_pm, Detection, ParamCurveResult, TemplateFit, Verdict};
+use dynid_runtime::detect::{
+    fmt_g, fmt_pm, Detection, ParamCurveResult, Role, TemplateFit, Verdict,
+};
 
 const PANEL_W: u32 = 760;
 const PANEL_H: u32 = 430;
@@ -102,6 +104,25 @@ fn fmt_tick_log(lv: f64) -> String {
     }
 }
 
+/// The x-axis: what the intensity is, with its SI unit (translational elements).
+fn intensity_label(sigma_name: &str) -> String {
+    match sigma_name {
+        "σ_s" => "σ_s: RMS deflection of the element (m, log scale)".into(),
+        "σ_v" => "σ_v: RMS relative velocity of the element (m/s, log scale)".into(),
+        other => format!("{other} (log scale)"),
+    }
+}
+
+/// The y-axis: the parameter, what the per-level value is, and its SI unit.
+fn param_label(param: &str, role: Role) -> String {
+    match role {
+        Role::Stiffness => format!("{param}, equivalent linear (N/m)"),
+        Role::Damping => format!("{param}, equivalent linear (N·s/m)"),
+        Role::Mass => format!("{param} (kg)"),
+        Role::Other => format!("{param}, equivalent linear"),
+    }
+}
+
 fn short_verdict(v: &Verdict) -> String {
     match v {
         Verdict::Linear => "linear".into(),
@@ -188,18 +209,18 @@ fn panel<DB: DrawingBackend>(
         ),
     );
     let mut chart = ChartBuilder::on(area)
-        .caption(title, ("sans-serif", 17))
+        .caption(title, ("sans-serif", 19))
         .margin(12)
-        .x_label_area_size(42)
-        .y_label_area_size(62)
+        .x_label_area_size(46)
+        .y_label_area_size(72)
         .build_cartesian_2d(x0.log10()..x1.log10(), y0..y1)
         .map_err(|e| e.to_string())?;
     chart
         .configure_mesh()
-        .x_desc(format!("{} (log scale)", p.sigma_name))
-        .y_desc(format!("{} (equivalent linear)", p.curve.param))
-        .axis_desc_style(("sans-serif", 15))
-        .label_style(("sans-serif", 13))
+        .x_desc(intensity_label(&p.sigma_name))
+        .y_desc(param_label(&p.curve.param, p.curve.role))
+        .axis_desc_style(("sans-serif", 16))
+        .label_style(("sans-serif", 15))
         .x_labels(8)
         .y_labels(8)
         .x_label_formatter(&|v| fmt_tick_log(*v))
@@ -241,8 +262,16 @@ fn panel<DB: DrawingBackend>(
                 .map(|(&xs, &v)| (xs.log10(), v))
                 .collect();
             let est: Vec<String> = t.effect_estimates().iter().map(|e| e.to_string()).collect();
-            chart
-                .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+            // The best template solid, the others dashed: where templates predict the
+            // same curve, every one of them still shows.
+            let (dash, gap) = [(0, 0), (14, 6), (5, 5)][i];
+            let style = color.stroke_width(if i == 0 { 2 } else { 3 });
+            let drawn = if i == 0 {
+                chart.draw_series(LineSeries::new(pts, style))
+            } else {
+                chart.draw_series(DashedLineSeries::new(pts, dash, gap, style))
+            };
+            drawn
                 .map_err(|e| e.to_string())?
                 .label(format!(
                     "{} (ΔAICc {}): {}",
@@ -255,6 +284,15 @@ fn panel<DB: DrawingBackend>(
                 });
         }
     }
+    // The constant fit again, thin, above the templates that may coincide with it.
+    chart
+        .draw_series(DashedLineSeries::new(
+            [(x0.log10(), p.mean), (x1.log10(), p.mean)],
+            8,
+            5,
+            gray.stroke_width(1),
+        ))
+        .map_err(|e| e.to_string())?;
 
     // The best template again, on top of the others it may coincide with.
     if let Some(t) = templates.first() {
@@ -283,7 +321,7 @@ fn panel<DB: DrawingBackend>(
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperLeft)
-        .label_font(("sans-serif", 12))
+        .label_font(("sans-serif", 14))
         .background_style(WHITE.mix(0.85))
         .border_style(RGBColor(180, 180, 180))
         .draw()

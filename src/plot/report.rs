@@ -4,18 +4,29 @@
 use std::fmt::Write;
 
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::register_font;
 use dynid_runtime::diagnose::{
     fmt_gap, fmt_num, fmt_shrink, fmt_si, Diagnosis, ModelGap, Spectrum, Trace,
 };
 
-const COLORS: [RGBColor; 4] = [
+/// Line and bar colours, distinct on a white page and for the common colour-vision
+/// deficiencies (no yellow: it vanishes on white).
+const COLORS: [RGBColor; 8] = [
     RGBColor(25, 60, 160),
     RGBColor(200, 30, 45),
     RGBColor(20, 140, 60),
-    RGBColor(230, 140, 0),
+    RGBColor(215, 110, 0),
+    RGBColor(120, 50, 160),
+    RGBColor(0, 140, 160),
+    RGBColor(140, 90, 40),
+    RGBColor(90, 90, 90),
 ];
+
+/// The measured signal under the models' lines: a wide grey band, so a model that matches
+/// it draws inside the band instead of hiding it.
+const MEASURED: RGBColor = RGBColor(175, 175, 175);
 
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
@@ -49,25 +60,26 @@ fn bars_svg(d: &Diagnosis) -> Result<String, String> {
         .iter()
         .map(|m| sigs.iter().map(|s| signal_mean(m, s)).collect())
         .collect();
-    let ymax = vals
+    let top = vals
         .iter()
         .flatten()
         .filter(|v| v.is_finite())
-        .fold(1.0f64, |a, b| a.max(*b))
-        * 1.15;
+        .fold(1.0f64, |a, b| a.max(*b));
+    // Headroom above the tallest bar for the value labels and the legend (one row per model).
+    let ymax = top * (1.25 + 0.12 * models.len() as f64);
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (760, 360)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (760, 380)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let n = sigs.len() as f64;
         let mut chart = ChartBuilder::on(&root)
             .caption(
-                "Statistical gap per signal (spectrum and std, %)",
-                ("sans-serif", 20),
+                "Statistical gap per signal on the withheld levels (spectrum and std)",
+                ("sans-serif", 19),
             )
             .margin(12)
-            .x_label_area_size(36)
-            .y_label_area_size(50)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
             .build_cartesian_2d(0.0..n, 0.0..ymax)
             .map_err(|e| e.to_string())?;
         chart
@@ -82,66 +94,109 @@ fn bars_svg(d: &Diagnosis) -> Result<String, String> {
                     String::new()
                 }
             })
-            .y_desc("gap %")
-            .label_style(("sans-serif", 14))
+            .x_desc("response signal")
+            .y_desc("statistical gap (%)")
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 15))
             .draw()
             .map_err(|e| e.to_string())?;
         let w = 0.8 / models.len() as f64;
+        // A bar of 0 % is still drawn: an outline one pixel-row high and its label.
+        let min_h = ymax * 0.004;
         for (mi, m) in models.iter().enumerate() {
             let color = COLORS[mi % COLORS.len()];
+            let bar = |k: usize, v: f64| {
+                let x0 = k as f64 + 0.1 + mi as f64 * w;
+                let v = if v.is_finite() { v } else { top };
+                (x0, x0 + w * 0.92, v.max(min_h))
+            };
             chart
-                .draw_series(vals[mi].iter().enumerate().map(|(k, v)| {
-                    let x0 = k as f64 + 0.1 + mi as f64 * w;
-                    let v = if v.is_finite() { *v } else { ymax };
-                    Rectangle::new([(x0, 0.0), (x0 + w * 0.92, v)], color.filled())
+                .draw_series(vals[mi].iter().enumerate().map(|(k, &v)| {
+                    let (x0, x1, h) = bar(k, v);
+                    Rectangle::new([(x0, 0.0), (x1, h)], color.filled())
                 }))
                 .map_err(|e| e.to_string())?
                 .label(m.label.clone())
                 .legend(move |(x, y)| {
                     Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.filled())
                 });
+            chart
+                .draw_series(vals[mi].iter().enumerate().map(|(k, &v)| {
+                    let (x0, x1, h) = bar(k, v);
+                    let text = if v.is_finite() {
+                        format!("{v:.1}")
+                    } else {
+                        "diverged".into()
+                    };
+                    Text::new(
+                        text,
+                        (0.5 * (x0 + x1), h + 0.01 * ymax),
+                        ("sans-serif", 13)
+                            .into_font()
+                            .color(&BLACK)
+                            .pos(Pos::new(HPos::Center, VPos::Bottom)),
+                    )
+                }))
+                .map_err(|e| e.to_string())?;
         }
         legend_and_present(&mut chart, &root, 14)?;
     }
     Ok(svg)
 }
 
+/// The value a parameter's per-level values are divided by in the drift figure: its value
+/// on the first level that has one (a steady parameter then stays at 1; the pooled value
+/// would place every steady one off 1 whenever another parameter drifts).
+fn drift_reference(p: &dynid_runtime::diagnose::ParamDrift) -> Option<(usize, f64)> {
+    p.per_level
+        .iter()
+        .enumerate()
+        .find_map(|(k, v)| v.filter(|v| *v != 0.0 && v.is_finite()).map(|v| (k, v)))
+}
+
 fn drift_svg(d: &Diagnosis) -> Result<String, String> {
     let n = d.levels.len();
-    let series: Vec<(String, Vec<(f64, f64)>)> = d
+    // (name, [(level, value / reference, stderr / reference)]) per parameter.
+    type Points = Vec<(f64, f64, f64)>;
+    let series: Vec<(String, Points)> = d
         .drift
         .iter()
         .filter_map(|p| {
-            let pooled = p.pooled?;
-            if pooled == 0.0 {
-                return None;
-            }
-            let pts: Vec<(f64, f64)> = p
+            let (_, r) = drift_reference(p)?;
+            let pts: Points = p
                 .per_level
                 .iter()
+                .zip(&p.stderr)
                 .enumerate()
-                .filter_map(|(k, v)| v.map(|v| ((k + 1) as f64, v / pooled)))
+                .filter_map(|(k, (v, e))| {
+                    let e = e.filter(|e| e.is_finite()).unwrap_or(0.0);
+                    v.map(|v| ((k + 1) as f64, v / r, (e / r).abs()))
+                })
                 .collect();
             Some((p.name.clone(), pts))
         })
         .collect();
     let (lo, hi) = series
         .iter()
-        .flat_map(|s| s.1.iter().map(|p| p.1))
-        .fold((0.8f64, 1.2f64), |(a, b), y| (a.min(y), b.max(y)));
+        .flat_map(|s| s.1.iter().flat_map(|p| [p.1 - p.2, p.1 + p.2]))
+        .filter(|y| y.is_finite())
+        .fold((0.9f64, 1.1f64), |(a, b), y| (a.min(y), b.max(y)));
+    // Room above for the legend, one row per parameter.
+    let span = hi - lo;
+    let top = hi + span * (0.08 + 0.07 * series.len() as f64);
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (760, 360)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (760, 400)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut chart = ChartBuilder::on(&root)
             .caption(
-                "Per-level identification of the model as given (value / pooled value)",
-                ("sans-serif", 18),
+                "Per-level identification of the model as given",
+                ("sans-serif", 19),
             )
             .margin(12)
-            .x_label_area_size(36)
-            .y_label_area_size(50)
-            .build_cartesian_2d(0.7..n as f64 + 0.3, (lo - 0.05)..(hi + 0.05))
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.6..n as f64 + 0.4, (lo - 0.05 * span)..top)
             .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
@@ -153,20 +208,42 @@ fn drift_svg(d: &Diagnosis) -> Result<String, String> {
                     String::new()
                 }
             })
-            .label_style(("sans-serif", 14))
+            .y_desc("value / value on level 1 (± 1 SE)")
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 15))
             .draw()
             .map_err(|e| e.to_string())?;
         for (i, (name, pts)) in series.iter().enumerate() {
-            let color = Palette99::pick(i).to_rgba();
+            let color = COLORS[i % COLORS.len()];
+            // Side by side within a level, so error bars of equal values do not overlap.
+            let dx = 0.04 * (i as f64 - 0.5 * (series.len() as f64 - 1.0));
             chart
-                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                .draw_series(LineSeries::new(
+                    pts.iter().map(|p| (p.0 + dx, p.1)),
+                    color.stroke_width(2),
+                ))
                 .map_err(|e| e.to_string())?
                 .label(name.clone())
                 .legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2))
                 });
             chart
-                .draw_series(pts.iter().map(|p| Circle::new(*p, 4, color.filled())))
+                .draw_series(pts.iter().map(|p| {
+                    ErrorBar::new_vertical(
+                        p.0 + dx,
+                        p.1 - p.2,
+                        p.1,
+                        p.1 + p.2,
+                        color.stroke_width(2),
+                        8,
+                    )
+                }))
+                .map_err(|e| e.to_string())?;
+            chart
+                .draw_series(
+                    pts.iter()
+                        .map(|p| Circle::new((p.0 + dx, p.1), 4, color.filled())),
+                )
                 .map_err(|e| e.to_string())?;
         }
         legend_and_present(&mut chart, &root, 14)?;
@@ -174,18 +251,39 @@ fn drift_svg(d: &Diagnosis) -> Result<String, String> {
     Ok(svg)
 }
 
-fn spectrum_svg(sp: &Spectrum) -> Result<String, String> {
-    // Up to the frequency holding 99.9 % of the measured power, log10 of the PSD.
+/// Index of the bin up to which a spectrum is drawn: 1.5 × the frequency below which
+/// 99.9 % of the measured power lies.
+fn spectrum_last_bin(sp: &Spectrum) -> usize {
     let total: f64 = sp.measured.iter().skip(1).sum();
     let mut acc = 0.0;
-    let mut last = sp.measured.len() - 1;
     for (k, p) in sp.measured.iter().enumerate().skip(1) {
         acc += p;
         if acc >= 0.999 * total {
-            last = (k * 3 / 2).min(sp.measured.len() - 1);
-            break;
+            return (k * 3 / 2).min(sp.measured.len() - 1);
         }
     }
+    sp.measured.len().saturating_sub(1)
+}
+
+/// One frequency range for every spectrum of a report (Hz): the widest of their ranges.
+fn spectra_fmax(spectra: &[Spectrum]) -> f64 {
+    spectra
+        .iter()
+        .filter(|sp| sp.measured.len() > 1)
+        .map(|sp| sp.freqs[spectrum_last_bin(sp)])
+        .fold(0.0, f64::max)
+}
+
+fn spectrum_svg(sp: &Spectrum, fmax: f64, unit: &str) -> Result<String, String> {
+    if sp.measured.len() < 2 {
+        return Err("the spectrum has no bins".into());
+    }
+    let last = sp
+        .freqs
+        .iter()
+        .rposition(|f| *f <= fmax)
+        .unwrap_or(sp.freqs.len() - 1)
+        .max(1);
     let floor = 1e-14 * sp.measured.iter().cloned().fold(0.0, f64::max);
     let lg = |v: f64| (v + floor).log10();
     let mut all: Vec<(String, Vec<(f64, f64)>)> = vec![(
@@ -207,41 +305,50 @@ fn spectrum_svg(sp: &Spectrum) -> Result<String, String> {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
             (a.min(y), b.max(y))
         });
-    let xmax = sp.freqs[last];
+    if !(ylo.is_finite() && yhi.is_finite()) {
+        return Err("no finite values to draw".into());
+    }
+    // Room above for the legend (one row per line).
+    let top = yhi + 0.3 + 0.1 * (yhi - ylo) * all.len() as f64;
+    let psd_unit = match unit {
+        "" => "1/Hz".to_string(),
+        u if u.contains('/') => format!("({u})²/Hz"),
+        u => format!("{u}²/Hz"),
+    };
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (520, 320)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (520, 360)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut chart = ChartBuilder::on(&root)
             .caption(
                 format!("PSD of {} (level {})", sp.signal, sp.level + 1),
-                ("sans-serif", 17),
+                ("sans-serif", 18),
             )
             .margin(10)
-            .x_label_area_size(36)
-            .y_label_area_size(50)
-            .build_cartesian_2d(0.0..xmax, (ylo - 0.3)..(yhi + 0.3))
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..sp.freqs[last], (ylo - 0.3)..top)
             .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
             .x_desc("frequency (Hz)")
-            .y_desc("log10 PSD")
-            .label_style(("sans-serif", 13))
+            .y_desc(format!("log10 PSD ({psd_unit})"))
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 14))
             .draw()
             .map_err(|e| e.to_string())?;
         for (i, (name, pts)) in all.iter().enumerate() {
-            let color = if i == 0 {
-                BLACK
+            let (color, width) = if i == 0 {
+                (MEASURED, 6)
             } else {
-                COLORS[i % COLORS.len()]
+                (COLORS[i % COLORS.len()], 2)
             };
-            let width = if i == 0 { 3 } else { 2 };
             chart
                 .draw_series(LineSeries::new(pts.clone(), color.stroke_width(width)))
                 .map_err(|e| e.to_string())?
                 .label(name.clone())
                 .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2))
+                    PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(width.min(4)))
                 });
         }
         legend_and_present(&mut chart, &root, 13)?;
@@ -371,6 +478,8 @@ fn trace_svg(tr: &Trace, (a, b): (usize, usize), error: bool) -> Result<String, 
         return Err("no finite values to draw".into());
     }
     let pad = 0.05 * (yhi - ylo).max(1e-12);
+    // Room above the curves for the legend (one row per series).
+    let legend_room = 0.085 * (yhi - ylo).max(1e-12) * pts.len() as f64;
     let (t_a, t_b) = (
         tr.t0 + a as f64 * tr.ts,
         tr.t0 + (b - 1).max(a + 1) as f64 * tr.ts,
@@ -389,7 +498,7 @@ fn trace_svg(tr: &Trace, (a, b): (usize, usize), error: bool) -> Result<String, 
             .margin(10)
             .x_label_area_size(36)
             .y_label_area_size(60)
-            .build_cartesian_2d(t_a..t_b, (ylo - pad)..(yhi + pad))
+            .build_cartesian_2d(t_a..t_b, (ylo - pad)..(yhi + pad + legend_room))
             .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
@@ -404,7 +513,7 @@ fn trace_svg(tr: &Trace, (a, b): (usize, usize), error: bool) -> Result<String, 
             .map_err(|e| e.to_string())?;
         for (i, (name, p)) in pts.iter().enumerate() {
             let (color, width) = match (error, i) {
-                (false, 0) => (BLACK, 2),
+                (false, 0) => (MEASURED, 5),
                 (false, i) => (COLORS[i % COLORS.len()], 1),
                 (true, i) => (COLORS[(i + 1) % COLORS.len()], 1),
             };
@@ -465,7 +574,7 @@ h1{{font-size:26px}} h2{{font-size:20px;margin-top:32px;border-bottom:1px solid 
 table{{border-collapse:collapse;font-size:14px}} td,th{{border:1px solid #ccc;padding:4px 8px;text-align:right}}\
 th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6;font-weight:bold}}\
 .big{{font-size:20px;padding:12px 16px;background:#f4f7fc;border-left:5px solid #193ca0}}\
-.fig{{display:inline-block;margin:8px}} pre{{background:#f7f7f7;padding:10px;overflow-x:auto}}\
+.fig{{display:inline-block;margin:8px}} pre{{background:#f7f7f7;padding:10px;white-space:pre-wrap;overflow-wrap:anywhere}}\
 </style></head><body>",
         esc(&d.model)
     );
@@ -569,7 +678,38 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
     }
     let _ = write!(h, "</table>");
 
-    let _ = write!(h, "<h2>Parameter drift over the levels</h2>");
+    let _ = write!(
+        h,
+        "<h2>Parameters of the corrected model</h2><p>Identified on all levels{}; \
+the values the corrected model's source holds (rounded there to five significant digits). \
+Standard errors: batch-means sandwich.</p>\
+<table><tr><th class=\"l\">parameter</th><th>value</th><th>standard error</th><th>nominal</th><th class=\"l\">kind</th></tr>",
+        if d.found.is_empty() {
+            " (the model as given: nothing was added)"
+        } else {
+            ", with every found effect"
+        }
+    );
+    for p in &d.parameters {
+        let _ = write!(
+            h,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td></tr>",
+            esc(&p.name),
+            fmt_num(p.value),
+            fmt_num(p.stderr),
+            p.nominal.map_or("–".into(), fmt_num),
+            p.kind
+        );
+    }
+    let _ = write!(h, "</table>");
+
+    let _ = write!(
+        h,
+        "<h2>Parameter drift over the levels</h2><p>The model as given, identified on each \
+level alone (masses held at their pooled value); the figure divides each parameter by its \
+value on level 1, so a steady parameter stays at 1. The pooled column is the model as given \
+fitted to all levels without any found effect.</p>"
+    );
     figure(&mut h, drift_svg(d));
     let _ = write!(
         h,
@@ -587,12 +727,13 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
             p.nominal.map_or("–".into(), fmt_num),
             p.pooled.map_or("–".into(), fmt_num)
         );
-        for (v, e) in p.per_level.iter().zip(&p.stderr) {
+        for ((v, e), why) in p.per_level.iter().zip(&p.stderr).zip(&p.missing) {
             let _ = write!(
                 h,
                 "<td>{}</td>",
-                match (v, e) {
-                    (Some(v), Some(e)) => format!("{} ± {}", fmt_num(*v), fmt_num(*e)),
+                match (v, e, why) {
+                    (Some(v), Some(e), _) => format!("{} ± {}", fmt_num(*v), fmt_num(*e)),
+                    (_, _, Some(why)) => format!("– <small>({})</small>", esc(why)),
                     _ => "–".into(),
                 }
             );
@@ -610,8 +751,14 @@ th{{background:#f0f0f0}} td.l,th.l{{text-align:left}} tr.acc{{background:#e6f4e6
         h,
         "<h2>Spectra before and after</h2><p>On the level where the nominal model misses most. The re-identified and corrected models are the ones fitted on the other levels (this level withheld), as they are scored.</p>"
     );
+    let fmax = spectra_fmax(&d.spectra);
     for sp in &d.spectra {
-        figure(&mut h, spectrum_svg(sp));
+        let unit = d
+            .traces
+            .iter()
+            .find(|t| t.signal == sp.signal)
+            .map_or("", |t| t.unit.as_str());
+        figure(&mut h, spectrum_svg(sp, fmax, unit));
     }
 
     let _ = write!(

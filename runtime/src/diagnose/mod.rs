@@ -244,6 +244,17 @@ pub fn diagnose(
                 .iter()
                 .map(|id| id.param(&name).map(|e| e.stderr))
                 .collect();
+            let missing: Vec<Option<String>> = per_level
+                .iter()
+                .map(|id| {
+                    id.param(&name).is_none().then(|| {
+                        id.unidentifiable
+                            .iter()
+                            .find(|u| u.name == name)
+                            .map_or_else(|| "not identified".into(), |u| u.reason.clone())
+                    })
+                })
+                .collect();
             let v: Vec<f64> = vals.iter().flatten().copied().collect();
             let e: Vec<f64> = errs.iter().flatten().copied().collect();
             let (lo, hi) = v
@@ -266,6 +277,7 @@ pub fn diagnose(
                 name,
                 per_level: vals,
                 stderr: errs,
+                missing,
             }
         })
         .collect();
@@ -436,6 +448,24 @@ pub fn diagnose(
             (f.value, f.stderr) = (e.value, e.stderr);
         }
     }
+    let parameters = current_fit
+        .params
+        .iter()
+        .map(|e| {
+            let original = ir.params.iter().find(|p| p.name == e.name);
+            CorrectedParam {
+                name: e.name.clone(),
+                value: e.value,
+                stderr: e.stderr,
+                nominal: original.and_then(|p| p.nominal()),
+                kind: if original.is_some() {
+                    "model"
+                } else {
+                    "found effect"
+                },
+            }
+        })
+        .collect();
     // The corrected model: identified on all levels, values written as nominals.
     // Five significant digits: the standard errors are far larger than the rounding.
     let mut fixed_ir = current.ir.clone();
@@ -554,6 +584,7 @@ pub fn diagnose(
         equations,
         drift,
         moved,
+        parameters,
         found,
         ranking,
         residual_ranking,

@@ -158,6 +158,21 @@ pub struct EquationGap {
     pub per_level: Vec<Option<f64>>,
 }
 
+/// A parameter of the corrected model (the model as given plus every found effect),
+/// identified on all levels: what the corrected model's source holds, unrounded.
+#[derive(Clone, Debug, Serialize)]
+pub struct CorrectedParam {
+    pub name: String,
+    pub value: f64,
+    /// Batch-means sandwich standard error of the pooled fit.
+    pub stderr: f64,
+    /// The nominal value of the model as given; `None` for a found effect's coefficient
+    /// and for a parameter without a nominal.
+    pub nominal: Option<f64>,
+    /// `model` (a parameter of the model as given) or `found effect`.
+    pub kind: &'static str,
+}
+
 /// A parameter identified separately at each level.
 #[derive(Clone, Debug, Serialize)]
 pub struct ParamDrift {
@@ -166,6 +181,9 @@ pub struct ParamDrift {
     pub pooled: Option<f64>,
     pub per_level: Vec<Option<f64>>,
     pub stderr: Vec<Option<f64>>,
+    /// Why a level has no value (`None` where it has one): the parameter is unidentifiable
+    /// on that level alone (its term never acts there, or collinear with others).
+    pub missing: Vec<Option<String>>,
     /// (max − min) / |mean| of the per-level values, in %.
     pub drift: f64,
     /// Whether the spread exceeds 4 combined standard errors.
@@ -270,8 +288,13 @@ pub struct Diagnosis {
     pub corrected: ModelGap,
     pub equations: Vec<EquationGap>,
     pub drift: Vec<ParamDrift>,
-    /// Parameters of the model as given: nominal → identified on all levels.
+    /// Parameters of the model as given: nominal → re-identified on all levels *without*
+    /// any found effect (what re-identification alone does; biased where an effect is
+    /// missing). The corrected model's values are [`Diagnosis::parameters`].
     pub moved: Vec<MovedParam>,
+    /// The corrected model's parameters, identified on all levels with every found effect
+    /// (the model as given re-identified when nothing was found).
+    pub parameters: Vec<CorrectedParam>,
     pub found: Vec<FoundEffect>,
     /// Candidates of the first search step, best first.
     pub ranking: Vec<CandidateScore>,
