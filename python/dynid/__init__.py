@@ -308,9 +308,8 @@ class Diagnosis:
     the gap shrinks once it is added (scored on a withheld level).
 
     ``summary``: the text ``dynid diagnose`` prints; ``report_html``: its HTML report
-    (``_repr_html_`` shows it inline in a notebook); ``parameters``: the model's
-    parameters identified on all levels (value) with their nominal values, and each found
-    effect's coefficient (value, stderr); ``fixed_source``: the corrected model as
+    (``_repr_html_`` shows it inline in a notebook); ``parameters``: the corrected
+    model's parameters identified on all levels (value, stderr, nominal, kind); ``fixed_source``: the corrected model as
     ``.dyn`` source; ``to_dict()``: the fields of ``dynid diagnose --json``.
     """
 
@@ -340,19 +339,18 @@ class Diagnosis:
 
     @property
     def parameters(self):
+        """The corrected model's parameters (the model as given plus every found effect),
+        identified on all levels: value, standard error, nominal value of the model as
+        given, and kind (``model`` or ``found effect``) — the values ``fixed_source``
+        holds. The model as given re-fitted without the effects (biased where an effect is
+        missing) is ``to_dict()["moved"]``."""
         names, values, stderrs, nominals, kinds = [], [], [], [], []
-        for m in self._d["moved"]:
-            names.append(m["name"])
-            values.append(m["identified"])
-            stderrs.append(_np.nan)
-            nominals.append(m["nominal"])
-            kinds.append("model")
-        for f in self._d["found"]:
-            names.append(f["param"])
-            values.append(f["value"])
-            stderrs.append(f["stderr"])
-            nominals.append(_np.nan)
-            kinds.append("found effect")
+        for p in self._d["parameters"]:
+            names.append(p["name"])
+            values.append(p["value"])
+            stderrs.append(p["stderr"])
+            nominals.append(_np.nan if p["nominal"] is None else p["nominal"])
+            kinds.append(p["kind"])
         cols = {"value": values, "stderr": stderrs, "nominal": nominals, "kind": kinds}
         return _table(cols, index=names, index_name="parameter")
 

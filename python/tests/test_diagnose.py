@@ -30,6 +30,13 @@ def test_diagnosis_names_the_missing_friction(models, friction_data):
     p = d.parameters
     names = list(p.index) if dynid.has_pandas() else list(p["parameter"])
     assert found[0]["param"] in names
+    # The corrected model's values, not the friction-free model re-fitted (whose d2 the
+    # missing friction inflates about twofold): d2 within 2 % of the truth 0.2.
+    values = list(p["value"])
+    d2 = values[names.index("d2")]
+    assert abs(d2 / 0.2 - 1) < 0.02, p
+    moved_d2 = [m["identified"] for m in d.to_dict()["moved"] if m["name"] == "d2"][0]
+    assert moved_d2 > 1.2 * d2, (moved_d2, d2)
     assert "sign(v)" in d.fixed_source
     assert d.fixed_model.unknowns  # the corrected model compiles
 
