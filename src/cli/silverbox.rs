@@ -2,13 +2,14 @@
 //! multisines, free-run simulate the arrow and the multisine test, compare with the
 //! published results; optionally export the arrow as excitation levels for detection.
 
+use dsl_parser::ir::ModelIr;
 use dynid::output::Staged;
 use dynid_runtime::record::Record;
 use dynid_runtime::refine::RefineOptions;
 use dynid_runtime::silverbox::{self, RunOptions, SilverboxReport, PUBLISHED};
 use dynid_runtime::sim::level_file_names;
 use miette::{miette, IntoDiagnostic, WrapErr};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 const LONG_HELP: &str = "\
 Runs the Silverbox benchmark (an electronic Duffing oscillator, m y'' + d y' + a y + b y^3 = u)
@@ -29,14 +30,15 @@ The procedure, the segment boundaries and the figures are in docs/silverbox.md."
 #[derive(clap::Args, Debug)]
 #[command(after_long_help = LONG_HELP, allow_negative_numbers = true)]
 pub struct Args {
-    /// Directory holding SNLS80mV.csv.
-    #[arg(long, value_name = "DIR", default_value = "../shared/data/silverbox")]
-    pub data: PathBuf,
+    /// Directory holding SNLS80mV.csv [default: $DYNID_SILVERBOX_DATA, else
+    /// ../shared/data/silverbox].
+    #[arg(long, value_name = "DIR")]
+    pub data: Option<PathBuf>,
     /// Model(s) to identify and score (repeatable).
     #[arg(
         long = "model",
         value_name = "MODEL",
-        default_value = "models/silverbox_cubic.dyn"
+        default_value = DEFAULT_MODEL
     )]
     pub models: Vec<PathBuf>,
     /// Write the reports as JSON to this file.
@@ -86,8 +88,34 @@ pub struct Args {
     pub allow_large: bool,
 }
 
+/// The model `silverbox` scores without `--model`; it is built in, so the command also runs
+/// outside the repository (a file of that name in the working directory takes precedence).
+const DEFAULT_MODEL: &str = "models/silverbox_cubic.dyn";
+const DEFAULT_MODEL_SOURCE: &str = include_str!("../../models/silverbox_cubic.dyn");
+
+/// The model at `path`: the file, or the built-in default model where `path` is the default
+/// and no such file exists here.
+fn model_at(path: &Path) -> miette::Result<ModelIr> {
+    if path == Path::new(DEFAULT_MODEL) && !path.exists() {
+        return dsl_parser::compile_str("silverbox_cubic.dyn", DEFAULT_MODEL_SOURCE)
+            .map_err(|e| miette!("invariant: the built-in model compiles: {e}"));
+    }
+    super::common::load_model(path)
+}
+
+impl Args {
+    /// `--data`, else `$DYNID_SILVERBOX_DATA`, else `../shared/data/silverbox`.
+    fn data_dir(&self) -> PathBuf {
+        self.data
+            .clone()
+            .or_else(|| std::env::var_os("DYNID_SILVERBOX_DATA").map(PathBuf::from))
+            .unwrap_or_else(|| PathBuf::from("../shared/data/silverbox"))
+    }
+}
+
 pub fn run(args: Args) -> miette::Result<()> {
-    let data_file = args.data.join(silverbox::FILE);
+    let data_dir = args.data_dir();
+    let data_file = data_dir.join(silverbox::FILE);
     super::common::check_outputs(
         [(args.json.as_deref(), "the JSON output")],
         args.models
@@ -108,7 +136,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     if let Some(dir) = &args.export_estimation {
         super::common::check_run_dir(dir, "--export-estimation", &[], inputs.iter().copied(), [])?;
     }
-    let data = silverbox::load(&args.data)?;
+    let data = silverbox::load(&data_dir)?;
     silverbox::check_work(
         &data,
         args.upsample,
@@ -141,7 +169,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     );
     let mut reports = Vec::new();
     for path in &args.models {
-        let ir = super::common::load_model(path)?;
+        let ir = model_at(path)?;
         let mut id = silverbox::default_options(&ir);
         if args.filter_corners.is_some() {
             id.corners = args.filter_corners.clone();
