@@ -132,9 +132,61 @@ fn run_at(case: &Case, seed: u64) -> Diagnosis {
             fmt_opt_gap(c.pathwise_gap)
         );
     }
+    if seed == DOC_SEED {
+        check_doc_row(&d);
+    }
     // The corrected model must compile.
     dynid::dsl_parser::compile_str("fixed", &d.fixed_source).expect("corrected model compiles");
     d
+}
+
+/// The seed of the table in `docs/diagnosis.md`.
+const DOC_SEED: u64 = 11;
+
+/// The gaps of `d` as a row of the table in `docs/diagnosis.md` ("Validated on withheld
+/// effects") writes them — headline gaps, shrinks, pathwise gaps — must stand in that table:
+/// a change that moves a documented gap fails here until the table is updated (the row to
+/// paste is printed by `--nocapture`).
+fn check_doc_row(d: &Diagnosis) {
+    let pct = |x: f64| format!("{x:.1}");
+    let share = |x: Option<f64>| x.map_or("–".into(), |x| format!("{:.0} %", 100.0 * x));
+    let cells = if d.found.is_empty() {
+        format!(
+            "| {} / {} / – | – | {} / {} / – |",
+            pct(d.gap_before),
+            pct(d.gap_reidentified),
+            pct(d.pathwise_gap_before),
+            pct(d.pathwise_gap_reidentified),
+        )
+    } else {
+        format!(
+            "| {} / {} / {} | {} / {} | {} / {} / {} |",
+            pct(d.gap_before),
+            pct(d.gap_reidentified),
+            pct(d.gap_after),
+            share(d.shrink),
+            share(d.effect_shrink),
+            pct(d.pathwise_gap_before),
+            pct(d.pathwise_gap_reidentified),
+            pct(d.pathwise_gap_after),
+        )
+    };
+    let doc = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/diagnosis.md"),
+    )
+    .expect("docs/diagnosis.md");
+    // A profiled backlash gap as the table's "found" cell gives it.
+    let gap = d.found.iter().find_map(|f| match f.effect {
+        dynid::runtime::diagnose::Effect::Backlash { gap } => Some(format!("(g = {gap:.4})")),
+        _ => None,
+    });
+    assert!(
+        doc.lines()
+            .any(|l| l.ends_with(&cells) && gap.as_ref().is_none_or(|g| l.contains(g))),
+        "docs/diagnosis.md: no row of the withheld-effects table ends in\n{cells}{}\n{}",
+        gap.map_or(String::new(), |g| format!("\nwith {g} in it")),
+        d.summary()
+    );
 }
 
 /// The single effect found, checked to be `kind` at `(a, b)` in that order.
