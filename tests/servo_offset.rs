@@ -21,10 +21,10 @@
 //! - offset withheld: the constant force named on every seed, −3.126, −3.179, −3.185,
 //!   −3.157 N (truth −3.2), 100 % of the attainable shrink on each (re-identified
 //!   9.1–38.7 % → corrected 0.47–0.66 %, the true model's gap);
-//! - offset and Coulomb friction withheld: both named on seeds 2 and 5 (constant force
-//!   −3.179 and −3.205 N, friction 14.878 and 14.929 N for 15), neither on seeds 3 and 4,
-//!   where at the first step neither term alone is significant (|p|/σ 1.9 and 1.7): the
-//!   greedy search adds one effect at a time, and each of the two leaves the other's bias;
+//! - offset and Coulomb friction withheld: both named on seeds 2–5 (constant force −3.179,
+//!   −3.185, −3.157, −3.205 N, friction 14.878, 15.048, 14.962, 14.929 N for 15); on seeds
+//!   3 and 4 neither term alone is significant at the first step (|p|/σ 1.9 and 1.7: each
+//!   leaves the other's bias), and the pair step of the search adds them together;
 //! - detect, the model without the constant force: −3.205, −3.203, −3.200, −3.201 N;
 //! - identify (one record), the guard's probe: −3.15, −3.19, −3.25, −3.23 N.
 
@@ -145,44 +145,56 @@ fn diagnose_names_a_withheld_constant_force_with_its_size() {
     );
 }
 
-#[test]
-fn diagnose_names_a_withheld_constant_force_and_coulomb_friction() {
-    let recs = records(2);
-    let d = run(
-        &axis("servo_axis_no_offset_no_friction", &[], &["force friction"]),
-        &recs,
-    );
-    let text = d.summary();
-    println!("{text}");
-    for c in &d.ranking {
-        println!(
-            "  {} at {}: {} ± {} cv {} gap {:?} {}",
-            c.effect.kind(),
-            c.location.label(),
-            c.value,
-            c.stderr,
-            c.cv_residual,
-            c.gap,
-            c.note
-        );
-    }
+/// Whether the diagnosis of the axis missing both its constant force and its Coulomb
+/// friction names both at (ground, m) with their sizes; else what it got wrong.
+fn names_offset_and_friction(d: &Diagnosis) -> Result<(), String> {
     let kinds: Vec<&str> = d.found.iter().map(|f| f.effect.kind()).collect();
-    assert_eq!(kinds.len(), 2, "{text}");
-    assert!(kinds.contains(&"constant_force"), "{text}");
-    assert!(kinds.contains(&"coulomb"), "{text}");
+    if kinds.len() != 2 || !kinds.contains(&"constant_force") || !kinds.contains(&"coulomb") {
+        return Err(format!("found {kinds:?}"));
+    }
     for f in &d.found {
-        assert_eq!(
-            (f.location.a.as_str(), f.location.b.as_str()),
-            ("ground", "m")
-        );
+        if (f.location.a.as_str(), f.location.b.as_str()) != ("ground", "m") {
+            return Err(format!("{} at {}", f.effect.kind(), f.location.label()));
+        }
         let (truth, tol) = if f.effect.kind() == "coulomb" {
             (15.0, 0.3)
         } else {
             (OFFSET, 0.1)
         };
         println!("{}: {:.3} ± {:.3}", f.effect.kind(), f.value, f.stderr);
-        assert!((f.value - truth).abs() < tol, "{text}");
+        if (f.value - truth).abs() >= tol {
+            return Err(format!("{} = {} for {truth}", f.effect.kind(), f.value));
+        }
     }
+    Ok(())
+}
+
+#[test]
+fn diagnose_names_a_withheld_constant_force_and_coulomb_friction() {
+    // A rate over seeds 2, 3, … (`DYNID_SEEDS=N` for N of them): both named on all of
+    // seeds 2–11 (`DYNID_SEEDS=10 cargo test --test servo_offset constant_force_and_coulomb
+    // -- --nocapture`, 10 of 10); on 6 of those 10 no single effect reduces the gap at the
+    // first step and the pair step of the search adds the two together.
+    let seeds: Vec<u64> = (2..2 + common::seed_count(4) as u64).collect();
+    let model = axis("servo_axis_no_offset_no_friction", &[], &["force friction"]);
+    let mut pass = 0;
+    for &seed in &seeds {
+        let d = run(&model, &records(seed));
+        match names_offset_and_friction(&d) {
+            Ok(()) => pass += 1,
+            Err(e) => println!("seed {seed}: {e}\n{}", d.summary()),
+        }
+    }
+    println!(
+        "offset and friction both named on {pass} of {} seeds",
+        seeds.len()
+    );
+    assert_eq!(
+        pass,
+        seeds.len(),
+        "both named on {pass} of {} seeds",
+        seeds.len()
+    );
 }
 
 #[test]

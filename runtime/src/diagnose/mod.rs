@@ -313,6 +313,9 @@ pub fn diagnose(
     let mut ranking = Vec::new();
     let mut residual_ranking = Vec::new();
     for step in 0..opts.max_effects {
+        if found.len() >= opts.max_effects {
+            break;
+        }
         let s = search_step(
             &current,
             &found,
@@ -326,6 +329,63 @@ pub fn diagnose(
             ranking = s.ranking;
         } else if s.best.is_none() {
             residual_ranking = s.ranking;
+        }
+        // No single effect at the first step: two effects that hide each other may be
+        // missing together (`search::pair_step`).
+        if step == 0 && s.best.is_none() && opts.max_effects >= 2 {
+            if let Some(pair) = search::pair_step(&current, &ranking, &data, &current_gap, opts) {
+                let names: Vec<String> = pair
+                    .scores
+                    .iter()
+                    .map(|c| format!("{} at {}", c.effect.name(), c.location.label()))
+                    .collect();
+                for (k, c) in pair.scores.iter().enumerate() {
+                    if let Some(r) = ranking
+                        .iter_mut()
+                        .find(|r| r.effect == c.effect && r.location == c.location)
+                    {
+                        r.accepted = true;
+                        r.gap = Some(pair.gap.gap);
+                        r.pathwise_gap = Some(pair.gap.pathwise);
+                        r.note = format!("accepted together with {}", names[1 - k]);
+                    }
+                }
+                let base_elements = current.ir.elements.len();
+                for (k, c) in pair.scores.iter().enumerate() {
+                    found.push(FoundEffect {
+                        effect: c.effect,
+                        location: c.location.clone(),
+                        element: pair
+                            .variant
+                            .ir
+                            .elements
+                            .get(base_elements + k)
+                            .map(|e| e.name.clone())
+                            .unwrap_or_default(),
+                        param: pair.variant.added[pair.variant.added.len() - 2 + k].clone(),
+                        value: c.value,
+                        stderr: c.stderr,
+                        unit: c.effect.unit(),
+                        shape_stderr: None,
+                        gap_before: current_gap.gap,
+                        gap_after: pair.gap.gap,
+                        pathwise_gap_before: current_gap.pathwise,
+                        pathwise_gap_after: pair.gap.pathwise,
+                    });
+                }
+                notes.push(format!(
+                    "no single effect reduced the gap; {} added together did ({} → {}): each \
+                     alone absorbs part of the other's force",
+                    names.join(" and "),
+                    fmt_gap(current_gap.gap),
+                    fmt_gap(pair.gap.gap)
+                ));
+                current = pair.variant;
+                current_gap = pair.gap;
+                current_fit = pair.fit;
+                current_fits = pair.fits;
+                continue;
+            }
         }
         let Some(search::Accepted {
             score: mut c,

@@ -261,13 +261,7 @@ pub(super) fn search_step(
                 .total_cmp(&results[b.0].0.cv_residual)
         })
         .map(|(i, _)| *i);
-    let material = |before: f64, after: f64| {
-        let shrink_abs = before - after;
-        // A current model that diverges on a withheld level is beaten by any finite gap.
-        after.is_finite()
-            && (before == f64::INFINITY
-                || (shrink_abs > opts.min_abs_shrink && shrink_abs > opts.min_rel_shrink * before))
-    };
+    let material = |before: f64, after: f64| material(before, after, opts);
     let gap_of = |i: usize| &gaps.iter().find(|g| g.0 == i).expect("invariant: scored").1;
     // The statistical gap compares spectra and standard deviations, and does not see a
     // signal's mean — all that a constant force changes in a model that holds otherwise. A
@@ -325,6 +319,125 @@ pub(super) fn search_step(
         ranking: results.into_iter().map(|r| r.0).collect(),
         best: out_best,
     }
+}
+
+/// How many of the first step's best candidates (by the cross-validated covariance
+/// residual) are tried in pairs when no single effect is accepted: at most
+/// `PAIR_POOL · (PAIR_POOL − 1) / 2 = 28` more measuring passes, and free runs only for the
+/// pairs whose two coefficients are both significant.
+const PAIR_POOL: usize = 8;
+
+/// Two effects accepted together by [`pair_step`].
+pub(super) struct AcceptedPair {
+    /// The two candidates as the pair's fit on all levels gives them.
+    pub(super) scores: [CandidateScore; 2],
+    pub(super) variant: Variant,
+    pub(super) gap: ModelGap,
+    pub(super) fit: Identification,
+    pub(super) fits: Vec<Identification>,
+}
+
+/// Whether the gap falls materially from `before` to `after` (both in %): by more than the
+/// absolute and the relative acceptance margins; any finite gap beats a diverged one.
+fn material(before: f64, after: f64, opts: &DiagnoseOptions) -> bool {
+    let shrink_abs = before - after;
+    after.is_finite()
+        && (before == f64::INFINITY
+            || (shrink_abs > opts.min_abs_shrink && shrink_abs > opts.min_rel_shrink * before))
+}
+
+/// Pairs of the first step's best candidates added together, tried when no single effect
+/// was accepted. Two effects missing at once can hide each other: on a servo axis missing
+/// both its Coulomb friction and a constant force, each alone absorbs part of the other's
+/// bias and neither is significant (|p|/σ below 2), while the pair is. A pair is accepted
+/// when both coefficients are significant with a physical sign and the withheld gap falls
+/// materially — statistically, or, for a pair holding a constant force, pathwise while the
+/// statistical gap stays that of a matching model (the rule of a single constant force).
+/// The best such pair by withheld gap wins.
+pub(super) fn pair_step(
+    base: &Variant,
+    ranking: &[CandidateScore],
+    data: &Data,
+    current: &ModelGap,
+    opts: &DiagnoseOptions,
+) -> Option<AcceptedPair> {
+    let n = data.records.len();
+    // A candidate the search left without a value (within its error of zero, its column
+    // pruned) may still be half of a pair: those follow the valued ones, in ranking order.
+    let pool: Vec<&CandidateScore> = ranking
+        .iter()
+        .filter(|c| c.value.is_finite())
+        .chain(ranking.iter().filter(|c| !c.value.is_finite()))
+        .take(PAIR_POOL)
+        .collect();
+    let mut pairs = Vec::new();
+    for i in 0..pool.len() {
+        for j in i + 1..pool.len() {
+            if pool[i].location != pool[j].location
+                || pool[i].effect.kind() != pool[j].effect.kind()
+            {
+                pairs.push((pool[i], pool[j]));
+            }
+        }
+    }
+    type Fitted = (
+        [CandidateScore; 2],
+        Variant,
+        Vec<Identification>,
+        Identification,
+    );
+    let fitted: Vec<Fitted> = pairs
+        .par_iter()
+        .filter_map(|(a, b)| {
+            let (ir1, p1) = add_effect(&base.ir, a.effect, &a.location)?;
+            let (ir2, p2) = add_effect(&ir1, b.effect, &b.location)?;
+            let m = measure_all(&ir2, data, opts).ok()?;
+            let all = m.identify_pooled();
+            let score = |c: &CandidateScore, p: &str| -> Option<CandidateScore> {
+                let e = all.param(p)?;
+                let t = e.value.abs() / e.stderr.max(f64::MIN_POSITIVE);
+                (e.value.is_finite() && c.effect.sign_ok(e.value) && t > opts.t_min).then(|| {
+                    CandidateScore {
+                        value: e.value,
+                        stderr: e.stderr,
+                        t_ratio: t,
+                        sign_ok: true,
+                        ..(*c).clone()
+                    }
+                })
+            };
+            let scores = [score(a, &p1)?, score(b, &p2)?];
+            let (_, fits) = cross_validate(&m, &ir2, n);
+            let mut added = base.added.clone();
+            added.extend([p1, p2]);
+            Some((scores, Variant { ir: ir2, added }, fits, all))
+        })
+        .collect();
+    let has_constant_force =
+        |s: &[CandidateScore; 2]| s.iter().any(|c| c.effect == Effect::ConstantForce);
+    fitted
+        .into_iter()
+        .filter_map(|(scores, variant, fits, fit)| {
+            let g = cv_gap(&variant.ir, &fits, data, opts, "corrected");
+            let by_statistics = material(current.gap, g.gap, opts);
+            let by_mean = has_constant_force(&scores)
+                && g.gap.is_finite()
+                && (g.gap < super::CONSISTENT_GAP || g.gap <= current.gap + opts.min_abs_shrink)
+                && material(current.pathwise, g.pathwise, opts);
+            (by_statistics || by_mean).then_some(AcceptedPair {
+                scores,
+                variant,
+                gap: g,
+                fit,
+                fits,
+            })
+        })
+        .min_by(|a, b| {
+            a.gap
+                .gap
+                .total_cmp(&b.gap.gap)
+                .then(a.gap.pathwise.total_cmp(&b.gap.pathwise))
+        })
 }
 
 /// `base` with the candidate's model `cir` and parameter `p` appended.
