@@ -171,3 +171,56 @@ fn input_path_bias_falls_with_the_square_of_the_sample_interval() {
         100.0 * ds[1]
     );
 }
+
+/// Model error the identification model does not contain: the servo axis of `tests/servo.rs`
+/// (random smooth reference, 25 s at 1 kHz, 1 µm encoder, the controller ten times per
+/// sample, force and position only) on a guide whose friction ripples along the travel,
+/// `±1.5 N · sin(2π x / 20 mm) · sign(v)` (a tenth of the Coulomb friction), identified
+/// with the model without the ripple; the standard errors must cover what it leaves.
+/// Seeds 1–8 (`cargo test -p dynid-runtime --features test-support --lib
+/// servo_errors_stay_honest -- --nocapture`): 22 of 24 errors within 2 se, the largest
+/// 3.1 se. The two beyond are the mass (+0.43 % ± 0.14 %, +0.23 % ± 0.09 %): the mass comes
+/// out high on every seed (+0.2 … +3.2 %), which this test does not explain (no run
+/// without the ripple on these seeds was compared). On this slow trajectory (3 cm RMS) the
+/// axis sticks at reversals and two seeds carry little information (standard errors of d
+/// of 320 % and 2300 %), honestly reported. Bounds: at least 80 % within 2 se, none beyond
+/// 4 se.
+#[test]
+fn servo_errors_stay_honest_with_an_unmodelled_friction_ripple() {
+    use crate::sim::test_models::ServoAxis;
+    let axis = ServoAxis {
+        model_error: vec![ServoAxis::friction_ripple(1.5, 0.02)],
+        ..ServoAxis::standard()
+    };
+    let ir = axis.model();
+    let truth = [("m", axis.mass), ("d", axis.viscous), ("r", axis.coulomb)];
+    let seeds = 1..=8u64;
+    let (mut inside, mut total, mut worst) = (0, 0, 0.0f64);
+    for seed in seeds {
+        let mut cfg = axis.config(seed);
+        cfg.input_oversample = 10;
+        let recs = records(&axis.true_model(), &cfg);
+        let id = identify_records(&ir, &recs, &IdentifyOptions::default());
+        let row: Vec<String> = truth
+            .iter()
+            .map(|&(n, t)| {
+                let p = id.param(n).expect("identified");
+                let z = (p.value - t) / p.stderr;
+                total += 1;
+                inside += usize::from(z.abs() < 2.0);
+                worst = worst.max(z.abs());
+                format!(
+                    "{n} {:+.2} % ± {:.2} % ({z:+.1} se)",
+                    100.0 * (p.value / t - 1.0),
+                    100.0 * p.stderr / t
+                )
+            })
+            .collect();
+        eprintln!("seed {seed}: {}", row.join(", "));
+    }
+    eprintln!("|error| < 2 se: {inside} of {total}; largest |error| {worst:.2} se");
+    assert!(
+        inside * 10 >= total * 8 && worst < 4.0,
+        "{inside} of {total}, worst {worst}"
+    );
+}
