@@ -10,6 +10,9 @@ use crate::data::{LevelSource, RecordSource};
 use crate::ident::{identify, Identification, IdentifyOptions};
 use crate::record::Record;
 
+// The doc-figure reader, also loaded by the identification tests (a module of its own in
+// each, as every integration test has it).
+#[allow(clippy::duplicate_mod)]
 #[path = "../../../tests/figures/mod.rs"]
 mod figures;
 
