@@ -20,7 +20,10 @@
 //!   points inside the RK4 sub-steps (first-order hold), with `⌈substeps / input_oversample⌉`
 //!   RK4 steps per grid interval. With `input_oversample = 1` (the default) the grid is the
 //!   sample grid: the identification discretises its filters for exactly this input, so
-//!   simulated data carries no hold-model mismatch. With a finer grid the input has content
+//!   its instruments carry no hold-model mismatch; but a polyline has a kink at every
+//!   sample, which the trapezoid rule of the moments integrates with an error of order
+//!   `(λTₛ)²/12` (the noise-free bias of docs/method.md §3, shown in `input_path_tests`:
+//!   it vanishes with a smooth input drawn on a finer grid). With a finer grid the input has content
 //!   between samples, as a physical input does, and the record holds point samples of it
 //!   (no anti-alias averaging); the intensity keeps its meaning, so a low-pass input has the
 //!   same variance at the samples (test `oversampling_keeps_the_input_statistics_at_the_samples`)
@@ -801,3 +804,6 @@ pub fn parameter_values(ir: &ModelIr) -> Result<Vec<f64>, SimError> {
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod input_path_tests;
