@@ -1055,3 +1055,38 @@ fn split_record_case_601() {
         ratio(1)
     );
 }
+
+/// The two-step (efficient) weighting keeps the properties of the sandwich: the same
+/// record given twice gives the same estimate and standard errors smaller by exactly √2
+/// (the weighting of each level is its own), and its estimates lie within two of the
+/// one-step standard errors of the one-step estimates.
+#[test]
+fn efficient_weighting_is_per_level_and_agrees_with_the_first_step() {
+    let ir = sdof_model("");
+    let recs = simulate_short(&ir, &[15.0], 300.0, 0.05, 7);
+    let eff = IdentifyOptions {
+        efficient: true,
+        ..Default::default()
+    };
+    let first = run(&ir, &recs, &IdentifyOptions::default());
+    let one = run(&ir, &recs, &eff);
+    let two = run(&ir, &[recs[0].clone(), recs[0].clone()], &eff);
+    assert_eq!(one.params.len(), first.params.len());
+    for ((a, b), f) in one.params.iter().zip(&two.params).zip(&first.params) {
+        assert!(
+            (a.value - b.value).abs() <= 1e-9 * a.value.abs(),
+            "{a:?} {b:?}"
+        );
+        let ratio = a.stderr / b.stderr;
+        assert!(
+            (ratio / 2f64.sqrt() - 1.0).abs() < 1e-9,
+            "{}: ratio {ratio}",
+            a.name
+        );
+        assert!(a.stderr > 0.0 && a.stderr.is_finite(), "{a:?}");
+        assert!(
+            (a.value - f.value).abs() < 2.0 * f.stderr,
+            "{a:?} against {f:?}"
+        );
+    }
+}
