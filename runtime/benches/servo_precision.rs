@@ -141,7 +141,7 @@
 //! (docs/method.md §2). The two-step weighting on top of the chains (`chains, 2-step`:
 //! `IdentifyOptions { column_chains, efficient }`, opt-in, docs/method.md §5) brings the
 //! mass back to 0.013 % and cuts d and r by a further 22 %, but the offset's error grows
-//! (0.86 → 1.18 %) and every standard error comes out 1.5–3.7 times too small (coverage
+//! (0.86 → 1.18 %) and every standard error comes out 2–3.7 times too small (coverage
 //! 50–83 %): not honest, hence not the default. Rests are left out only where they hold 5 % of a level's samples
 //! or more: no random record reaches that, so the defaults and `--keep-rests` give the
 //! same estimates there; the defaults' `ms/rec` includes the two passes that look for

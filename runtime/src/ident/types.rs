@@ -50,7 +50,7 @@ pub struct IdentifyOptions {
     /// Solve a second time with every level's rows whitened by their estimated covariance
     /// (two-step weighting of the moment rows, docs/method.md §5). Off (the default): on
     /// the servo axis it lowers the RMS errors of mass, damping and friction with
-    /// `column_chains` but its standard errors come out 1.5–3 times too small, and the
+    /// `column_chains` but its standard errors come out 2–3.7 times too small, and the
     /// offset's error grows (bench `servo_precision`).
     pub efficient: bool,
 }
