@@ -15,10 +15,10 @@
 //! Run: `cargo bench -p dynid-runtime --bench servo_precision` (`-- --json` prints one JSON
 //! object instead of the table; `DYNID_BENCH_SEEDS=12` sets the number of seeds, 1…N).
 //!
-//! Measured (2026-11-26, 2 shared cores, seeds 1–12;
+//! Measured (2026-11-26, 2 cores shared with other builds, seeds 1–12;
 //! `cargo bench --profile test -p dynid-runtime --bench servo_precision` — the test
 //! profile, opt-level 2 with debug assertions, so `ms/rec` is several times the release
-//! build's and only comparable within the table; RMS error and mean SE in % of the
+//! build's and, on a loaded machine, only roughly comparable within the table; RMS error and mean SE in % of the
 //! truth, `cover` the fraction of seeds with |error| < 2 SE, `e/SE` the RMS of error / SE;
 //! the planned records carry white noise of 1 % of the force's spread on the force, drawn
 //! from the seed — without it every seed would give the same record):
@@ -28,96 +28,108 @@
 //!
 //! random reference
 //! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.014%    0.022%    100%    0.68       6.8
-//! dynid (defaults)            d    0.472%    0.510%    100%    0.83       6.8
-//! dynid (defaults)            r    1.359%    1.388%    100%    0.81       6.8
-//! dynid (defaults)           f0    1.465%    0.982%    100%    1.00       6.8
-//! dynid --column-chains       m    0.042%    0.031%    100%    1.16       8.0
-//! dynid --column-chains       d    0.256%    0.228%     92%    0.96       8.0
-//! dynid --column-chains       r    0.702%    0.582%     92%    1.18       8.0
-//! dynid --column-chains      f0    0.864%    1.003%     92%    0.80       8.0
-//! dynid --keep-rests          m    0.014%    0.022%    100%    0.68       4.6
-//! dynid --keep-rests          d    0.472%    0.510%    100%    0.83       4.6
-//! dynid --keep-rests          r    1.359%    1.388%    100%    0.81       4.6
-//! dynid --keep-rests         f0    1.465%    0.982%    100%    1.00       4.6
-//! IDIM-LS, OLS errors         m    0.029%    0.016%     75%    1.79       3.3
-//! IDIM-LS, OLS errors         d    0.163%    0.088%     58%    1.77       3.3
-//! IDIM-LS, OLS errors         r    0.785%    0.197%      0%    3.96       3.3
-//! IDIM-LS, OLS errors        f0    0.639%    0.872%     92%    0.73       3.3
-//! IDIM-LS, HAC errors         m    0.029%    0.014%     67%    2.08       3.3
-//! IDIM-LS, HAC errors         d    0.163%    0.064%     50%    2.41       3.3
-//! IDIM-LS, HAC errors         r    0.785%    0.169%      0%    4.61       3.3
-//! IDIM-LS, HAC errors        f0    0.639%    0.587%     92%    1.03       3.3
-//! SVF-LS 10 Hz, HAC           m    0.102%    0.022%      0%    4.63     185.1
-//! SVF-LS 10 Hz, HAC           d    0.169%    0.102%     83%    1.70     185.1
-//! SVF-LS 10 Hz, HAC           r    0.681%    0.275%     50%    1.99     185.1
-//! SVF-LS 10 Hz, HAC          f0    1.210%    1.556%    100%    0.74     185.1
-//! SVF-LS 80 Hz, HAC           m    0.027%    0.006%      0%    4.45      31.0
-//! SVF-LS 80 Hz, HAC           d    0.096%    0.037%     33%    3.41      31.0
-//! SVF-LS 80 Hz, HAC           r    0.149%    0.094%     92%    1.48      31.0
-//! SVF-LS 80 Hz, HAC          f0    0.313%    0.417%    100%    0.62      31.0
+//! dynid (defaults)            m    0.014%    0.022%    100%    0.68      47.9
+//! dynid (defaults)            d    0.472%    0.510%    100%    0.83      47.9
+//! dynid (defaults)            r    1.359%    1.388%    100%    0.81      47.9
+//! dynid (defaults)           f0    1.465%    0.982%    100%    1.00      47.9
+//! dynid --column-chains       m    0.042%    0.031%    100%    1.16      35.8
+//! dynid --column-chains       d    0.256%    0.228%     92%    0.96      35.8
+//! dynid --column-chains       r    0.702%    0.582%     92%    1.18      35.8
+//! dynid --column-chains      f0    0.864%    1.003%     92%    0.80      35.8
+//! dynid chains, 2-step        m    0.013%    0.010%     83%    2.06      36.4
+//! dynid chains, 2-step        d    0.200%    0.109%     67%    3.65      36.4
+//! dynid chains, 2-step        r    0.545%    0.301%     50%    2.92      36.4
+//! dynid chains, 2-step       f0    1.179%    0.649%     67%    2.11      36.4
+//! dynid --keep-rests          m    0.014%    0.022%    100%    0.68      29.3
+//! dynid --keep-rests          d    0.472%    0.510%    100%    0.83      29.3
+//! dynid --keep-rests          r    1.359%    1.388%    100%    0.81      29.3
+//! dynid --keep-rests         f0    1.465%    0.982%    100%    1.00      29.3
+//! IDIM-LS, OLS errors         m    0.029%    0.016%     75%    1.79      15.3
+//! IDIM-LS, OLS errors         d    0.163%    0.088%     58%    1.77      15.3
+//! IDIM-LS, OLS errors         r    0.785%    0.197%      0%    3.96      15.3
+//! IDIM-LS, OLS errors        f0    0.639%    0.872%     92%    0.73      15.3
+//! IDIM-LS, HAC errors         m    0.029%    0.014%     67%    2.08      15.3
+//! IDIM-LS, HAC errors         d    0.163%    0.064%     50%    2.41      15.3
+//! IDIM-LS, HAC errors         r    0.785%    0.169%      0%    4.61      15.3
+//! IDIM-LS, HAC errors        f0    0.639%    0.587%     92%    1.03      15.3
+//! SVF-LS 10 Hz, HAC           m    0.102%    0.022%      0%    4.63     937.8
+//! SVF-LS 10 Hz, HAC           d    0.169%    0.102%     83%    1.70     937.8
+//! SVF-LS 10 Hz, HAC           r    0.681%    0.275%     50%    1.99     937.8
+//! SVF-LS 10 Hz, HAC          f0    1.210%    1.556%    100%    0.74     937.8
+//! SVF-LS 80 Hz, HAC           m    0.027%    0.006%      0%    4.45     143.9
+//! SVF-LS 80 Hz, HAC           d    0.096%    0.037%     33%    3.41     143.9
+//! SVF-LS 80 Hz, HAC           r    0.149%    0.094%     92%    1.48     143.9
+//! SVF-LS 80 Hz, HAC          f0    0.313%    0.417%    100%    0.62     143.9
 //!
 //! planned moves
 //! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.094%    0.025%      0%    4.28       6.8
-//! dynid (defaults)            d    0.131%    0.146%    100%    1.02       6.8
-//! dynid (defaults)            r    0.159%    0.212%    100%    0.79       6.8
-//! dynid (defaults)           f0    0.228%    0.257%     92%    1.09       6.8
-//! dynid --column-chains       m    0.102%    0.029%      8%    4.03       7.0
-//! dynid --column-chains       d    0.179%    0.173%     92%    1.05       7.0
-//! dynid --column-chains       r    0.270%    0.244%     83%    1.12       7.0
-//! dynid --column-chains      f0    0.218%    0.286%    100%    0.80       7.0
-//! dynid --keep-rests          m   23.425%    2.846%      0%    8.23       5.5
-//! dynid --keep-rests          d   67.193%    6.925%      0%   33.89       5.5
-//! dynid --keep-rests          r   67.149%   11.074%      0%    6.06       5.5
-//! dynid --keep-rests         f0    6.890%   20.880%    100%    0.33       5.5
-//! IDIM-LS, OLS errors         m    0.025%    0.025%    100%    1.00       1.7
-//! IDIM-LS, OLS errors         d    0.076%    0.147%    100%    0.52       1.7
-//! IDIM-LS, OLS errors         r    0.368%    0.199%     67%    1.84       1.7
-//! IDIM-LS, OLS errors        f0    0.234%    0.914%    100%    0.26       1.7
-//! IDIM-LS, HAC errors         m    0.025%    0.015%     83%    1.64       1.7
-//! IDIM-LS, HAC errors         d    0.076%    0.099%    100%    0.77       1.7
-//! IDIM-LS, HAC errors         r    0.368%    0.157%     17%    2.35       1.7
-//! IDIM-LS, HAC errors        f0    0.234%    0.524%    100%    0.45       1.7
-//! SVF-LS 10 Hz, HAC           m    0.282%    0.098%      0%    2.89     182.6
-//! SVF-LS 10 Hz, HAC           d   15.825%    2.439%      0%    6.49     182.6
-//! SVF-LS 10 Hz, HAC           r   26.551%    2.925%      0%    9.08     182.6
-//! SVF-LS 10 Hz, HAC          f0    2.726%   27.672%    100%    0.10     182.6
-//! SVF-LS 80 Hz, HAC           m    0.014%    0.225%    100%    0.06      27.4
-//! SVF-LS 80 Hz, HAC           d   27.561%    2.601%      0%   10.59      27.4
-//! SVF-LS 80 Hz, HAC           r   47.352%    3.753%      0%   12.62      27.4
-//! SVF-LS 80 Hz, HAC          f0    9.814%   17.156%    100%    0.57      27.4
+//! dynid (defaults)            m    0.094%    0.025%      0%    4.28      45.2
+//! dynid (defaults)            d    0.131%    0.146%    100%    1.02      45.2
+//! dynid (defaults)            r    0.159%    0.212%    100%    0.79      45.2
+//! dynid (defaults)           f0    0.228%    0.257%     92%    1.09      45.2
+//! dynid --column-chains       m    0.102%    0.029%      8%    4.03      51.1
+//! dynid --column-chains       d    0.179%    0.173%     92%    1.05      51.1
+//! dynid --column-chains       r    0.270%    0.244%     83%    1.12      51.1
+//! dynid --column-chains      f0    0.218%    0.286%    100%    0.80      51.1
+//! dynid chains, 2-step        m    0.080%    0.019%      0%    4.57      52.6
+//! dynid chains, 2-step        d    0.163%    0.112%     75%    1.86      52.6
+//! dynid chains, 2-step        r    0.194%    0.161%     83%    1.34      52.6
+//! dynid chains, 2-step       f0    0.223%    0.250%     92%    1.06      52.6
+//! dynid --keep-rests          m   23.425%    2.846%      0%    8.23      27.6
+//! dynid --keep-rests          d   67.193%    6.925%      0%   33.89      27.6
+//! dynid --keep-rests          r   67.149%   11.074%      0%    6.06      27.6
+//! dynid --keep-rests         f0    6.890%   20.880%    100%    0.33      27.6
+//! IDIM-LS, OLS errors         m    0.025%    0.025%    100%    1.00       8.2
+//! IDIM-LS, OLS errors         d    0.076%    0.147%    100%    0.52       8.2
+//! IDIM-LS, OLS errors         r    0.368%    0.199%     67%    1.84       8.2
+//! IDIM-LS, OLS errors        f0    0.234%    0.914%    100%    0.26       8.2
+//! IDIM-LS, HAC errors         m    0.025%    0.015%     83%    1.64       8.2
+//! IDIM-LS, HAC errors         d    0.076%    0.099%    100%    0.77       8.2
+//! IDIM-LS, HAC errors         r    0.368%    0.157%     17%    2.35       8.2
+//! IDIM-LS, HAC errors        f0    0.234%    0.524%    100%    0.45       8.2
+//! SVF-LS 10 Hz, HAC           m    0.282%    0.098%      0%    2.89     932.1
+//! SVF-LS 10 Hz, HAC           d   15.825%    2.439%      0%    6.49     932.1
+//! SVF-LS 10 Hz, HAC           r   26.551%    2.925%      0%    9.08     932.1
+//! SVF-LS 10 Hz, HAC          f0    2.726%   27.672%    100%    0.10     932.1
+//! SVF-LS 80 Hz, HAC           m    0.014%    0.225%    100%    0.06     140.2
+//! SVF-LS 80 Hz, HAC           d   27.561%    2.601%      0%   10.59     140.2
+//! SVF-LS 80 Hz, HAC           r   47.352%    3.753%      0%   12.62     140.2
+//! SVF-LS 80 Hz, HAC          f0    9.814%   17.156%    100%    0.57     140.2
 //!
 //! planned moves, Stribeck friction not in the model
 //! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    2.192%    0.152%      0%   14.46       6.0
-//! dynid (defaults)            d    4.546%    1.354%      0%    3.36       6.0
-//! dynid (defaults)            r    5.476%    2.613%      0%    2.10       6.0
-//! dynid (defaults)           f0    0.232%    3.154%    100%    0.07       6.0
-//! dynid --column-chains       m    2.110%    0.200%      0%   10.59       6.7
-//! dynid --column-chains       d    4.067%    1.236%      0%    3.29       6.7
-//! dynid --column-chains       r    5.013%    2.074%      0%    2.42       6.7
-//! dynid --column-chains      f0    0.248%    2.861%    100%    0.09       6.7
-//! dynid --keep-rests          m   33.643%    3.260%      0%   10.32       5.6
-//! dynid --keep-rests          d   95.084%    8.418%      0%   11.30       5.6
-//! dynid --keep-rests          r   98.969%   13.265%      0%    7.46       5.6
-//! dynid --keep-rests         f0    4.114%   12.826%    100%    0.32       5.6
-//! IDIM-LS, OLS errors         m    0.047%    0.032%    100%    1.44       1.7
-//! IDIM-LS, OLS errors         d    3.369%    0.191%      0%   17.65       1.7
-//! IDIM-LS, OLS errors         r    5.596%    0.259%      0%   21.59       1.7
-//! IDIM-LS, OLS errors        f0    0.241%    1.181%    100%    0.20       1.7
-//! IDIM-LS, HAC errors         m    0.047%    0.027%     92%    1.73       1.7
-//! IDIM-LS, HAC errors         d    3.369%    0.405%      0%    8.32       1.7
-//! IDIM-LS, HAC errors         r    5.596%    0.627%      0%    8.93       1.7
-//! IDIM-LS, HAC errors        f0    0.241%    2.024%    100%    0.12       1.7
-//! SVF-LS 10 Hz, HAC           m    0.315%    0.092%      0%    3.44     180.8
-//! SVF-LS 10 Hz, HAC           d   13.450%    2.384%      0%    5.64     180.8
-//! SVF-LS 10 Hz, HAC           r   22.585%    3.043%      0%    7.42     180.8
-//! SVF-LS 10 Hz, HAC          f0    4.661%   37.101%    100%    0.13     180.8
-//! SVF-LS 80 Hz, HAC           m    0.032%    0.176%    100%    0.18      26.7
-//! SVF-LS 80 Hz, HAC           d   20.549%    2.280%      0%    9.01      26.7
-//! SVF-LS 80 Hz, HAC           r   35.287%    3.465%      0%   10.18      26.7
-//! SVF-LS 80 Hz, HAC          f0   19.365%   18.474%    100%    1.05      26.7
+//! dynid (defaults)            m    2.192%    0.152%      0%   14.46      36.4
+//! dynid (defaults)            d    4.546%    1.354%      0%    3.36      36.4
+//! dynid (defaults)            r    5.476%    2.613%      0%    2.10      36.4
+//! dynid (defaults)           f0    0.232%    3.154%    100%    0.07      36.4
+//! dynid --column-chains       m    2.110%    0.200%      0%   10.59      42.9
+//! dynid --column-chains       d    4.067%    1.236%      0%    3.29      42.9
+//! dynid --column-chains       r    5.013%    2.074%      0%    2.42      42.9
+//! dynid --column-chains      f0    0.248%    2.861%    100%    0.09      42.9
+//! dynid chains, 2-step        m    2.331%    0.140%      0%   16.66      50.4
+//! dynid chains, 2-step        d    6.787%    1.465%      0%    4.63      50.4
+//! dynid chains, 2-step        r    8.509%    1.108%      0%    7.72      50.4
+//! dynid chains, 2-step       f0    3.739%    3.845%    100%    0.97      50.4
+//! dynid --keep-rests          m   33.643%    3.260%      0%   10.32      26.2
+//! dynid --keep-rests          d   95.084%    8.418%      0%   11.30      26.2
+//! dynid --keep-rests          r   98.969%   13.265%      0%    7.46      26.2
+//! dynid --keep-rests         f0    4.114%   12.826%    100%    0.32      26.2
+//! IDIM-LS, OLS errors         m    0.047%    0.032%    100%    1.44      12.5
+//! IDIM-LS, OLS errors         d    3.369%    0.191%      0%   17.65      12.5
+//! IDIM-LS, OLS errors         r    5.596%    0.259%      0%   21.59      12.5
+//! IDIM-LS, OLS errors        f0    0.241%    1.181%    100%    0.20      12.5
+//! IDIM-LS, HAC errors         m    0.047%    0.027%     92%    1.73      12.5
+//! IDIM-LS, HAC errors         d    3.369%    0.405%      0%    8.32      12.5
+//! IDIM-LS, HAC errors         r    5.596%    0.627%      0%    8.93      12.5
+//! IDIM-LS, HAC errors        f0    0.241%    2.024%    100%    0.12      12.5
+//! SVF-LS 10 Hz, HAC           m    0.315%    0.092%      0%    3.44     958.0
+//! SVF-LS 10 Hz, HAC           d   13.450%    2.384%      0%    5.64     958.0
+//! SVF-LS 10 Hz, HAC           r   22.585%    3.043%      0%    7.42     958.0
+//! SVF-LS 10 Hz, HAC          f0    4.661%   37.101%    100%    0.13     958.0
+//! SVF-LS 80 Hz, HAC           m    0.032%    0.176%    100%    0.18     132.9
+//! SVF-LS 80 Hz, HAC           d   20.549%    2.280%      0%    9.01     132.9
+//! SVF-LS 80 Hz, HAC           r   35.287%    3.465%      0%   10.18     132.9
+//! SVF-LS 80 Hz, HAC          f0   19.365%   18.474%    100%    1.05     132.9
 //! ```
 //!
 //! **Random reference.** dynid's errors are honest and its mass error the smallest;
@@ -126,21 +138,27 @@
 //! (IDIM-LS r −0.6 to −1.1 %, its classical and HAC coverage of r 0 %; measured without
 //! quantisation in `baseline::tests::noise_free_servo_axis_is_recovered`).
 //! `--column-chains` cuts dynid's d, r and f0 errors by 40–50 % and raises its mass error
-//! (docs/method.md §2). Rests are left out only where they hold 5 % of a level's samples
+//! (docs/method.md §2). The two-step weighting on top of the chains (`chains, 2-step`:
+//! `IdentifyOptions { column_chains, efficient }`, opt-in, docs/method.md §5) brings the
+//! mass back to 0.013 % and cuts d and r by a further 22 %, but the offset's error grows
+//! (0.86 → 1.18 %) and every standard error comes out 2–3.7 times too small (coverage
+//! 50–83 %): not honest, hence not the default. Rests are left out only where they hold 5 % of a level's samples
 //! or more: no random record reaches that, so the defaults and `--keep-rests` give the
 //! same estimates there; the defaults' `ms/rec` includes the two passes that look for
-//! rests (6.8 against 4.6 ms per record).
+//! rests (47.9 against 29.3 ms per record in this run).
 //!
 //! **Planned moves** (a third of every cycle at rest). dynid leaves the rests out of its
 //! moments (docs/method.md §7): RMS errors m 0.094 %, d 0.131 %, r 0.159 %, f0 0.228 %,
 //! with honest errors for d, r and f0 — below IDIM-LS's for r (0.368 %) and level for f0
 //! (0.234 %), 1.7× IDIM-LS's for d (0.076 %) and 3.8× for the mass (0.025 %), whose bias
-//! of about +0.1 % dynid's standard error does not cover. With the rests kept
+//! of about +0.1 % dynid's standard error does not cover (nor does the two-step
+//! weighting's: mass 0.080 %, coverage 0 %). With the rests kept
 //! (`--keep-rests`) the mass is off by 23 %, damping and friction by 67 %: at rest the
 //! Coulomb force lies anywhere in ±fc while the model says `r·sign(v̂)`. SVF-LS, which
 //! keeps the rows at rest, fails the same way (d 16–28 %, r 27–47 %). With a Stribeck term
 //! the model lacks, dynid's friction split moves by 4.5–5.5 % (IDIM-LS 3.4–5.6 %), its
-//! mass by 2.2 % (IDIM-LS 0.05 %), all at several of their standard errors.
+//! mass by 2.2 % (IDIM-LS 0.05 %), all at several of their standard errors; the two-step
+//! weighting moves the friction split further (d 6.8 %, r 8.5 %).
 //!
 //! IDIM-LS's Newey–West errors come out below its classical ones (the decimated residuals
 //! are negatively correlated at short lags). `ms/rec` is the wall time per record with the
@@ -224,9 +242,10 @@ fn record(kind: Trajectory, seed: u64) -> (ModelIr, Record) {
 type Estimate = Vec<Option<(f64, f64)>>;
 
 /// The methods compared, by name.
-const METHODS: [&str; 7] = [
+const METHODS: [&str; 8] = [
     "dynid (defaults)",
     "dynid --column-chains",
+    "dynid chains, 2-step",
     "dynid --keep-rests",
     "IDIM-LS, OLS errors",
     "IDIM-LS, HAC errors",
@@ -291,6 +310,11 @@ fn run_all(ir: &ModelIr, rec: &Record) -> Vec<(Estimate, f64)> {
         dynid(IdentifyOptions::default()),
         dynid(IdentifyOptions {
             column_chains: true,
+            ..Default::default()
+        }),
+        dynid(IdentifyOptions {
+            column_chains: true,
+            efficient: true,
             ..Default::default()
         }),
         dynid(IdentifyOptions {

@@ -360,6 +360,7 @@ pub fn measure<'m>(
         times,
         prune_t: 0.0,
         noise,
+        efficient: opts.efficient,
     })
 }
 

@@ -120,6 +120,9 @@ pub struct Moments<'m> {
     /// (0: off).
     prune_t: f64,
     noise: NoiseSummary,
+    /// Solve twice: the second time with every level's rows whitened by their estimated
+    /// covariance ([`stats::efficient_mix`]).
+    efficient: bool,
 }
 
 /// Identify the unknown parameters of `ir` from records at one or more excitation levels,
@@ -320,6 +323,98 @@ impl<'m> Moments<'m> {
             .collect()
     }
 
+    /// The efficient (two-step) solve: each level's weighted rows `(a, b)` of the first
+    /// step's solution `first` are whitened by the long-run covariance of its rows,
+    /// estimated from the window contributions at the first estimate and shrunk towards its
+    /// diagonal ([`stats::efficient_mix`]), and solved again; the standard errors are the
+    /// sandwich of the whitened rows. `None` (keep the first step) where a level's
+    /// covariance cannot be whitened or the second solve fails.
+    #[allow(clippy::too_many_arguments)]
+    fn efficient_step(
+        &self,
+        first: &solve::LsSolution,
+        active: &[usize],
+        held: &[(usize, f64)],
+        (a, b): &(Vec<f64>, Vec<f64>),
+        weights: &[f64],
+        columns: &[Arc<Column>],
+        which: &[usize],
+    ) -> Option<(solve::LsSolution, Vec<f64>)> {
+        let nr = self.plan.rows.len();
+        let na = active.len();
+        let levels = &self.store.levels;
+        let first_windows = stats::level_windows(
+            &first.x, active, held, nr, weights, None, columns, which, levels,
+        );
+        let alpha = stats::SHRINKAGE;
+        let mixes: Vec<Vec<f64>> = first_windows
+            .iter()
+            .map(|lw| stats::efficient_mix(lw, nr, alpha))
+            .collect::<Option<_>>()?;
+        // shape: `a` holds `which.len() · nr` rows of `na` columns, `b` as many entries, and
+        // every mixing matrix is `nr × nr`: level `pos` is rows `pos · nr ..` of both.
+        let mut a2 = vec![0.0; a.len()];
+        let mut b2 = vec![0.0; b.len()];
+        for (pos, m) in mixes.iter().enumerate() {
+            let m = faer::MatRef::from_row_major_slice(&m[..], nr, nr);
+            let al =
+                faer::MatRef::from_row_major_slice(&a[pos * nr * na..(pos + 1) * nr * na], nr, na);
+            let bl = faer::MatRef::from_column_major_slice(&b[pos * nr..(pos + 1) * nr], nr, 1);
+            faer::linalg::matmul::matmul(
+                faer::MatMut::from_row_major_slice_mut(
+                    &mut a2[pos * nr * na..(pos + 1) * nr * na],
+                    nr,
+                    na,
+                ),
+                faer::Accum::Replace,
+                m,
+                al,
+                1.0,
+                faer::Par::Seq,
+            );
+            faer::linalg::matmul::matmul(
+                faer::MatMut::from_column_major_slice_mut(&mut b2[pos * nr..(pos + 1) * nr], nr, 1),
+                faer::Accum::Replace,
+                m,
+                bl,
+                1.0,
+                faer::Par::Seq,
+            );
+        }
+        let sol = solve::lstsq(&a2, &b2, b.len(), na, self.rcond).ok()?;
+        let windows = stats::level_windows(
+            &sol.x,
+            active,
+            held,
+            nr,
+            weights,
+            Some(&mixes),
+            columns,
+            which,
+            levels,
+        );
+        let se = {
+            stats::efficient_stderr(
+                first,
+                &sol,
+                a,
+                b,
+                &mixes,
+                alpha,
+                active,
+                nr,
+                weights,
+                &first_windows,
+                &windows,
+                columns,
+                which,
+                levels,
+            )
+        };
+        let finite = sol.x.iter().chain(&se).all(|v| v.is_finite());
+        finite.then_some((sol, se))
+    }
+
     fn solve_levels_holding(&self, which: &[usize], held: &[(usize, f64)]) -> Identification {
         let t0 = Instant::now();
         let plan = &self.plan;
@@ -447,16 +542,18 @@ impl<'m> Moments<'m> {
                 active.remove(j);
                 continue;
             }
-            let se = stats::sandwich_stderr(
-                &sol,
+            let windows = stats::level_windows(
+                &sol.x,
                 &active,
                 held,
                 nr,
                 &weights,
+                None,
                 &columns,
                 which,
                 &self.store.levels,
             );
+            let se = stats::sandwich_stderr(&sol, nr, &windows);
             // An estimate or standard error beyond double precision (data whose products
             // overflow) is no number to print: the parameter is named instead.
             if let Some(j) =
@@ -489,6 +586,20 @@ impl<'m> Moments<'m> {
                 }
             }
             break (sol, se);
+        };
+        let (sol, se) = match self.efficient && !active.is_empty() {
+            true => self
+                .efficient_step(
+                    &sol,
+                    &active,
+                    held,
+                    &weighted(&c_full, &r_full, &active),
+                    &weights,
+                    &columns,
+                    which,
+                )
+                .unwrap_or((sol, se)),
+            false => (sol, se),
         };
 
         let mut p_full = vec![0.0; ncol];

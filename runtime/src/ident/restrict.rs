@@ -140,6 +140,7 @@ impl<'m> Moments<'m> {
             times: self.times,
             prune_t: self.prune_t,
             noise: self.noise.clone(),
+            efficient: self.efficient,
         })
     }
 }

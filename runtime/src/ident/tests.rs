@@ -1057,3 +1057,103 @@ fn split_record_case_601() {
         ratio(1)
     );
 }
+
+/// The two-step (efficient) weighting keeps the properties of the sandwich: the same
+/// record given twice gives the same estimate and standard errors smaller by exactly √2
+/// (the weighting of each level is its own), and its estimates lie within two of the
+/// one-step standard errors of the one-step estimates.
+#[test]
+fn efficient_weighting_is_per_level_and_agrees_with_the_first_step() {
+    let ir = sdof_model("");
+    let recs = simulate_short(&ir, &[15.0], 300.0, 0.05, 7);
+    let eff = IdentifyOptions {
+        efficient: true,
+        ..Default::default()
+    };
+    let first = run(&ir, &recs, &IdentifyOptions::default());
+    let one = run(&ir, &recs, &eff);
+    let two = run(&ir, &[recs[0].clone(), recs[0].clone()], &eff);
+    assert_eq!(one.params.len(), first.params.len());
+    for ((a, b), f) in one.params.iter().zip(&two.params).zip(&first.params) {
+        assert!(
+            (a.value - b.value).abs() <= 1e-9 * a.value.abs(),
+            "{a:?} {b:?}"
+        );
+        let ratio = a.stderr / b.stderr;
+        assert!(
+            (ratio / 2f64.sqrt() - 1.0).abs() < 1e-9,
+            "{}: ratio {ratio}",
+            a.name
+        );
+        assert!(a.stderr > 0.0 && a.stderr.is_finite(), "{a:?}");
+        assert!(
+            (a.value - f.value).abs() < 2.0 * f.stderr,
+            "{a:?} against {f:?}"
+        );
+    }
+}
+
+/// The target: corners a factor 4 above the designed ones, and as far below as the record
+/// allows (the slowest chain must settle within the record: on 25 s with four sections the
+/// lowest corner is 1.6 rad/s, the designed one already), move the estimates of the servo
+/// axis (1 kHz, 25 s, random set points; `tests/servo.rs`) by less than their standard
+/// errors at the designed corners. Not reached: measured
+/// (`cargo test -p dynid-runtime --lib corners_a_factor_four -- --ignored --nocapture`),
+/// seeds 1–3, designed corners 1.6…111–131 rad/s; a quarter of them (1.6…28–33 rad/s)
+/// moves m, d, r, f0 by at most 2.15, 0.51, 0.59, 0.92 standard errors, four times them
+/// (6.4…442–523 rad/s, above the design's cap of a tenth of the Nyquist frequency, where
+/// the piecewise-linear input model loses accuracy) by up to 1.9, 3.2, 3.4 and 22.
+#[test]
+#[ignore = "the target is not reached yet: shifts up to 22 standard errors (see the doc)"]
+fn corners_a_factor_four_away_move_the_servo_estimates_less_than_their_errors() {
+    use crate::sim::test_models::ServoAxis;
+    let mut worst: f64 = 0.0;
+    for seed in 1..=3 {
+        let mut axis = ServoAxis::standard();
+        axis.reference.rms = 0.1;
+        axis.extra_forces = vec![("offset".into(), "f0 ~ -2.0".into())];
+        let ir = axis.model();
+        let mut cfg = axis.config(seed);
+        cfg.input_oversample = 10;
+        let recs = sim::simulate(&ir, &cfg)
+            .expect("closed-loop simulation")
+            .records;
+        let base = run(&ir, &recs, &IdentifyOptions::default());
+        let c = base.filter.corners.clone();
+        let (lo, hi) = (c[0], c[c.len() - 1]);
+        let lmin = design::min_corner(24.999, 4) * 1.001;
+        let n = c.len();
+        let spread = |a: f64, b: f64| -> Vec<f64> {
+            (0..n)
+                .map(|i| a * (b / a).powf(i as f64 / (n - 1) as f64))
+                .collect()
+        };
+        for corners in [
+            spread(4.0 * lo, 4.0 * hi),
+            spread((lo / 4.0).max(lmin), hi / 4.0),
+        ] {
+            let opts = IdentifyOptions {
+                corners: Some(corners.clone()),
+                ..Default::default()
+            };
+            let moved = run(&ir, &recs, &opts);
+            let shifts: Vec<String> = base
+                .params
+                .iter()
+                .map(|p| {
+                    let q = moved.param(&p.name).expect("the same parameters");
+                    let z = (q.value - p.value) / p.stderr;
+                    worst = worst.max(z.abs());
+                    format!("{} {z:+.2}", p.name)
+                })
+                .collect();
+            println!(
+                "seed {seed}, corners {:.1}…{:.1} rad/s against {lo:.1}…{hi:.1}: shifts in SE {}",
+                corners[0],
+                corners[n - 1],
+                shifts.join(", ")
+            );
+        }
+    }
+    assert!(worst < 1.0, "a shift of {worst:.2} standard errors");
+}
