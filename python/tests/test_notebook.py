@@ -2,6 +2,7 @@
 draws the measured-vs-model plot. CI installs nbclient, ipykernel and matplotlib and sets
 DYNID_EXPECT_NOTEBOOK=1, which makes a missing one a failure instead of a skip."""
 
+import importlib
 import os
 import pathlib
 
@@ -13,7 +14,7 @@ NOTEBOOK = ROOT / "python" / "examples" / "workflow.ipynb"
 
 def need(module):
     if os.environ.get("DYNID_EXPECT_NOTEBOOK") == "1":
-        return __import__(module)
+        return importlib.import_module(module)
     return pytest.importorskip(module)
 
 
