@@ -156,7 +156,7 @@ def test_simulation_with_measured_inputs_reproduces_the_record(sdof):
     x = np.asarray(data[1]["m.x"])
     err = np.sqrt(np.mean((np.asarray(truth["m.x"]) - x) ** 2)) / np.std(x)
     # The simulation itself drives the mechanics with the same interpolated input, so the
-    # free run retraces the record: `pytest -s -k simulation_with` prints 0.000 % (seed 4).
+    # free run retraces the record: `pytest -s -k simulation_with` prints 0.00e+00 (seed 4).
     print(f"nominal free run: {err:.2e} of std")
     assert err < 1e-4, err
     result = model.identify(data)
