@@ -7,3 +7,4 @@ pub use dynid_runtime as runtime;
 
 pub mod output;
 pub mod plot;
+pub mod schema;

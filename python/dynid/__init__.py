@@ -8,24 +8,28 @@ The package runs the same Rust runtime as the ``dynid`` command line::
     data = model.simulate(duration=400, seed=1)      # one DataFrame per level
     result = model.identify(data)
     result.parameters                                  # value, stderr per parameter
+    run = model.compare(data, parameters=result)       # measured vs model, free run
+    run.plot()                                         # needs matplotlib
 
-Data are a list with one level each: a ``pandas.DataFrame`` or a dict of 1-D arrays, with
-a column per measured signal (``m1.x``, ``m1.v``, ``m1.a`` of an accelerometer, ``u``)
-and a uniform time column ``t`` (or give ``sample=TS``). Float64 columns are read without a copy. Without pandas,
-``simulate`` returns dicts of NumPy arrays and ``.parameters`` is a dict of arrays.
+Data are a list with one level each: a ``pandas.DataFrame``, a dict of 1-D arrays
+(shapes ``(N,)``, ``(1, N)`` or ``(N, 1)``), or the path of a CSV file as the command
+line reads it. A level has a column per measured signal (``m1.x``, ``m1.v``, ``m1.a`` of
+an accelerometer, ``u``) and a uniform time column ``t`` (or give ``sample=TS``);
+``map={"disp": "m1.x"}`` renames columns. Float64 columns are read without a copy.
+Without pandas, ``simulate`` returns dicts of NumPy arrays and ``.parameters`` is a dict
+of arrays. Every ``to_dict()`` is the object the command's ``--json`` writes.
 """
 
-from __future__ import annotations
-
+import errno as _errno
 import html as _html
 import json as _json
 import os as _os
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
+import typing as _t
 
 import numpy as _np
 
 from . import _dynid
-from .errors import CompileError, DataError, DynidError
+from .errors import CompileError, DataError, DynidError, OptionError, ParameterError
 
 try:  # pandas is optional
     import pandas as _pd
@@ -36,6 +40,8 @@ __version__ = _dynid.__version__
 __all__ = [
     "Model",
     "Identification",
+    "Refinement",
+    "Comparison",
     "Detection",
     "Diagnosis",
     "detect",
@@ -43,23 +49,38 @@ __all__ = [
     "CompileError",
     "DataError",
     "DynidError",
+    "OptionError",
+    "ParameterError",
     "has_pandas",
 ]
 
+#: The RK4 sub-steps per sample interval of driven simulations (as the command line).
+_SUBSTEPS = 20
+
+
+def __dir__() -> _t.List[str]:
+    return sorted(__all__ + ["__version__", "errors"])
+
 
 def has_pandas() -> bool:
-    """Whether pandas is installed (results are DataFrames then, else dicts of arrays)."""
+    """Whether pandas is installed.
+
+    Returns
+    -------
+    bool
+        True when results are DataFrames, False when they are dicts of NumPy arrays.
+    """
     return _pd is not None
 
 
-def _table(columns: Dict[str, Any], index: Optional[Sequence[str]] = None, index_name="name"):
+def _table(columns: _t.Dict[str, _t.Any], index=None, index_name="name"):
     """A DataFrame when pandas is there, else a dict of NumPy arrays (the index first)."""
     if _pd is not None:
         df = _pd.DataFrame(columns, index=list(index) if index is not None else None)
         if index is not None:
             df.index.name = index_name
         return df
-    out: Dict[str, Any] = {}
+    out: _t.Dict[str, _t.Any] = {}
     if index is not None:
         out[index_name] = _np.asarray(list(index), dtype=object)
     for k, v in columns.items():
@@ -67,7 +88,7 @@ def _table(columns: Dict[str, Any], index: Optional[Sequence[str]] = None, index
     return out
 
 
-def _html_table(rows: List[List[str]], header: List[str]) -> str:
+def _html_table(rows, header) -> str:
     head = "".join(f"<th>{_html.escape(h)}</th>" for h in header)
     body = "".join(
         "<tr>" + "".join(f"<td>{_html.escape(c)}</td>" for c in r) + "</tr>" for r in rows
@@ -75,153 +96,440 @@ def _html_table(rows: List[List[str]], header: List[str]) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def _g(x: Optional[float], digits: int = 4) -> str:
+def _g(x, digits: int = 4) -> str:
     return "–" if x is None else f"{x:.{digits}g}"
 
 
+def _pyplot():
+    """matplotlib.pyplot, or an ImportError that says how to get it."""
+    try:
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise ImportError(
+            "plotting needs matplotlib, which dynid does not install: "
+            "`pip install matplotlib` (the results themselves need only NumPy)"
+        ) from None
+    return plt
+
+
+def _error(cls, message: str, help: str, code: str, **attrs):
+    err = cls(f"{message}\n  help: {help}\n  [{code}]")
+    err.code, err.help = code, help
+    for k, v in attrs.items():
+        setattr(err, k, v)
+    return err
+
+
 # ---------------------------------------------------------------------------------------
-# Data: DataFrames or dicts of arrays → the level tuples of the native module.
+# Data: DataFrames, dicts of arrays or CSV files → the level tuples of the native module.
 
 
-def _columns_of(level: Any, i: int):
-    """(names, getter) of one level: a DataFrame or a mapping of name → 1-D array."""
+def _is_path(x) -> bool:
+    return isinstance(x, (str, _os.PathLike))
+
+
+def _columns_of(level, i: int):
+    """(names, getter) of one level: a DataFrame or a mapping of name → array."""
     if _pd is not None and isinstance(level, _pd.DataFrame):
         names = [str(c) for c in level.columns]
         if level.index.name == "t" and "t" not in names:
             return names + ["t"], lambda c: (level.index if c == "t" else level[c])
         return names, lambda c: level[c]
-    if isinstance(level, Mapping):
+    if isinstance(level, _t.Mapping):
         return [str(c) for c in level.keys()], lambda c: level[c]
     raise TypeError(
-        f"level {i + 1}: expected a pandas.DataFrame or a dict of arrays (one level each), "
-        f"got {type(level).__name__}"
+        f"level {i + 1}: expected a pandas.DataFrame, a dict of arrays or the path of a CSV "
+        f"file (one level each), got {type(level).__name__}"
     )
 
 
-def _as_column(values: Any, level: int, name: str) -> _np.ndarray:
-    """A contiguous float64 array; no copy for a contiguous float64 input."""
+def _as_column(values, level: int, name: str) -> _np.ndarray:
+    """A contiguous 1-D float64 array; no copy for a contiguous float64 input. MATLAB-shaped
+    vectors, ``(1, N)`` or ``(N, 1)``, are taken as ``(N,)``."""
     if _pd is not None and isinstance(values, (_pd.Series, _pd.Index)):
         values = values.to_numpy()
     try:
-        a = _np.ascontiguousarray(values, dtype=_np.float64)
+        a = _np.asarray(values, dtype=_np.float64)
     except (TypeError, ValueError) as e:
-        err = DataError(
-            f"level {level}, column `{name}`: not numeric ({e})\n"
-            "  help: give numbers (float64) in every column the model measures\n"
-            "  [dynid::data::not_a_number]"
-        )
-        err.code, err.level, err.column = "dynid::data::not_a_number", level, name
-        raise err from None
+        raise _error(
+            DataError,
+            f"level {level}, column `{name}`: not numeric ({e})",
+            "give numbers (float64) in every column the model measures",
+            "dynid::data::not_a_number",
+            level=level,
+            column=name,
+        ) from None
+    if a.ndim == 2 and 1 in a.shape:
+        a = a.reshape(-1)
     if a.ndim != 1:
-        err = DataError(
-            f"level {level}, column `{name}`: expected a 1-D array, got shape {a.shape}\n"
-            "  help: one column per signal, one value per sample\n"
-            "  [dynid::data::shape]"
+        raise _error(
+            DataError,
+            f"level {level}, column `{name}`: expected a vector, got an array of shape {a.shape}",
+            "one column per signal, one value per sample: shape (N,), (1, N) or (N, 1)",
+            "dynid::data::shape",
+            level=level,
+            column=name,
         )
-        err.code, err.level, err.column = "dynid::data::shape", level, name
-        raise err
-    return a
+    return _np.ascontiguousarray(a)
 
 
-def _levels(compiled, data: Any, sample: Optional[float]):
-    """The level tuples for the native module: (label, names, columns, t, sample)."""
-    if (_pd is not None and isinstance(data, _pd.DataFrame)) or isinstance(data, Mapping):
-        data = [data]
+def _as_list(data, what: str = "data"):
+    """The levels as a list, and whether one level was given alone."""
+    if (_pd is not None and isinstance(data, _pd.DataFrame)) or isinstance(data, _t.Mapping) or _is_path(data):
+        return [data], True
     if not isinstance(data, (list, tuple)):
         raise TypeError(
-            "data: expected a list with one DataFrame or dict of arrays per level, "
+            f"{what}: expected a list with one DataFrame, dict of arrays or CSV path per level, "
             f"got {type(data).__name__}"
         )
     if not data:
-        raise ValueError("data: no levels given (one DataFrame or dict of arrays per level)")
+        raise _error(
+            DataError,
+            f"{what}: no levels given",
+            "give one DataFrame, dict of arrays or CSV path per level",
+            "dynid::data::no_levels",
+        )
+    return list(data), False
+
+
+def _check_map(map) -> _t.List[_t.Tuple[str, str]]:
+    if map is None:
+        return []
+    if not isinstance(map, _t.Mapping):
+        raise TypeError(f"map: expected a dict of column → signal, got {type(map).__name__}")
+    return [(str(c), str(s)) for c, s in map.items()]
+
+
+def _levels(compiled, data, sample, map=None, what: str = "data"):
+    """The level tuples for the native module: ``(path, map, sample)`` for a file,
+    ``(label, names, columns, t, sample)`` for arrays."""
+    data, _ = _as_list(data, what)
+    pairs = _check_map(map)
+    rename = dict(pairs)
     wanted = compiled.measured()
     out = []
     for i, level in enumerate(data):
+        if _is_path(level):
+            path = _os.fspath(level)
+            if not _os.path.exists(path):
+                raise FileNotFoundError(_errno.ENOENT, f"level {i + 1}: no data file", path)
+            out.append((path, pairs, None if sample is None else float(sample)))
+            continue
         names, get = _columns_of(level, i)
-        present = [n for n in wanted if n in names]
-        missing = [n for n in wanted if n not in names]
+        signal_of = {n: rename.get(n, n) for n in names}
+        column_of = {s: n for n, s in signal_of.items()}
+        missing = [n for n in wanted if n not in column_of]
         if missing:
             name = missing[0]
-            err = DataError(
-                f"level {i + 1}: no column for the measured signal `{name}` "
-                f"(columns: {', '.join(names)})\n"
-                f"  help: name a column `{name}`, rename one to it, or declare `{name}` "
-                "unmeasured in the model\n"
-                "  [dynid::data::missing_column]"
+            raise _error(
+                DataError,
+                f"level {i + 1}: no column for the measured signal `{name}` (columns: {', '.join(names)})",
+                f"name a column `{name}`, rename one to it (map={{'COLUMN': '{name}'}}), or "
+                f"declare `{name}` unmeasured in the model",
+                "dynid::data::missing_column",
+                level=i + 1,
+                column=name,
             )
-            err.code, err.level, err.column = "dynid::data::missing_column", i + 1, name
-            raise err
-        cols = [_as_column(get(n), i + 1, n) for n in present]
+        cols = [_as_column(get(column_of[n]), i + 1, n) for n in wanted]
         t = _as_column(get("t"), i + 1, "t") if "t" in names and sample is None else None
-        out.append((f"level {i + 1}", present, cols, t, sample))
+        out.append((f"level {i + 1}", list(wanted), cols, t, None if sample is None else float(sample)))
     return out
+
+
+def _frame(names, cols, ts: float, t0: float):
+    n = len(cols[0]) if cols else 0
+    d = {"t": t0 + ts * _np.arange(n, dtype=_np.float64)}
+    d.update(zip(names, cols))
+    return _pd.DataFrame(d, copy=False) if _pd is not None else d
+
+
+def _values_of(parameters) -> _t.Optional[_t.List[_t.Tuple[str, float]]]:
+    """``(name, value)`` pairs from a dict, an Identification or a Refinement."""
+    if parameters is None:
+        return None
+    if isinstance(parameters, Refinement):
+        return [(n, float(v)) for n, v in parameters.values.items()]
+    if isinstance(parameters, Identification):
+        if parameters.refined is not None and parameters.refined.applied:
+            return [(n, float(v)) for n, v in parameters.refined.values.items()]
+        return [(n, float(p["value"])) for n, p in parameters.to_dict()["parameters"].items()]
+    if isinstance(parameters, _t.Mapping):
+        out = []
+        for n, v in parameters.items():
+            try:
+                out.append((str(n), float(v)))
+            except (TypeError, ValueError):
+                raise _error(
+                    ParameterError,
+                    f"parameter `{n}` = {v!r} is not a number",
+                    "give a dict of parameter name → value",
+                    "dynid::parameter",
+                ) from None
+        return out
+    raise TypeError(
+        "parameters: expected a dict of name → value, an Identification or a Refinement, "
+        f"got {type(parameters).__name__}"
+    )
+
+
+def _input_records(compiled, inputs, sample, map):
+    """``(names, columns, ts, t0)`` per level of measured inputs (arrays or CSV files)."""
+    levels, single = _as_list(inputs, "inputs")
+    pairs = _check_map(map)
+    rename = dict(pairs)
+    out = []
+    for i, level in enumerate(levels):
+        if _is_path(level):
+            path = _os.fspath(level)
+            if not _os.path.exists(path):
+                raise FileNotFoundError(_errno.ENOENT, f"inputs, level {i + 1}: no data file", path)
+            if _pd is None:
+                raise ImportError("reading a CSV file of inputs in Python needs pandas: `pip install pandas`")
+            level = _pd.read_csv(path)
+        names, get = _columns_of(level, i)
+        cols, used = [], []
+        for n in names:
+            if n == "t":
+                continue
+            try:
+                cols.append(_as_column(get(n), i + 1, n))
+            except DataError:
+                continue  # a text column the model does not read
+            used.append(rename.get(n, n))
+        if "t" in names and sample is None:
+            t = _as_column(get("t"), i + 1, "t")
+            if len(t) < 2:
+                raise _error(DataError, f"inputs, level {i + 1}: fewer than 2 samples", "give a longer record", "dynid::data::too_few_samples", level=i + 1)
+            ts, t0 = float(t[1] - t[0]), float(t[0])
+        elif sample is not None:
+            ts, t0 = float(sample), 0.0
+        else:
+            raise _error(
+                DataError,
+                f"inputs, level {i + 1}: no sample interval: no `t` column",
+                "add a `t` column or give the interval with `sample=TS` (seconds)",
+                "dynid::data::no_sample_interval",
+                level=i + 1,
+            )
+        out.append((used, cols, ts, t0))
+    return out, single
 
 
 # ---------------------------------------------------------------------------------------
 # Results.
 
 
-class Identification:
-    """The identified parameters (all levels pooled into one least-squares problem).
+class Refinement:
+    """An output-error refinement: the covariance estimate refined by minimising the
+    free-run (simulation) error of all levels, as ``dynid identify --refine``.
 
-    ``parameters``: value, stderr and significance per parameter; ``condition``; the
-    parameters the data cannot determine (``unidentifiable``); ``warnings``;
-    ``fit_warnings`` (residuals the model cannot explain, with their likely cause);
-    ``equations``, the identified equations; ``to_dict()``, everything (the fields of
-    ``dynid identify --json``).
+    Attributes
+    ----------
+    parameters : DataFrame or dict of arrays
+        Per parameter: ``start`` (the covariance estimate), ``value`` (refined), ``stderr``
+        (from the final Jacobian, white residuals assumed: a lower bound).
+    values : dict
+        The refined values by name (the start values where the fit was not applied).
+    applied : bool
+        Whether the refined values were kept (``note`` says why not).
+    free_run : DataFrame or dict of arrays
+        Free-run RMS error per signal and record set (``estimation``, ``test``), of the
+        start and the refined values, absolute and relative to the signal's std.
     """
 
-    def __init__(self, result: Dict[str, Any], equations: str):
+    def __init__(self, result: _t.Dict[str, _t.Any]):
         self._d = result
-        self.equations = equations
 
-    def to_dict(self) -> Dict[str, Any]:
+    def to_dict(self) -> _t.Dict[str, _t.Any]:
+        """The refinement as ``dynid identify --refine --json`` writes it (``refined``).
+
+        Returns
+        -------
+        dict
+            ``refinement`` (the fit), ``estimation`` and ``test`` (free-run errors of the
+            start and the refined values).
+        """
         return self._d
 
     @property
+    def applied(self) -> bool:
+        return bool(self._d["refinement"]["applied"])
+
+    @property
+    def note(self) -> _t.Optional[str]:
+        return self._d["refinement"].get("note")
+
+    @property
+    def values(self) -> _t.Dict[str, float]:
+        return {p["name"]: p["value"] for p in self._d["refinement"]["params"]}
+
+    @property
     def parameters(self):
-        ps = self._d["params"]
+        ps = self._d["refinement"]["params"]
         return _table(
             {
+                "start": [p["start"] for p in ps],
                 "value": [p["value"] for p in ps],
                 "stderr": [p["stderr"] for p in ps],
-                "significant": [p["significant"] for p in ps],
             },
             index=[p["name"] for p in ps],
             index_name="parameter",
         )
 
+    @property
+    def free_run(self):
+        rows = {"set": [], "start_rms": [], "refined_rms": [], "start_relative": [], "refined_relative": []}
+        names = []
+        for what in ("estimation", "test"):
+            cov, ref = self._d[what]
+            for c, f in zip(cov, ref):
+                names.append(c["signal"])
+                rows["set"].append(what)
+                rows["start_rms"].append(c["rms"])
+                rows["refined_rms"].append(f["rms"])
+                rows["start_relative"].append(c["relative"])
+                rows["refined_relative"].append(f["relative"])
+        return _table(rows, index=names, index_name="signal")
+
+    def __repr__(self) -> str:
+        r = self._d["refinement"]
+        lines = [
+            f"output-error refinement: {r['iterations']} iterations "
+            f"({'converged' if r['converged'] else 'iteration limit'}), "
+            f"cost {r['cost_start']:.3e} -> {r['cost_end']:.3e}"
+            + ("" if r["applied"] else f" (not applied: {r.get('note')})"),
+            f"{'parameter':<12} {'covariance':>14} {'refined':>14} {'std. error':>12}",
+        ]
+        for p in r["params"]:
+            lines.append(f"{p['name']:<12} {_g(p['start'], 6):>14} {_g(p['value'], 6):>14} {_g(p['stderr']):>12}")
+        return "\n".join(lines)
+
+
+class Identification:
+    """The identified parameters (all levels pooled into one least-squares problem), as
+    ``dynid identify``.
+
+    Attributes
+    ----------
+    parameters : DataFrame or dict of arrays
+        Value, standard error and significance per parameter.
+    condition : float
+        Condition number of the scaled least-squares problem.
+    unidentifiable : dict
+        The parameters the data cannot determine, with the reason.
+    warnings, fit_warnings : list
+        Warnings; residuals the model cannot explain, with their likely cause.
+    equations : str
+        The identified equations of motion.
+    refined : Refinement or None
+        The output-error refinement (``identify(..., refine=True)``).
+
+    Examples
+    --------
+    >>> result = model.identify(data)              # doctest: +SKIP
+    >>> result["k3"], result.parameters            # doctest: +SKIP
+    >>> model.compare(data, parameters=result).plot()  # doctest: +SKIP
+    """
+
+    def __init__(self, result: _t.Dict[str, _t.Any], equations: str, model=None, data=None):
+        self._d = result
+        self.equations = equations
+        self._model = model
+        self._data = data
+
+    def to_dict(self) -> _t.Dict[str, _t.Any]:
+        """The result as ``dynid identify --json`` writes it (one schema for both).
+
+        Returns
+        -------
+        dict
+            ``parameters`` ({name: {value, stderr, significant}}), ``condition``, ``rows``,
+            ``residual``, ``levels``, ``unidentifiable``, ``warnings``, ``fit_warnings``,
+            ``filter``, ``estimated``, ``shapes``, and ``refined`` after a refinement.
+        """
+        return self._d
+
+    @property
+    def parameters(self):
+        ps = self._d["parameters"]
+        return _table(
+            {
+                "value": [p["value"] for p in ps.values()],
+                "stderr": [p["stderr"] for p in ps.values()],
+                "significant": [p["significant"] for p in ps.values()],
+            },
+            index=list(ps),
+            index_name="parameter",
+        )
+
+    @property
+    def values(self) -> _t.Dict[str, float]:
+        """The identified values by name."""
+        return {n: p["value"] for n, p in self._d["parameters"].items()}
+
     def __getitem__(self, name: str) -> float:
-        for p in self._d["params"]:
-            if p["name"] == name:
-                return p["value"]
-        raise KeyError(name)
+        return self._d["parameters"][name]["value"]
 
     @property
     def condition(self) -> float:
         return self._d["condition"]
 
     @property
-    def unidentifiable(self) -> Dict[str, str]:
+    def unidentifiable(self) -> _t.Dict[str, str]:
         return {u["name"]: u["reason"] for u in self._d["unidentifiable"]}
 
     @property
-    def warnings(self) -> List[Any]:
+    def warnings(self) -> _t.List[_t.Any]:
         return self._d["warnings"]
 
     @property
-    def fit_warnings(self) -> List[Any]:
+    def fit_warnings(self) -> _t.List[_t.Any]:
         """Residuals the model cannot explain, each with ``check``, ``cause``
         (``sensor_offset``, ``constant_force``, ``wrong_mass``, ``missing_body``, ...) and ``message``."""
         return self._d.get("fit_warnings", [])
 
-    def _rows(self) -> List[List[str]]:
+    @property
+    def refined(self) -> _t.Optional[Refinement]:
+        r = self._d.get("refined")
+        return None if r is None else Refinement(r)
+
+    def plot(self, data=None, level: int = 1, ax=None, **kw):
+        """Measured vs model: the identified model driven by the measured inputs of one
+        level, from its measured initial state, over the measured responses.
+
+        Parameters
+        ----------
+        data : list, optional
+            The levels to compare with (default: the levels it was identified from).
+        level : int, default 1
+            The level to draw (1-based).
+        ax : matplotlib Axes or sequence of Axes, optional
+            Where to draw (one per measured position or velocity).
+        **kw
+            Passed to :meth:`Model.compare` (``sample``, ``map``, ``from_rest``).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure (one panel per measured response signal).
+
+        Raises
+        ------
+        ImportError
+            Without matplotlib.
+        """
+        if self._model is None:
+            raise ValueError("this result knows no model: use Model.compare(data, parameters=result).plot()")
+        data = self._data if data is None else data
+        if data is None:
+            raise ValueError("give the levels to compare with: result.plot(data)")
+        return self._model.compare(data, parameters=self, **kw).plot(level=level, ax=ax)
+
+    def _rows(self) -> _t.List[_t.List[str]]:
         rows = []
-        for p in self._d["params"]:
+        for name, p in self._d["parameters"].items():
             rel = f"{100 * p['stderr'] / abs(p['value']):.2f} %" if p["value"] else "–"
-            rows.append(
-                [p["name"], _g(p["value"], 6), _g(p["stderr"], 4), rel, "" if p["significant"] else "n.s."]
-            )
+            rows.append([name, _g(p["value"], 6), _g(p["stderr"], 4), rel, "" if p["significant"] else "n.s."])
         return rows
 
     def __repr__(self) -> str:
@@ -233,6 +541,8 @@ class Identification:
             lines.append(f"{u['name']:<12} not identifiable: {u['reason']}")
         lines.append(f"condition {self.condition:.3e}, {self._d['rows']} rows")
         lines.extend(f"warning: {w['message']}" for w in self.fit_warnings)
+        if self.refined is not None:
+            lines.extend(["", repr(self.refined)])
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -245,7 +555,102 @@ class Identification:
         return f"{eq}{t}{extra}<p>condition {self.condition:.3e}, {self._d['rows']} rows</p>"
 
 
-def _verdict_text(v: Any) -> str:
+class Comparison:
+    """Measured vs model: the model driven by each level's measured inputs from its
+    measured initial state (a free run), next to the measured responses.
+
+    Attributes
+    ----------
+    measured : list
+        The levels as given (one DataFrame or dict of arrays each).
+    simulated : list
+        The free runs (``t`` and the model's measured signals), one per level.
+    errors : DataFrame or dict of arrays
+        Free-run RMS error per level and response signal, absolute and relative to the
+        measured signal's standard deviation.
+    """
+
+    def __init__(self, measured, simulated, responses: _t.List[str], units: _t.Dict[str, str]):
+        self.measured = measured
+        self.simulated = simulated
+        self._responses = responses
+        self._units = units
+
+    @property
+    def errors(self):
+        levels, signals, rms, rel = [], [], [], []
+        for i, (m, s) in enumerate(zip(self.measured, self.simulated)):
+            for sig in self._responses:
+                a = _np.asarray(m[sig], dtype=float).reshape(-1)
+                b = _np.asarray(s[sig], dtype=float)
+                e = float(_np.sqrt(_np.mean((a - b) ** 2)))
+                levels.append(i + 1)
+                signals.append(sig)
+                rms.append(e)
+                sd = float(_np.std(a))
+                rel.append(e / sd if sd > 0 else _np.nan)
+        return _table({"level": levels, "signal": signals, "rms": rms, "relative": rel})
+
+    def plot(self, level: int = 1, ax=None, signals: _t.Optional[_t.Sequence[str]] = None):
+        """Draw the measured responses of one level with the model's free run on them.
+
+        Parameters
+        ----------
+        level : int, default 1
+            The level to draw (1-based).
+        ax : matplotlib Axes or sequence of Axes, optional
+            One per drawn signal; by default a new figure with one panel per signal.
+        signals : sequence of str, optional
+            The signals to draw (default: the measured positions and velocities).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Raises
+        ------
+        ImportError
+            Without matplotlib.
+
+        Examples
+        --------
+        >>> fig = model.compare(data, parameters=result).plot()   # doctest: +SKIP
+        >>> fig.savefig("measured_vs_model.png")                  # doctest: +SKIP
+        """
+        plt = _pyplot()
+        if not 1 <= level <= len(self.measured):
+            raise ValueError(f"level {level}: there are {len(self.measured)} levels (1-based)")
+        sigs = list(signals) if signals is not None else list(self._responses)
+        m, s = self.measured[level - 1], self.simulated[level - 1]
+        if ax is None:
+            fig, axes = plt.subplots(len(sigs), 1, sharex=True, figsize=(9, 2.6 * len(sigs) + 0.6), squeeze=False)
+            axes = list(axes[:, 0])
+        else:
+            axes = list(ax) if isinstance(ax, (list, tuple, _np.ndarray)) else [ax]
+            fig = axes[0].figure
+        t = _np.asarray(s["t"], dtype=float)
+        for a, sig in zip(axes, sigs):
+            meas = _np.asarray(m[sig], dtype=float).reshape(-1)
+            a.plot(t, meas, color="#222222", lw=1.6, label="measured")
+            a.plot(t, _np.asarray(s[sig], dtype=float), color="#d62728", lw=1.0, ls="--", label="model (free run)")
+            unit = self._units.get(sig, "")
+            a.set_ylabel(f"{sig} [{unit}]" if unit else sig)
+            a.grid(alpha=0.3)
+        axes[0].legend(loc="upper right", fontsize=9, framealpha=0.9)
+        axes[-1].set_xlabel("time [s]")
+        axes[0].set_title(f"Measured vs model, level {level}")
+        fig.tight_layout()
+        return fig
+
+    def __repr__(self) -> str:
+        e = self.errors
+        rows = zip(e["level"], e["signal"], e["rms"], e["relative"])
+        lines = [f"{'level':>5} {'signal':<10} {'free-run RMS':>14} {'rel.':>8}"]
+        lines += [f"{lv:>5} {sg:<10} {r:>14.4g} {100 * q:>7.2f}%" for lv, sg, r, q in rows]
+        return "\n".join(lines)
+
+
+def _verdict_text(v) -> str:
     if isinstance(v, str):
         return v
     if isinstance(v, dict) and v:
@@ -259,25 +664,41 @@ def _verdict_text(v: Any) -> str:
 
 
 class Detection:
-    """Which elements of a linear model hide a nonlinearity, from per-level linear fits.
+    """Which elements of a linear model hide a nonlinearity, from per-level linear fits, as
+    ``dynid detect``.
 
-    ``elements``: the verdict per element; ``parameters``: each linear parameter's
-    estimate at every level (value, stderr; a drift with the level betrays a
-    nonlinearity); ``table``: the table ``dynid detect`` prints; ``to_dict()``: the fields
-    of ``dynid detect --json``.
+    Attributes
+    ----------
+    elements : dict
+        The verdict per element in words.
+    parameters : DataFrame or dict of arrays
+        Each linear parameter's estimate at every level (value, stderr): a drift with the
+        level betrays a nonlinearity.
+    table : str
+        The table ``dynid detect`` prints.
+    warnings : list of str
+        Levels too alike to resolve an effect, and similar.
     """
 
-    def __init__(self, result: Dict[str, Any], table: str, warnings: List[str], verdicts):
+    def __init__(self, result, table: str, warnings, verdicts):
         self._d = result
         self.table = table
         self.warnings = warnings
         self._verdicts = dict(verdicts)
 
-    def to_dict(self) -> Dict[str, Any]:
+    def to_dict(self) -> _t.Dict[str, _t.Any]:
+        """The result as ``dynid detect --json`` writes it (one schema for both).
+
+        Returns
+        -------
+        dict
+            ``detection``, ``intensities``, ``sigma_v_source``, ``jackknife_blocks``,
+            ``segments``, ``warnings``, ``cycles_note``, ``frf``.
+        """
         return self._d
 
     @property
-    def elements(self) -> Dict[str, str]:
+    def elements(self) -> _t.Dict[str, str]:
         """The verdict per element in words (``linear``, ``nonlinear: Coulomb friction``,
         ``ambiguous between …``, ``drifts, unexplained …``)."""
         return dict(self._verdicts)
@@ -296,6 +717,55 @@ class Detection:
         cols = {"level": levels, "value": values, "stderr": stderrs, "drifting": drifting}
         return _table(cols, index=names, index_name="parameter")
 
+    def plot(self, ax=None):
+        """Parameter drift: each linear parameter identified at every level, over the
+        element's intensity (σ of its relative displacement for a stiffness, of its relative
+        velocity for a damping), with ±1 standard error bars, relative to its weighted mean.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes or sequence of Axes, optional
+            One per parameter; by default a new figure with one panel per parameter.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Raises
+        ------
+        ImportError
+            Without matplotlib.
+        """
+        plt = _pyplot()
+        params = self._d["detection"]["params"]
+        if ax is None:
+            cols = min(3, len(params))
+            rows = -(-len(params) // cols)
+            fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), squeeze=False)
+            axes = list(axes.ravel())
+        else:
+            axes = list(ax) if isinstance(ax, (list, tuple, _np.ndarray)) else [ax]
+            fig = axes[0].figure
+        unit = {"σ_s": "m", "σ_v": "m/s"}
+        for a, p in zip(axes, params):
+            c = p["curve"]
+            mean = p["mean"] if p["mean"] else 1.0
+            x = _np.asarray(p["sigma"], dtype=float)
+            y = _np.asarray(c["values"], dtype=float) / mean
+            e = _np.asarray(c["stderrs"], dtype=float) / abs(mean)
+            color = "#d62728" if p["drifting"] else "#1f77b4"
+            a.errorbar(x, y, yerr=e, fmt="o-", color=color, capsize=3, lw=1.4)
+            a.axhline(1.0, color="#888888", lw=0.8, ls=":")
+            name = p["sigma_name"]
+            a.set_xlabel(f"{name} [{unit[name]}]" if name in unit else name)
+            a.set_ylabel(f"{c['param']} / weighted mean")
+            a.set_title(f"{c['param']} ({c['element']}){': drifts' if p['drifting'] else ''}", fontsize=10)
+            a.grid(alpha=0.3)
+        for a in axes[len(params):]:
+            a.set_visible(False)
+        fig.tight_layout()
+        return fig
+
     def __repr__(self) -> str:
         return self.table.rstrip() + "".join(f"\nwarning: {w}" for w in self.warnings)
 
@@ -305,20 +775,34 @@ class Detection:
 
 class Diagnosis:
     """Where a model and the data disagree, the most likely unmodelled effect and how far
-    the gap shrinks once it is added (scored on a withheld level).
+    the gap shrinks once it is added (scored on a withheld level), as ``dynid diagnose``.
 
-    ``summary``: the text ``dynid diagnose`` prints; ``report_html``: its HTML report
-    (``_repr_html_`` shows it inline in a notebook); ``parameters``: the corrected
-    model's parameters identified on all levels (value, stderr, nominal, kind); ``fixed_source``: the corrected model as
-    ``.dyn`` source; ``to_dict()``: the fields of ``dynid diagnose --json``.
+    Attributes
+    ----------
+    summary : str
+        The text ``dynid diagnose`` prints.
+    report_html : str
+        Its HTML report (``_repr_html_`` shows it inline in a notebook).
+    parameters : DataFrame or dict of arrays
+        The corrected model's parameters (the model as given plus every found effect)
+        identified on all levels: value, stderr, nominal, kind.
+    fixed_source : str
+        The corrected model as ``.dyn`` source; ``fixed_model`` compiles it.
     """
 
-    def __init__(self, result: Dict[str, Any], summary: str, report_html: str):
+    def __init__(self, result, summary: str, report_html: str):
         self._d = result
         self.summary = summary
         self.report_html = report_html
 
-    def to_dict(self) -> Dict[str, Any]:
+    def to_dict(self) -> _t.Dict[str, _t.Any]:
+        """The result as ``dynid diagnose --json`` writes it (one schema for both).
+
+        Returns
+        -------
+        dict
+            The diagnosis' fields with ``free_run_start`` and ``frf``.
+        """
         return self._d
 
     @property
@@ -326,7 +810,7 @@ class Diagnosis:
         return _verdict_text(self._d["verdict"])
 
     @property
-    def found(self) -> List[Dict[str, Any]]:
+    def found(self) -> _t.List[_t.Dict[str, _t.Any]]:
         return self._d["found"]
 
     @property
@@ -354,8 +838,56 @@ class Diagnosis:
         cols = {"value": values, "stderr": stderrs, "nominal": nominals, "kind": kinds}
         return _table(cols, index=names, index_name="parameter")
 
-    def save_report(self, path: Union[str, "_os.PathLike[str]"]) -> None:
-        """Write the HTML report (it opens offline)."""
+    def plot(self, ax=None):
+        """Parameter drift: the model's parameters identified at every level, relative to
+        their value at the first level that has one, with ±1 standard error bars.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            Where to draw; by default a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Raises
+        ------
+        ImportError
+            Without matplotlib.
+        """
+        plt = _pyplot()
+        if ax is None:
+            fig, ax = plt.subplots(figsize=(8, 4))
+        else:
+            fig = ax.figure
+        n = len(self._d["levels"])
+        x = _np.arange(1, n + 1)
+        for p in self._d["drift"]:
+            vals = [_np.nan if v is None else v for v in p["per_level"]]
+            errs = [_np.nan if v is None else v for v in p["stderr"]]
+            ref = next((v for v in vals if _np.isfinite(v) and v != 0), None)
+            if ref is None:
+                continue
+            ax.errorbar(x, _np.asarray(vals) / ref, yerr=_np.abs(_np.asarray(errs) / ref), fmt="o-", capsize=3, label=p["name"])
+        ax.axhline(1.0, color="#888888", lw=0.8, ls=":")
+        ax.set_xticks(x)
+        ax.set_xlabel("level")
+        ax.set_ylabel("identified value / value at the first level")
+        ax.set_title("Parameter drift over the levels")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=9, ncol=2, loc="best")
+        fig.tight_layout()
+        return fig
+
+    def save_report(self, path) -> None:
+        """Write the HTML report (it opens offline).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write.
+        """
         with open(path, "w", encoding="utf-8") as f:
             f.write(self.report_html)
 
@@ -376,21 +908,65 @@ class Diagnosis:
 
 
 class Model:
-    """A compiled model (``.dyn`` source or a compiled ``.json`` model)."""
+    """A compiled model (``.dyn`` source or a compiled ``.json`` model).
+
+    Examples
+    --------
+    >>> model = dynid.Model.from_file("models/sdof_cubic_coulomb.dyn")   # doctest: +SKIP
+    >>> model.unknowns                                                    # doctest: +SKIP
+    ['k', 'd', 'k3', 'r']
+    """
 
     def __init__(self, compiled: "_dynid.CompiledModel"):
         self._m = compiled
 
     @classmethod
-    def from_file(cls, path: Union[str, "_os.PathLike[str]"]) -> "Model":
-        """Compile a ``.dyn`` file (or load ``dynid compile --emit json`` output).
+    def from_file(cls, path) -> "Model":
+        """Compile a ``.dyn`` file, or load ``dynid compile --emit json`` output.
 
-        Raises CompileError with the rendered diagnostic, line and column."""
-        return cls(_dynid.compile_file(_os.fspath(path)))
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The model file (``.dyn``, or ``.json`` for a compiled model).
+
+        Returns
+        -------
+        Model
+
+        Raises
+        ------
+        FileNotFoundError
+            When there is no such file.
+        CompileError
+            With the rendered diagnostic, line and column (a ``ValueError``).
+        """
+        p = _os.fspath(path)
+        if not _os.path.exists(p):
+            raise FileNotFoundError(_errno.ENOENT, "no model file", p)
+        if _os.path.isdir(p):
+            raise IsADirectoryError(_errno.EISDIR, "a directory, not a model file", p)
+        return cls(_dynid.compile_file(p))
 
     @classmethod
     def from_source(cls, source: str, name: str = "<source>") -> "Model":
-        """Compile ``.dyn`` source text; ``name`` is shown in diagnostics."""
+        """Compile ``.dyn`` source text.
+
+        Parameters
+        ----------
+        source : str
+            The model text.
+        name : str, default "<source>"
+            The file name shown in diagnostics.
+
+        Returns
+        -------
+        Model
+
+        Raises
+        ------
+        CompileError
+            With the rendered diagnostic, line and column (a ``ValueError``).
+        """
         return cls(_dynid.compile_source(source, name))
 
     @property
@@ -402,12 +978,12 @@ class Model:
         return self._m.equations()
 
     @property
-    def unknowns(self) -> List[str]:
+    def unknowns(self) -> _t.List[str]:
         """The unknown parameters, in declaration order."""
         return self._m.unknowns()
 
     @property
-    def measured(self) -> List[str]:
+    def measured(self) -> _t.List[str]:
         """The measured signals: the columns every level needs."""
         return self._m.measured()
 
@@ -416,59 +992,247 @@ class Model:
         """The model as ``.dyn`` source."""
         return self._m.source()
 
-    def to_dict(self) -> Dict[str, Any]:
+    def to_dict(self) -> _t.Dict[str, _t.Any]:
         """The compiled model (the JSON of ``dynid compile --emit json``)."""
         return _json.loads(self._m.to_json())
+
+    def with_parameters(self, parameters) -> "Model":
+        """The model with the unknown parameters' nominal values set.
+
+        Parameters
+        ----------
+        parameters : dict, Identification or Refinement
+            Values by name (an Identification gives its refined values where a refinement
+            was applied, else the covariance estimate).
+
+        Returns
+        -------
+        Model
+
+        Raises
+        ------
+        ParameterError
+            A name that is not an unknown parameter, or a value that is not finite.
+        """
+        return Model(self._m.with_values(_values_of(parameters)))
 
     def __repr__(self) -> str:
         return f"<dynid.Model {self.name}: unknowns {', '.join(self.unknowns) or 'none'}>\n{self.equations.rstrip()}"
 
     def simulate(
         self,
-        levels: Optional[Sequence[float]] = None,
+        levels: _t.Optional[_t.Sequence[float]] = None,
         duration: float = 2000.0,
         seed: int = 1,
-        sample: float = 0.01,
+        sample: _t.Optional[float] = None,
         noise: float = 0.0,
         burn_in: float = 100.0,
-    ) -> List[Any]:
-        """Simulate the model at its excitation levels (or ``levels``, white-noise
-        intensities), unknown parameters at their nominal values, as ``dynid simulate``.
+        inputs=None,
+        parameters=None,
+        from_rest: bool = False,
+        substeps: int = _SUBSTEPS,
+        map=None,
+    ):
+        """Simulate the model: at its excitation levels (random excitation, as
+        ``dynid simulate``), or driven by measured inputs (as ``dynid simulate --input``).
 
-        Returns one level each: a DataFrame with ``t`` and the measured signals (a dict
-        of NumPy arrays without pandas). ``noise`` is measurement noise as a fraction of
-        each signal's standard deviation. What was simulated (parameter values, levels,
-        settings: the ``truth.json`` of ``dynid simulate``) is kept in ``last_truth``."""
+        Parameters
+        ----------
+        levels : sequence of float, optional
+            White-noise intensities of the excitation, one per level (default: the model's
+            ``excite`` levels). Not with ``inputs``.
+        duration, burn_in : float
+            Seconds recorded per level, and simulated before the record starts.
+        seed : int
+            Seed of the excitation.
+        sample : float, optional
+            Sample interval in seconds (default 0.01; with ``inputs``: the interval of
+            levels without a ``t`` column).
+        noise : float
+            Measurement noise as a fraction of each signal's standard deviation.
+        inputs : DataFrame, dict of arrays, CSV path, or a list of them, optional
+            Measured inputs, one record per level: a column per model input (and
+            reference), and ``t`` (or ``sample``). Other columns are ignored.
+        parameters : dict, Identification or Refinement, optional
+            Values of the unknown parameters (default: their nominal values).
+        from_rest : bool, default False
+            With ``inputs``: start at rest at the origin instead of at the measured initial
+            state of the record (positions from the first sample, velocities from their
+            column or the first three positions).
+        substeps : int, default 20
+            With ``inputs``: RK4 sub-steps per sample interval.
+        map : dict, optional
+            With ``inputs``: column → signal renamings.
+
+        Returns
+        -------
+        list of DataFrame (or of dicts of arrays without pandas)
+            One per level: ``t`` and the model's measured signals. With ``inputs`` given as
+            one level (not a list), that one level. What a random simulation simulated
+            (``truth.json`` of ``dynid simulate``) is kept in ``last_truth``.
+
+        Raises
+        ------
+        ParameterError
+            An unknown parameter without a value, or a bad ``parameters`` entry.
+        DataError
+            Inputs without a column the model needs, or with non-finite values.
+
+        Examples
+        --------
+        >>> data = model.simulate(duration=400, seed=1)                     # doctest: +SKIP
+        >>> result = model.identify(data)                                    # doctest: +SKIP
+        >>> free_run = model.simulate(inputs=data[0], parameters=result)     # doctest: +SKIP
+        """
+        m = self._m if parameters is None else self._m.with_values(_values_of(parameters))
+        if inputs is not None:
+            if levels is not None:
+                raise _error(
+                    OptionError,
+                    "levels and inputs are both given",
+                    "a driven simulation takes its levels from the measured inputs: drop `levels`",
+                    "dynid::sim::config",
+                )
+            records, single = _input_records(m, inputs, sample, map)
+            runs = m.simulate_inputs(records, None, bool(from_rest), int(substeps))
+            out = [_frame(names, cols, ts, t0) for names, cols, ts, t0 in runs]
+            return out[0] if single else out
         lv = None if levels is None else [float(x) for x in levels]
-        records, truth = self._m.simulate(lv, float(duration), int(seed), float(sample), float(noise), float(burn_in))
+        records, truth = m.simulate(lv, float(duration), int(seed), 0.01 if sample is None else float(sample), float(noise), float(burn_in))
         self.last_truth = _json.loads(truth)
-        out = []
-        for names, cols, ts, t0 in records:
-            n = len(cols[0]) if cols else 0
-            d = {"t": t0 + ts * _np.arange(n, dtype=_np.float64)}
-            d.update(zip(names, cols))
-            out.append(_pd.DataFrame(d, copy=False) if _pd is not None else d)
-        return out
+        return [_frame(names, cols, ts, t0) for names, cols, ts, t0 in records]
+
+    def compare(self, data, parameters=None, sample=None, map=None, from_rest: bool = False, substeps: int = _SUBSTEPS) -> Comparison:
+        """Measured vs model: the model driven by every level's measured inputs from its
+        measured initial state (a free run), next to the measured responses.
+
+        Parameters
+        ----------
+        data : list of DataFrame, dict of arrays or CSV path
+            The measured levels (inputs and responses).
+        parameters : dict, Identification or Refinement, optional
+            Values of the unknown parameters (default: their nominal values).
+        sample : float, optional
+            Sample interval where a level has no ``t`` column.
+        map : dict, optional
+            Column → signal renamings.
+        from_rest, substeps
+            As in :meth:`simulate`.
+
+        Returns
+        -------
+        Comparison
+            ``errors`` (free-run RMS per level and signal) and ``plot()`` (the overlay).
+
+        Examples
+        --------
+        >>> run = model.compare(data, parameters=model.identify(data))   # doctest: +SKIP
+        >>> run.errors                                                    # doctest: +SKIP
+        >>> run.plot(level=2)                                             # doctest: +SKIP
+        """
+        levels, _ = _as_list(data)
+        measured = []
+        for i, level in enumerate(levels):
+            if _is_path(level):
+                if _pd is None:
+                    raise ImportError("reading CSV files in Python needs pandas: `pip install pandas`")
+                path = _os.fspath(level)
+                if not _os.path.exists(path):
+                    raise FileNotFoundError(_errno.ENOENT, f"level {i + 1}: no data file", path)
+                level = _pd.read_csv(path)
+            if map:
+                names, get = _columns_of(level, i)
+                level = {dict(map).get(n, n): _as_column(get(n), i + 1, n) for n in names}
+            measured.append(level)
+        # The measured signals are checked as identify checks them.
+        _levels(self._m, measured, sample, None)
+        simulated = self.simulate(inputs=measured, parameters=parameters, sample=sample, from_rest=from_rest, substeps=substeps)
+        pairs = self._m.responses()
+        responses = [n for n, _ in pairs]
+        units = dict(pairs)
+        return Comparison(measured, simulated, responses, units)
 
     def identify(
         self,
-        data: Any,
-        sample: Optional[float] = None,
-        filter_corners: Optional[Sequence[float]] = None,
+        data,
+        sample: _t.Optional[float] = None,
+        filter_corners: _t.Optional[_t.Sequence[float]] = None,
         noise_correction: bool = True,
         balance: bool = False,
         column_chains: bool = False,
         keep_rests: bool = False,
         allow_large: bool = False,
+        map=None,
+        refine: bool = False,
+        test=None,
+        weights: _t.Optional[_t.Mapping[str, float]] = None,
+        shooting: _t.Optional[float] = None,
+        substeps: int = _SUBSTEPS,
+        allow_long: bool = False,
     ) -> Identification:
-        """Identify the unknown parameters from one level per item of ``data``, all levels
-        pooled, as ``dynid identify``. Bad data raise DataError (a ValueError) naming the
-        level, column and sample. The keywords are the command's flags: ``column_chains``
-        (``--column-chains``), ``keep_rests`` (``--keep-rests``: keep the rests of bodies
-        with a Coulomb term in the moments), ``allow_large`` (``--allow-large``: run work
-        whose memory estimate is above the limit)."""
-        levels = _levels(self._m, data, sample)
+        """Identify the unknown parameters, all levels pooled, as ``dynid identify``.
+
+        Parameters
+        ----------
+        data : list of DataFrame, dict of arrays or CSV path
+            One level each (a single DataFrame or dict is one level).
+        sample : float, optional
+            Sample interval in seconds where a level has no ``t`` column.
+        filter_corners : sequence of float, optional
+            Identification filter corners in rad/s (default: designed from the data).
+        noise_correction, balance, column_chains, keep_rests, allow_large : bool
+            The command's flags (``--no-noise-correction`` is ``noise_correction=False``).
+        map : dict, optional
+            Column → signal renamings (``--map disp=m1.x`` is ``map={"disp": "m1.x"}``).
+        refine : bool, default False
+            Refine the covariance estimate by minimising the free-run simulation error
+            (``--refine``); the result's ``refined`` holds it.
+        test : list, optional
+            With ``refine``: levels on which to report the free-run errors of both
+            estimates, not used for fitting (``--test``).
+        weights : dict, optional
+            With ``refine``: weight per compared signal (``--weight m1.x=2``).
+        shooting : float, optional
+            With ``refine``: longest sub-record in seconds (``--shooting``).
+        substeps : int, default 20
+            With ``refine``: RK4 sub-steps per sample interval.
+        allow_long : bool, default False
+            With ``refine``: run above the step limit (``--allow-long``).
+
+        Returns
+        -------
+        Identification
+            Its ``to_dict()`` is the object ``dynid identify --json`` writes.
+
+        Raises
+        ------
+        FileNotFoundError
+            A CSV path that does not exist.
+        DataError
+            Bad data (a ``ValueError``) naming the level, column and sample.
+        OptionError
+            A setting out of range (a ``ValueError``).
+
+        Examples
+        --------
+        >>> result = model.identify(data)                       # doctest: +SKIP
+        >>> result = model.identify(["level_1.csv", "level_2.csv"], map={"disp": "m1.x"})  # doctest: +SKIP
+        >>> model.identify(data, refine=True).refined           # doctest: +SKIP
+        """
+        levels = _levels(self._m, data, sample, map)
         corners = None if filter_corners is None else [float(c) for c in filter_corners]
+        if not refine and (test is not None or weights or shooting is not None):
+            raise _error(
+                OptionError,
+                "test, weights and shooting are settings of the refinement",
+                "give refine=True, or drop them",
+                "dynid::refine::option",
+            )
+        rarg = None
+        if refine:
+            tests = [] if test is None else _levels(self._m, test, sample, map, "test")
+            w = [(str(k), float(v)) for k, v in (weights or {}).items()]
+            rarg = (w, None if shooting is None else float(shooting), int(substeps), tests, bool(allow_long))
         js, eq = self._m.identify(
             levels,
             corners,
@@ -477,35 +1241,109 @@ class Model:
             bool(column_chains),
             bool(keep_rests),
             bool(allow_large),
+            rarg,
         )
-        return Identification(_json.loads(js), eq)
+        return Identification(_json.loads(js), eq, model=self, data=data)
+
+    def refine(self, data, **kw) -> Refinement:
+        """Identify, then refine the estimate by output-error minimisation: the free-run
+        error of all levels (Levenberg-Marquardt), as ``dynid identify --refine``.
+
+        Parameters
+        ----------
+        data : list of DataFrame, dict of arrays or CSV path
+            One level each.
+        **kw
+            The keywords of :meth:`identify` (``test``, ``weights``, ``shooting``, ...).
+
+        Returns
+        -------
+        Refinement
+            Its ``to_dict()`` is the ``refined`` object of ``dynid identify --refine --json``.
+
+        Examples
+        --------
+        >>> r = model.refine(data)            # doctest: +SKIP
+        >>> r.parameters, r.free_run          # doctest: +SKIP
+        """
+        kw["refine"] = True
+        result = self.identify(data, **kw)
+        return result.refined
 
 
-def _model(m: Union[Model, str, "_os.PathLike[str]"]) -> Model:
+def _model(m) -> Model:
     return m if isinstance(m, Model) else Model.from_file(m)
 
 
-def detect(
-    linear_model: Union[Model, str, "_os.PathLike[str]"],
-    data: Any,
-    sample: Optional[float] = None,
-    alpha: float = 1e-3,
-) -> Detection:
-    """Which elements of a linear model hide a nonlinearity, and which kind, from one
-    level per item of ``data`` (at least three), as ``dynid detect``."""
+def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float = 1e-3, map=None, frf_periods: _t.Optional[int] = None) -> Detection:
+    """Which elements of a linear model hide a nonlinearity, and which kind, as
+    ``dynid detect``: the linear model is identified at every level, and a parameter that
+    drifts with the level names the effect.
+
+    Parameters
+    ----------
+    linear_model : Model, str or os.PathLike
+        The linear model (or its file).
+    data : list of DataFrame, dict of arrays or CSV path
+        One level each: at least two, better three to eight spanning a factor of three or
+        more in amplitude (two levels show a drift but cannot tell its shape).
+    sample : float, optional
+        Sample interval in seconds where a level has no ``t`` column.
+    alpha : float, default 1e-3
+        Significance of the constancy test of each parameter curve.
+    map : dict, optional
+        Column → signal renamings.
+    frf_periods : int, optional
+        Each record holds this many periods of a periodic excitation (``--frf-periods``).
+
+    Returns
+    -------
+    Detection
+        Its ``to_dict()`` is the object ``dynid detect --json`` writes.
+
+    Raises
+    ------
+    OptionError
+        ``alpha`` not between 0 and 1.
+
+    Examples
+    --------
+    >>> det = dynid.detect("models/two_mass_linear.dyn", data)   # doctest: +SKIP
+    >>> det.elements                                              # doctest: +SKIP
+    >>> det.plot()                                                # doctest: +SKIP
+    """
     m = _model(linear_model)
-    js, table, warnings, verdicts = _dynid.detect(m._m, _levels(m._m, data, sample), float(alpha))
+    js, table, warnings, verdicts = _dynid.detect(m._m, _levels(m._m, data, sample, map), float(alpha), frf_periods)
     return Detection(_json.loads(js), table, warnings, verdicts)
 
 
-def diagnose(
-    model: Union[Model, str, "_os.PathLike[str]"],
-    data: Any,
-    sample: Optional[float] = None,
-) -> Diagnosis:
+def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_periods: _t.Optional[int] = None) -> Diagnosis:
     """Where the model and the data disagree, the most likely unmodelled effect and how far
-    the gap shrinks on a withheld level, from one level per item of ``data`` (at least
-    two), as ``dynid diagnose``."""
+    the gap shrinks on a withheld level, as ``dynid diagnose``.
+
+    Parameters
+    ----------
+    model : Model, str or os.PathLike
+        The simulation model with nominal values (or its file).
+    data : list of DataFrame, dict of arrays or CSV path
+        One level each, at least two.
+    sample : float, optional
+        Sample interval in seconds where a level has no ``t`` column.
+    map : dict, optional
+        Column → signal renamings.
+    frf_periods : int, optional
+        Each record holds this many periods of a periodic excitation (``--frf-periods``).
+
+    Returns
+    -------
+    Diagnosis
+        Its ``to_dict()`` is the object ``dynid diagnose --json`` writes.
+
+    Examples
+    --------
+    >>> d = dynid.diagnose("models/two_mass_linear.dyn", data)   # doctest: +SKIP
+    >>> print(d.summary); d.fixed_model                           # doctest: +SKIP
+    """
     m = _model(model)
-    js, summary, report = _dynid.diagnose(m._m, _levels(m._m, data, sample))
+    js, summary, report = _dynid.diagnose(m._m, _levels(m._m, data, sample, map), frf_periods)
     return Diagnosis(_json.loads(js), summary, report)

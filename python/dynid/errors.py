@@ -4,9 +4,9 @@ Every error carries the runtime's ``code`` (as the command line prints it, e.g.
 ``dynid::data::non_finite``) and a ``help`` line saying what to do.
 """
 
-from __future__ import annotations
+from typing import Any as _Any, Dict as _Dict, List as _List, Optional as _Optional
 
-from typing import Any, Dict, List, Optional
+__all__ = ["DynidError", "CompileError", "DataError", "ParameterError", "OptionError"]
 
 
 class DynidError(Exception):
@@ -26,9 +26,9 @@ class CompileError(DynidError, ValueError):
     """
 
     rendered: str = ""
-    line: Optional[int] = None
-    column: Optional[int] = None
-    errors: List[Dict[str, Any]] = []
+    line: _Optional[int] = None
+    column: _Optional[int] = None
+    errors: _List[_Dict[str, _Any]] = []
 
 
 class DataError(DynidError, ValueError):
@@ -38,6 +38,18 @@ class DataError(DynidError, ValueError):
     column's name and ``sample`` the 1-based sample number, where they apply (else None).
     """
 
-    level: Optional[int] = None
-    column: Optional[str] = None
-    sample: Optional[int] = None
+    level: _Optional[int] = None
+    column: _Optional[str] = None
+    sample: _Optional[int] = None
+
+
+class ParameterError(DynidError, ValueError):
+    """A parameter value the call refuses: a name that is not an unknown parameter of the
+    model, a known parameter (its value is part of the model), a value that is not a finite
+    number, or an unknown parameter without a value where a simulation needs one."""
+
+
+class OptionError(DynidError, ValueError):
+    """A setting of a call that is out of range (``alpha`` not between 0 and 1, a shooting
+    interval that is not a positive duration, a refinement weight of an unknown signal,
+    a simulation above the step limit, ...)."""

@@ -14,19 +14,28 @@
 //! diagnostic, line and column), `DataError` (a `ValueError` naming the level, column and
 //! sample) and `DynidError` for everything else, each with the runtime's code and help.
 
-use dynid::dsl_parser::{self, ir::ModelIr, CompileErrors};
-use dynid::runtime::data::{DataError as RtDataError, LevelSource, MIN_SAMPLES};
+use dynid::dsl_parser::{
+    self,
+    ir::{ModelIr, SignalKind},
+    CompileErrors,
+};
+use dynid::runtime::data::{
+    CsvOptions, CsvSource, DataError as RtDataError, LevelSource, MIN_SAMPLES,
+};
 use dynid::runtime::detect::{detect_from_data, levels_too_alike, DetectOptions};
 use dynid::runtime::diagnose::{self as rt_diagnose, DiagnoseOptions};
 use dynid::runtime::ident::print::format_equations;
-use dynid::runtime::sim::{self, SimConfig};
+use dynid::runtime::record::Record;
+use dynid::runtime::refine::{self as rt_refine, RefineOptions};
+use dynid::runtime::sim::{self, SimConfig, Start, DEFAULT_SUBSTEPS};
 use dynid::runtime::{identify, IdentifyError, IdentifyOptions};
+use dynid::schema::{self, RefineReport};
 use miette::Diagnostic;
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use pyo3::BoundObject;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Relative tolerance on the time step of a `t` column (as for CSV files).
 const TIME_TOL: f64 = 1e-3;
@@ -107,11 +116,7 @@ fn runtime_error_at(
     let help = e.help().map(|h| h.to_string()).unwrap_or_default();
     let text = e.to_string();
     let level = level.or_else(|| level_of(&text));
-    let class = if code.starts_with("dynid::data::") {
-        "DataError"
-    } else {
-        "DynidError"
-    };
+    let class = error_class(&code);
     raise_located(
         py,
         class,
@@ -122,6 +127,39 @@ fn runtime_error_at(
         column.as_deref(),
         sample,
     )
+}
+
+/// The exception of `dynid.errors` for a runtime error's code: `DataError` for the data
+/// (and the inputs a simulation is driven by), `ParameterError` for parameter values,
+/// `OptionError` for settings of a call (all three are `ValueError`s), `DynidError` for
+/// the rest (a model the method cannot handle, a run that failed).
+fn error_class(code: &str) -> &'static str {
+    if code.starts_with("dynid::data::")
+        || code.starts_with("dynid::split::")
+        || matches!(
+            code,
+            "dynid::sim::missing_input"
+                | "dynid::sim::bad_input_data"
+                | "dynid::refine::column"
+                | "dynid::refine::record"
+        )
+    {
+        "DataError"
+    } else if matches!(code, "dynid::sim::no_nominal" | "dynid::refine::start") {
+        "ParameterError"
+    } else if code.ends_with("::option")
+        || matches!(
+            code,
+            "dynid::sim::config"
+                | "dynid::sim::too_long"
+                | "dynid::refine::weight"
+                | "dynid::refine::segment"
+        )
+    {
+        "OptionError"
+    } else {
+        "DynidError"
+    }
 }
 
 /// Raise `class` with the message followed by its help line and code (each when given), as
@@ -315,16 +353,62 @@ fn fmt_t(t: f64) -> String {
     dsl_parser::num::sig(t, 9, false)
 }
 
-/// Check the levels against the model and bind them as [`ArraySource`]s: every measured
-/// signal present, columns of one length, finite values, a uniform time column or a
-/// positive sample interval, enough samples.
-fn bind<'a>(
+/// One level as the Python half hands it over: a CSV file (path, `(column, signal)`
+/// renamings, sample interval) or arrays ([`LevelArg`]).
+#[derive(FromPyObject)]
+enum LevelIn<'py> {
+    File(PathBuf, Vec<(String, String)>, Option<f64>),
+    Arrays(LevelArg<'py>),
+}
+
+/// A bound level: a CSV file read in chunks, or NumPy's buffers.
+type Source<'a> = Box<dyn LevelSource + 'a>;
+
+/// Bind every level: files are opened as the command line opens them (header matched to
+/// the measured signals, sample interval fixed), arrays are checked by [`bind_arrays`].
+fn bind<'a>(py: Python<'_>, ir: &ModelIr, levels: &'a [LevelIn<'_>]) -> PyResult<Vec<Source<'a>>> {
+    let mut out: Vec<Source<'a>> = Vec::with_capacity(levels.len());
+    for (i, level) in levels.iter().enumerate() {
+        match level {
+            LevelIn::File(path, map, ts) => {
+                let mut opts = CsvOptions {
+                    map: Vec::new(),
+                    ts: *ts,
+                };
+                for (c, sig) in map {
+                    let pair = CsvOptions::parse_map(&format!("{c}={sig}"), ir).map_err(|e| {
+                        runtime_error_at(py, &e, Some(i + 1), Some(c.clone()), None)
+                    })?;
+                    opts.map.push(pair);
+                }
+                let src = CsvSource::open(path, ir, &opts)
+                    .map_err(|e| runtime_error_at(py, &e, Some(i + 1), None, None))?;
+                out.push(Box::new(src));
+            }
+            LevelIn::Arrays(arg) => out.push(Box::new(bind_arrays(py, ir, i, arg)?)),
+        }
+    }
+    Ok(out)
+}
+
+/// The levels as `&dyn LevelSource`.
+fn refs<'a>(sources: &'a [Source<'_>]) -> Vec<&'a dyn LevelSource> {
+    sources
+        .iter()
+        .map(|s| s.as_ref() as &dyn LevelSource)
+        .collect()
+}
+
+/// Check one level of arrays against the model and bind it as an [`ArraySource`]: every
+/// measured signal present, columns of one length, finite values, a uniform time column or
+/// a positive sample interval, enough samples.
+fn bind_arrays<'a>(
     py: Python<'_>,
     ir: &ModelIr,
-    levels: &'a [LevelArg<'_>],
-) -> PyResult<Vec<ArraySource<'a>>> {
-    let mut out = Vec::with_capacity(levels.len());
-    for (i, (label, names, arrays, t, ts)) in levels.iter().enumerate() {
+    i: usize,
+    (label, names, arrays, t, ts): &'a LevelArg<'_>,
+) -> PyResult<ArraySource<'a>> {
+    {
         let level = i + 1;
         let mut slices: Vec<&[f64]> = Vec::with_capacity(arrays.len());
         for (name, a) in names.iter().zip(arrays) {
@@ -530,14 +614,13 @@ fn bind<'a>(
                 "dynid::data::bad_sample_interval",
             ));
         }
-        out.push(ArraySource {
+        Ok(ArraySource {
             origin: label.clone(),
             ts,
             cols,
             n,
-        });
+        })
     }
-    Ok(out)
 }
 
 fn json<T: serde::Serialize>(v: &T) -> PyResult<String> {
@@ -570,6 +653,37 @@ impl CompiledModel {
             .iter()
             .map(|s| self.ir.signal(*s).name.clone())
             .collect()
+    }
+    /// The measured responses with their units: `(name, unit)` of every measured
+    /// position (m), velocity (m/s) and acceleration (m/s²).
+    fn responses(&self) -> Vec<(String, String)> {
+        self.ir
+            .measured_signals()
+            .iter()
+            .filter_map(|s| {
+                let sig = self.ir.signal(*s);
+                let unit = match sig.kind {
+                    SignalKind::Position(_) => "m",
+                    SignalKind::Velocity(_) => "m/s",
+                    SignalKind::Acceleration(_) => "m/s²",
+                    _ => return None,
+                };
+                Some((sig.name.clone(), unit.to_string()))
+            })
+            .collect()
+    }
+    /// The model with the unknown parameters `values` (name, value) as nominal values.
+    #[pyo3(signature = (values=None))]
+    fn with_values(
+        &self,
+        py: Python<'_>,
+        values: Option<Vec<(String, f64)>>,
+    ) -> PyResult<CompiledModel> {
+        guarded(py, || {
+            Ok(CompiledModel {
+                ir: with_values(py, &self.ir, values.as_deref().unwrap_or(&[]))?,
+            })
+        })
     }
     /// The model as `.dyn` source.
     fn source(&self) -> String {
@@ -625,22 +739,87 @@ impl CompiledModel {
         })
     }
 
-    /// Identify the unknown parameters from all levels pooled: `(json, equations)`.
-    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false))]
+    /// Drive the model with measured inputs, one run per record `(names, columns, ts, t0)`:
+    /// the unknown parameters at `values` (name, value; the others at their nominal
+    /// values), each run from the record's measured initial state ([`sim::FREE_RUN_START`]) or
+    /// from rest. Returns one `(names, columns, ts, t0)` per record: the measured signals of
+    /// the model, simulated.
+    #[pyo3(signature = (records, values=None, from_rest=false, substeps=DEFAULT_SUBSTEPS))]
+    fn simulate_inputs<'py>(
+        &self,
+        py: Python<'py>,
+        records: Vec<InputRecord<'py>>,
+        values: Option<Vec<(String, f64)>>,
+        from_rest: bool,
+        substeps: usize,
+    ) -> PyResult<Vec<SimLevel<'py>>> {
+        guarded(py, || {
+            let ir = with_values(py, &self.ir, values.as_deref().unwrap_or(&[]))?;
+            let mut inputs = Vec::with_capacity(records.len());
+            for (names, cols, ts, t0) in &records {
+                let mut columns = Vec::with_capacity(cols.len());
+                for c in cols {
+                    columns.push(c.as_array().iter().copied().collect());
+                }
+                inputs.push(Record {
+                    names: names.clone(),
+                    columns,
+                    ts: *ts,
+                    t0: *t0,
+                });
+            }
+            let start = if from_rest {
+                Start::Rest
+            } else {
+                Start::Measured
+            };
+            let ir = &ir;
+            let runs = py
+                .detach(|| {
+                    inputs
+                        .iter()
+                        .map(|r| sim::simulate_driven_from(ir, r, substeps, start))
+                        .collect::<Result<Vec<_>, _>>()
+                })
+                .map_err(|e| runtime_error(py, &e))?;
+            Ok(runs
+                .into_iter()
+                .map(|r| {
+                    let cols = r
+                        .columns
+                        .into_iter()
+                        .map(|c| PyArray1::from_vec(py, c))
+                        .collect();
+                    (r.names, cols, r.ts, r.t0)
+                })
+                .collect())
+        })
+    }
+
+    /// Identify the unknown parameters from all levels pooled: `(json, equations)`, the
+    /// JSON that of `dynid identify --json` (with `refined` after a refinement).
+    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None))]
     #[allow(clippy::too_many_arguments)]
     fn identify(
         &self,
         py: Python<'_>,
-        levels: Vec<LevelArg<'_>>,
+        levels: Vec<LevelIn<'_>>,
         corners: Option<Vec<f64>>,
         noise_correction: bool,
         balance: bool,
         column_chains: bool,
         keep_rests: bool,
         allow_large: bool,
+        refine: Option<RefineArg<'_>>,
     ) -> PyResult<(String, String)> {
         guarded(py, || {
             let ir = &self.ir;
+            if refine.is_some() && !ir.controls.is_empty() {
+                let e = dynid::runtime::refine::RefineError::ControlLaws {
+                    model: ir.name.clone(),
+                };
+                return Err(runtime_error(py, &e));
+            }
             let sources = bind(py, ir, &levels)?;
             let opts = IdentifyOptions {
                 corners,
@@ -652,15 +831,109 @@ impl CompiledModel {
                 ..Default::default()
             };
             let id = py
-                .detach(|| {
-                    let refs: Vec<&dyn LevelSource> =
-                        sources.iter().map(|s| s as &dyn LevelSource).collect();
-                    identify(ir, &refs, &opts)
-                })
+                .detach(|| identify(ir, &refs(&sources), &opts))
                 .map_err(|e| identify_error(py, &e))?;
-            Ok((json(&id)?, format_equations(ir, &id)))
+            let mut value = schema::identification(&id);
+            if let Some((weights, shooting, substeps, test, allow_long)) = refine {
+                let test = bind(py, ir, &test)?;
+                let est = read_records(py, ir, &sources)?;
+                let test = read_records(py, ir, &test)?;
+                let samples: usize = est.iter().map(Record::len).sum();
+                sim::check_steps(
+                    samples as f64 * substeps as f64,
+                    &format!(
+                        "one free run of {samples} samples × {substeps} RK4 sub-steps (of the refinement's many)"
+                    ),
+                    "allow_long=True",
+                    allow_long,
+                )
+                .map_err(|e| runtime_error(py, &e))?;
+                let mut ropts = RefineOptions {
+                    substeps,
+                    weights,
+                    ..Default::default()
+                };
+                if let Some(s) = shooting {
+                    if !(s.is_finite() && s > 0.0) {
+                        return Err(option_error(
+                            py,
+                            format!("shooting = {s} is not a positive duration"),
+                            "give the longest sub-record in seconds, e.g. shooting=20",
+                            "dynid::refine::segment",
+                        ));
+                    }
+                    if let Some(r) = est.first() {
+                        ropts.segment = Some(((s / r.ts).round() as usize).max(3));
+                    }
+                }
+                let start = rt_refine::start_from(ir, &id);
+                let report = py
+                    .detach(|| RefineReport::compute(ir, &start, &est, &test, &ropts, &|_| {}))
+                    .map_err(|e| report_error(py, e.as_ref()))?;
+                value["refined"] = serde_json::to_value(&report)
+                    .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+            }
+            Ok((json(&value)?, format_equations(ir, &id)))
         })
     }
+}
+
+/// The refinement settings from the Python half: weights `(signal, w)`, the longest
+/// sub-record in seconds, RK4 sub-steps, test levels, and whether to run above the step
+/// limit.
+type RefineArg<'py> = (
+    Vec<(String, f64)>,
+    Option<f64>,
+    usize,
+    Vec<LevelIn<'py>>,
+    bool,
+);
+
+/// A record of measured inputs: names, columns, sample interval, start time.
+type InputRecord<'py> = (Vec<String>, Vec<PyReadonlyArray1<'py, f64>>, f64, f64);
+
+/// Every level read whole (the refinement simulates whole records).
+fn read_records(py: Python<'_>, ir: &ModelIr, sources: &[Source<'_>]) -> PyResult<Vec<Record>> {
+    sources
+        .iter()
+        .map(|s| rt_diagnose::read_record(s.as_ref(), ir).map_err(|e| runtime_error(py, &e)))
+        .collect()
+}
+
+/// `ir` with the unknown parameters `values` set as their nominal values.
+fn with_values(py: Python<'_>, ir: &ModelIr, values: &[(String, f64)]) -> PyResult<ModelIr> {
+    let mut out = ir.clone();
+    for (name, v) in values {
+        out.set_nominal(name, *v).map_err(|e| {
+            let known = ir
+                .unknowns()
+                .iter()
+                .map(|p| ir.params[p.index()].name.clone())
+                .collect::<Vec<_>>()
+                .join(", ");
+            raise_located(
+                py,
+                "ParameterError",
+                format!("parameter `{name}` = {v}: {e}"),
+                &format!("give finite values of the model's unknown parameters ({known})"),
+                "dynid::parameter",
+                None,
+                None,
+                None,
+            )
+        })?;
+    }
+    Ok(out)
+}
+
+/// An option the call refuses, as `OptionError` (a `ValueError`).
+fn option_error(py: Python<'_>, message: String, help: &str, code: &str) -> PyErr {
+    raise_located(py, "OptionError", message, help, code, None, None, None)
+}
+
+/// A `miette::Report` as a Python exception (its code picks the class).
+fn report_error(py: Python<'_>, e: &dyn Diagnostic) -> PyErr {
+    runtime_error(py, e)
 }
 
 fn read_source(path: &Path) -> String {
@@ -742,24 +1015,23 @@ fn compile_file(py: Python<'_>, path: std::path::PathBuf) -> PyResult<CompiledMo
 }
 
 /// Detect nonlinear elements of a linear model: `(json, table, warnings, verdicts)`, the
-/// verdicts as `(element, verdict)` in words.
+/// JSON that of `dynid detect --json`, the verdicts as `(element, verdict)` in words.
 #[pyfunction]
-#[pyo3(signature = (model, levels, alpha=1e-3))]
+#[pyo3(signature = (model, levels, alpha=1e-3, frf_periods=None))]
 fn detect(
     py: Python<'_>,
     model: &CompiledModel,
-    levels: Vec<LevelArg<'_>>,
+    levels: Vec<LevelIn<'_>>,
     alpha: f64,
+    frf_periods: Option<usize>,
 ) -> PyResult<DetectOut> {
     guarded(py, || {
         if !(alpha > 0.0 && alpha < 1.0) {
-            return Err(raise(
+            return Err(option_error(
                 py,
-                "DynidError",
-                format!(
-                    "alpha = {alpha} is not between 0 and 1\n  help: a probability such as 1e-3"
-                ),
-                vec![("code", obj(py, "dynid::detect::option"))],
+                format!("alpha = {alpha} is not between 0 and 1"),
+                "a probability such as 1e-3",
+                "dynid::detect::option",
             ));
         }
         let ir = &model.ir;
@@ -768,25 +1040,19 @@ fn detect(
             alpha,
             ..Default::default()
         };
-        let (det, fits) = py
-            .detach(|| {
-                let refs: Vec<&dyn LevelSource> =
-                    sources.iter().map(|s| s as &dyn LevelSource).collect();
-                detect_from_data(ir, &refs, &IdentifyOptions::default(), &dopts, &[])
+        let (det, fits, frfs) = py
+            .detach(|| -> miette::Result<_> {
+                let levels = refs(&sources);
+                let (det, fits) =
+                    detect_from_data(ir, &levels, &IdentifyOptions::default(), &dopts, &[])?;
+                let frfs = schema::level_frfs(ir, &levels, &det, &fits.fits, frf_periods)?;
+                Ok((det, fits, frfs))
             })
-            .map_err(|e| runtime_error(py, &e))?;
+            .map_err(|e| report_error(py, e.as_ref()))?;
         dopts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
-        let warnings: Vec<String> = levels_too_alike(&det, &dopts)
-            .iter()
-            .map(|w| w.message.clone())
-            .collect();
-        let value = serde_json::json!({
-            "detection": det,
-            "intensities": fits.input.elements,
-            "sigma_v_source": fits.sigma_v_source,
-            "jackknife_blocks": fits.n_blocks,
-            "warnings": warnings,
-        });
+        let too_alike = levels_too_alike(&det, &dopts);
+        let warnings: Vec<String> = too_alike.iter().map(|w| w.message.clone()).collect();
+        let value = schema::detection(&det, &fits, &too_alike, None, None, &frfs);
         let verdicts = det
             .elements
             .iter()
@@ -796,34 +1062,51 @@ fn detect(
     })
 }
 
-/// Diagnose the gap between a model and the levels: `(json, summary, html report)`.
+/// Diagnose the gap between a model and the levels: `(json, summary, html report)`, the
+/// JSON that of `dynid diagnose --json`.
 #[pyfunction]
+#[pyo3(signature = (model, levels, frf_periods=None))]
 fn diagnose(
     py: Python<'_>,
     model: &CompiledModel,
-    levels: Vec<LevelArg<'_>>,
+    levels: Vec<LevelIn<'_>>,
+    frf_periods: Option<usize>,
 ) -> PyResult<(String, String, String)> {
     guarded(py, || {
         let ir = &model.ir;
         let sources = bind(py, ir, &levels)?;
-        let mut records = Vec::with_capacity(sources.len());
-        for s in &sources {
-            records.push(rt_diagnose::read_record(s, ir).map_err(|e| runtime_error(py, &e))?);
-        }
-        let origins: Vec<String> = sources.iter().map(|s| s.origin.clone()).collect();
-        let d = py
-            .detach(|| {
-                rt_diagnose::diagnose(
+        let records = read_records(py, ir, &sources)?;
+        let origins: Vec<String> = sources.iter().map(|s| s.origin()).collect();
+        let (d, frfs) = py
+            .detach(|| -> miette::Result<_> {
+                let d = rt_diagnose::diagnose(
                     ir,
                     &records,
                     &origins,
                     &DiagnoseOptions::default(),
                     &|_, _| {},
-                )
+                )?;
+                let frfs = schema::diagnosis_frfs(ir, &records, &d, frf_periods)?;
+                Ok((d, frfs))
             })
-            .map_err(|e| runtime_error(py, &e))?;
-        let html = dynid::plot::render_html(&d);
-        Ok((json(&d)?, d.summary(), html))
+            .map_err(|e| report_error(py, e.as_ref()))?;
+        let mut html = dynid::plot::render_html(&d);
+        if !frfs.is_empty() {
+            html = html.replacen(
+                "</body>",
+                &format!("{}</body>", dynid::plot::report::frf_section(&frfs)),
+                1,
+            );
+        }
+        let value = schema::DiagnosisJson {
+            diagnosis: &d,
+            segments: None,
+            refined: None,
+            free_run_start: sim::FREE_RUN_START,
+            closed_loop_hint: None,
+            frf: Some(&frfs).filter(|f| !f.is_empty()).map(|f| f.as_slice()),
+        };
+        Ok((json(&value)?, d.summary(), html))
     })
 }
 

@@ -44,12 +44,12 @@ def test_dicts_of_arrays_give_the_same_result_as_dataframes(models):
     model = dynid.Model.from_file(models / "sdof_cubic_coulomb.dyn")
     data = model.simulate(duration=200, seed=3)
     dicts = [columns(level) for level in data]
-    a = model.identify(data).to_dict()["params"]
-    b = model.identify(dicts).to_dict()["params"]
+    a = model.identify(data).to_dict()["parameters"]
+    b = model.identify(dicts).to_dict()["parameters"]
     assert a == b
     # Without a time column the sample interval is given.
     no_t = [{k: v for k, v in c.items() if k != "t"} for c in dicts]
-    assert model.identify(no_t, sample=0.01).to_dict()["params"] == a
+    assert model.identify(no_t, sample=0.01).to_dict()["parameters"] == a
 
 
 def test_from_source_and_model_properties():

@@ -172,16 +172,14 @@ pub fn run(args: Args) -> miette::Result<()> {
     let result = (|| -> miette::Result<()> {
         let mut staged = Staged::new();
         if let Some(out) = &args.json {
-            let text = serde_json::to_string_pretty(&serde_json::json!({
-                "detection": det,
-                "intensities": fits.input.elements,
-                "sigma_v_source": fits.sigma_v_source,
-                "jackknife_blocks": fits.n_blocks,
-                "segments": split.as_ref().map(|s| &s.split),
-                "warnings": warnings,
-                "cycles_note": cycle_note,
-                "frf": frfs,
-            }))
+            let text = serde_json::to_string_pretty(&dynid::schema::detection(
+                &det,
+                &fits,
+                &warnings,
+                split.as_ref().map(|s| &s.split),
+                cycle_note.as_deref(),
+                &frfs,
+            ))
             .into_diagnostic()?;
             staged.write(out, text.as_bytes())?;
         }

@@ -2,7 +2,7 @@
 //! unmodelled effect explains the gap, and how far it shrinks once that effect is added.
 
 use super::common::{check_outputs, inputs, CsvArgs, SplitArgs, Staged};
-use super::identify::{render_refined, RefineReport};
+use super::identify::{compute_with_bar, render_refined, RefineReport};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::{CsvSource, RecordSource, Split};
 use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
@@ -253,7 +253,7 @@ fn refine_corrected(
         .map(|p| fixed.params[p.index()].nominal().unwrap_or(0.0))
         .collect();
     let opts = RefineOptions::default();
-    let report = RefineReport::compute(&fixed, &start, records, &[], &opts, quiet)?;
+    let report = compute_with_bar(&fixed, &start, records, &[], &opts, quiet)?;
     if !report.refinement.applied {
         // The model written keeps the corrected model's values (the note says why).
         return Ok((report, d.fixed_source.clone()));
@@ -323,23 +323,6 @@ pub struct Extras<'a> {
     pub frf: Option<&'a [dynid_runtime::frf::LevelFrf]>,
 }
 
-/// The JSON of a diagnosis: its fields, with the extras next to them.
-#[derive(serde::Serialize)]
-struct WithExtras<'a> {
-    #[serde(flatten)]
-    diagnosis: &'a Diagnosis,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    segments: Option<&'a Split>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    refined: Option<&'a RefineReport>,
-    /// How every free run of the diagnosis starts.
-    free_run_start: &'static str,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    closed_loop_hint: Option<&'a str>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    frf: Option<&'a [dynid_runtime::frf::LevelFrf]>,
-}
-
 /// [`write_outputs`], with the extras.
 pub fn write_outputs_with(
     d: &Diagnosis,
@@ -361,7 +344,7 @@ pub fn write_outputs_with(
     });
     let js = match json {
         Some(_) => Some(
-            serde_json::to_string_pretty(&WithExtras {
+            serde_json::to_string_pretty(&dynid::schema::DiagnosisJson {
                 diagnosis: d,
                 segments: extras.segments,
                 refined: extras.refined,

@@ -7,7 +7,7 @@ use dynid_runtime::data::read_record_within;
 use dynid_runtime::data::{CsvSource, LevelSource};
 use dynid_runtime::ident::{print, Identification};
 use dynid_runtime::record::Record;
-use dynid_runtime::refine::{self, FreeRunError, RefineOptions, Refinement};
+use dynid_runtime::refine::{self, RefineOptions};
 use dynid_runtime::sim::DEFAULT_SUBSTEPS;
 use dynid_runtime::{identify, IdentifyOptions};
 use miette::{miette, IntoDiagnostic};
@@ -135,15 +135,7 @@ pub struct Args {
     pub allow_large: bool,
 }
 
-/// The refinement and the free-run errors of both estimates.
-#[derive(Debug, serde::Serialize)]
-pub struct RefineReport {
-    pub refinement: Refinement,
-    /// Free-run errors on the estimation files: covariance estimate, refined estimate.
-    pub estimation: (Vec<FreeRunError>, Vec<FreeRunError>),
-    /// The same on the `--test` files (empty without them).
-    pub test: (Vec<FreeRunError>, Vec<FreeRunError>),
-}
+pub use dynid::schema::RefineReport;
 
 pub fn run(args: Args) -> miette::Result<()> {
     if args.segments.is_some() {
@@ -307,48 +299,31 @@ pub fn refine_files(
         opts.segment = Some(((s / r.ts).round() as usize).max(3));
     }
     let test = read_all(ir, args, &args.test)?;
-    RefineReport::compute(ir, &refine::start_from(ir, id), &est, &test, &opts, false)
+    compute_with_bar(ir, &refine::start_from(ir, id), &est, &test, &opts, false)
 }
 
-impl RefineReport {
-    /// Refine `start` on the estimation records `est` and score both value sets on `est`
-    /// and on the `test` records; the iterations show on a progress bar on stderr unless
-    /// `quiet` (hidden anyway when stderr is not a terminal).
-    pub fn compute(
-        ir: &ModelIr,
-        start: &[f64],
-        est: &[Record],
-        test: &[Record],
-        opts: &RefineOptions,
-        quiet: bool,
-    ) -> miette::Result<Self> {
-        let bar = if quiet {
-            indicatif::ProgressBar::hidden()
-        } else {
-            progress_bar(opts.max_iter)
-        };
-        let r = refine::refine_with_progress(ir, est, start, opts, &|p| {
-            bar.set_length(p.max_iter as u64);
-            bar.set_position(p.iteration as u64);
-            bar.set_message(format!("{:.3e}", p.cost));
-        });
-        bar.finish_and_clear();
-        let r = r?;
-        let score = |recs: &[Record]| -> miette::Result<(Vec<FreeRunError>, Vec<FreeRunError>)> {
-            if recs.is_empty() {
-                return Ok((Vec::new(), Vec::new()));
-            }
-            Ok((
-                refine::free_run_errors(ir, start, recs, opts.substeps)?,
-                refine::free_run_errors(ir, &r.values(), recs, opts.substeps)?,
-            ))
-        };
-        Ok(RefineReport {
-            estimation: score(est)?,
-            test: score(test)?,
-            refinement: r,
-        })
-    }
+/// [`RefineReport::compute`] with the iterations on a progress bar on stderr unless
+/// `quiet` (hidden anyway when stderr is not a terminal).
+pub fn compute_with_bar(
+    ir: &ModelIr,
+    start: &[f64],
+    est: &[Record],
+    test: &[Record],
+    opts: &RefineOptions,
+    quiet: bool,
+) -> miette::Result<RefineReport> {
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        progress_bar(opts.max_iter)
+    };
+    let r = RefineReport::compute(ir, start, est, test, opts, &|p| {
+        bar.set_length(p.max_iter as u64);
+        bar.set_position(p.iteration as u64);
+        bar.set_message(format!("{:.3e}", p.cost));
+    });
+    bar.finish_and_clear();
+    r
 }
 
 /// The refinement's progress bar on stderr (hidden when stderr is not a terminal).
@@ -605,40 +580,9 @@ fn noise_line(n: &dynid_runtime::ident::NoiseSummary) -> String {
     s
 }
 
-/// `{"parameters": {name: {value, stderr, significant}}, "condition", "residual", "levels",
-/// "unidentifiable", "warnings", "fit_warnings"}`.
+/// The JSON of `identify --json` ([`dynid::schema::identification`]).
 pub fn to_json(id: &Identification) -> serde_json::Value {
-    let params: serde_json::Map<String, serde_json::Value> = id
-        .params
-        .iter()
-        .map(|p| {
-            (
-                p.name.clone(),
-                serde_json::json!({
-                    "value": p.value,
-                    "stderr": p.stderr,
-                    "significant": p.significant,
-                }),
-            )
-        })
-        .collect();
-    let residual: serde_json::Map<String, serde_json::Value> = id
-        .residual
-        .iter()
-        .map(|r| (r.equation.clone(), serde_json::json!(r.per_level)))
-        .collect();
-    serde_json::json!({
-        "parameters": params,
-        "condition": id.condition,
-        "residual": residual,
-        "levels": id.levels,
-        "unidentifiable": id.unidentifiable,
-        "warnings": id.warnings,
-        "fit_warnings": id.fit_warnings,
-        "filter": id.filter,
-        "estimated": id.estimated,
-        "shapes": id.shapes,
-    })
+    dynid::schema::identification(id)
 }
 
 #[cfg(test)]
