@@ -407,7 +407,7 @@ const CASES: &[Case] = &[
         "dynid::data::format",
     ),
     case(
-        "a Parquet file with damaged pages",
+        "a Parquet file with damaged metadata",
         &["identify", "{model}", "{dir}/bin/corrupt.parquet"],
         "dynid::data::format",
     ),
@@ -1000,9 +1000,10 @@ fn binary_files(dir: &Path) {
     let pq = std::fs::read(bin.join("good.parquet")).unwrap();
     std::fs::remove_file(bin.join("good.parquet")).unwrap();
     put("truncated.parquet", &pq[..pq.len() - 40]);
+    // The footer's metadata damaged (its length and the closing `PAR1` kept).
     let mut corrupt = pq.clone();
-    let mid = corrupt.len() / 2;
-    corrupt[mid..mid + 64].iter_mut().for_each(|b| *b ^= 0x5a);
+    let end = corrupt.len() - 8;
+    corrupt[end - 40..end].iter_mut().for_each(|b| *b ^= 0x5a);
     put("corrupt.parquet", &corrupt);
     parquet_with_null(&names, &cols, x, 77, &bin.join("null.parquet"));
     put("text.mat", b"t,m.x\n0,1\n");
