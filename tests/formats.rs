@@ -70,12 +70,15 @@ fn identify(model: &Path, files: &[PathBuf], extra: &[&str], out: &Path) -> serd
     serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap()
 }
 
+/// Writes one record (names, columns) to a file.
+type Writer = dyn Fn(&[String], &[Vec<f64>], &Path);
+
 #[test]
 fn every_format_identifies_as_the_csv_of_the_same_data() {
     let dir = tempfile::tempdir().unwrap();
     let (model, csvs) = setup_linear_levels(dir.path());
     let reference = identify(&model, &csvs, &[], &dir.path().join("csv.json"));
-    let write = |stem: &str, ext: &str, f: &dyn Fn(&[String], &[Vec<f64>], &Path)| {
+    let write = |stem: &str, ext: &str, f: &Writer| {
         csvs.iter()
             .enumerate()
             .map(|(i, csv)| {

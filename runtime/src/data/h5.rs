@@ -267,7 +267,7 @@ impl Windows for H5Windows<'_> {
             let (ds, lay) = self.h.col_src[c];
             match lay {
                 Lay::Rows { width, index } => {
-                    if !rows.contains_key(&ds) {
+                    if let std::collections::hash_map::Entry::Vacant(e) = rows.entry(ds) {
                         let v = self.h.sets[ds]
                             .handle
                             .read_f64_rows(self.pos as u64, count as u64)
@@ -280,7 +280,7 @@ impl Windows for H5Windows<'_> {
                                 count * width
                             )));
                         }
-                        rows.insert(ds, v);
+                        e.insert(v);
                     }
                     let v = &rows[&ds];
                     out[k].extend((0..count).map(|i| v[i * width + index]));
