@@ -352,7 +352,7 @@ impl Mat5 {
         // Vectors named by their variable.
         for (k, v) in self.vars.iter().enumerate() {
             if Self::usable(v) && v.dims.iter().filter(|&&d| d != 1).count() <= 1 {
-                let len = v.dims.iter().product();
+                let len = v.dims.iter().fold(1usize, |a, &d| a.saturating_mul(d));
                 self.columns.push(Column {
                     name: v.name.clone(),
                     len,
@@ -583,7 +583,8 @@ impl Store for Mat5 {
             let size =
                 mi_size(*mi).expect("invariant: usable variables have a numeric type") as u64;
             let len = self.columns[c].len as u64;
-            if (first + len) * size > *n {
+            // (Saturating: the dimensions come from the file.)
+            if first.saturating_add(len).saturating_mul(size) > *n {
                 return Err(ps.err(format!(
                     "`{}` is {} but its data holds only {n} bytes of {}-byte values",
                     v.name,

@@ -149,7 +149,7 @@ where
                 return Ok(Some(done + i));
             }
         }
-        out.extend(vals[..nv].iter().map(&conv));
+        out.extend(vals.iter().take(nv).map(&conv));
         done += recs;
     }
     if done < n {
