@@ -3,6 +3,7 @@
 //! (Output paths that name an input are in `tests/output_paths.rs`.)
 
 mod common;
+mod formats_common;
 
 use common::dynid;
 
@@ -192,6 +193,9 @@ fn setup(dir: &Path) {
         .collect();
     binary[0] = 0xff;
     std::fs::write(dir.join("binary.csv"), binary).unwrap();
+
+    // Binary data files with one defect each (level 1 written as MAT, HDF5, Parquet).
+    binary_files(dir);
 }
 
 const DATA: &str = "{dir}/data/level_1.csv";
@@ -326,6 +330,111 @@ const CASES: &[Case] = &[
         &["identify", "{model}", "{dir}/binary.csv"],
         "dynid::data::binary",
     ),
+    // ---- Binary data files ----
+    Case {
+        name: "a truncated MAT v5 file",
+        args: &["identify", "{model}", "{dir}/bin/truncated.mat"],
+        code: "dynid::data::format",
+        also: &["truncated.mat", "MAT v5", "truncated"],
+    },
+    Case {
+        name: "a truncated compressed MAT v7 file",
+        args: &["identify", "{model}", "{dir}/bin/truncated_v7.mat"],
+        code: "dynid::data::format",
+        also: &["truncated"],
+    },
+    Case {
+        name: "a MAT file cut inside its header",
+        args: &["identify", "{model}", "{dir}/bin/header_cut.mat"],
+        code: "dynid::data::format",
+        also: &["128-byte header"],
+    },
+    Case {
+        name: "a MAT file with no variables",
+        args: &["identify", "{model}", "{dir}/bin/header_only.mat"],
+        code: "dynid::data::missing_column",
+        also: &["no variables"],
+    },
+    Case {
+        name: "a MAT file whose signal is text",
+        args: &["identify", "{model}", "{dir}/bin/wrong_type.mat"],
+        code: "dynid::data::missing_column",
+        also: &["`m.x`", "m.x (char 1×5)"],
+    },
+    Case {
+        name: "a MAT file without a signal",
+        args: &["identify", "{model}", "{dir}/bin/missing_u.mat"],
+        code: "dynid::data::missing_column",
+        also: &["`u`", "the file holds: t (double", "--map NAME=u"],
+    },
+    Case {
+        name: "a NaN in a MAT v5 file",
+        args: &["identify", "{model}", "{dir}/bin/nan.mat"],
+        code: "dynid::data::non_finite",
+        also: &["sample 50", "`m.x`", "NaN"],
+    },
+    Case {
+        name: "a NaN in a MAT v7.3 file",
+        args: &["identify", "{model}", "{dir}/bin/nan_v73.mat"],
+        code: "dynid::data::non_finite",
+        also: &["sample 50"],
+    },
+    Case {
+        name: "a NaN in an HDF5 file",
+        args: &["identify", "{model}", "{dir}/bin/nan.h5"],
+        code: "dynid::data::non_finite",
+        also: &["sample 50"],
+    },
+    Case {
+        name: "a names variable that does not fit the matrix",
+        args: &["identify", "{model}", "{dir}/bin/names_short.mat"],
+        code: "dynid::data::format",
+        also: &["`names` holds 3 names"],
+    },
+    case(
+        "a truncated HDF5 file",
+        &["identify", "{model}", "{dir}/bin/truncated.h5"],
+        "dynid::data::format",
+    ),
+    case(
+        "a truncated MAT v7.3 file",
+        &["identify", "{model}", "{dir}/bin/truncated_v73.mat"],
+        "dynid::data::format",
+    ),
+    case(
+        "a truncated Parquet file",
+        &["identify", "{model}", "{dir}/bin/truncated.parquet"],
+        "dynid::data::format",
+    ),
+    case(
+        "a Parquet file with damaged metadata",
+        &["identify", "{model}", "{dir}/bin/corrupt.parquet"],
+        "dynid::data::format",
+    ),
+    Case {
+        name: "a null in a Parquet column",
+        args: &["identify", "{model}", "{dir}/bin/null.parquet"],
+        code: "dynid::data::format",
+        also: &["`m.x`", "sample 78"],
+    },
+    Case {
+        name: "text named .mat",
+        args: &["identify", "{model}", "{dir}/bin/text.mat"],
+        code: "dynid::data::format",
+        also: &["the name says MAT-file"],
+    },
+    Case {
+        name: "an empty .h5 file",
+        args: &["identify", "{model}", "{dir}/bin/empty.h5"],
+        code: "dynid::data::format",
+        also: &["is empty"],
+    },
+    Case {
+        name: "a TDMS file",
+        args: &["identify", "{model}", "{dir}/bin/run.tdms"],
+        code: "dynid::data::unknown_format",
+        also: &["NI TDMS", "MATLAB .mat", "HDF5", "Parquet"],
+    },
     case(
         "a semicolon-separated level",
         &[
@@ -836,6 +945,71 @@ const CASES: &[Case] = &[
         "dynid::output::no_directory",
     ),
 ];
+
+/// Binary level files with one defect each, in `dir/bin`.
+fn binary_files(dir: &Path) {
+    use formats_common::*;
+    let bin = dir.join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    let put = |name: &str, bytes: &[u8]| std::fs::write(bin.join(name), bytes).unwrap();
+    let (names, cols) = read_csv(&dir.join("data/level_1.csv"));
+    let v5 = mat5_vectors(&names, &cols, false);
+    put("truncated.mat", &v5[..v5.len() / 2]);
+    let v7 = mat5_vectors(&names, &cols, true);
+    put("truncated_v7.mat", &v7[..v7.len() - 100]);
+    put("header_cut.mat", &v5[..60]);
+    put("header_only.mat", &v5[..128]);
+    // `m.x` as text, and `u` missing.
+    let mut els: Vec<Vec<u8>> = Vec::new();
+    for (n, c) in names.iter().zip(&cols) {
+        match n.as_str() {
+            "m.x" => els.push(matrix(
+                4,
+                &[1, 5],
+                "m.x",
+                &element(4, &[b'h', 0, b'e', 0, b'l', 0, b'l', 0, b'o', 0]),
+            )),
+            _ => els.push(matrix(6, &[c.len(), 1], n, &doubles(c))),
+        }
+    }
+    put("wrong_type.mat", &mat5_file(&els, true));
+    let without_u: Vec<(String, Vec<f64>)> = names
+        .iter()
+        .cloned()
+        .zip(cols.iter().cloned())
+        .filter(|(n, _)| n != "u")
+        .collect();
+    let (n2, c2): (Vec<String>, Vec<Vec<f64>>) = without_u.into_iter().unzip();
+    put("missing_u.mat", &mat5_vectors(&n2, &c2, true));
+    let mut nan = cols.clone();
+    let x = names.iter().position(|n| n == "m.x").unwrap();
+    nan[x][49] = f64::NAN;
+    put("nan.mat", &mat5_vectors(&names, &nan, false));
+    put("nan_v73.mat", &mat73_matrix(&names, &nan));
+    put("nan.h5", &h5_vectors(&names, &nan));
+    // A `names` cell with one name fewer than the matrix has columns.
+    put(
+        "names_short.mat",
+        &mat5_matrix(&names[..names.len() - 1], &cols),
+    );
+    let h5 = h5_vectors(&names, &cols);
+    put("truncated.h5", &h5[..h5.len() / 2]);
+    let m73 = mat73_matrix(&names, &cols);
+    put("truncated_v73.mat", &m73[..m73.len() * 2 / 3]);
+    parquet_file(&names, &cols, &bin.join("good.parquet"));
+    let pq = std::fs::read(bin.join("good.parquet")).unwrap();
+    std::fs::remove_file(bin.join("good.parquet")).unwrap();
+    put("truncated.parquet", &pq[..pq.len() - 40]);
+    // The footer's metadata damaged (its length and the closing `PAR1` kept).
+    let mut corrupt = pq.clone();
+    let end = corrupt.len() - 8;
+    corrupt[end - 40..end].iter_mut().for_each(|b| *b ^= 0x5a);
+    put("corrupt.parquet", &corrupt);
+    parquet_with_null(&names, &cols, x, 77, &bin.join("null.parquet"));
+    put("text.mat", b"t,m.x\n0,1\n");
+    put("empty.h5", b"");
+    put("run.tdms", b"TDSm\x00\x00\x00\x00 some acquisition");
+}
 
 /// Every file below `dir` with its content.
 fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {

@@ -135,6 +135,7 @@ pub fn load(dir: &Path) -> Result<SilverboxData, SilverboxError> {
     let opts = CsvOptions {
         map: Vec::new(),
         ts: Some(TS),
+        ..Default::default()
     };
     let rec = crate::data::read_record(&path, &opts)?;
     let column = |name: &str| {

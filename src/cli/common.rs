@@ -71,15 +71,36 @@ pub fn at_least_one(s: &str) -> Result<usize, String> {
     }
 }
 
-/// How the data files' columns are read; shared by every command that reads level CSVs.
+/// How the data files' columns are read; shared by every command that reads level files
+/// (CSV or other delimited text, MATLAB .mat, HDF5, Parquet: see docs/formats.md).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct CsvArgs {
-    /// Read column COLUMN as signal SIGNAL (repeatable), e.g. `--map disp=m1.x`.
+    /// Read column (or variable) COLUMN as signal SIGNAL (repeatable), e.g. `--map disp=m1.x`.
     #[arg(long = "map", value_name = "COLUMN=SIGNAL")]
     pub map: Vec<String>,
     /// Sample interval in seconds (needed when the files have no `t` column).
     #[arg(long = "sample", value_name = "TS")]
     pub sample: Option<f64>,
+    /// Text files: the character between fields, e.g. `;`, `|` or `tab` (default `,`).
+    #[arg(long = "delimiter", value_name = "CHAR", value_parser = dynid_runtime::data::CsvOptions::parse_delimiter)]
+    pub delimiter: Option<u8>,
+    /// Text files: skip lines starting with CHAR (e.g. `#`), before the header and between
+    /// samples.
+    #[arg(long = "comment", value_name = "CHAR", value_parser = comment_char)]
+    pub comment: Option<u8>,
+    /// Text files: the line after the header holds units (e.g. `s,m,m/s,N`), not a sample.
+    #[arg(long = "units-row")]
+    pub units_row: bool,
+}
+
+/// A `--comment` character: one ASCII character that cannot start a number.
+fn comment_char(s: &str) -> Result<u8, String> {
+    match s.as_bytes() {
+        [b] if b.is_ascii_punctuation() && !matches!(b, b'.' | b'-' | b'+' | b'"') => Ok(*b),
+        _ => Err(format!(
+            "`{s}` is not a comment character: give one such as `#`, `%` or `;`"
+        )),
+    }
 }
 
 impl CsvArgs {
@@ -88,6 +109,9 @@ impl CsvArgs {
         let mut csv = CsvOptions {
             map: Vec::new(),
             ts: self.sample,
+            delimiter: self.delimiter,
+            comment: self.comment,
+            skip_after_header: usize::from(self.units_row),
         };
         for spec in &self.map {
             csv.map.push(CsvOptions::parse_map(spec, ir)?);

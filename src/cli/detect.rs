@@ -3,7 +3,7 @@
 
 use super::common::{check_outputs, inputs, CsvArgs, SplitArgs, Staged};
 use dynid::plot::draw_curves;
-use dynid_runtime::data::{CsvSource, LevelSource, RecordSource};
+use dynid_runtime::data::{FileSource, LevelSource, RecordSource};
 use dynid_runtime::detect::{detect_from_data, levels_too_alike, DetectOptions, SigmaVSource};
 use dynid_runtime::IdentifyOptions;
 use miette::{miette, IntoDiagnostic, WrapErr};
@@ -139,7 +139,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         None => (
             args.data
                 .iter()
-                .map(|p| CsvSource::open(p, &ir, &csv))
+                .map(|p| FileSource::open(p, &ir, &csv))
                 .collect::<Result<Vec<_>, _>>()?,
             Vec::new(),
         ),

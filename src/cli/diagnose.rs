@@ -4,7 +4,7 @@
 use super::common::{check_outputs, inputs, CsvArgs, SplitArgs, Staged};
 use super::identify::{compute_with_bar, render_refined, RefineReport};
 use dsl_parser::ir::ModelIr;
-use dynid_runtime::data::{CsvSource, RecordSource, Split};
+use dynid_runtime::data::{FileSource, RecordSource, Split};
 use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
 use dynid_runtime::record::Record;
 use dynid_runtime::refine::RefineOptions;
@@ -139,11 +139,11 @@ pub fn run(args: Args) -> miette::Result<()> {
             let sources = args
                 .data
                 .iter()
-                .map(|p| CsvSource::open(p, &ir, &csv))
+                .map(|p| FileSource::open(p, &ir, &csv))
                 .collect::<Result<Vec<_>, _>>()?;
             // The records are read whole (the free-run comparison), and the moments and
             // least-squares problems come on top: both estimated before any sample is read.
-            let held: f64 = sources.iter().map(CsvSource::whole_bytes).sum();
+            let held: f64 = sources.iter().map(FileSource::whole_bytes).sum();
             let ident = dynid_runtime::IdentifyOptions {
                 allow_large: args.allow_large,
                 ..DiagnoseOptions::default().ident

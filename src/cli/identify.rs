@@ -4,7 +4,7 @@
 use super::common::{check_outputs, inputs, write_atomically, CsvArgs};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::read_record_within;
-use dynid_runtime::data::{CsvSource, LevelSource};
+use dynid_runtime::data::{FileSource, LevelSource};
 use dynid_runtime::ident::{print, Identification};
 use dynid_runtime::record::Record;
 use dynid_runtime::refine::{self, RefineOptions};
@@ -60,7 +60,8 @@ before any work (refine the plant, driven by the recorded controller output).";
 pub struct Args {
     /// The model file.
     pub model: PathBuf,
-    /// One CSV file per excitation level (header with `t` and the measured signals).
+    /// One data file per excitation level: CSV (header with `t` and the measured signals),
+    /// MATLAB .mat, HDF5 or Parquet (variables or columns named by the signals).
     #[arg(required = true)]
     pub data: Vec<PathBuf>,
     /// Write the result as JSON to this file.
@@ -247,7 +248,7 @@ fn check_whole_records(ir: &ModelIr, args: &Args) -> miette::Result<()> {
     let csv = args.csv.options(ir)?;
     let mut total = 0.0;
     for p in args.data.iter().chain(&args.test) {
-        let src = CsvSource::open(p, ir, &csv)?;
+        let src = FileSource::open(p, ir, &csv)?;
         src.check_whole(false)?;
         total += src.whole_bytes();
     }
@@ -411,7 +412,7 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
     let sources = args
         .data
         .iter()
-        .map(|p| CsvSource::open(p, ir, &csv))
+        .map(|p| FileSource::open(p, ir, &csv))
         .collect::<Result<Vec<_>, _>>()?;
     let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
     let opts = IdentifyOptions {
@@ -636,7 +637,7 @@ mod tests {
             json: Some(out.clone()),
             csv: CsvArgs {
                 map: vec!["disp=m1.x".into()],
-                sample: None,
+                ..Default::default()
             },
             filter_corners: None,
             no_balance: false,

@@ -37,6 +37,10 @@ pub struct CsvSource {
     /// Samples estimated from the size of the text and the bytes per row of its first
     /// lines (`None` where the size is unknown).
     rows_hint: Option<f64>,
+    /// The byte between fields, the comment byte, the lines skipped after the header.
+    delimiter: u8,
+    comment: Option<u8>,
+    skip_after_header: usize,
 }
 
 /// Where the text of a [`CsvSource`] is read from.
@@ -267,7 +271,8 @@ impl CsvSource {
         };
         let head = sniff(path, &text)?;
         let rows_hint = text_size(path, &text).map(|size| rows_from_size(size, &head));
-        let mut rdr = Self::reader(path, &text)?;
+        let delimiter = opts.delimiter.unwrap_or(b',');
+        let mut rdr = Self::reader(path, &text, delimiter, opts.comment)?;
         let header: Vec<String> = match rdr.headers() {
             // (The reader skips a UTF-8 byte-order mark at the start of the file.)
             Ok(h) => h.iter().map(|s| s.trim().to_string()).collect(),
@@ -278,7 +283,11 @@ impl CsvSource {
         }
         // One column whose name holds another usual separator: `;` or tab-separated data.
         if let [only] = header.as_slice() {
-            if let Some(sep) = [";", "\t"].into_iter().find(|s| only.contains(s)) {
+            if let Some(sep) = [",", ";", "\t"]
+                .into_iter()
+                .filter(|s| s.as_bytes() != [delimiter])
+                .find(|s| only.contains(s))
+            {
                 return Err(DataError::Separator {
                     path: p,
                     header: dynid_ir::text::escape(only),
@@ -322,8 +331,17 @@ impl CsvSource {
         }
         let (wanted, n_slots) = select(&names, &header)?;
         let t_col = names.iter().position(|n| n == "t");
-        // Read the first two samples for the sample interval (and to tell an empty body).
+        // Lines after the header that are not samples (units).
         let mut rec = csv::ByteRecord::new();
+        for _ in 0..opts.skip_after_header {
+            match rdr.read_byte_record(&mut rec) {
+                Ok(true) => {}
+                Ok(false) => return Err(DataError::HeaderOnly { path: p }),
+                Err(e) => return Err(csv_err(path, e)),
+            }
+        }
+        rec.clear();
+        // Read the first two samples for the sample interval (and to tell an empty body).
         let mut first_t = Vec::new();
         for _ in 0..2 {
             match rdr.read_byte_record(&mut rec) {
@@ -393,6 +411,9 @@ impl CsvSource {
             replay: Arc::default(),
             text,
             rows_hint,
+            delimiter,
+            comment: opts.comment,
+            skip_after_header: opts.skip_after_header,
         })
     }
 
@@ -480,7 +501,12 @@ impl CsvSource {
     }
 
     /// A CSV reader of the text (`path` names it in errors).
-    fn reader(path: &Path, text: &Text) -> Result<csv::Reader<Box<dyn Read + Send>>, DataError> {
+    fn reader(
+        path: &Path,
+        text: &Text,
+        delimiter: u8,
+        comment: Option<u8>,
+    ) -> Result<csv::Reader<Box<dyn Read + Send>>, DataError> {
         let buf: Box<dyn Read + Send> = Box::new(std::io::BufReader::with_capacity(
             1 << 20,
             open_text(path, text)?,
@@ -489,6 +515,8 @@ impl CsvSource {
             .has_headers(true)
             .flexible(true)
             .trim(csv::Trim::All)
+            .delimiter(delimiter)
+            .comment(comment)
             .from_reader(buf))
     }
 }
@@ -557,6 +585,9 @@ impl CsvSource {
             n_wanted: self.wanted.len(),
             ts: self.ts,
             time_tol: TIME_TOL,
+            delimiter: self.delimiter,
+            comment: self.comment,
+            skip_after_header: self.skip_after_header,
         };
         let mut bufs: Vec<Vec<f64>> = vec![Vec::new(); self.n_slots];
         for &(s, _) in &self.wanted {
@@ -621,15 +652,11 @@ impl CsvSource {
 /// Read a whole CSV file into a [`Record`] (every named column except `t`, renamed by
 /// `opts.map`), with the same validation as [`CsvSource`]: a header, equal field counts,
 /// finite numbers and a uniform time step (`t` column or `opts.ts`). At least two samples.
-/// For inputs that drive a simulation; identification streams with [`CsvSource`] instead.
-pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, DataError> {
-    read_record_from(path, None, opts, false)
-}
-
-/// As [`read_record`], refused before reading when the record would take more than
+/// Refused before reading when the record would take more than
 /// [`crate::limits::MAX_BYTES`] of memory (estimated from the file's size, see
-/// [`CsvSource::check_whole`]) unless `allow_large`.
-pub fn read_record_within(
+/// [`CsvSource::check_whole`]) unless `allow_large`. [`super::read_record`] chooses the
+/// reader by the file's format.
+pub(super) fn read_csv_record(
     path: &Path,
     opts: &CsvOptions,
     allow_large: bool,
@@ -637,7 +664,7 @@ pub fn read_record_within(
     read_record_from(path, None, opts, allow_large)
 }
 
-/// As [`read_record`] for a file's bytes held in memory (`path` names it in messages).
+/// As [`super::read_record`] for a CSV file's bytes held in memory (`path` names it in messages).
 pub fn read_record_bytes(
     path: &Path,
     bytes: &[u8],

@@ -38,6 +38,12 @@ pub(super) struct Layout<'a> {
     pub ts: f64,
     /// Relative tolerance on the time step.
     pub time_tol: f64,
+    /// The byte between fields.
+    pub delimiter: u8,
+    /// Lines whose first non-blank byte is this are skipped.
+    pub comment: Option<u8>,
+    /// Lines after the header skipped (units rows).
+    pub skip_after_header: usize,
 }
 
 /// The rows of one piece: the wanted columns, and the first and last time stamp.
@@ -51,12 +57,12 @@ struct Piece {
     error: Option<DataError>,
 }
 
-/// The byte ranges of the fields of `row`, split at commas outside double quotes.
-fn fields(row: &[u8], spans: &mut Vec<(usize, usize)>) {
+/// The byte ranges of the fields of `row`, split at `delim` outside double quotes.
+fn fields(row: &[u8], delim: u8, spans: &mut Vec<(usize, usize)>) {
     spans.clear();
     let mut from = 0;
     if !row.contains(&b'"') {
-        for (k, _) in row.iter().enumerate().filter(|(_, &b)| b == b',') {
+        for (k, _) in row.iter().enumerate().filter(|(_, &b)| b == delim) {
             spans.push((from, k));
             from = k + 1;
         }
@@ -65,7 +71,7 @@ fn fields(row: &[u8], spans: &mut Vec<(usize, usize)>) {
         for (k, &b) in row.iter().enumerate() {
             match b {
                 b'"' => quoted = !quoted,
-                b',' if !quoted => {
+                b if b == delim && !quoted => {
                     spans.push((from, k));
                     from = k + 1;
                 }
@@ -116,6 +122,12 @@ fn shown_field(raw: &[u8]) -> String {
 }
 
 impl Layout<'_> {
+    /// Whether `row` is a comment line.
+    fn is_comment(&self, row: &[u8]) -> bool {
+        self.comment
+            .is_some_and(|c| row.trim_ascii_start().first() == Some(&c))
+    }
+
     fn step_error(&self, line: u64, t: f64, previous: f64) -> Option<DataError> {
         let step = t - previous;
         if step <= 0.0 || step.is_nan() {
@@ -165,10 +177,10 @@ impl Layout<'_> {
         let mut spans = Vec::with_capacity(n_fields);
         for (this, raw) in (line0..).zip(text.split(|&b| b == b'\n')) {
             let row = raw.strip_suffix(b"\r").unwrap_or(raw);
-            if row.trim_ascii().is_empty() {
+            if row.trim_ascii().is_empty() || self.is_comment(row) {
                 continue;
             }
-            fields(row, &mut spans);
+            fields(row, self.delimiter, &mut spans);
             let found = spans.len();
             if found != n_fields {
                 p.error = Some(DataError::Ragged {
@@ -232,6 +244,7 @@ pub(super) fn parse_body(
     let io = |e: std::io::Error| super::text::read_error(layout.path, &e);
     let mut buf: Vec<u8> = Vec::with_capacity(BLOCK + (64 << 10));
     let mut header_done = false;
+    let mut skip_left = layout.skip_after_header;
     let mut line = 1u64;
     let mut last_t: Option<f64> = None;
     let mut n = 0usize;
@@ -255,21 +268,32 @@ pub(super) fn parse_body(
         }
         buf.truncate(filled);
         let mut text: &[u8] = &buf;
-        if !header_done {
-            match text.iter().position(|&b| b == b'\n') {
-                Some(k) => {
-                    text = &text[k + 1..];
-                    header_done = true;
-                    line = 2;
+        // The header (after any comment or blank lines), then the lines skipped after it.
+        let mut need_more = false;
+        while !header_done || skip_left > 0 {
+            let Some(k) = text.iter().position(|&b| b == b'\n') else {
+                if eof {
+                    return Ok(0);
                 }
-                None if eof => return Ok(0),
-                None => {
-                    // A header longer than a block: keep reading.
-                    continue;
-                }
+                // A line longer than what is read so far: keep reading.
+                need_more = true;
+                break;
+            };
+            let row = &text[..k];
+            let blank = row.trim_ascii().is_empty() || layout.is_comment(row);
+            if !header_done {
+                header_done = !blank;
+            } else if !blank {
+                skip_left -= 1;
             }
+            text = &text[k + 1..];
+            line += 1;
         }
-        // Complete lines only, unless this is the end of the file.
+        if need_more {
+            let used = buf.len() - text.len();
+            buf.drain(..used);
+            continue;
+        } // Complete lines only, unless this is the end of the file.
         let end = if eof {
             text.len()
         } else {

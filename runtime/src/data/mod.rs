@@ -1,24 +1,34 @@
 //! Measured data for identification: one source per excitation level, streamed in chunks so
 //! that memory use does not grow with the record length.
 //!
-//! A CSV file must have a header naming its columns. Columns are matched to the model's
-//! signals by name (`m1.x`, `m1.v`, `u`; an optional `t` gives the sample times, which must
-//! be uniform) or through `col=signal` renamings. Every signal the model declares measured
-//! must be present; unmeasured signals are never required and extra columns are ignored.
+//! A file's format is told by its first bytes, else its extension ([`detect`]): delimited
+//! text (CSV, or another delimiter), MATLAB MAT-files (v5, v7 and v7.3), HDF5 and Parquet
+//! (docs/formats.md). A text file must have a header naming its columns; a binary file names
+//! its variables, datasets or columns. Columns are matched to the model's signals by name
+//! (`m1.x`, `m1.v`, `u`; an optional `t` gives the sample times, which must be uniform) or
+//! through `col=signal` renamings. Every signal the model declares measured must be present;
+//! unmeasured signals are never required and extra columns are ignored.
 
+mod binary;
 mod csv_file;
 mod csv_parse;
 pub mod cycles;
+mod format;
 #[doc(hidden)]
 pub mod fuzz;
+mod h5;
+mod mat5;
+mod pq;
 mod record;
 pub mod split;
 #[cfg(test)]
 mod tests;
 mod text;
 
-pub use csv_file::{read_record, read_record_bytes, read_record_within, CsvSource};
+pub use binary::BinarySource;
+pub use csv_file::{read_record_bytes, CsvSource};
 pub use cycles::{cut_cycles, find_period, Cycles};
+pub use format::{detect, read_record, read_record_within, FileSource, Format, FORMATS_READ};
 pub use record::RecordSource;
 pub use split::{default_response, split_record, Segment, Split, SplitError, SplitOptions};
 pub use text::MAX_LINE;
@@ -104,7 +114,7 @@ pub enum DataError {
     #[error("{path}: the header `{header}` is one column: the file is not comma-separated (it uses `{separator}`)")]
     #[diagnostic(
         code(dynid::data::separator),
-        help("write the file with commas between the columns and `.` as the decimal point (e.g. export as CSV with those settings, or `tr '{separator}' ','` when no value has a decimal comma)")
+        help("give `--delimiter '{separator}'` to read it as it is (numbers need `.` as the decimal point), or write the file with commas between the columns")
     )]
     Separator {
         path: String,
@@ -277,11 +287,60 @@ pub enum DataError {
         /// The limit in words (e.g. `1 MiB`).
         limit: String,
     },
+    #[error("{path}: {what}: not a format dynid reads")]
+    #[diagnostic(
+        code(dynid::data::unknown_format),
+        help("dynid reads {}; export the data to one of these (one column or variable per signal, named as in the model)", FORMATS_READ)
+    )]
+    UnknownFormat { path: String, what: String },
+    #[error("{path}: cannot read this {format} file: {message}")]
+    #[diagnostic(
+        code(dynid::data::format),
+        help("check that the file was written completely (not truncated in a copy) and opens in the program that wrote it; docs/formats.md lists what is read of each format")
+    )]
+    Format {
+        path: String,
+        format: String,
+        message: String,
+    },
+    #[error(
+        "{path}: no variable or column for the measured signal `{signal}`; the file holds: {holds}"
+    )]
+    #[diagnostic(
+        code(dynid::data::missing_column),
+        help("name a variable (or column) `{signal}`, map one with `--map NAME={signal}`, store one matrix (one sample per row) with a `names` variable naming its columns, or declare `{signal}` unmeasured in the model")
+    )]
+    MissingVariable {
+        path: String,
+        signal: String,
+        holds: String,
+    },
+    #[error("{path}: sample {sample}, column `{column}`: {value} is not a finite number")]
+    #[diagnostic(
+        code(dynid::data::non_finite),
+        help("remove or repair samples with NaN or infinite values (cut the record into clean pieces)")
+    )]
+    SampleNonFinite {
+        path: String,
+        sample: u64,
+        column: String,
+        value: f64,
+    },
+    #[error("{path}: sample {sample}: {message}")]
+    #[diagnostic(
+        code(dynid::data::non_uniform_time),
+        help("identification needs uniformly sampled data without gaps, in time order: resample the record onto a uniform time grid, or cut it at the gap into separate records")
+    )]
+    SampleTime {
+        path: String,
+        sample: u64,
+        message: String,
+    },
     #[error("{path}: line {line} holds a NUL byte: this is not a text file")]
     #[diagnostic(
         code(dynid::data::binary),
         help(
-            "a level file is CSV text (ASCII or UTF-8); a UTF-16 file must be saved as UTF-8 first"
+            "a text level file is ASCII or UTF-8 (a UTF-16 file must be saved as UTF-8 first); the binary formats read are MATLAB .mat, HDF5 and Parquet"
         )
     )]
     Binary { path: String, line: u64 },
@@ -308,7 +367,8 @@ fn number_help(value: &str) -> String {
     }
 }
 
-/// How to read CSV files.
+/// How to read data files: renamings and the sample interval for every format; the
+/// delimiter, comment lines and units rows for text.
 #[derive(Clone, Debug, Default)]
 pub struct CsvOptions {
     /// `(column, signal)` renamings.
@@ -316,6 +376,42 @@ pub struct CsvOptions {
     /// Sample interval; required when there is no `t` column. With a `t` column it is
     /// checked against the time steps.
     pub ts: Option<f64>,
+    /// Text: the byte between fields (`None`: a comma).
+    pub delimiter: Option<u8>,
+    /// Text: lines whose first non-blank character is this byte are skipped, before the
+    /// header and between samples (`None`: no comment lines).
+    pub comment: Option<u8>,
+    /// Text: lines right after the header that are not samples (e.g. a units row
+    /// `s,m,m/s,N`), skipped.
+    pub skip_after_header: usize,
+}
+
+impl CsvOptions {
+    /// Parse a `--delimiter` value: one ASCII character other than a quote or line end,
+    /// or a name: `tab`, `semicolon`, `comma`, `space`, `\t`.
+    pub fn parse_delimiter(s: &str) -> Result<u8, String> {
+        match s {
+            "tab" | "\\t" | "\t" => return Ok(b'\t'),
+            "semicolon" => return Ok(b';'),
+            "comma" => return Ok(b','),
+            "space" => return Ok(b' '),
+            _ => {}
+        }
+        match s.as_bytes() {
+            [b] if b.is_ascii()
+                && !matches!(b, b'"' | b'\n' | b'\r')
+                && !b.is_ascii_alphanumeric()
+                && *b != b'.'
+                && *b != b'-'
+                && *b != b'+' =>
+            {
+                Ok(*b)
+            }
+            _ => Err(format!(
+                "`{s}` is not a delimiter: give one character such as `;` or `|`, or `tab`"
+            )),
+        }
+    }
 }
 
 impl CsvOptions {

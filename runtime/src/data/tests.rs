@@ -98,6 +98,7 @@ fn missing_column_lists_what_is_there() {
     let opts = CsvOptions {
         map: vec![("vel".into(), "m1.v".into())],
         ts: None,
+        ..Default::default()
     };
     assert_eq!(read(&body, &opts), Ok(300));
 }
@@ -201,6 +202,7 @@ fn sample_interval_is_required_without_t() {
     let opts = CsvOptions {
         map: vec![],
         ts: Some(0.01),
+        ..Default::default()
     };
     assert_eq!(read(&body, &opts), Ok(300));
 }
@@ -212,6 +214,7 @@ fn a_trailing_comma_is_not_a_column() {
     let opts = CsvOptions {
         map: vec![],
         ts: Some(0.1),
+        ..Default::default()
     };
     let rec = read_record(f.path(), &opts).unwrap();
     assert_eq!(rec.names, ["V1", "V2"]);
@@ -223,6 +226,7 @@ fn a_semicolon_or_tab_separated_file_is_named_as_such() {
     let opts = CsvOptions {
         map: vec![],
         ts: Some(0.1),
+        ..Default::default()
     };
     for (sep, name) in [(";", ";"), ("\t", "\\t")] {
         let f = file(&format!("t{sep}x\n0{sep}1,5\n0.1{sep}2,5\n"));
@@ -453,6 +457,7 @@ fn sample_conflicting_with_the_t_column_says_so() {
     let opts = CsvOptions {
         map: vec![],
         ts: Some(0.02),
+        ..Default::default()
     };
     let e = read_err(rows(300, 0.01).as_bytes(), &opts);
     assert_eq!(code(&e), "dynid::data::sample_conflict", "{e}");
@@ -460,6 +465,7 @@ fn sample_conflicting_with_the_t_column_says_so() {
     let opts = CsvOptions {
         map: vec![],
         ts: Some(0.01),
+        ..Default::default()
     };
     assert_eq!(read(&rows(300, 0.01), &opts), Ok(300));
 }
@@ -481,6 +487,7 @@ fn map_messages_name_the_real_problem() {
     let opts = CsvOptions {
         map: vec![map],
         ts: None,
+        ..Default::default()
     };
     let e = read_err(rows(300, 0.01).as_bytes(), &opts);
     assert_eq!(code(&e), "dynid::data::bad_map", "{e}");
