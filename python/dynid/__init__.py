@@ -12,8 +12,8 @@ The package runs the same Rust runtime as the ``dynid`` command line::
     run.plot()                                         # needs matplotlib
 
 Data are a list with one level each: a ``pandas.DataFrame``, a dict of 1-D arrays
-(shapes ``(N,)``, ``(1, N)`` or ``(N, 1)``), or the path of a CSV file as the command
-line reads it. A level has a column per measured signal (``m1.x``, ``m1.v``, ``m1.a`` of
+(shapes ``(N,)``, ``(1, N)`` or ``(N, 1)``), or the path of a data file as the command
+line reads it (CSV or other delimited text, MATLAB ``.mat``, HDF5, Parquet). A level has a column per measured signal (``m1.x``, ``m1.v``, ``m1.a`` of
 an accelerometer, ``u``) and a uniform time column ``t`` (or give ``sample=TS``);
 ``map={"disp": "m1.x"}`` renames columns. Float64 columns are read without a copy.
 Without pandas, ``simulate`` returns dicts of NumPy arrays and ``.parameters`` is a dict

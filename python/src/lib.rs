@@ -20,7 +20,7 @@ use dynid::dsl_parser::{
     CompileErrors,
 };
 use dynid::runtime::data::{
-    CsvOptions, CsvSource, DataError as RtDataError, LevelSource, MIN_SAMPLES,
+    CsvOptions, DataError as RtDataError, FileSource, LevelSource, MIN_SAMPLES,
 };
 use dynid::runtime::detect::{detect_from_data, levels_too_alike, DetectOptions};
 use dynid::runtime::diagnose::{self as rt_diagnose, DiagnoseOptions};
@@ -353,7 +353,7 @@ fn fmt_t(t: f64) -> String {
     dsl_parser::num::sig(t, 9, false)
 }
 
-/// One level as the Python half hands it over: a CSV file (path, `(column, signal)`
+/// One level as the Python half hands it over: a data file (path, `(column, signal)`
 /// renamings, sample interval) or arrays ([`LevelArg`]).
 #[derive(FromPyObject)]
 enum LevelIn<'py> {
@@ -361,7 +361,7 @@ enum LevelIn<'py> {
     Arrays(LevelArg<'py>),
 }
 
-/// A bound level: a CSV file read in chunks, or NumPy's buffers.
+/// A bound level: a data file read in chunks, or NumPy's buffers.
 type Source<'a> = Box<dyn LevelSource + 'a>;
 
 /// Bind every level: files are opened as the command line opens them (header matched to
@@ -372,8 +372,8 @@ fn bind<'a>(py: Python<'_>, ir: &ModelIr, levels: &'a [LevelIn<'_>]) -> PyResult
         match level {
             LevelIn::File(path, map, ts) => {
                 let mut opts = CsvOptions {
-                    map: Vec::new(),
                     ts: *ts,
+                    ..CsvOptions::default()
                 };
                 for (c, sig) in map {
                     let pair = CsvOptions::parse_map(&format!("{c}={sig}"), ir).map_err(|e| {
@@ -381,7 +381,8 @@ fn bind<'a>(py: Python<'_>, ir: &ModelIr, levels: &'a [LevelIn<'_>]) -> PyResult
                     })?;
                     opts.map.push(pair);
                 }
-                let src = CsvSource::open(path, ir, &opts)
+                // Any format the command line reads (text, MAT, HDF5, Parquet; by content).
+                let src = FileSource::open(path, ir, &opts)
                     .map_err(|e| runtime_error_at(py, &e, Some(i + 1), None, None))?;
                 out.push(Box::new(src));
             }
