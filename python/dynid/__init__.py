@@ -451,14 +451,18 @@ class Identification:
 
     @property
     def parameters(self):
+        """Value, standard error and significance per parameter, in the model's order of
+        unknowns (the JSON map ``to_dict()["parameters"]`` is keyed by name)."""
         ps = self._d["parameters"]
+        order = list(getattr(self._model, "unknowns", None) or [])
+        names = [n for n in order if n in ps] + [n for n in ps if n not in order]
         return _table(
             {
-                "value": [p["value"] for p in ps.values()],
-                "stderr": [p["stderr"] for p in ps.values()],
-                "significant": [p["significant"] for p in ps.values()],
+                "value": [ps[n]["value"] for n in names],
+                "stderr": [ps[n]["stderr"] for n in names],
+                "significant": [ps[n]["significant"] for n in names],
             },
-            index=list(ps),
+            index=names,
             index_name="parameter",
         )
 
