@@ -24,7 +24,10 @@ const ROOTS: &[&str] = &[
 /// Files of test code inside the source trees.
 fn is_test_file(p: &Path) -> bool {
     let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
-    name == "tests.rs" || name == "test_models.rs" || p.ends_with("data/fuzz.rs")
+    name == "tests.rs"
+        || name.ends_with("_tests.rs")
+        || name == "test_models.rs"
+        || p.ends_with("data/fuzz.rs")
 }
 
 fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {

@@ -56,6 +56,8 @@ impl LevelWindows {
     /// d_{j+1}ᵀ + d_{j+1} d_jᵀ))` (`nr × nr`): the Bartlett weight ½ on the lag-one terms
     /// keeps it positive semi-definite, as a weighting matrix must be.
     pub fn covariance(&self, nr: usize) -> Mat<f64> {
+        // shape: `d` holds `nh × nr` entries — `level_windows` builds it with the `nr` rows
+        // per level its callers pass here too; `s` and `c` are `nr × nr`.
         let dm = MatRef::from_row_major_slice(&self.d[..], self.nh, nr);
         let mut s = Mat::<f64>::zeros(nr, nr);
         matmul(
@@ -180,6 +182,8 @@ pub(crate) fn centred_windows(
 /// residual rows (see the module doc and [`level_windows`]; `nr` rows per level).
 pub(crate) fn sandwich_stderr(sol: &LsSolution, nr: usize, windows: &[LevelWindows]) -> Vec<f64> {
     let na = sol.x.len();
+    // shape: `cov` is `na × na` and `bartlett` has `na` entries (`sandwich_cov`), so `k < na`
+    // indexes both.
     let (cov, bartlett) = sandwich_cov(&sol.pinv, na, nr, windows);
     (0..na)
         .map(|k| {
@@ -251,6 +255,8 @@ pub(crate) const SHRINKAGE: f64 = 0.5;
 /// `Ŝ` alone is singular). Rows of weight zero keep a unit diagonal (they are zero).
 /// `None` when the decomposition fails or the covariance has no positive scale.
 pub(crate) fn efficient_mix(lw: &LevelWindows, nr: usize, alpha: f64) -> Option<Vec<f64>> {
+    // shape: `s`, `shrunk` and the eigenvectors are `nr × nr` and `lam` has `nr` entries, by
+    // construction; every index below is `< nr`.
     let s = lw.covariance(nr);
     let diag: Vec<f64> = (0..nr).map(|i| s[(i, i)]).collect();
     let top = diag.iter().copied().fold(0.0, f64::max);
