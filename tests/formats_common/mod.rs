@@ -157,11 +157,12 @@ pub fn h5_matrix(names: &[String], cols: &[Vec<f64>]) -> Vec<u8> {
 
 // ---- Parquet -----------------------------------------------------------------------------
 
-/// Required DOUBLE columns, Snappy pages, in two row groups.
-pub fn parquet_file(names: &[String], cols: &[Vec<f64>], path: &Path) {
-    use parquet::basic::{Compression, Repetition, Type as Physical};
-    use parquet::file::properties::WriterProperties;
-    use parquet::file::writer::SerializedFileWriter;
+/// A Parquet schema of one DOUBLE column per name, all with `repetition`.
+fn parquet_schema(
+    names: &[String],
+    repetition: parquet::basic::Repetition,
+) -> std::sync::Arc<parquet::schema::types::Type> {
+    use parquet::basic::Type as Physical;
     use parquet::schema::types::Type;
     use std::sync::Arc;
     let fields = names
@@ -169,18 +170,27 @@ pub fn parquet_file(names: &[String], cols: &[Vec<f64>], path: &Path) {
         .map(|n| {
             Arc::new(
                 Type::primitive_type_builder(n, Physical::DOUBLE)
-                    .with_repetition(Repetition::REQUIRED)
+                    .with_repetition(repetition)
                     .build()
                     .unwrap(),
             )
         })
         .collect();
-    let schema = Arc::new(
+    Arc::new(
         Type::group_type_builder("record")
             .with_fields(fields)
             .build()
             .unwrap(),
-    );
+    )
+}
+
+/// Required DOUBLE columns, Snappy pages, in two row groups.
+pub fn parquet_file(names: &[String], cols: &[Vec<f64>], path: &Path) {
+    use parquet::basic::{Compression, Repetition};
+    use parquet::file::properties::WriterProperties;
+    use parquet::file::writer::SerializedFileWriter;
+    use std::sync::Arc;
+    let schema = parquet_schema(names, Repetition::REQUIRED);
     let props = Arc::new(
         WriterProperties::builder()
             .set_compression(Compression::SNAPPY)
@@ -212,28 +222,11 @@ pub fn parquet_with_null(
     null_at: usize,
     path: &Path,
 ) {
-    use parquet::basic::{Repetition, Type as Physical};
+    use parquet::basic::Repetition;
     use parquet::file::properties::WriterProperties;
     use parquet::file::writer::SerializedFileWriter;
-    use parquet::schema::types::Type;
     use std::sync::Arc;
-    let fields = names
-        .iter()
-        .map(|n| {
-            Arc::new(
-                Type::primitive_type_builder(n, Physical::DOUBLE)
-                    .with_repetition(Repetition::OPTIONAL)
-                    .build()
-                    .unwrap(),
-            )
-        })
-        .collect();
-    let schema = Arc::new(
-        Type::group_type_builder("record")
-            .with_fields(fields)
-            .build()
-            .unwrap(),
-    );
+    let schema = parquet_schema(names, Repetition::OPTIONAL);
     let props = Arc::new(WriterProperties::builder().build());
     let file = std::fs::File::create(path).unwrap();
     let mut w = SerializedFileWriter::new(file, schema, props).unwrap();

@@ -272,9 +272,6 @@ impl BinarySource {
     }
 }
 
-/// Relative tolerance on the time step (as for CSV files).
-const TIME_TOL: f64 = 1e-3;
-
 impl LevelSource for BinarySource {
     fn origin(&self) -> String {
         self.path.display().to_string()
@@ -283,11 +280,7 @@ impl LevelSource for BinarySource {
         self.ts
     }
     fn locate(&self, k: usize) -> String {
-        format!(
-            "sample {} (t = {} s)",
-            k + 1,
-            dynid_ir::num::sig(self.t0 + k as f64 * self.ts, 9, false)
-        )
+        super::locate_sample(self.t0, self.ts, k)
     }
     fn stream(
         &self,

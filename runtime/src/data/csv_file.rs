@@ -186,9 +186,6 @@ fn parse_cell(path: &Path, line: u64, column: &str, raw: &[u8]) -> Result<f64, D
     parse_number(path, line, column, raw)
 }
 
-/// Relative tolerance on the time step (times printed with few digits jitter slightly).
-const TIME_TOL: f64 = 1e-3;
-
 /// The header's columns for a message: all of them, or the first few and how many there
 /// are (a header can be up to [`super::MAX_LINE`] long; a message should not be).
 fn columns_in_words(header: &[String]) -> String {
@@ -529,11 +526,7 @@ impl LevelSource for CsvSource {
         self.ts
     }
     fn locate(&self, k: usize) -> String {
-        format!(
-            "sample {} (t = {} s)",
-            k + 1,
-            dynid_ir::num::sig(self.t0 + k as f64 * self.ts, 9, false)
-        )
+        super::locate_sample(self.t0, self.ts, k)
     }
     fn stream(
         &self,

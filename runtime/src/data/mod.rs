@@ -59,13 +59,23 @@ pub trait LevelSource: Sync {
     ) -> Result<(), DataError>;
     /// Where sample `k` (0-based) is, for messages: its number and time.
     fn locate(&self, k: usize) -> String {
-        format!(
-            "sample {} (t = {} s)",
-            k + 1,
-            dynid_ir::num::sig(k as f64 * self.ts(), 9, false)
-        )
+        locate_sample(0.0, self.ts(), k)
     }
 }
+
+/// Sample `k` (0-based) of a record starting at `t0` with step `ts`, for messages: its
+/// number and time.
+pub(crate) fn locate_sample(t0: f64, ts: f64, k: usize) -> String {
+    format!(
+        "sample {} (t = {} s)",
+        k + 1,
+        dynid_ir::num::sig(t0 + k as f64 * ts, 9, false)
+    )
+}
+
+/// Relative tolerance on the time step of a file's time column, every format (times
+/// printed with few digits jitter slightly).
+pub(crate) const TIME_TOL: f64 = 1e-3;
 
 /// Problems with measured data. Every variant names the file (or record) and, where it
 /// applies, the line.
