@@ -193,3 +193,113 @@ fn binary_files_are_told_by_content_not_name() {
     let got = identify(&model, &files, &[], &dir.path().join("out.json"));
     same_numbers(&reference, &got, 1e-12, "misnamed");
 }
+
+// ---- the readers under damaged files ------------------------------------------------------
+
+/// Small files of every binary layout above, of one record (`t`, `m.x`, `u`; 128 samples):
+/// the seeds of the `binary` fuzz target and of the miniature below.
+fn small_seed_files(dir: &Path) -> Vec<PathBuf> {
+    let n = 128;
+    let names: Vec<String> = ["t", "m.x", "u"].iter().map(|s| s.to_string()).collect();
+    let cols: Vec<Vec<f64>> = vec![
+        (0..n).map(|i| i as f64 * 0.01).collect(),
+        (0..n).map(|i| (i as f64 * 0.1).sin() * 1e-3).collect(),
+        (0..n).map(|i| (i as f64 * 0.37).cos()).collect(),
+    ];
+    let m = matlab(&names);
+    let files: Vec<(&str, Vec<u8>)> = vec![
+        ("v5.mat", mat5_vectors(&m, &cols, false)),
+        ("v7.mat", mat5_vectors(&m, &cols, true)),
+        ("v5m.mat", mat5_matrix(&names, &cols)),
+        ("v73.mat", mat73_vectors(&m, &cols)),
+        ("v73m.mat", mat73_matrix(&names, &cols)),
+        ("vec.h5", h5_vectors(&names, &cols)),
+        ("mat.h5", h5_matrix(&names, &cols)),
+    ];
+    let mut out: Vec<PathBuf> = files
+        .into_iter()
+        .map(|(name, bytes)| {
+            let p = dir.join(name);
+            std::fs::write(&p, bytes).unwrap();
+            p
+        })
+        .collect();
+    let p = dir.join("pq.parquet");
+    parquet_file(&names, &cols, &p);
+    out.push(p);
+    out
+}
+
+/// The model the `binary` fuzz target reads its files as.
+const FUZZ_MODEL: &str = "model m {
+    body m = 1.0
+    input u on m
+    measure m.x, u
+    spring k (ground, m) ~ 4.0
+    damper d (ground, m) ~ 0.4
+}";
+
+#[test]
+fn the_binary_readers_survive_damaged_files() {
+    // A deterministic miniature of `fuzz/fuzz_targets/binary.rs`: every seed file intact
+    // (read whole and streamed: the property holds and the data come back), then 60
+    // damaged copies of each — bytes overwritten with 0x00, 0xff or a random byte, cut short,
+    // a stretch repeated — through the same `check_data_file`, which panics if a reader
+    // breaks its contract (a panic, a non-finite value, a ragged or short record).
+    use dynid_runtime::data::{fuzz::check_data_file, read_record, CsvOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let ir = dsl_parser::compile_str("fuzz.dyn", FUZZ_MODEL).unwrap();
+    let seeds = small_seed_files(dir.path());
+    let map = CsvOptions {
+        map: vec![("m_x".into(), "m.x".into())],
+        ..Default::default()
+    };
+    let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let damaged = dir.path().join("damaged");
+    for seed in &seeds {
+        // Vectors carry MATLAB's names (`m_x`); matrices, HDF5 and Parquet the signals'.
+        let rec = read_record(seed, &CsvOptions::default())
+            .or_else(|e| read_record(seed, &map).map_err(|f| format!("{e}; with --map: {f}")))
+            .unwrap_or_else(|e| panic!("{}: {e}", seed.display()));
+        assert_eq!(rec.len(), 128, "{}", seed.display());
+        check_data_file(seed, &ir);
+        let bytes = std::fs::read(seed).unwrap();
+        for _ in 0..60 {
+            let mut b = bytes.clone();
+            let at = (next() as usize) % b.len();
+            match next() % 4 {
+                0 => {
+                    let k = 1 + (next() as usize) % 8;
+                    let v = [0x00, 0xff, next() as u8][(next() % 3) as usize];
+                    let end = (at + k).min(b.len());
+                    b[at..end].iter_mut().for_each(|x| *x = v);
+                }
+                1 => b.truncate(at),
+                2 => {
+                    let end = (at + 1 + (next() as usize) % 64).min(b.len());
+                    let stretch = b[at..end].to_vec();
+                    b.splice(at..at, stretch);
+                }
+                _ => b[at] ^= 1 << (next() % 8),
+            }
+            std::fs::write(&damaged, &b).unwrap();
+            check_data_file(&damaged, &ir);
+        }
+    }
+}
+
+#[test]
+#[ignore = "writes the binary fuzz target's seed files into $DYNID_FUZZ_SEEDS"]
+fn write_binary_fuzz_seeds() {
+    let dir = PathBuf::from(std::env::var("DYNID_FUZZ_SEEDS").expect("DYNID_FUZZ_SEEDS=DIR"));
+    std::fs::create_dir_all(&dir).unwrap();
+    for p in small_seed_files(&dir) {
+        println!("{}", p.display());
+    }
+}

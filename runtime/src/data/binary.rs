@@ -93,11 +93,15 @@ impl BinarySource {
         opts: &CsvOptions,
         names_out: &mut Vec<String>,
     ) -> Result<BinarySource, DataError> {
+        // Scalars beside the record (a gain, a sample rate MATLAB users save with it) are
+        // not columns of it.
+        let lens: Vec<usize> = store.columns().iter().map(|c| c.len).collect();
+        let scalar = |k: usize| lens[k] <= 1 && lens.iter().any(|&l| l > 1);
         Self::open_with(path, store, opts, 2, |names| {
             let wanted: Vec<(usize, usize)> = names
                 .iter()
                 .enumerate()
-                .filter(|(_, n)| *n != "t" && !n.is_empty())
+                .filter(|&(k, n)| n != "t" && !n.is_empty() && !scalar(k))
                 .enumerate()
                 .map(|(slot, (k, n))| {
                     names_out.push(n.clone());

@@ -219,7 +219,8 @@ impl LevelSource for FileSource {
     }
 }
 
-/// Read a whole data file of any format read into a [`Record`] (every named column except
+/// Read a whole data file of any format read into a [`Record`] (every named column —
+/// scalars saved beside the record left out — except
 /// `t`, renamed by `opts.map`), validated as [`FileSource`] streams it. At least two
 /// samples. For inputs that drive a simulation; identification streams instead.
 pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, DataError> {

@@ -17,27 +17,40 @@ pub fn check_csv_bytes(path: &Path, bytes: &[u8], ir: &ModelIr) {
     ];
     for opts in &opts {
         if let Ok(src) = CsvSource::from_bytes(path, bytes, ir, opts) {
-            let mut n = 0;
-            let streamed = src.stream(97, &mut |cols, len| {
-                for s in ir.measured_signals() {
-                    let c = &cols[s.index()];
-                    assert!(c.len() >= len, "a chunk shorter than its length");
-                    assert!(c[..len].iter().all(|v| v.is_finite()), "a non-finite value");
-                }
-                n += len;
-            });
-            if streamed.is_ok() {
-                assert!(n >= MIN_SAMPLES, "{n} samples streamed");
-                assert!(src.ts().is_finite() && src.ts() > 0.0);
-            }
+            check_streamed(&src, ir);
         }
         if let Ok(rec) = read_record_bytes(path, bytes, opts) {
-            let n = rec.len();
-            assert!(rec.columns.iter().all(|c| c.len() == n), "ragged record");
-            assert!(rec.columns.iter().flatten().all(|v| v.is_finite()));
-            assert!(rec.ts.is_finite() && rec.ts > 0.0);
+            check_record(&rec);
         }
     }
+}
+
+/// A level that opened streams complete, finite chunks of its measured signals and, if the
+/// stream succeeds, at least [`MIN_SAMPLES`] samples at a positive sample interval.
+fn check_streamed(src: &dyn LevelSource, ir: &ModelIr) {
+    let mut n = 0;
+    let streamed = src.stream(97, &mut |cols, len| {
+        for s in ir.measured_signals() {
+            let c = &cols[s.index()];
+            assert!(c.len() >= len, "a chunk shorter than its length");
+            assert!(c[..len].iter().all(|v| v.is_finite()), "a non-finite value");
+        }
+        n += len;
+    });
+    if streamed.is_ok() {
+        assert!(n >= MIN_SAMPLES, "{n} samples streamed");
+        assert!(src.ts().is_finite() && src.ts() > 0.0);
+    }
+}
+
+/// A record read whole: at least two samples, every column as long, finite values, a
+/// positive sample interval.
+fn check_record(rec: &Record) {
+    let n = rec.len();
+    assert!(n >= 2, "a record of {n} samples");
+    assert!(rec.columns.iter().all(|c| c.len() == n), "ragged record");
+    assert!(rec.columns.iter().flatten().all(|v| v.is_finite()));
+    assert!(rec.ts.is_finite() && rec.ts > 0.0);
 }
 
 /// Small models (`.dyn` source) for [`check_numerics`]: linear, cubic, two bodies.
@@ -221,4 +234,34 @@ pub struct Reached {
     pub identified: bool,
     pub ident_error: Option<String>,
     pub detected: bool,
+}
+
+/// The property of the `binary` fuzz target: the file at `path` (any bytes; the target
+/// writes them there, since the MAT, HDF5 and Parquet readers read files) opened as a
+/// level of `ir` in the format its content tells, streamed, and read whole as a record —
+/// with the signals' own names and with MATLAB's (`m_x` for `m.x`, through the
+/// renaming of `--map`). Data or an error, never a panic; data returned is complete,
+/// finite and long enough. Panics only if a reader breaks its contract.
+pub fn check_data_file(path: &Path, ir: &ModelIr) {
+    let matlab: Vec<(String, String)> = ir
+        .signals
+        .iter()
+        .filter(|s| s.measured && s.name.contains('.'))
+        .map(|s| (s.name.replace('.', "_"), s.name.clone()))
+        .collect();
+    let opts = [
+        CsvOptions::default(),
+        CsvOptions {
+            map: matlab,
+            ..Default::default()
+        },
+    ];
+    for opts in &opts {
+        if let Ok(src) = FileSource::open(path, ir, opts) {
+            check_streamed(&src, ir);
+        }
+        if let Ok(rec) = read_record_within(path, opts, false) {
+            check_record(&rec);
+        }
+    }
 }
