@@ -1,6 +1,7 @@
 //! `dynid detect` end to end on CSV files written by `dynid simulate`.
 
 mod common;
+mod figures;
 
 use common::dynid;
 
@@ -143,10 +144,13 @@ fn duffing_is_cubic_and_nothing_else() {
         "{}",
         String::from_utf8_lossy(&st.stderr)
     );
+    let json = dir.path().join("detect.json");
     let out = dynid()
         .arg("detect")
         .arg(models().join("sdof_linear.dyn"))
         .args((1..=3).map(|i| data.join(format!("level_{i}.csv"))))
+        .arg("--json")
+        .arg(&json)
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -160,4 +164,12 @@ fn duffing_is_cubic_and_nothing_else() {
         "{stdout}"
     );
     assert!(!stdout.contains("also suspected"), "{stdout}");
+    // docs/detection.md quotes the implied k3 of the verdict.
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let (k3, se) = common::verdict_coefficient(&v["detection"]["elements"][0], "cubic stiffness");
+    eprintln!("k3 = {k3} ± {se} (truth 2)");
+    assert!((k3 - 2.0).abs() < 3.0 * se, "k3 = {k3} ± {se}");
+    figures::check("docs/detection.md", "detect.duffing.k3", k3);
+    figures::check("docs/detection.md", "detect.duffing.k3_stderr", se);
 }

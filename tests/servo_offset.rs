@@ -29,6 +29,7 @@
 //! - identify (one record), the guard's probe: −3.15, −3.19, −3.25, −3.23 N.
 
 mod common;
+mod figures;
 
 use dynid::dsl_parser::{self, ir::ModelIr};
 use dynid::runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
@@ -298,6 +299,11 @@ fn detect_reports_a_mean_the_linear_model_cannot_explain() {
     let c = &d.constant_forces[0];
     assert_eq!(c.body, "m");
     println!("detect: constant force {:.3} ± {:.3} N", c.value, c.stderr);
+    if common::seeds_as_documented() {
+        let doc = "docs/detection.md";
+        figures::check(doc, "detect.offset.f0", c.value);
+        figures::check(doc, "detect.offset.f0_stderr", c.stderr);
+    }
     assert!((c.value - OFFSET).abs() < 0.02, "{text}");
     assert!(
         text.contains("constant force at (ground, m): -3."),

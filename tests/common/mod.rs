@@ -143,6 +143,25 @@ pub fn seed(seed: u64) -> u64 {
     }
 }
 
+/// The coefficient and standard error of an element's verdict from `detect --json` (an
+/// element of `detection.elements`): the estimator's template fit of `effect`.
+pub fn verdict_coefficient(element: &serde_json::Value, effect: &str) -> (f64, f64) {
+    let fit = element["estimator"]
+        .as_array()
+        .and_then(|a| a.iter().find(|f| f["effect"] == effect))
+        .unwrap_or_else(|| panic!("no estimator fit of {effect} in {element}"));
+    (
+        fit["value"].as_f64().expect("a value"),
+        fit["stderr"].as_f64().expect("a standard error"),
+    )
+}
+
+/// Whether the tests run on their own seeds (no `DYNID_SEED_OFFSET`, or 0): figures the docs
+/// quote for a seed are checked only then.
+pub fn seeds_as_documented() -> bool {
+    seed(0) == 0
+}
+
 /// The seeds of a verdict asserted as a rate: `count` seeds from `first` (shifted by
 /// `DYNID_SEED_OFFSET`). `DYNID_SEEDS=N` runs N seeds instead: the long form, which
 /// measures the rate the suite's short form asserts (`DYNID_SEEDS=20 cargo test --release
