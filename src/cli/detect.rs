@@ -4,7 +4,9 @@
 use super::common::{check_outputs, inputs, CsvArgs, SplitArgs, Staged};
 use dynid::plot::draw_curves;
 use dynid_runtime::data::{FileSource, LevelSource, RecordSource};
-use dynid_runtime::detect::{detect_from_data, levels_too_alike, DetectOptions, SigmaVSource};
+use dynid_runtime::detect::{
+    detect_from_data_with_progress, levels_too_alike, DetectOptions, SigmaVSource,
+};
 use dynid_runtime::IdentifyOptions;
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
@@ -81,6 +83,9 @@ pub struct Args {
     /// limit (8 GB).
     #[arg(long)]
     pub allow_large: bool,
+    /// Hide the progress bar of the template simulations (shown on a terminal only).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 pub fn run(args: Args) -> miette::Result<()> {
@@ -157,7 +162,14 @@ pub fn run(args: Args) -> miette::Result<()> {
         allow_large: args.allow_large,
         ..Default::default()
     };
-    let (det, fits) = detect_from_data(&ir, &levels, &iopts, &dopts, &[])?;
+    let bar = template_bar(args.quiet);
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    let found = detect_from_data_with_progress(&ir, &levels, &iopts, &dopts, &[], &progress);
+    bar.finish_and_clear();
+    let (det, fits) = found?;
     // The options the test ran with (the jackknife's degrees of freedom filled in).
     dopts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
     let warnings = levels_too_alike(&det, &dopts);
@@ -249,4 +261,20 @@ fn cycles_note(split: &dynid_runtime::data::Split) -> Option<String> {
         hi / lo,
         dynid_runtime::data::cycles::ALIKE_RATIO
     ))
+}
+
+/// The bar of the estimator's template simulations (the step that takes time on long
+/// records) on stderr; indicatif draws nothing where stderr is not a terminal.
+fn template_bar(quiet: bool) -> indicatif::ProgressBar {
+    if quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar =
+        indicatif::ProgressBar::with_draw_target(Some(0), indicatif::ProgressDrawTarget::stderr());
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "simulating the estimator's templates [{bar:30}] {pos}/{len} runs ({elapsed})",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
 }

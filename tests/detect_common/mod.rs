@@ -6,7 +6,7 @@
 use dynid::dsl_parser::{compile_file, ir::ModelIr};
 use dynid::runtime::data::{LevelSource, RecordSource};
 use dynid::runtime::detect::{
-    detect_from_data, DetectOptions, Detection, ElementFinding, LevelFits,
+    detect_from_data_with_progress, DetectOptions, Detection, ElementFinding, LevelFits,
 };
 use dynid::runtime::record::Record;
 use dynid::runtime::sim::{simulate, SimConfig};
@@ -44,7 +44,36 @@ pub fn detect_levels(ir: &ModelIr, records: &[Record], balance: bool) -> (Detect
         balance: Some(balance),
         ..Default::default()
     };
-    detect_from_data(ir, &levels, &opts, &DetectOptions::default(), &[]).expect("detect")
+    // The progress contract: one call per template simulation, numbered 1…N, each with a
+    // total at least its number, the last total N; a simulation for every estimator fit.
+    let calls = std::sync::Mutex::new(Vec::new());
+    let progress = |done: usize, total: usize| calls.lock().unwrap().push((done, total));
+    let found = detect_from_data_with_progress(
+        ir,
+        &levels,
+        &opts,
+        &DetectOptions::default(),
+        &[],
+        &progress,
+    )
+    .expect("detect");
+    let mut calls = calls.into_inner().unwrap();
+    calls.sort_unstable();
+    let n = calls.len();
+    assert!(
+        calls
+            .iter()
+            .enumerate()
+            .all(|(i, &(d, t))| d == i + 1 && t >= d),
+        "{calls:?}"
+    );
+    assert_eq!(calls.iter().map(|c| c.1).max().unwrap_or(0), n, "{calls:?}");
+    let fits: usize = found.0.elements.iter().map(|e| e.estimator.len()).sum();
+    assert!(
+        n >= fits,
+        "{n} simulations reported for {fits} estimator fits"
+    );
+    found
 }
 
 /// The finding of `element`.

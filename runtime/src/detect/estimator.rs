@@ -285,7 +285,9 @@ fn chi2_at(t: &Trial, scope: &[Scoped], p: f64, share: &[f64]) -> f64 {
 
 /// Refine the verdicts of `det` by the estimator's own templates (module doc). Elements
 /// whose candidates cannot be simulated (user-declared effects, closed loops) keep the
-/// statistical-linearisation verdict.
+/// statistical-linearisation verdict. `progress(done, total)` is called as the template
+/// simulations finish (`total` grows as elements are reached; one call per simulation, from
+/// the worker threads).
 pub(crate) fn refine(
     ir: &ModelIr,
     levels: &[&dyn LevelSource],
@@ -293,6 +295,7 @@ pub(crate) fn refine(
     opts: &DetectOptions,
     fits: &LevelFits,
     det: &mut Detection,
+    progress: &(dyn Fn(usize, usize) + Sync),
 ) {
     if opts.sim_samples < 2 || !ir.controls.is_empty() || !ir.references.is_empty() {
         return;
@@ -345,6 +348,8 @@ pub(crate) fn refine(
     let names: Vec<String> = det.elements.iter().map(|e| e.element.clone()).collect();
     let params = det.params.clone();
     let mut explained: Vec<bool> = vec![false; det.elements.len()];
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let mut total = 0;
     for &ti in &targets {
         if explained[ti] {
             continue;
@@ -404,35 +409,42 @@ pub(crate) fn refine(
         let jobs: Vec<(usize, usize)> = (0..singles.len())
             .flat_map(|c| (0..P_FACTORS.len()).map(move |k| (c, k)))
             .collect();
+        total += jobs.len();
         let runs: Vec<Option<Curves>> = jobs
             .par_iter()
             .map(|&(c, k)| {
-                let Single {
-                    effect,
-                    p,
-                    theta,
-                    linear_parts,
-                    ..
-                } = &singles[c];
-                let mut model = base.clone();
-                for (param, v) in linear_parts {
-                    let _ = model.set_nominal(param, *v);
-                }
-                let basis = basis_of(effect, *theta)?;
-                let pname = model.fresh_name("p_candidate");
-                let fname = model.fresh_name("candidate");
-                model
-                    .add_force(
-                        &fname,
-                        (&a, &b),
-                        &[NewTerm {
-                            param: &pname,
-                            nominal: Some(P_FACTORS[k] * p),
-                            basis: &*basis,
-                        }],
-                    )
-                    .ok()?;
-                estimator_curves(ir, &model, &inputs, &sim_ident, opts.hold_inertia)
+                let run = || -> Option<Curves> {
+                    let Single {
+                        effect,
+                        p,
+                        theta,
+                        linear_parts,
+                        ..
+                    } = &singles[c];
+                    let mut model = base.clone();
+                    for (param, v) in linear_parts {
+                        let _ = model.set_nominal(param, *v);
+                    }
+                    let basis = basis_of(effect, *theta)?;
+                    let pname = model.fresh_name("p_candidate");
+                    let fname = model.fresh_name("candidate");
+                    model
+                        .add_force(
+                            &fname,
+                            (&a, &b),
+                            &[NewTerm {
+                                param: &pname,
+                                nominal: Some(P_FACTORS[k] * p),
+                                basis: &*basis,
+                            }],
+                        )
+                        .ok()?;
+                    estimator_curves(ir, &model, &inputs, &sim_ident, opts.hold_inertia)
+                };
+                let out = run();
+                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                progress(n, total);
+                out
             })
             .collect();
         let trials: Vec<Trial> = singles

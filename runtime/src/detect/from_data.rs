@@ -517,13 +517,27 @@ pub fn detect_from_data(
     detect_opts: &DetectOptions,
     extra: &[Candidate],
 ) -> Result<(Detection, LevelFits), FromDataError> {
+    detect_from_data_with_progress(ir, levels, ident_opts, detect_opts, extra, &|_, _| {})
+}
+
+/// [`detect_from_data`], calling `progress(done, total)` as the estimator's template
+/// simulations finish — the step that takes time on long records (`total` grows as
+/// drifting elements are reached; called from worker threads).
+pub fn detect_from_data_with_progress(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    ident_opts: &IdentifyOptions,
+    detect_opts: &DetectOptions,
+    extra: &[Candidate],
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<(Detection, LevelFits), FromDataError> {
     let fits = level_fits(ir, levels, ident_opts, detect_opts.hold_inertia)?;
     let mut opts = detect_opts.clone();
     if opts.se_dof.is_none() {
         opts.se_dof = Some(fits.n_blocks as f64 - 1.0);
     }
     let mut det = detect(&fits.input, extra, &opts)?;
-    super::estimator::refine(ir, levels, ident_opts, &opts, &fits, &mut det);
+    super::estimator::refine(ir, levels, ident_opts, &opts, &fits, &mut det, progress);
     det.constant_forces = super::unexplained_means(ir, levels, ident_opts)?;
     Ok((det, fits))
 }

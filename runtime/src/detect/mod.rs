@@ -41,7 +41,8 @@ mod tests;
 
 pub use candidate::{Candidate, Dependence, Distribution, ShapeParam};
 pub use from_data::{
-    detect_from_data, held_inertia, level_fits, FromDataError, LevelFits, SigmaVSource,
+    detect_from_data, detect_from_data_with_progress, held_inertia, level_fits, FromDataError,
+    LevelFits, SigmaVSource,
 };
 pub use offset::{unexplained_means, ConstantForceFinding};
 pub use quad::NormalRule;
