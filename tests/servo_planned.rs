@@ -130,7 +130,8 @@ fn planned_errors_cover_damping_friction_offset() {
 /// recorded and given to the identification, once with the velocity estimated from the
 /// encoder as by default. Measured (`cargo test --test servo_planned planned_mass --
 /// --nocapture`): mean mass error with the velocity measured +0.004 % at 0.031 % SE
-/// (coverage 4 of 4), estimated +0.100 % at 0.023 % SE (0 of 4);
+/// (coverage 4 of 4), estimated +0.100 % at 0.023 % SE (0 of 4); seeds 1–12
+/// (`DYNID_PLANNED_SEEDS=12`): −0.003 % at 0.032 % (12 of 12) against +0.092 % at 0.025 %;
 /// d, r, f0 are covered either way. What does not remove it (seeds 1–4, mean mass error,
 /// docs/method.md §7): the input between samples (controller updated 40 instead of 10
 /// times per sample +0.081 %, zero-order hold +0.098 %), the encoder (1 nm: +0.090 %),
