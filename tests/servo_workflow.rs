@@ -190,3 +190,91 @@ fn diagnose_scores_the_force_channel_of_an_open_loop_model_in_newtons() {
     assert!(rms("corrected") < 2.5, "{f}");
     assert!(rms("corrected") < 0.2 * rms("reidentified"), "{f}");
 }
+
+#[test]
+fn a_closed_loop_refinement_is_refused_with_the_way_to_refine_the_plant() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = &planned().1;
+    let o = dynid()
+        .arg("identify")
+        .arg(model_path("servo_axis_planned.dyn"))
+        .arg(&files[0])
+        .arg("--refine")
+        .output()
+        .unwrap();
+    common::assert_refused(
+        &o,
+        "dynid::refine::control",
+        &["before any work", "--shooting"],
+    );
+    let _ = dir;
+}
+
+/// The plant of the README's planned-moves rig (`models/servo_axis_planned_offset.dyn`
+/// without `reference`, `control` and `excite`) refined on one record in sub-records of
+/// 0.5 s. Measured (`DYNID_SERVO_LONG=1 cargo test --test servo_workflow refine --
+/// --nocapture`, debug build, 85 s): m 50.01, d 120.0, r 15.00, f0 −3.200 (truth 50, 120,
+/// 15, −3.2); the records are planned and noise-free but for the encoder, so every run
+/// gives these. Long: set `DYNID_SERVO_LONG` to run it.
+#[test]
+fn the_plant_of_a_closed_loop_record_refines_in_sub_records() {
+    if std::env::var("DYNID_SERVO_LONG").is_err() {
+        eprintln!("skipped: set DYNID_SERVO_LONG=1 to run (a minute and a half)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let rig = dir.path().join("rig");
+    let o = dynid()
+        .arg("simulate")
+        .arg(model_path("servo_axis_planned_offset.dyn"))
+        .args([
+            "--duration",
+            "25",
+            "--sample",
+            "0.001",
+            "--input-oversample",
+            "10",
+        ])
+        .args(["--quantise", "1e-6", "--out"])
+        .arg(&rig)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let src = std::fs::read_to_string(model_path("servo_axis_planned_offset.dyn")).unwrap();
+    let plant: String = src
+        .lines()
+        .filter(|l| {
+            let l = l.trim_start();
+            !(l.starts_with("reference") || l.starts_with("control") || l.starts_with("excite"))
+        })
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let plant = write_model(dir.path(), "plant.dyn", &plant);
+    let json = dir.path().join("id.json");
+    let data = rig.join("level_1.csv");
+    let (text, v) = run_json(
+        &[
+            "identify".as_ref(),
+            plant.as_os_str(),
+            data.as_os_str(),
+            "--refine".as_ref(),
+            "--shooting".as_ref(),
+            "0.5".as_ref(),
+        ],
+        &json,
+    );
+    println!("{text}");
+    let params = v["refined"]["refinement"]["params"]
+        .as_array()
+        .expect("params");
+    for (name, truth, tol) in [
+        ("m", 50.0, 0.1),
+        ("d", 120.0, 1.0),
+        ("r", 15.0, 0.1),
+        ("f0", -3.2, 0.03),
+    ] {
+        let p = params.iter().find(|p| p["name"] == name).expect("param");
+        let value = p["value"].as_f64().unwrap();
+        assert!((value - truth).abs() < tol, "{name} = {value}");
+    }
+}
