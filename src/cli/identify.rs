@@ -168,6 +168,10 @@ pub fn run(args: Args) -> miette::Result<()> {
     for w in &id.fit_warnings {
         eprintln!("warning: {w}");
     }
+    let hint = closed_loop_hint(&ir, &args, &id);
+    if let Some(h) = &hint {
+        println!("\nNote: {h}");
+    }
     let refined = match &opts {
         Some(o) => {
             let r = refine_files(&ir, &args, &id, o)?;
@@ -181,10 +185,58 @@ pub fn run(args: Args) -> miette::Result<()> {
         if let Some(r) = &refined {
             v["refined"] = serde_json::to_value(r).into_diagnostic()?;
         }
+        if let Some(h) = hint {
+            // Only where there is one: otherwise the JSON stays that of the Python package's `to_dict()`.
+            v["closed_loop_hint"] = serde_json::Value::String(h);
+        }
         let text = serde_json::to_string_pretty(&v).into_diagnostic()?;
         write_atomically(out, text.as_bytes())?;
     }
     Ok(())
+}
+
+/// The closed-loop hint of `identify`: a column of the first file that the open-loop model
+/// does not read and that a measured position follows ([`set_point::set_points`]), while
+/// the free run of that position, driven by the recorded inputs with the identified values
+/// from the measured initial state, drifts (relative RMS error ≥ [`set_point::DRIFTS`] %).
+/// A hint only: a first file too large to read whole, or a free run longer than the step
+/// limit, gets none; a free run that diverges drifts.
+fn closed_loop_hint(ir: &ModelIr, args: &Args, id: &Identification) -> Option<String> {
+    use dynid_runtime::set_point;
+    let positions = ir
+        .signals
+        .iter()
+        .any(|s| s.measured && matches!(s.kind, dsl_parser::ir::SignalKind::Position(_)));
+    if !ir.controls.is_empty() || !positions {
+        return None;
+    }
+    let csv = args.csv.options(ir).ok()?;
+    let rec = read_record_within(args.data.first()?, &csv, args.allow_large).ok()?;
+    let found = set_point::set_points(ir, &rec);
+    if found.is_empty() {
+        return None;
+    }
+    dynid_runtime::sim::check_steps(
+        rec.len() as f64 * args.substeps as f64,
+        "the free run of the closed-loop hint",
+        "--allow-long",
+        args.allow_long,
+    )
+    .ok()?;
+    let errors = refine::free_run_errors(
+        ir,
+        &refine::start_from(ir, id),
+        std::slice::from_ref(&rec),
+        args.substeps,
+    );
+    found.into_iter().find_map(|sp| {
+        // In %; a run that diverged drifts.
+        let drift = match &errors {
+            Ok(e) => 100.0 * e.iter().find(|e| e.signal == sp.position)?.relative,
+            Err(_) => f64::INFINITY,
+        };
+        (drift >= set_point::DRIFTS).then(|| sp.note(if drift.is_finite() { drift } else { 100.0 }))
+    })
 }
 
 /// The refinement settings of `args` (`None` without `--refine`); weights are checked

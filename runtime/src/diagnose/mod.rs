@@ -12,6 +12,7 @@
 //! documented in `docs/diagnosis.md`.
 
 pub mod effects;
+mod force;
 mod gap;
 pub mod metrics;
 mod profile;
@@ -606,6 +607,37 @@ pub fn diagnose(
         }
     }
 
+    // The force channel of each recorded force (open loop): the nominal model, and the
+    // re-identified and corrected models fitted without each level, on that level.
+    let force_gaps: Vec<ForceGap> = force::channels(&ir)
+        .into_iter()
+        .map(|(input, body)| {
+            let channels: Vec<Option<force::Channel>> =
+                levels.par_iter().map(|r| force::channel(&ir, r)).collect();
+            let per_model = |model: &(dyn Fn(usize) -> ModelIr + Sync)| -> Option<ForceGapValue> {
+                let v: Vec<Option<(f64, f64)>> = (0..n)
+                    .into_par_iter()
+                    .map(|w| {
+                        let ch = channels[w].as_ref()?;
+                        force::gap(&model(w), ch, &input, &body)
+                    })
+                    .collect();
+                force::mean(&v)
+            };
+            ForceGap {
+                band_hz: force::band_hz(levels[0].ts),
+                nominal: per_model(&|_| ir.clone()),
+                reidentified: per_model(&|w| with_values(&ir, &reid_fits[w])),
+                corrected: (!found.is_empty())
+                    .then(|| per_model(&|w| with_values(&current.ir, &current_fits[w])))
+                    .flatten(),
+                unit: "N".into(),
+                input,
+                equation: body,
+            }
+        })
+        .collect();
+
     let gap_before = nominal.gap;
     let gap_after = corrected.gap;
     let verdict = if !found.is_empty() {
@@ -642,6 +674,7 @@ pub fn diagnose(
         reidentified,
         corrected,
         equations,
+        force_gaps,
         drift,
         moved,
         parameters,

@@ -104,6 +104,45 @@ fn signal_table(signals: &[String], rows: &[(&str, &ModelGap)]) -> String {
 }
 
 impl Diagnosis {
+    /// The force channel of each recorded force (open-loop models): the equation residual
+    /// in N with its share of the force's spread, per model; empty without one.
+    pub fn force_table(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        for f in &self.force_gaps {
+            let cells: Vec<String> = [
+                ("nominal", f.nominal),
+                ("re-identified", f.reidentified),
+                ("corrected", f.corrected),
+            ]
+            .iter()
+            .filter_map(|(label, v)| {
+                v.map(|v| {
+                    format!(
+                        "{label} {} ({})",
+                        fmt_gap(v.percent),
+                        fmt_si(v.rms, &f.unit)
+                    )
+                })
+            })
+            .collect();
+            if cells.is_empty() {
+                continue;
+            }
+            let _ = writeln!(s, "  {} (force channel)  {}", f.input, cells.join(" → "));
+        }
+        if let Some(f) = self.force_gaps.first() {
+            let _ = writeln!(
+                s,
+                "  (force channel: the force the model needs for the measured motion minus the \
+                 recorded one, RMS below {} Hz on the motion, rests left out; % of the recorded \
+                 force's std)",
+                super::fmt_num(f.band_hz)
+            );
+        }
+        s
+    }
+
     /// A short human summary: verdict, location, effect, shrink, evidence.
     pub fn summary(&self) -> String {
         use std::fmt::Write;
@@ -130,6 +169,7 @@ impl Diagnosis {
         }
         s += &gap_table(&rows);
         s += &signal_table(&self.response_signals, &rows);
+        s += &self.force_table();
         let _ = writeln!(s);
         // Where.
         let worst: Vec<String> = {

@@ -258,6 +258,36 @@ pub enum Verdict {
     Unexplained,
 }
 
+/// A force-channel gap of one model: the mean over the levels of the RMS equation residual
+/// (in N) and of that as % of the recorded force's std.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ForceGapValue {
+    pub rms: f64,
+    pub percent: f64,
+}
+
+/// The force channel of a recorded force that drives an open-loop model: the equation
+/// residual of the body it acts on (the force the model needs for the measured motion
+/// minus the recorded force), low-passed below `band_hz`, on the motion (rests and the
+/// filter's edges left out). See `runtime/src/diagnose/force.rs`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ForceGap {
+    /// The recorded force (the model's input).
+    pub input: String,
+    /// The body it acts on (whose equation is scored).
+    pub equation: String,
+    /// Unit of the RMS values: "N".
+    pub unit: String,
+    /// The zero-phase low-pass corner, Hz (of the first level).
+    pub band_hz: f64,
+    /// The nominal model on every level.
+    pub nominal: Option<ForceGapValue>,
+    /// The model as given re-identified without each level, on that level.
+    pub reidentified: Option<ForceGapValue>,
+    /// The corrected model likewise (absent when nothing was found).
+    pub corrected: Option<ForceGapValue>,
+}
+
 /// The result of [`diagnose`].
 #[derive(Clone, Debug, Serialize)]
 pub struct Diagnosis {
@@ -287,6 +317,11 @@ pub struct Diagnosis {
     /// The corrected model, cross-validated likewise (same as `reidentified` if nothing found).
     pub corrected: ModelGap,
     pub equations: Vec<EquationGap>,
+    /// The force channel of every recorded force that drives the model (open loop): the
+    /// equation residual in N beside the free-run gaps. Empty for a closed-loop model (its
+    /// force is a response, scored among the signals) or where a body's position is not
+    /// measured.
+    pub force_gaps: Vec<ForceGap>,
     pub drift: Vec<ParamDrift>,
     /// Parameters of the model as given: nominal → re-identified on all levels *without*
     /// any found effect (what re-identification alone does; biased where an effect is

@@ -108,7 +108,7 @@ pub enum RefineError {
     )]
     #[diagnostic(
         code(dynid::refine::control),
-        help("refine the plant model without its `reference` and `control` lines, driven by the recorded controller output (the controlled input's column), or leave out --refine")
+        help("refine the plant model without its `reference` and `control` lines, driven by the recorded controller output (the controlled input's column), in sub-records of a fraction of a second (`--shooting 0.5`: a plant that integrates its force drifts over a whole record driven by it); or leave out --refine")
     )]
     ControlLaws { model: String },
     #[error("{got} start values for {expected} unknown parameters")]
