@@ -44,8 +44,10 @@ __all__ = [
     "Comparison",
     "Detection",
     "Diagnosis",
+    "Segments",
     "detect",
     "diagnose",
+    "segments",
     "CompileError",
     "DataError",
     "DynidError",
@@ -200,9 +202,11 @@ def _check_map(map) -> _t.List[_t.Tuple[str, str]]:
     return [(str(c), str(s)) for c, s in map.items()]
 
 
-def _levels(compiled, data, sample, map=None, what: str = "data"):
+def _levels(compiled, data, sample, map=None, what: str = "data", every_column: bool = False):
     """The level tuples for the native module: ``(path, map, sample)`` for a file,
-    ``(label, names, columns, t, sample)`` for arrays."""
+    ``(label, names, columns, t, sample)`` for arrays: the measured signals' columns, and
+    with ``every_column`` also every other numeric one (a record to be cut into levels is
+    judged and cut by any of its columns)."""
     data, _ = _as_list(data, what)
     pairs = _check_map(map)
     rename = dict(pairs)
@@ -231,8 +235,18 @@ def _levels(compiled, data, sample, map=None, what: str = "data"):
                 column=name,
             )
         cols = [_as_column(get(column_of[n]), i + 1, n) for n in wanted]
+        signals = list(wanted)
+        if every_column:
+            for n in names:
+                if n == "t" or signal_of[n] in signals:
+                    continue
+                try:
+                    cols.append(_as_column(get(n), i + 1, n))
+                except DataError:
+                    continue  # a text column: nothing to judge or cut by
+                signals.append(signal_of[n])
         t = _as_column(get("t"), i + 1, "t") if "t" in names and sample is None else None
-        out.append((f"level {i + 1}", list(wanted), cols, t, None if sample is None else float(sample)))
+        out.append((f"level {i + 1}", signals, cols, t, None if sample is None else float(sample)))
     return out
 
 
@@ -794,10 +808,11 @@ class Diagnosis:
         The corrected model as ``.dyn`` source; ``fixed_model`` compiles it.
     """
 
-    def __init__(self, result, summary: str, report_html: str):
+    def __init__(self, result, summary: str, report_html: str, source: _t.Optional[str] = None):
         self._d = result
         self.summary = summary
         self.report_html = report_html
+        self._source = source
 
     def to_dict(self) -> _t.Dict[str, _t.Any]:
         """The result as ``dynid diagnose --json`` writes it (one schema for both).
@@ -819,7 +834,21 @@ class Diagnosis:
 
     @property
     def fixed_source(self) -> str:
-        return self._d["fixed_source"]
+        """The corrected model as ``.dyn`` source; after ``refine=True`` with the refined
+        values when the refinement was applied (as ``--write-model`` writes it)."""
+        return self._source if self._source is not None else self._d["fixed_source"]
+
+    @property
+    def refined(self) -> _t.Optional[Refinement]:
+        """The output-error refinement of the corrected model on all levels
+        (``refine=True``, ``dynid diagnose --refine``), else None."""
+        r = self._d.get("refined")
+        return None if r is None else Refinement(r)
+
+    @property
+    def segments(self) -> _t.Optional[_t.Dict[str, _t.Any]]:
+        """How one record was cut into levels (JSON ``segments``), else None."""
+        return self._d.get("segments")
 
     @property
     def fixed_model(self) -> "Model":
@@ -1279,7 +1308,133 @@ def _model(m) -> Model:
     return m if isinstance(m, Model) else Model.from_file(m)
 
 
-def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float = 1e-3, map=None, frf_periods: _t.Optional[int] = None) -> Detection:
+_SPLIT_DOC = """    segments : int, optional
+        With ONE level: cut it into this many contiguous levels (at least 2), as
+        ``--segments N`` [default: one per cycle of a repeated trajectory, else 3 by
+        amplitude]. A single level is always cut; several levels are never cut (a split
+        setting with several is an ``OptionError``).
+    split_by : str, optional
+        With one level: judge the amplitude by this signal (``--split-by``) [default: the
+        first measured position of the model].
+    cut : {"auto", "cycles", "amplitude"}, default "auto"
+        With one level: where to cut (``--cut``): at the cycles of a repeated trajectory
+        when it repeats with one amplitude, else by amplitude; ``"cycles"`` insists,
+        ``"amplitude"`` never cuts at cycles.
+    allow_large : bool, default False
+        Run even when the memory estimated before reading the data is above the safety
+        limit (8 GB), as ``--allow-large``; without it such work is refused
+        (``DynidError`` or ``DataError`` with code ``dynid::identify::too_large`` or
+        ``dynid::data::too_large``) before a sample is read."""
+
+
+def _split_kw(segments, split_by, cut):
+    if segments is not None:
+        if isinstance(segments, bool) or not isinstance(segments, (int, _np.integer)):
+            raise TypeError(f"segments: expected a whole number, got {type(segments).__name__}")
+        if segments < 2:
+            raise _error(
+                OptionError,
+                f"segments = {segments}: must be at least 2 (a split gives at least two levels)",
+                "give segments=N with N of at least 2 (3–8 levels make the drift test sharpest)",
+                "dynid::split::segments",
+            )
+        segments = int(segments)
+    return segments, None if split_by is None else str(split_by), str(cut)
+
+
+class Segments:
+    """One record cut into levels, as ``dynid detect`` and ``dynid diagnose`` cut a single
+    data file (:func:`segments`).
+
+    Attributes
+    ----------
+    levels : list of DataFrame or dict of arrays
+        One level per segment (by amplitude: quietest first; at cycles: in time order),
+        each with every column of the record and its own ``t``.
+    labels : list of str
+        ``record [t0–t1 s]`` per segment.
+    table : str
+        The segment table the command line prints to stderr.
+    """
+
+    def __init__(self, result, table: str, levels, labels):
+        self._d = result
+        self.table = table
+        self.levels = levels
+        self.labels = list(labels)
+
+    def to_dict(self) -> _t.Dict[str, _t.Any]:
+        """The split as the ``segments`` object of ``dynid detect --json`` and
+        ``dynid diagnose --json``.
+
+        Returns
+        -------
+        dict
+            ``signal``, ``omega`` (rad/s), ``min_len``, ``window``, ``segments`` (``start``,
+            ``len``, ``t_start``, ``t_end``, ``sigma`` each) and ``cycles`` when cut at
+            cycles.
+        """
+        return self._d
+
+    def __len__(self) -> int:
+        return len(self.levels)
+
+    def __repr__(self) -> str:
+        return self.table.rstrip()
+
+
+def segments(model, data, sample: _t.Optional[float] = None, map=None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False) -> Segments:
+    """Cut one record whose amplitude varies (a run-up, a sweep of drive levels, repeated
+    cycles of one trajectory) into levels, exactly as ``dynid detect`` and
+    ``dynid diagnose`` cut a single data file.
+
+    Parameters
+    ----------
+    model : Model, str or os.PathLike
+        The model (or its file): its measured signals are checked and its first measured
+        position is the default signal judged.
+    data : DataFrame, dict of arrays or path of a data file
+        ONE record.
+    sample : float, optional
+        Sample interval in seconds where the record has no ``t`` column.
+    map : dict, optional
+        Column → signal renamings.
+    SPLIT_PARAMETERS
+
+    Returns
+    -------
+    Segments
+        The levels, their labels and the table.
+
+    Raises
+    ------
+    OptionError
+        More than one record, or ``segments`` below 2.
+    DataError
+        A record too short for the segments, a signal that does not oscillate or is not a
+        column (code ``dynid::split::...``, as the command line).
+
+    Examples
+    --------
+    >>> split = dynid.segments("models/sdof_linear.dyn", "run_up.csv", segments=4)  # doctest: +SKIP
+    >>> det = dynid.detect("models/sdof_linear.dyn", split.levels)                    # doctest: +SKIP
+    """
+    m = _model(model)
+    levels, _ = _as_list(data)
+    if len(levels) != 1:
+        raise _error(
+            OptionError,
+            f"segments() cuts one record, but {len(levels)} were given",
+            "give one record; with several, each record is one level",
+            "dynid::split::several_files",
+        )
+    level = _levels(m._m, levels, sample, map, every_column=True)[0]
+    seg, by, cut = _split_kw(segments, split_by, cut)
+    js, table, recs, labels = _dynid.split(m._m, level, seg, by, cut, bool(allow_large))
+    return Segments(_json.loads(js), table, [_frame(*r) for r in recs], labels)
+
+
+def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float = 1e-3, map=None, frf_periods: _t.Optional[int] = None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False) -> Detection:
     """Which elements of a linear model hide a nonlinearity, and which kind, as
     ``dynid detect``: the linear model is identified at every level, and a parameter that
     drifts with the level names the effect.
@@ -1288,9 +1443,10 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
     ----------
     linear_model : Model, str or os.PathLike
         The linear model (or its file).
-    data : list of DataFrame, dict of arrays or CSV path
+    data : list of DataFrame, dict of arrays or data file path
         One level each: at least two, better three to eight spanning a factor of three or
-        more in amplitude (two levels show a drift but cannot tell its shape).
+        more in amplitude (two levels show a drift but cannot tell its shape); or ONE
+        record whose amplitude varies, cut into levels (``segments``).
     sample : float, optional
         Sample interval in seconds where a level has no ``t`` column.
     alpha : float, default 1e-3
@@ -1299,29 +1455,35 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
         Column → signal renamings.
     frf_periods : int, optional
         Each record holds this many periods of a periodic excitation (``--frf-periods``).
+    SPLIT_PARAMETERS
 
     Returns
     -------
     Detection
-        Its ``to_dict()`` is the object ``dynid detect --json`` writes.
+        Its ``to_dict()`` is the object ``dynid detect --json`` writes (``segments`` when
+        one record was cut).
 
     Raises
     ------
     OptionError
-        ``alpha`` not between 0 and 1.
+        ``alpha`` not between 0 and 1, a split setting with several levels.
 
     Examples
     --------
     >>> det = dynid.detect("models/two_mass_linear.dyn", data)   # doctest: +SKIP
     >>> det.elements                                              # doctest: +SKIP
     >>> det.plot()                                                # doctest: +SKIP
+    >>> dynid.detect("models/sdof_linear.dyn", "run_up.csv", segments=4)  # doctest: +SKIP
     """
     m = _model(linear_model)
-    js, table, warnings, verdicts = _dynid.detect(m._m, _levels(m._m, data, sample, map), float(alpha), frf_periods)
+    seg, by, cut = _split_kw(segments, split_by, cut)
+    data, single = _as_list(data)
+    levels = _levels(m._m, data, sample, map, every_column=len(data) == 1)
+    js, table, warnings, verdicts = _dynid.detect(m._m, levels, float(alpha), frf_periods, seg, by, cut, bool(allow_large))
     return Detection(_json.loads(js), table, warnings, verdicts)
 
 
-def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_periods: _t.Optional[int] = None) -> Diagnosis:
+def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_periods: _t.Optional[int] = None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False, refine: bool = False) -> Diagnosis:
     """Where the model and the data disagree, the most likely unmodelled effect and how far
     the gap shrinks on a withheld level, as ``dynid diagnose``.
 
@@ -1329,14 +1491,19 @@ def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_perio
     ----------
     model : Model, str or os.PathLike
         The simulation model with nominal values (or its file).
-    data : list of DataFrame, dict of arrays or CSV path
-        One level each, at least two.
+    data : list of DataFrame, dict of arrays or data file path
+        One level each, at least two; or ONE record cut into levels (``segments``).
     sample : float, optional
         Sample interval in seconds where a level has no ``t`` column.
     map : dict, optional
         Column → signal renamings.
     frf_periods : int, optional
         Each record holds this many periods of a periodic excitation (``--frf-periods``).
+    SPLIT_PARAMETERS
+    refine : bool, default False
+        Refine the corrected model's values by output-error minimisation on all levels
+        (``--refine``): ``refined`` holds the refinement and ``fixed_source`` the refined
+        values, as ``--write-model`` writes them.
 
     Returns
     -------
@@ -1347,7 +1514,16 @@ def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_perio
     --------
     >>> d = dynid.diagnose("models/two_mass_linear.dyn", data)   # doctest: +SKIP
     >>> print(d.summary); d.fixed_model                           # doctest: +SKIP
+    >>> dynid.diagnose("models/sdof_linear.dyn", "run_up.csv", segments=3, refine=True)  # doctest: +SKIP
     """
     m = _model(model)
-    js, summary, report = _dynid.diagnose(m._m, _levels(m._m, data, sample, map), frf_periods)
-    return Diagnosis(_json.loads(js), summary, report)
+    seg, by, cut = _split_kw(segments, split_by, cut)
+    data, single = _as_list(data)
+    levels = _levels(m._m, data, sample, map, every_column=len(data) == 1)
+    js, summary, report, source = _dynid.diagnose(m._m, levels, frf_periods, seg, by, cut, bool(allow_large), bool(refine))
+    return Diagnosis(_json.loads(js), summary, report, source if refine else None)
+
+
+for _f in (segments, detect, diagnose):
+    _f.__doc__ = _f.__doc__.replace("    SPLIT_PARAMETERS", _SPLIT_DOC)
+del _f
