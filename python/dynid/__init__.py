@@ -329,6 +329,37 @@ def _input_records(compiled, inputs, sample, map):
     return out, single
 
 
+def _progress(progress):
+    """The callback handed to the runtime: ``progress`` itself when it is callable, tqdm
+    bars (one per stage) for ``True``, None for None or False."""
+    if progress is None or progress is False:
+        return None
+    if callable(progress):
+        return progress
+    if progress is not True:
+        raise TypeError(f"progress: expected a callable(stage, done, total) or True, got {type(progress).__name__}")
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:
+        raise ImportError(
+            "progress=True draws tqdm bars, which dynid does not install: `pip install tqdm`, "
+            "or pass a callable(stage, done, total)"
+        ) from None
+    bars: _t.Dict[str, _t.Any] = {}
+
+    def update(stage: str, done: int, total: int) -> None:
+        bar = bars.get(stage)
+        if bar is None:
+            for other in bars.values():
+                other.close()
+            bar = bars[stage] = tqdm(total=total, desc=stage)
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    return update
+
+
 # ---------------------------------------------------------------------------------------
 # Results.
 
@@ -681,6 +712,72 @@ def _verdict_text(v) -> str:
     return str(v)
 
 
+def _plot_frf(frfs, what: str, ax=None):
+    """The measured FRF (H1) of every level, solid, and the linear model fitted at that
+    level, dashed in the same colour: magnitude over frequency in Hz, one panel per
+    response."""
+    plt = _pyplot()
+    if not frfs:
+        raise _error(
+            DynidError,
+            f"this {what} has no frequency response: the model measures no input, or no position or velocity",
+            "measure the input that drives the model (a column per `input`) and a response",
+            "dynid::frf::none",
+        )
+    outputs = frfs[0]["outputs"]
+    if ax is None:
+        fig, axes = plt.subplots(1, len(outputs), figsize=(5.2 * len(outputs), 4.0), squeeze=False)
+        axes = list(axes.ravel())
+    else:
+        axes = list(ax) if isinstance(ax, (list, tuple, _np.ndarray)) else [ax]
+        fig = axes[0].figure
+    colors = plt.rcParams["axes.prop_cycle"].by_key().get("color", ["C0", "C1", "C2"])
+    for j, (a, out) in enumerate(zip(axes, outputs)):
+        for k, level in enumerate(frfs):
+            c = colors[k % len(colors)]
+            f = _np.asarray(level["measured"]["freq_hz"], dtype=float)
+            h = _np.asarray(level["measured"]["h"][j], dtype=float).reshape(-1, 2)
+            a.loglog(f, _np.hypot(h[:, 0], h[:, 1]), color=c, lw=1.6, label=f"{level['label']} measured")
+            model = [(_np.nan, _np.nan) if v is None else v for v in level["model"][j]] if level["model"] else []
+            if model:
+                m = _np.asarray(model, dtype=float)
+                a.loglog(f, _np.hypot(m[:, 0], m[:, 1]), color=c, lw=1.2, ls="--", label=f"{level['label']} model")
+        unit = frfs[0]["units"][j]
+        a.set_xlabel("frequency [Hz]")
+        a.set_ylabel(f"|{out} / {frfs[0]['input']}| [{unit}]")
+        a.set_title(f"{out} over {frfs[0]['input']}", fontsize=10)
+        a.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    return fig
+
+
+_FRF_DOC = """Frequency response of every level: the measured H1 estimate (solid) and the
+        linear model fitted at that level (dashed, same colour), magnitude over frequency
+        in Hz, one panel per measured response (the report's FRF figure).
+
+        Parameters
+        ----------
+        ax : matplotlib Axes or sequence of Axes, optional
+            One per response; by default a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Raises
+        ------
+        ImportError
+            Without matplotlib.
+        DynidError
+            The model measures no input or no response (no FRF).
+
+        Examples
+        --------
+        >>> result.plot_frf().savefig("frf.png")    # doctest: +SKIP
+        """
+
+
 class Detection:
     """Which elements of a linear model hide a nonlinearity, from per-level linear fits, as
     ``dynid detect``.
@@ -784,6 +881,11 @@ class Detection:
         fig.tight_layout()
         return fig
 
+    def plot_frf(self, ax=None):
+        return _plot_frf(self._d.get("frf") or [], "detection", ax)
+
+    plot_frf.__doc__ = _FRF_DOC
+
     def __repr__(self) -> str:
         return self.table.rstrip() + "".join(f"\nwarning: {w}" for w in self.warnings)
 
@@ -806,13 +908,80 @@ class Diagnosis:
         identified on all levels: value, stderr, nominal, kind.
     fixed_source : str
         The corrected model as ``.dyn`` source; ``fixed_model`` compiles it.
+    refined : Refinement or None
+        The corrected model refined by output error (``diagnose(…, refine=True)``).
+    segments : dict or None
+        How one record was cut into levels (``segments=``).
     """
 
-    def __init__(self, result, summary: str, report_html: str, source: _t.Optional[str] = None):
+    def __init__(self, result, summary: str, report_html: str, source: _t.Optional[str] = None, spectra=()):
         self._d = result
         self.summary = summary
         self.report_html = report_html
         self._source = source
+        self._spectra = list(spectra)
+
+    def plot_frf(self, ax=None):
+        return _plot_frf(self._d.get("frf") or [], "diagnosis", ax)
+
+    plot_frf.__doc__ = _FRF_DOC
+
+    def plot_spectra(self, ax=None):
+        """Power spectral density of each measured response on the largest level: the
+        measured signal (thick, grey, drawn first so that no model hides it) and the free
+        runs of the model as given (nominal), re-identified and corrected, each with that
+        level withheld (the report's PSD figure); one frequency range for all panels.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes or sequence of Axes, optional
+            One per response; by default a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Raises
+        ------
+        ImportError
+            Without matplotlib.
+
+        Examples
+        --------
+        >>> d.plot_spectra().savefig("psd.png")    # doctest: +SKIP
+        """
+        plt = _pyplot()
+        spectra = self._spectra
+        if not spectra:
+            raise _error(
+                DynidError,
+                "this diagnosis has no spectra: no free run of the largest level succeeded",
+                "see the summary for the levels whose free run diverged",
+                "dynid::diagnose::no_spectra",
+            )
+        if ax is None:
+            fig, axes = plt.subplots(1, len(spectra), figsize=(5.2 * len(spectra), 4.0), squeeze=False)
+            axes = list(axes.ravel())
+        else:
+            axes = list(ax) if isinstance(ax, (list, tuple, _np.ndarray)) else [ax]
+            fig = axes[0].figure
+        fmax = max(float(_np.asarray(s[3])[-1]) for s in spectra)
+        styles = {"nominal": ("#1f77b4", ":"), "re-identified (level withheld)": ("#ff7f0e", "--")}
+        for a, (signal, unit, level, f, measured, models) in zip(axes, spectra):
+            f = _np.asarray(f)
+            keep = f > 0
+            a.semilogy(f[keep], _np.asarray(measured)[keep], color="#555555", lw=3.0, alpha=0.6, label="measured")
+            for name, psd in models:
+                color, ls = styles.get(name, ("#d62728", "-"))
+                a.semilogy(f[keep], _np.asarray(psd)[keep], color=color, ls=ls, lw=1.3, label=name)
+            a.set_xlim(0.0, fmax)
+            a.set_xlabel("frequency [Hz]")
+            a.set_ylabel(f"PSD of {signal} [{unit}²/Hz]" if unit else f"PSD of {signal}")
+            a.set_title(f"{signal}, level {level}", fontsize=10)
+            a.grid(alpha=0.3, which="both")
+        axes[0].legend(fontsize=8, loc="best")
+        fig.tight_layout()
+        return fig
 
     def to_dict(self) -> _t.Dict[str, _t.Any]:
         """The result as ``dynid diagnose --json`` writes it (one schema for both).
@@ -1202,6 +1371,7 @@ class Model:
         shooting: _t.Optional[float] = None,
         substeps: int = _SUBSTEPS,
         allow_long: bool = False,
+        progress=None,
     ) -> Identification:
         """Identify the unknown parameters, all levels pooled, as ``dynid identify``.
 
@@ -1231,6 +1401,10 @@ class Model:
             With ``refine``: RK4 sub-steps per sample interval.
         allow_long : bool, default False
             With ``refine``: run above the step limit (``--allow-long``).
+        progress : callable or True, optional
+            With ``refine``: called as ``progress(stage, done, total)`` after every
+            iteration (stage ``"refinement"``, done and the most iterations allowed),
+            from the thread doing the work; ``True`` draws a tqdm bar (tqdm optional).
 
         Returns
         -------
@@ -1275,6 +1449,7 @@ class Model:
             bool(keep_rests),
             bool(allow_large),
             rarg,
+            _progress(progress),
         )
         return Identification(_json.loads(js), eq, model=self, data=data)
 
@@ -1483,7 +1658,7 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
     return Detection(_json.loads(js), table, warnings, verdicts)
 
 
-def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_periods: _t.Optional[int] = None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False, refine: bool = False) -> Diagnosis:
+def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_periods: _t.Optional[int] = None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False, refine: bool = False, progress=None) -> Diagnosis:
     """Where the model and the data disagree, the most likely unmodelled effect and how far
     the gap shrinks on a withheld level, as ``dynid diagnose``.
 
@@ -1504,6 +1679,11 @@ def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_perio
         Refine the corrected model's values by output-error minimisation on all levels
         (``--refine``): ``refined`` holds the refinement and ``fixed_source`` the refined
         values, as ``--write-model`` writes them.
+    progress : callable or True, optional
+        Called as ``progress(stage, done, total)`` as the work goes on: stage
+        ``"searching unmodelled effects"`` (candidates tried of all), then with ``refine``
+        ``"refinement"`` (iterations of the most allowed), possibly from worker threads;
+        ``True`` draws tqdm bars (tqdm optional), as the command's progress bars.
 
     Returns
     -------
@@ -1520,8 +1700,8 @@ def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_perio
     seg, by, cut = _split_kw(segments, split_by, cut)
     data, single = _as_list(data)
     levels = _levels(m._m, data, sample, map, every_column=len(data) == 1)
-    js, summary, report, source = _dynid.diagnose(m._m, levels, frf_periods, seg, by, cut, bool(allow_large), bool(refine))
-    return Diagnosis(_json.loads(js), summary, report, source if refine else None)
+    js, summary, report, source, spectra = _dynid.diagnose(m._m, levels, frf_periods, seg, by, cut, bool(allow_large), bool(refine), _progress(progress))
+    return Diagnosis(_json.loads(js), summary, report, source if refine else None, spectra)
 
 
 for _f in (segments, detect, diagnose):

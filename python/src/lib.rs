@@ -957,7 +957,7 @@ impl CompiledModel {
 
     /// Identify the unknown parameters from all levels pooled: `(json, equations)`, the
     /// JSON that of `dynid identify --json` (with `refined` after a refinement).
-    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None))]
+    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None))]
     #[allow(clippy::too_many_arguments)]
     fn identify(
         &self,
@@ -970,6 +970,7 @@ impl CompiledModel {
         keep_rests: bool,
         allow_large: bool,
         refine: Option<RefineArg<'_>>,
+        progress: Option<Py<PyAny>>,
     ) -> PyResult<(String, String)> {
         guarded(py, || {
             let ir = &self.ir;
@@ -1026,14 +1027,32 @@ impl CompiledModel {
                     }
                 }
                 let start = rt_refine::start_from(ir, &id);
+                let cb = progress.as_ref();
                 let report = py
-                    .detach(|| RefineReport::compute(ir, &start, &est, &test, &ropts, &|_| {}))
+                    .detach(|| {
+                        RefineReport::compute(ir, &start, &est, &test, &ropts, &|p| {
+                            report_progress(cb, "refinement", p.iteration, p.max_iter)
+                        })
+                    })
                     .map_err(|e| report_error(py, e.as_ref()))?;
                 value["refined"] = serde_json::to_value(&report)
                     .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
             }
             Ok((json(&value)?, format_equations(ir, &id)))
         })
+    }
+}
+
+/// A progress callback from Python, `callback(stage, done, total)`, callable from any
+/// thread of the runtime while the interpreter is released (it attaches for the call).
+/// An exception it raises is reported as unraisable and the work goes on.
+fn report_progress(callback: Option<&Py<PyAny>>, stage: &str, done: usize, total: usize) {
+    if let Some(cb) = callback {
+        Python::attach(|py| {
+            if let Err(e) = cb.call1(py, (stage, done, total)) {
+                e.write_unraisable(py, None);
+            }
+        });
     }
 }
 
@@ -1281,24 +1300,62 @@ fn split<'py>(
     })
 }
 
+/// The power spectra of a diagnosis' report, per response signal of its largest level:
+/// `(signal, unit, level (1-based), frequencies in Hz, measured PSD, [(model, PSD)])`,
+/// each PSD one-sided in unit²/Hz.
+type SpectrumOut<'py> = (
+    String,
+    String,
+    usize,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Vec<(String, Bound<'py, PyArray1<f64>>)>,
+);
+
+fn spectra_out<'py>(py: Python<'py>, d: &rt_diagnose::Diagnosis) -> Vec<SpectrumOut<'py>> {
+    d.spectra
+        .iter()
+        .map(|s| {
+            let unit = d
+                .traces
+                .iter()
+                .find(|t| t.signal == s.signal)
+                .map(|t| t.unit.clone())
+                .unwrap_or_default();
+            (
+                s.signal.clone(),
+                unit,
+                s.level + 1,
+                PyArray1::from_slice(py, &s.freqs),
+                PyArray1::from_slice(py, &s.measured),
+                s.models
+                    .iter()
+                    .map(|(name, p)| (name.clone(), PyArray1::from_slice(py, p)))
+                    .collect(),
+            )
+        })
+        .collect()
+}
+
 /// Diagnose the gap between a model and the levels: `(json, summary, html report,
-/// fixed model source)`, the JSON that of `dynid diagnose --json` (with `refined` after a
+/// fixed model source, spectra)`, the JSON that of `dynid diagnose --json` (with `refined` after a
 /// refinement of the corrected model, whose values the source then carries). One level is
 /// cut into levels as the command line cuts one file (`segments`, `split_by`, `cut`).
 #[pyfunction]
-#[pyo3(signature = (model, levels, frf_periods=None, segments=None, split_by=None, cut="auto", allow_large=false, refine=false))]
+#[pyo3(signature = (model, levels, frf_periods=None, segments=None, split_by=None, cut="auto", allow_large=false, refine=false, progress=None))]
 #[allow(clippy::too_many_arguments)]
-fn diagnose(
-    py: Python<'_>,
+fn diagnose<'py>(
+    py: Python<'py>,
     model: &CompiledModel,
-    levels: Vec<LevelIn<'_>>,
+    levels: Vec<LevelIn<'py>>,
     frf_periods: Option<usize>,
     segments: Option<usize>,
     split_by: Option<String>,
     cut: &str,
     allow_large: bool,
     refine: bool,
-) -> PyResult<(String, String, String, String)> {
+    progress: Option<Py<PyAny>>,
+) -> PyResult<(String, String, String, String, Vec<SpectrumOut<'py>>)> {
     guarded(py, || {
         let ir = &model.ir;
         if refine && !ir.controls.is_empty() {
@@ -1342,13 +1399,16 @@ fn diagnose(
         };
         let (d, frfs) = py
             .detach(|| -> miette::Result<_> {
-                let d = rt_diagnose::diagnose(ir, &records, &origins, &opts, &|_, _| {})?;
+                let cb = progress.as_ref();
+                let d = rt_diagnose::diagnose(ir, &records, &origins, &opts, &|done, total| {
+                    report_progress(cb, "searching unmodelled effects", done, total)
+                })?;
                 let frfs = schema::diagnosis_frfs(ir, &records, &d, frf_periods)?;
                 Ok((d, frfs))
             })
             .map_err(|e| report_error(py, e.as_ref()))?;
         let refined = if refine {
-            Some(refine_corrected(py, &d, &records)?)
+            Some(refine_corrected(py, &d, &records, progress.as_ref())?)
         } else {
             None
         };
@@ -1371,7 +1431,13 @@ fn diagnose(
             closed_loop_hint: None,
             frf: Some(&frfs).filter(|f| !f.is_empty()).map(|f| f.as_slice()),
         };
-        Ok((json(&value)?, d.summary(), html, source))
+        Ok((
+            json(&value)?,
+            d.summary(),
+            html,
+            source,
+            spectra_out(py, &d),
+        ))
     })
 }
 
@@ -1382,6 +1448,7 @@ fn refine_corrected(
     py: Python<'_>,
     d: &rt_diagnose::Diagnosis,
     records: &[Record],
+    progress: Option<&Py<PyAny>>,
 ) -> PyResult<(RefineReport, String)> {
     let fixed = dsl_parser::compile_str(&d.model, &d.fixed_source)
         .map_err(|e| compile_error(py, &e, &d.fixed_source))?;
@@ -1392,7 +1459,11 @@ fn refine_corrected(
         .collect();
     let opts = RefineOptions::default();
     let report = py
-        .detach(|| RefineReport::compute(&fixed, &start, records, &[], &opts, &|_| {}))
+        .detach(|| {
+            RefineReport::compute(&fixed, &start, records, &[], &opts, &|p| {
+                report_progress(progress, "refinement", p.iteration, p.max_iter)
+            })
+        })
         .map_err(|e| report_error(py, e.as_ref()))?;
     if !report.refinement.applied {
         return Ok((report, d.fixed_source.clone()));

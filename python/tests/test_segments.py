@@ -104,3 +104,27 @@ def test_split_errors_are_the_command_line_errors(one_record, tmp_path):
     assert e.value.code == "dynid::split::cut"
     with pytest.raises(dynid.OptionError):
         dynid.segments(LINEAR, [path, path])
+
+
+def test_diagnose_cuts_and_refines_as_the_command_line(one_record, tmp_path):
+    # `dynid diagnose --segments 3 --refine`: the same segments, diagnosis and refinement
+    # of the corrected model (one library call each), and the refined values in the model
+    # that `--write-model` writes.
+    exe = dynid_binary()
+    _, path = one_record
+    model_out = tmp_path / "fixed.dyn"
+    expected = cli(exe, ["diagnose", str(LINEAR), path, "--segments", "3", "--refine", "--quiet", "--write-model", str(model_out)], tmp_path)
+    seen = []
+    d = dynid.diagnose(LINEAR, path, segments=3, refine=True, progress=lambda *a: seen.append(a))
+    got = d.to_dict()
+    # Progress of both long steps, as the command's bars: the candidate search to its end,
+    # then the refinement's iterations.
+    search = [(k, n) for s, k, n in seen if s == "searching unmodelled effects"]
+    assert search and max(k for k, _ in search) == search[-1][1] > 0, seen
+    refinement = [(k, n) for s, k, n in seen if s == "refinement"]
+    assert refinement and all(0 <= k <= n for k, n in refinement), seen
+    assert [s for s, _, _ in seen].index("refinement") >= len(search)
+    expected.pop("closed_loop_hint", None)  # a note of the command line only
+    assert got == expected
+    assert d.segments == expected["segments"] and d.refined.to_dict() == expected["refined"]
+    assert d.fixed_source == model_out.read_text()
