@@ -44,8 +44,10 @@ __all__ = [
     "Comparison",
     "Detection",
     "Diagnosis",
+    "Segments",
     "detect",
     "diagnose",
+    "segments",
     "CompileError",
     "DataError",
     "DynidError",
@@ -200,9 +202,11 @@ def _check_map(map) -> _t.List[_t.Tuple[str, str]]:
     return [(str(c), str(s)) for c, s in map.items()]
 
 
-def _levels(compiled, data, sample, map=None, what: str = "data"):
+def _levels(compiled, data, sample, map=None, what: str = "data", every_column: bool = False):
     """The level tuples for the native module: ``(path, map, sample)`` for a file,
-    ``(label, names, columns, t, sample)`` for arrays."""
+    ``(label, names, columns, t, sample)`` for arrays: the measured signals' columns, and
+    with ``every_column`` also every other numeric one (a record to be cut into levels is
+    judged and cut by any of its columns)."""
     data, _ = _as_list(data, what)
     pairs = _check_map(map)
     rename = dict(pairs)
@@ -231,8 +235,18 @@ def _levels(compiled, data, sample, map=None, what: str = "data"):
                 column=name,
             )
         cols = [_as_column(get(column_of[n]), i + 1, n) for n in wanted]
+        signals = list(wanted)
+        if every_column:
+            for n in names:
+                if n == "t" or signal_of[n] in signals:
+                    continue
+                try:
+                    cols.append(_as_column(get(n), i + 1, n))
+                except DataError:
+                    continue  # a text column: nothing to judge or cut by
+                signals.append(signal_of[n])
         t = _as_column(get("t"), i + 1, "t") if "t" in names and sample is None else None
-        out.append((f"level {i + 1}", list(wanted), cols, t, None if sample is None else float(sample)))
+        out.append((f"level {i + 1}", signals, cols, t, None if sample is None else float(sample)))
     return out
 
 
@@ -313,6 +327,37 @@ def _input_records(compiled, inputs, sample, map):
             )
         out.append((used, cols, ts, t0))
     return out, single
+
+
+def _progress(progress):
+    """The callback handed to the runtime: ``progress`` itself when it is callable, tqdm
+    bars (one per stage) for ``True``, None for None or False."""
+    if progress is None or progress is False:
+        return None
+    if callable(progress):
+        return progress
+    if progress is not True:
+        raise TypeError(f"progress: expected a callable(stage, done, total) or True, got {type(progress).__name__}")
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:
+        raise ImportError(
+            "progress=True draws tqdm bars, which dynid does not install: `pip install tqdm`, "
+            "or pass a callable(stage, done, total)"
+        ) from None
+    bars: _t.Dict[str, _t.Any] = {}
+
+    def update(stage: str, done: int, total: int) -> None:
+        bar = bars.get(stage)
+        if bar is None:
+            for other in bars.values():
+                other.close()
+            bar = bars[stage] = tqdm(total=total, desc=stage)
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    return update
 
 
 # ---------------------------------------------------------------------------------------
@@ -667,6 +712,72 @@ def _verdict_text(v) -> str:
     return str(v)
 
 
+def _plot_frf(frfs, what: str, ax=None):
+    """The measured FRF (H1) of every level, solid, and the linear model fitted at that
+    level, dashed in the same colour: magnitude over frequency in Hz, one panel per
+    response."""
+    plt = _pyplot()
+    if not frfs:
+        raise _error(
+            DynidError,
+            f"this {what} has no frequency response: the model measures no input, or no position or velocity",
+            "measure the input that drives the model (a column per `input`) and a response",
+            "dynid::frf::none",
+        )
+    outputs = frfs[0]["outputs"]
+    if ax is None:
+        fig, axes = plt.subplots(1, len(outputs), figsize=(5.2 * len(outputs), 4.0), squeeze=False)
+        axes = list(axes.ravel())
+    else:
+        axes = list(ax) if isinstance(ax, (list, tuple, _np.ndarray)) else [ax]
+        fig = axes[0].figure
+    colors = plt.rcParams["axes.prop_cycle"].by_key().get("color", ["C0", "C1", "C2"])
+    for j, (a, out) in enumerate(zip(axes, outputs)):
+        for k, level in enumerate(frfs):
+            c = colors[k % len(colors)]
+            f = _np.asarray(level["measured"]["freq_hz"], dtype=float)
+            h = _np.asarray(level["measured"]["h"][j], dtype=float).reshape(-1, 2)
+            a.loglog(f, _np.hypot(h[:, 0], h[:, 1]), color=c, lw=1.6, label=f"{level['label']} measured")
+            model = [(_np.nan, _np.nan) if v is None else v for v in level["model"][j]] if level["model"] else []
+            if model:
+                m = _np.asarray(model, dtype=float)
+                a.loglog(f, _np.hypot(m[:, 0], m[:, 1]), color=c, lw=1.2, ls="--", label=f"{level['label']} model")
+        unit = frfs[0]["units"][j]
+        a.set_xlabel("frequency [Hz]")
+        a.set_ylabel(f"|{out} / {frfs[0]['input']}| [{unit}]")
+        a.set_title(f"{out} over {frfs[0]['input']}", fontsize=10)
+        a.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    return fig
+
+
+_FRF_DOC = """Frequency response of every level: the measured H1 estimate (solid) and the
+        linear model fitted at that level (dashed, same colour), magnitude over frequency
+        in Hz, one panel per measured response (the report's FRF figure).
+
+        Parameters
+        ----------
+        ax : matplotlib Axes or sequence of Axes, optional
+            One per response; by default a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Raises
+        ------
+        ImportError
+            Without matplotlib.
+        DynidError
+            The model measures no input or no response (no FRF).
+
+        Examples
+        --------
+        >>> result.plot_frf().savefig("frf.png")    # doctest: +SKIP
+        """
+
+
 class Detection:
     """Which elements of a linear model hide a nonlinearity, from per-level linear fits, as
     ``dynid detect``.
@@ -770,6 +881,11 @@ class Detection:
         fig.tight_layout()
         return fig
 
+    def plot_frf(self, ax=None):
+        return _plot_frf(self._d.get("frf") or [], "detection", ax)
+
+    plot_frf.__doc__ = _FRF_DOC
+
     def __repr__(self) -> str:
         return self.table.rstrip() + "".join(f"\nwarning: {w}" for w in self.warnings)
 
@@ -792,12 +908,80 @@ class Diagnosis:
         identified on all levels: value, stderr, nominal, kind.
     fixed_source : str
         The corrected model as ``.dyn`` source; ``fixed_model`` compiles it.
+    refined : Refinement or None
+        The corrected model refined by output error (``diagnose(…, refine=True)``).
+    segments : dict or None
+        How one record was cut into levels (``segments=``).
     """
 
-    def __init__(self, result, summary: str, report_html: str):
+    def __init__(self, result, summary: str, report_html: str, source: _t.Optional[str] = None, spectra=()):
         self._d = result
         self.summary = summary
         self.report_html = report_html
+        self._source = source
+        self._spectra = list(spectra)
+
+    def plot_frf(self, ax=None):
+        return _plot_frf(self._d.get("frf") or [], "diagnosis", ax)
+
+    plot_frf.__doc__ = _FRF_DOC
+
+    def plot_spectra(self, ax=None):
+        """Power spectral density of each measured response on the largest level: the
+        measured signal (thick, grey, drawn first so that no model hides it) and the free
+        runs of the model as given (nominal), re-identified and corrected, each with that
+        level withheld (the report's PSD figure); one frequency range for all panels.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes or sequence of Axes, optional
+            One per response; by default a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Raises
+        ------
+        ImportError
+            Without matplotlib.
+
+        Examples
+        --------
+        >>> d.plot_spectra().savefig("psd.png")    # doctest: +SKIP
+        """
+        plt = _pyplot()
+        spectra = self._spectra
+        if not spectra:
+            raise _error(
+                DynidError,
+                "this diagnosis has no spectra: no free run of the largest level succeeded",
+                "see the summary for the levels whose free run diverged",
+                "dynid::diagnose::no_spectra",
+            )
+        if ax is None:
+            fig, axes = plt.subplots(1, len(spectra), figsize=(5.2 * len(spectra), 4.0), squeeze=False)
+            axes = list(axes.ravel())
+        else:
+            axes = list(ax) if isinstance(ax, (list, tuple, _np.ndarray)) else [ax]
+            fig = axes[0].figure
+        fmax = max(float(_np.asarray(s[3])[-1]) for s in spectra)
+        styles = {"nominal": ("#1f77b4", ":"), "re-identified (level withheld)": ("#ff7f0e", "--")}
+        for a, (signal, unit, level, f, measured, models) in zip(axes, spectra):
+            f = _np.asarray(f)
+            keep = f > 0
+            a.semilogy(f[keep], _np.asarray(measured)[keep], color="#555555", lw=3.0, alpha=0.6, label="measured")
+            for name, psd in models:
+                color, ls = styles.get(name, ("#d62728", "-"))
+                a.semilogy(f[keep], _np.asarray(psd)[keep], color=color, ls=ls, lw=1.3, label=name)
+            a.set_xlim(0.0, fmax)
+            a.set_xlabel("frequency [Hz]")
+            a.set_ylabel(f"PSD of {signal} [{unit}²/Hz]" if unit else f"PSD of {signal}")
+            a.set_title(f"{signal}, level {level}", fontsize=10)
+            a.grid(alpha=0.3, which="both")
+        axes[0].legend(fontsize=8, loc="best")
+        fig.tight_layout()
+        return fig
 
     def to_dict(self) -> _t.Dict[str, _t.Any]:
         """The result as ``dynid diagnose --json`` writes it (one schema for both).
@@ -819,7 +1003,21 @@ class Diagnosis:
 
     @property
     def fixed_source(self) -> str:
-        return self._d["fixed_source"]
+        """The corrected model as ``.dyn`` source; after ``refine=True`` with the refined
+        values when the refinement was applied (as ``--write-model`` writes it)."""
+        return self._source if self._source is not None else self._d["fixed_source"]
+
+    @property
+    def refined(self) -> _t.Optional[Refinement]:
+        """The output-error refinement of the corrected model on all levels
+        (``refine=True``, ``dynid diagnose --refine``), else None."""
+        r = self._d.get("refined")
+        return None if r is None else Refinement(r)
+
+    @property
+    def segments(self) -> _t.Optional[_t.Dict[str, _t.Any]]:
+        """How one record was cut into levels (JSON ``segments``), else None."""
+        return self._d.get("segments")
 
     @property
     def fixed_model(self) -> "Model":
@@ -1173,6 +1371,7 @@ class Model:
         shooting: _t.Optional[float] = None,
         substeps: int = _SUBSTEPS,
         allow_long: bool = False,
+        progress=None,
     ) -> Identification:
         """Identify the unknown parameters, all levels pooled, as ``dynid identify``.
 
@@ -1202,6 +1401,10 @@ class Model:
             With ``refine``: RK4 sub-steps per sample interval.
         allow_long : bool, default False
             With ``refine``: run above the step limit (``--allow-long``).
+        progress : callable or True, optional
+            With ``refine``: called as ``progress(stage, done, total)`` after every
+            iteration (stage ``"refinement"``, done and the most iterations allowed),
+            from the thread doing the work; ``True`` draws a tqdm bar (tqdm optional).
 
         Returns
         -------
@@ -1246,6 +1449,7 @@ class Model:
             bool(keep_rests),
             bool(allow_large),
             rarg,
+            _progress(progress),
         )
         return Identification(_json.loads(js), eq, model=self, data=data)
 
@@ -1279,7 +1483,133 @@ def _model(m) -> Model:
     return m if isinstance(m, Model) else Model.from_file(m)
 
 
-def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float = 1e-3, map=None, frf_periods: _t.Optional[int] = None) -> Detection:
+_SPLIT_DOC = """    segments : int, optional
+        With ONE level: cut it into this many contiguous levels (at least 2), as
+        ``--segments N`` [default: one per cycle of a repeated trajectory, else 3 by
+        amplitude]. A single level is always cut; several levels are never cut (a split
+        setting with several is an ``OptionError``).
+    split_by : str, optional
+        With one level: judge the amplitude by this signal (``--split-by``) [default: the
+        first measured position of the model].
+    cut : {"auto", "cycles", "amplitude"}, default "auto"
+        With one level: where to cut (``--cut``): at the cycles of a repeated trajectory
+        when it repeats with one amplitude, else by amplitude; ``"cycles"`` insists,
+        ``"amplitude"`` never cuts at cycles.
+    allow_large : bool, default False
+        Run even when the memory estimated before reading the data is above the safety
+        limit (8 GB), as ``--allow-large``; without it such work is refused
+        (``DynidError`` or ``DataError`` with code ``dynid::identify::too_large`` or
+        ``dynid::data::too_large``) before a sample is read."""
+
+
+def _split_kw(segments, split_by, cut):
+    if segments is not None:
+        if isinstance(segments, bool) or not isinstance(segments, (int, _np.integer)):
+            raise TypeError(f"segments: expected a whole number, got {type(segments).__name__}")
+        if segments < 2:
+            raise _error(
+                OptionError,
+                f"segments = {segments}: must be at least 2 (a split gives at least two levels)",
+                "give segments=N with N of at least 2 (3–8 levels make the drift test sharpest)",
+                "dynid::split::segments",
+            )
+        segments = int(segments)
+    return segments, None if split_by is None else str(split_by), str(cut)
+
+
+class Segments:
+    """One record cut into levels, as ``dynid detect`` and ``dynid diagnose`` cut a single
+    data file (:func:`segments`).
+
+    Attributes
+    ----------
+    levels : list of DataFrame or dict of arrays
+        One level per segment (by amplitude: quietest first; at cycles: in time order),
+        each with every column of the record and its own ``t``.
+    labels : list of str
+        ``record [t0–t1 s]`` per segment.
+    table : str
+        The segment table the command line prints to stderr.
+    """
+
+    def __init__(self, result, table: str, levels, labels):
+        self._d = result
+        self.table = table
+        self.levels = levels
+        self.labels = list(labels)
+
+    def to_dict(self) -> _t.Dict[str, _t.Any]:
+        """The split as the ``segments`` object of ``dynid detect --json`` and
+        ``dynid diagnose --json``.
+
+        Returns
+        -------
+        dict
+            ``signal``, ``omega`` (rad/s), ``min_len``, ``window``, ``segments`` (``start``,
+            ``len``, ``t_start``, ``t_end``, ``sigma`` each) and ``cycles`` when cut at
+            cycles.
+        """
+        return self._d
+
+    def __len__(self) -> int:
+        return len(self.levels)
+
+    def __repr__(self) -> str:
+        return self.table.rstrip()
+
+
+def segments(model, data, sample: _t.Optional[float] = None, map=None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False) -> Segments:
+    """Cut one record whose amplitude varies (a run-up, a sweep of drive levels, repeated
+    cycles of one trajectory) into levels, exactly as ``dynid detect`` and
+    ``dynid diagnose`` cut a single data file.
+
+    Parameters
+    ----------
+    model : Model, str or os.PathLike
+        The model (or its file): its measured signals are checked and its first measured
+        position is the default signal judged.
+    data : DataFrame, dict of arrays or path of a data file
+        ONE record.
+    sample : float, optional
+        Sample interval in seconds where the record has no ``t`` column.
+    map : dict, optional
+        Column → signal renamings.
+    SPLIT_PARAMETERS
+
+    Returns
+    -------
+    Segments
+        The levels, their labels and the table.
+
+    Raises
+    ------
+    OptionError
+        More than one record, or ``segments`` below 2.
+    DataError
+        A record too short for the segments, a signal that does not oscillate or is not a
+        column (code ``dynid::split::...``, as the command line).
+
+    Examples
+    --------
+    >>> split = dynid.segments("models/sdof_linear.dyn", "run_up.csv", segments=4)  # doctest: +SKIP
+    >>> det = dynid.detect("models/sdof_linear.dyn", split.levels)                    # doctest: +SKIP
+    """
+    m = _model(model)
+    levels, _ = _as_list(data)
+    if len(levels) != 1:
+        raise _error(
+            OptionError,
+            f"segments() cuts one record, but {len(levels)} were given",
+            "give one record; with several, each record is one level",
+            "dynid::split::several_files",
+        )
+    level = _levels(m._m, levels, sample, map, every_column=True)[0]
+    seg, by, cut = _split_kw(segments, split_by, cut)
+    js, table, recs, labels = _dynid.split(m._m, level, seg, by, cut, bool(allow_large))
+    return Segments(_json.loads(js), table, [_frame(*r) for r in recs], labels)
+
+
+def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float = 1e-3, map=None, frf_periods: _t.Optional[int] = None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False) -> Detection:
     """Which elements of a linear model hide a nonlinearity, and which kind, as
     ``dynid detect``: the linear model is identified at every level, and a parameter that
     drifts with the level names the effect.
@@ -1288,9 +1618,10 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
     ----------
     linear_model : Model, str or os.PathLike
         The linear model (or its file).
-    data : list of DataFrame, dict of arrays or CSV path
+    data : list of DataFrame, dict of arrays or data file path
         One level each: at least two, better three to eight spanning a factor of three or
-        more in amplitude (two levels show a drift but cannot tell its shape).
+        more in amplitude (two levels show a drift but cannot tell its shape); or ONE
+        record whose amplitude varies, cut into levels (``segments``).
     sample : float, optional
         Sample interval in seconds where a level has no ``t`` column.
     alpha : float, default 1e-3
@@ -1299,29 +1630,35 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
         Column → signal renamings.
     frf_periods : int, optional
         Each record holds this many periods of a periodic excitation (``--frf-periods``).
+    SPLIT_PARAMETERS
 
     Returns
     -------
     Detection
-        Its ``to_dict()`` is the object ``dynid detect --json`` writes.
+        Its ``to_dict()`` is the object ``dynid detect --json`` writes (``segments`` when
+        one record was cut).
 
     Raises
     ------
     OptionError
-        ``alpha`` not between 0 and 1.
+        ``alpha`` not between 0 and 1, a split setting with several levels.
 
     Examples
     --------
     >>> det = dynid.detect("models/two_mass_linear.dyn", data)   # doctest: +SKIP
     >>> det.elements                                              # doctest: +SKIP
     >>> det.plot()                                                # doctest: +SKIP
+    >>> dynid.detect("models/sdof_linear.dyn", "run_up.csv", segments=4)  # doctest: +SKIP
     """
     m = _model(linear_model)
-    js, table, warnings, verdicts = _dynid.detect(m._m, _levels(m._m, data, sample, map), float(alpha), frf_periods)
+    seg, by, cut = _split_kw(segments, split_by, cut)
+    data, single = _as_list(data)
+    levels = _levels(m._m, data, sample, map, every_column=len(data) == 1)
+    js, table, warnings, verdicts = _dynid.detect(m._m, levels, float(alpha), frf_periods, seg, by, cut, bool(allow_large))
     return Detection(_json.loads(js), table, warnings, verdicts)
 
 
-def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_periods: _t.Optional[int] = None) -> Diagnosis:
+def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_periods: _t.Optional[int] = None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False, refine: bool = False, progress=None) -> Diagnosis:
     """Where the model and the data disagree, the most likely unmodelled effect and how far
     the gap shrinks on a withheld level, as ``dynid diagnose``.
 
@@ -1329,14 +1666,24 @@ def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_perio
     ----------
     model : Model, str or os.PathLike
         The simulation model with nominal values (or its file).
-    data : list of DataFrame, dict of arrays or CSV path
-        One level each, at least two.
+    data : list of DataFrame, dict of arrays or data file path
+        One level each, at least two; or ONE record cut into levels (``segments``).
     sample : float, optional
         Sample interval in seconds where a level has no ``t`` column.
     map : dict, optional
         Column → signal renamings.
     frf_periods : int, optional
         Each record holds this many periods of a periodic excitation (``--frf-periods``).
+    SPLIT_PARAMETERS
+    refine : bool, default False
+        Refine the corrected model's values by output-error minimisation on all levels
+        (``--refine``): ``refined`` holds the refinement and ``fixed_source`` the refined
+        values, as ``--write-model`` writes them.
+    progress : callable or True, optional
+        Called as ``progress(stage, done, total)`` as the work goes on: stage
+        ``"searching unmodelled effects"`` (candidates tried of all), then with ``refine``
+        ``"refinement"`` (iterations of the most allowed), possibly from worker threads;
+        ``True`` draws tqdm bars (tqdm optional), as the command's progress bars.
 
     Returns
     -------
@@ -1347,7 +1694,16 @@ def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_perio
     --------
     >>> d = dynid.diagnose("models/two_mass_linear.dyn", data)   # doctest: +SKIP
     >>> print(d.summary); d.fixed_model                           # doctest: +SKIP
+    >>> dynid.diagnose("models/sdof_linear.dyn", "run_up.csv", segments=3, refine=True)  # doctest: +SKIP
     """
     m = _model(model)
-    js, summary, report = _dynid.diagnose(m._m, _levels(m._m, data, sample, map), frf_periods)
-    return Diagnosis(_json.loads(js), summary, report)
+    seg, by, cut = _split_kw(segments, split_by, cut)
+    data, single = _as_list(data)
+    levels = _levels(m._m, data, sample, map, every_column=len(data) == 1)
+    js, summary, report, source, spectra = _dynid.diagnose(m._m, levels, frf_periods, seg, by, cut, bool(allow_large), bool(refine), _progress(progress))
+    return Diagnosis(_json.loads(js), summary, report, source if refine else None, spectra)
+
+
+for _f in (segments, detect, diagnose):
+    _f.__doc__ = _f.__doc__.replace("    SPLIT_PARAMETERS", _SPLIT_DOC)
+del _f

@@ -20,7 +20,8 @@ use dynid::dsl_parser::{
     CompileErrors,
 };
 use dynid::runtime::data::{
-    CsvOptions, DataError as RtDataError, FileSource, LevelSource, MIN_SAMPLES,
+    read_record_within, CsvOptions, CutAt, DataError as RtDataError, FileSource, LevelSource,
+    RecordSource, Split, SplitChoice, MIN_SAMPLES,
 };
 use dynid::runtime::detect::{detect_from_data, levels_too_alike, DetectOptions};
 use dynid::runtime::diagnose::{self as rt_diagnose, DiagnoseOptions};
@@ -135,7 +136,11 @@ fn runtime_error_at(
 /// the rest (a model the method cannot handle, a run that failed).
 fn error_class(code: &str) -> &'static str {
     if code.starts_with("dynid::data::")
-        || code.starts_with("dynid::split::")
+        || (code.starts_with("dynid::split::")
+            && !matches!(
+                code,
+                "dynid::split::segments" | "dynid::split::several_files" | "dynid::split::cut"
+            ))
         || matches!(
             code,
             "dynid::sim::missing_input"
@@ -148,6 +153,10 @@ fn error_class(code: &str) -> &'static str {
     } else if matches!(code, "dynid::sim::no_nominal" | "dynid::refine::start") {
         "ParameterError"
     } else if code.ends_with("::option")
+        || matches!(
+            code,
+            "dynid::split::segments" | "dynid::split::several_files" | "dynid::split::cut"
+        )
         || matches!(
             code,
             "dynid::sim::config"
@@ -176,6 +185,7 @@ fn raise_located(
     column: Option<&str>,
     sample: Option<usize>,
 ) -> PyErr {
+    let help = &pythonic(help);
     if !help.is_empty() {
         message.push_str(&format!("\n  help: {help}"));
     }
@@ -194,6 +204,18 @@ fn raise_located(
             ("sample", obj(py, sample)),
         ],
     )
+}
+
+/// A help line of the runtime with the command line's flags spelled as this package's
+/// keyword arguments (`--allow-large` is `allow_large=True`, `--segments 2` is
+/// `segments=2`), so that the advice can be followed as written.
+fn pythonic(help: &str) -> String {
+    help.replace("`--allow-large`", "`allow_large=True`")
+        .replace("`--filter-corners`", "`filter_corners=[...]`")
+        .replace("`--segments N`", "`segments=N`")
+        .replace("`--segments ", "`segments=")
+        .replace("`--split-by SIGNAL`", "`split_by=\"SIGNAL\"`")
+        .replace("`--cut amplitude`", "`cut=\"amplitude\"`")
 }
 
 /// An identification error; an outlier names its column and sample.
@@ -367,27 +389,163 @@ type Source<'a> = Box<dyn LevelSource + 'a>;
 /// Bind every level: files are opened as the command line opens them (header matched to
 /// the measured signals, sample interval fixed), arrays are checked by [`bind_arrays`].
 fn bind<'a>(py: Python<'_>, ir: &ModelIr, levels: &'a [LevelIn<'_>]) -> PyResult<Vec<Source<'a>>> {
+    Ok(bind_held(py, ir, levels)?.0)
+}
+
+/// [`bind`], with the memory (bytes) the levels' measured columns take when read whole:
+/// estimated from a file's size, counted for arrays (diagnosis copies them).
+fn bind_held<'a>(
+    py: Python<'_>,
+    ir: &ModelIr,
+    levels: &'a [LevelIn<'_>],
+) -> PyResult<(Vec<Source<'a>>, f64)> {
     let mut out: Vec<Source<'a>> = Vec::with_capacity(levels.len());
+    let mut held = 0.0;
     for (i, level) in levels.iter().enumerate() {
         match level {
             LevelIn::File(path, map, ts) => {
-                let mut opts = CsvOptions {
-                    ts: *ts,
-                    ..CsvOptions::default()
-                };
-                for (c, sig) in map {
-                    let pair = CsvOptions::parse_map(&format!("{c}={sig}"), ir).map_err(|e| {
-                        runtime_error_at(py, &e, Some(i + 1), Some(c.clone()), None)
-                    })?;
-                    opts.map.push(pair);
-                }
+                let opts = file_options(py, ir, i, map, *ts)?;
                 // Any format the command line reads (text, MAT, HDF5, Parquet; by content).
                 let src = FileSource::open(path, ir, &opts)
                     .map_err(|e| runtime_error_at(py, &e, Some(i + 1), None, None))?;
+                held += src.whole_bytes();
                 out.push(Box::new(src));
             }
-            LevelIn::Arrays(arg) => out.push(Box::new(bind_arrays(py, ir, i, arg)?)),
+            LevelIn::Arrays(arg) => {
+                let src = bind_arrays(py, ir, i, arg)?;
+                held += (src.n * ir.measured_signals().len() * 8) as f64;
+                out.push(Box::new(src));
+            }
         }
+    }
+    Ok((out, held))
+}
+
+/// The reader options of level `i` (0-based), each renaming checked against the model.
+fn file_options(
+    py: Python<'_>,
+    ir: &ModelIr,
+    i: usize,
+    map: &[(String, String)],
+    ts: Option<f64>,
+) -> PyResult<CsvOptions> {
+    let mut opts = CsvOptions {
+        ts,
+        ..CsvOptions::default()
+    };
+    for (c, sig) in map {
+        let pair = CsvOptions::parse_map(&format!("{c}={sig}"), ir)
+            .map_err(|e| runtime_error_at(py, &e, Some(i + 1), Some(c.clone()), None))?;
+        opts.map.push(pair);
+    }
+    Ok(opts)
+}
+
+/// How one record is cut into levels, from the keyword arguments `segments`, `split_by`
+/// and `cut` (`"auto"`, `"cycles"` or `"amplitude"`).
+fn split_choice(
+    py: Python<'_>,
+    segments: Option<usize>,
+    split_by: Option<String>,
+    cut: &str,
+) -> PyResult<SplitChoice> {
+    let cut = CutAt::parse(cut).ok_or_else(|| {
+        option_error(
+            py,
+            format!("cut = {cut:?} is not a place to cut"),
+            "give cut=\"auto\" (cycles of a repeated trajectory, else by amplitude), \
+             \"cycles\" or \"amplitude\"",
+            "dynid::split::cut",
+        )
+    })?;
+    Ok(SplitChoice {
+        segments,
+        split_by,
+        cut,
+    })
+}
+
+/// One record cut into levels: the split, the segments' records (all columns) and their
+/// labels (`origin [t0–t1 s]`).
+type SplitLevels = (Split, Vec<Record>, Vec<String>);
+
+/// With one level, cut it into levels as the command line cuts one file
+/// ([`SplitChoice::split`]); with several, `None` (an error when a split option was
+/// given). A file is read whole, refused above the memory limit unless `allow_large`; an
+/// array level is taken with all its columns (a `t` column sets the start time).
+fn split_levels(
+    py: Python<'_>,
+    ir: &ModelIr,
+    levels: &[LevelIn<'_>],
+    choice: &SplitChoice,
+    allow_large: bool,
+) -> PyResult<Option<SplitLevels>> {
+    if !choice
+        .applies(levels.len())
+        .map_err(|e| runtime_error(py, &e))?
+    {
+        return Ok(None);
+    }
+    let Some(level) = levels.first() else {
+        return Ok(None);
+    };
+    let (record, origin) = match level {
+        LevelIn::File(path, map, ts) => {
+            let origin = path.display().to_string();
+            choice
+                .response(ir, &origin)
+                .map_err(|e| runtime_error(py, &e))?;
+            let opts = file_options(py, ir, 0, map, *ts)?;
+            let rec = read_record_within(path, &opts, allow_large)
+                .map_err(|e| runtime_error_at(py, &e, Some(1), None, None))?;
+            (rec, origin)
+        }
+        LevelIn::Arrays(arg) => {
+            // The checks of a level (measured columns, time, finite values) first.
+            let src = bind_arrays(py, ir, 0, arg)?;
+            let (label, names, arrays, t, _) = arg;
+            choice
+                .response(ir, label)
+                .map_err(|e| runtime_error(py, &e))?;
+            let mut columns = Vec::with_capacity(arrays.len());
+            for a in arrays {
+                columns.push(a.as_array().iter().copied().collect::<Vec<f64>>());
+            }
+            let t0 = t
+                .as_ref()
+                .and_then(|t| t.as_array().iter().next().copied())
+                .unwrap_or(0.0);
+            let rec = Record {
+                names: names.clone(),
+                columns,
+                ts: src.ts,
+                t0,
+            };
+            (rec, label.clone())
+        }
+    };
+    let split = py
+        .detach(|| choice.split(ir, &record, &origin))
+        .map_err(|e| runtime_error(py, &e))?;
+    let labels = (0..split.segments.len())
+        .map(|i| split.label(&origin, i))
+        .collect();
+    let records = split.records(&record);
+    Ok(Some((split, records, labels)))
+}
+
+/// The segments' records as levels (the model's measured columns checked as a file's).
+fn segment_sources<'a>(
+    py: Python<'_>,
+    ir: &ModelIr,
+    records: &'a [Record],
+    labels: &[String],
+) -> PyResult<Vec<Source<'a>>> {
+    let mut out: Vec<Source<'a>> = Vec::with_capacity(records.len());
+    for (i, (r, o)) in records.iter().zip(labels).enumerate() {
+        let src = RecordSource::new(r, ir, o.clone())
+            .map_err(|e| runtime_error_at(py, &e, Some(i + 1), None, None))?;
+        out.push(Box::new(src));
     }
     Ok(out)
 }
@@ -799,7 +957,7 @@ impl CompiledModel {
 
     /// Identify the unknown parameters from all levels pooled: `(json, equations)`, the
     /// JSON that of `dynid identify --json` (with `refined` after a refinement).
-    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None))]
+    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None))]
     #[allow(clippy::too_many_arguments)]
     fn identify(
         &self,
@@ -812,6 +970,7 @@ impl CompiledModel {
         keep_rests: bool,
         allow_large: bool,
         refine: Option<RefineArg<'_>>,
+        progress: Option<Py<PyAny>>,
     ) -> PyResult<(String, String)> {
         guarded(py, || {
             let ir = &self.ir;
@@ -868,14 +1027,32 @@ impl CompiledModel {
                     }
                 }
                 let start = rt_refine::start_from(ir, &id);
+                let cb = progress.as_ref();
                 let report = py
-                    .detach(|| RefineReport::compute(ir, &start, &est, &test, &ropts, &|_| {}))
+                    .detach(|| {
+                        RefineReport::compute(ir, &start, &est, &test, &ropts, &|p| {
+                            report_progress(cb, "refinement", p.iteration, p.max_iter)
+                        })
+                    })
                     .map_err(|e| report_error(py, e.as_ref()))?;
                 value["refined"] = serde_json::to_value(&report)
                     .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
             }
             Ok((json(&value)?, format_equations(ir, &id)))
         })
+    }
+}
+
+/// A progress callback from Python, `callback(stage, done, total)`, callable from any
+/// thread of the runtime while the interpreter is released (it attaches for the call).
+/// An exception it raises is reported as unraisable and the work goes on.
+fn report_progress(callback: Option<&Py<PyAny>>, stage: &str, done: usize, total: usize) {
+    if let Some(cb) = callback {
+        Python::attach(|py| {
+            if let Err(e) = cb.call1(py, (stage, done, total)) {
+                e.write_unraisable(py, None);
+            }
+        });
     }
 }
 
@@ -1016,15 +1193,22 @@ fn compile_file(py: Python<'_>, path: std::path::PathBuf) -> PyResult<CompiledMo
 }
 
 /// Detect nonlinear elements of a linear model: `(json, table, warnings, verdicts)`, the
-/// JSON that of `dynid detect --json`, the verdicts as `(element, verdict)` in words.
+/// JSON that of `dynid detect --json`, the verdicts as `(element, verdict)` in words. One
+/// level is cut into levels as the command line cuts one file (`segments`, `split_by`,
+/// `cut`); the segment table is the first warning's companion in the JSON (`segments`).
 #[pyfunction]
-#[pyo3(signature = (model, levels, alpha=1e-3, frf_periods=None))]
+#[pyo3(signature = (model, levels, alpha=1e-3, frf_periods=None, segments=None, split_by=None, cut="auto", allow_large=false))]
+#[allow(clippy::too_many_arguments)]
 fn detect(
     py: Python<'_>,
     model: &CompiledModel,
     levels: Vec<LevelIn<'_>>,
     alpha: f64,
     frf_periods: Option<usize>,
+    segments: Option<usize>,
+    split_by: Option<String>,
+    cut: &str,
+    allow_large: bool,
 ) -> PyResult<DetectOut> {
     guarded(py, || {
         if !(alpha > 0.0 && alpha < 1.0) {
@@ -1036,24 +1220,35 @@ fn detect(
             ));
         }
         let ir = &model.ir;
-        let sources = bind(py, ir, &levels)?;
+        let choice = split_choice(py, segments, split_by, cut)?;
+        let split = split_levels(py, ir, &levels, &choice, allow_large)?;
+        let sources = match &split {
+            Some((_, records, labels)) => segment_sources(py, ir, records, labels)?,
+            None => bind(py, ir, &levels)?,
+        };
         let mut dopts = DetectOptions {
             alpha,
+            ..Default::default()
+        };
+        let iopts = IdentifyOptions {
+            allow_large,
             ..Default::default()
         };
         let (det, fits, frfs) = py
             .detach(|| -> miette::Result<_> {
                 let levels = refs(&sources);
-                let (det, fits) =
-                    detect_from_data(ir, &levels, &IdentifyOptions::default(), &dopts, &[])?;
+                let (det, fits) = detect_from_data(ir, &levels, &iopts, &dopts, &[])?;
                 let frfs = schema::level_frfs(ir, &levels, &det, &fits.fits, frf_periods)?;
                 Ok((det, fits, frfs))
             })
             .map_err(|e| report_error(py, e.as_ref()))?;
         dopts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
         let too_alike = levels_too_alike(&det, &dopts);
-        let warnings: Vec<String> = too_alike.iter().map(|w| w.message.clone()).collect();
-        let value = schema::detection(&det, &fits, &too_alike, None, None, &frfs);
+        let split = split.as_ref().map(|s| &s.0);
+        let cycle_note = split.and_then(Split::cycles_note);
+        let mut warnings: Vec<String> = too_alike.iter().map(|w| w.message.clone()).collect();
+        warnings.extend(cycle_note.clone());
+        let value = schema::detection(&det, &fits, &too_alike, split, cycle_note.as_deref(), &frfs);
         let verdicts = det
             .elements
             .iter()
@@ -1063,34 +1258,160 @@ fn detect(
     })
 }
 
-/// Diagnose the gap between a model and the levels: `(json, summary, html report)`, the
-/// JSON that of `dynid diagnose --json`.
+/// Cut one level into levels as `dynid detect`/`diagnose` cut one file:
+/// `(split_json, table, [(names, columns, ts, t0)], labels)`.
 #[pyfunction]
-#[pyo3(signature = (model, levels, frf_periods=None))]
-fn diagnose(
-    py: Python<'_>,
+#[pyo3(signature = (model, level, segments=None, split_by=None, cut="auto", allow_large=false))]
+#[allow(clippy::type_complexity)]
+fn split<'py>(
+    py: Python<'py>,
     model: &CompiledModel,
-    levels: Vec<LevelIn<'_>>,
-    frf_periods: Option<usize>,
-) -> PyResult<(String, String, String)> {
+    level: LevelIn<'py>,
+    segments: Option<usize>,
+    split_by: Option<String>,
+    cut: &str,
+    allow_large: bool,
+) -> PyResult<(String, String, Vec<SimLevel<'py>>, Vec<String>)> {
     guarded(py, || {
         let ir = &model.ir;
-        let sources = bind(py, ir, &levels)?;
-        let records = read_records(py, ir, &sources)?;
-        let origins: Vec<String> = sources.iter().map(|s| s.origin()).collect();
+        let choice = split_choice(py, segments, split_by, cut)?;
+        let levels = [level];
+        let Some((split, records, labels)) = split_levels(py, ir, &levels, &choice, allow_large)?
+        else {
+            return Err(option_error(
+                py,
+                "no level to split".into(),
+                "give one level",
+                "dynid::split::option",
+            ));
+        };
+        let out = records
+            .into_iter()
+            .map(|r| {
+                let cols = r
+                    .columns
+                    .into_iter()
+                    .map(|c| PyArray1::from_vec(py, c))
+                    .collect();
+                (r.names, cols, r.ts, r.t0)
+            })
+            .collect();
+        Ok((json(&split)?, split.table(), out, labels))
+    })
+}
+
+/// The power spectra of a diagnosis' report, per response signal of its largest level:
+/// `(signal, unit, level (1-based), frequencies in Hz, measured PSD, [(model, PSD)])`,
+/// each PSD one-sided in unit²/Hz.
+type SpectrumOut<'py> = (
+    String,
+    String,
+    usize,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Vec<(String, Bound<'py, PyArray1<f64>>)>,
+);
+
+fn spectra_out<'py>(py: Python<'py>, d: &rt_diagnose::Diagnosis) -> Vec<SpectrumOut<'py>> {
+    d.spectra
+        .iter()
+        .map(|s| {
+            let unit = d
+                .traces
+                .iter()
+                .find(|t| t.signal == s.signal)
+                .map(|t| t.unit.clone())
+                .unwrap_or_default();
+            (
+                s.signal.clone(),
+                unit,
+                s.level + 1,
+                PyArray1::from_slice(py, &s.freqs),
+                PyArray1::from_slice(py, &s.measured),
+                s.models
+                    .iter()
+                    .map(|(name, p)| (name.clone(), PyArray1::from_slice(py, p)))
+                    .collect(),
+            )
+        })
+        .collect()
+}
+
+/// Diagnose the gap between a model and the levels: `(json, summary, html report,
+/// fixed model source, spectra)`, the JSON that of `dynid diagnose --json` (with `refined` after a
+/// refinement of the corrected model, whose values the source then carries). One level is
+/// cut into levels as the command line cuts one file (`segments`, `split_by`, `cut`).
+#[pyfunction]
+#[pyo3(signature = (model, levels, frf_periods=None, segments=None, split_by=None, cut="auto", allow_large=false, refine=false, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn diagnose<'py>(
+    py: Python<'py>,
+    model: &CompiledModel,
+    levels: Vec<LevelIn<'py>>,
+    frf_periods: Option<usize>,
+    segments: Option<usize>,
+    split_by: Option<String>,
+    cut: &str,
+    allow_large: bool,
+    refine: bool,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<(String, String, String, String, Vec<SpectrumOut<'py>>)> {
+    guarded(py, || {
+        let ir = &model.ir;
+        if refine && !ir.controls.is_empty() {
+            let e = dynid::runtime::refine::RefineError::ControlLaws {
+                model: ir.name.clone(),
+            };
+            return Err(runtime_error(py, &e));
+        }
+        let choice = split_choice(py, segments, split_by, cut)?;
+        let split = split_levels(py, ir, &levels, &choice, allow_large)?;
+        let mut opts = DiagnoseOptions::default();
+        opts.ident.allow_large = allow_large;
+        let (records, origins) = match &split {
+            Some((_, segs, labels)) => {
+                let sources = segment_sources(py, ir, segs, labels)?;
+                let mut records = Vec::with_capacity(segs.len());
+                for (src, r) in sources.iter().zip(segs) {
+                    records.push(Record {
+                        t0: r.t0,
+                        ..rt_diagnose::read_record(src.as_ref(), ir)
+                            .map_err(|e| runtime_error(py, &e))?
+                    });
+                }
+                (records, labels.clone())
+            }
+            None => {
+                let (sources, held) = bind_held(py, ir, &levels)?;
+                // The records are read whole (the free-run comparison), and the moments and
+                // least-squares problems come on top: both estimated before reading.
+                dynid::runtime::ident::memory::check(
+                    ir,
+                    sources.len(),
+                    &opts.ident,
+                    held,
+                    "diagnosis",
+                )
+                .map_err(|e| identify_error(py, &e))?;
+                let records = read_records(py, ir, &sources)?;
+                (records, sources.iter().map(|s| s.origin()).collect())
+            }
+        };
         let (d, frfs) = py
             .detach(|| -> miette::Result<_> {
-                let d = rt_diagnose::diagnose(
-                    ir,
-                    &records,
-                    &origins,
-                    &DiagnoseOptions::default(),
-                    &|_, _| {},
-                )?;
+                let cb = progress.as_ref();
+                let d = rt_diagnose::diagnose(ir, &records, &origins, &opts, &|done, total| {
+                    report_progress(cb, "searching unmodelled effects", done, total)
+                })?;
                 let frfs = schema::diagnosis_frfs(ir, &records, &d, frf_periods)?;
                 Ok((d, frfs))
             })
             .map_err(|e| report_error(py, e.as_ref()))?;
+        let refined = if refine {
+            Some(refine_corrected(py, &d, &records, progress.as_ref())?)
+        } else {
+            None
+        };
         let mut html = dynid::plot::render_html(&d);
         if !frfs.is_empty() {
             html = html.replacen(
@@ -1099,16 +1420,60 @@ fn diagnose(
                 1,
             );
         }
+        let source = refined
+            .as_ref()
+            .map_or_else(|| d.fixed_source.clone(), |r| r.1.clone());
         let value = schema::DiagnosisJson {
             diagnosis: &d,
-            segments: None,
-            refined: None,
+            segments: split.as_ref().map(|s| &s.0),
+            refined: refined.as_ref().map(|r| &r.0),
             free_run_start: sim::FREE_RUN_START,
             closed_loop_hint: None,
             frf: Some(&frfs).filter(|f| !f.is_empty()).map(|f| f.as_slice()),
         };
-        Ok((json(&value)?, d.summary(), html))
+        Ok((
+            json(&value)?,
+            d.summary(),
+            html,
+            source,
+            spectra_out(py, &d),
+        ))
     })
+}
+
+/// The corrected model refined by output error on every level, as `dynid diagnose
+/// --refine`: the report (start: the corrected model's values) and the model's text with
+/// the refined values (the corrected model's own when the refinement was not applied).
+fn refine_corrected(
+    py: Python<'_>,
+    d: &rt_diagnose::Diagnosis,
+    records: &[Record],
+    progress: Option<&Py<PyAny>>,
+) -> PyResult<(RefineReport, String)> {
+    let fixed = dsl_parser::compile_str(&d.model, &d.fixed_source)
+        .map_err(|e| compile_error(py, &e, &d.fixed_source))?;
+    let start: Vec<f64> = fixed
+        .unknowns()
+        .iter()
+        .map(|p| fixed.params[p.index()].nominal().unwrap_or(0.0))
+        .collect();
+    let opts = RefineOptions::default();
+    let report = py
+        .detach(|| {
+            RefineReport::compute(&fixed, &start, records, &[], &opts, &|p| {
+                report_progress(progress, "refinement", p.iteration, p.max_iter)
+            })
+        })
+        .map_err(|e| report_error(py, e.as_ref()))?;
+    if !report.refinement.applied {
+        return Ok((report, d.fixed_source.clone()));
+    }
+    let mut out = fixed.clone();
+    for p in &report.refinement.params {
+        // An unknown of the model by construction (five significant digits, as diagnose).
+        let _ = out.set_nominal(&p.name, dsl_parser::num::round_sig(p.value, 5));
+    }
+    Ok((report, dsl_parser::print::to_source(&out)))
 }
 
 /// Panic inside the boundary on purpose: the tests check with it that a panic reaches
@@ -1132,6 +1497,7 @@ fn _dynid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(compile_file, m)?)?;
     m.add_function(wrap_pyfunction!(detect, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(split, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_inside_the_boundary, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

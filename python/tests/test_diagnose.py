@@ -14,8 +14,14 @@ def friction_data():
     return truth.simulate(duration=400, burn_in=50, seed=7)
 
 
-def test_diagnosis_names_the_missing_friction(models, friction_data):
-    d = dynid.diagnose(models / "two_mass_linear.dyn", friction_data)
+@pytest.fixture(scope="module")
+def diagnosis(friction_data):
+    models = __import__("conftest").MODELS
+    return dynid.diagnose(models / "two_mass_linear.dyn", friction_data)
+
+
+def test_diagnosis_names_the_missing_friction(diagnosis):
+    d = diagnosis
     found = d.found
     assert len(found) >= 1
     assert found[0]["effect"] == {"kind": "coulomb"}
@@ -51,3 +57,23 @@ def test_detection_flags_the_coupling(models, friction_data):
     n = len(p) if dynid.has_pandas() else len(p["value"])
     assert n == 3 * len(det.to_dict()["detection"]["params"])
     assert "<pre>" in det._repr_html_()
+
+
+def test_diagnosis_plots_its_spectra_and_frf(diagnosis, tmp_path):
+    plt = pytest.importorskip("matplotlib.pyplot")
+    d = diagnosis
+    fig = d.plot_spectra()
+    measured = [a for a in fig.axes]
+    assert len(measured) == len(d._spectra) >= 1
+    for ax in fig.axes:
+        labels = [l.get_label() for l in ax.get_lines()]
+        # The measured PSD first (under the models), then each model's free run.
+        assert labels[0] == "measured" and "corrected (level withheld)" in labels, labels
+        assert ax.get_xlabel() == "frequency [Hz]" and ax.get_ylabel().endswith("²/Hz]")
+    # One frequency range for every panel.
+    assert len({ax.get_xlim() for ax in fig.axes}) == 1
+    fig.savefig(tmp_path / "psd.png")
+    plt.close(fig)
+    fig = d.plot_frf()
+    assert fig.axes[0].get_xlabel() == "frequency [Hz]"
+    plt.close(fig)

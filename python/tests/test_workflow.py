@@ -186,7 +186,21 @@ def test_refinement_keeps_the_estimate_close(sdof):
         assert abs(r.values[name] / true - 1) < 0.05, (name, r.values[name])
     fr = r.free_run
     assert len(fr["refined_rms"]) >= 2
-    assert model.refine(short).to_dict()["refinement"]["params"] == result.to_dict()["refined"]["refinement"]["params"]
+    # The same refinement with its progress reported: one call per iteration, in order.
+    seen = []
+    again = model.refine(short, progress=lambda *a: seen.append(a))
+    assert again.to_dict()["refinement"]["params"] == result.to_dict()["refined"]["refinement"]["params"]
+    assert seen and {s for s, _, _ in seen} == {"refinement"}
+    done = [k for _, k, _ in seen]
+    assert done == sorted(done) and all(k <= n for _, k, n in seen), seen
+
+
+def test_progress_true_without_tqdm_says_how_to_get_it(sdof, monkeypatch):
+    model, data = sdof
+    monkeypatch.setitem(sys.modules, "tqdm", None)
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+    with pytest.raises(ImportError, match="pip install tqdm"):
+        model.identify(data, refine=True, progress=True)
 
 
 def test_plots(sdof, tmp_path):
@@ -204,6 +218,15 @@ def test_plots(sdof, tmp_path):
     det = dynid.detect(linear, data)
     fig = det.plot()
     assert all(a.get_ylabel().endswith("/ weighted mean") for a in fig.axes if a.get_visible())
+    plt.close(fig)
+    # The FRF of every level, measured and of the level's linear fit, in Hz with units.
+    fig = det.plot_frf()
+    frf = det.to_dict()["frf"]
+    assert len(fig.axes) == len(frf[0]["outputs"])
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "frequency [Hz]" and ax.get_ylabel() == f"|m.x / u| [{frf[0]['units'][0]}]"
+    assert len(ax.get_lines()) == 2 * len(frf)  # measured and model per level
+    fig.savefig(tmp_path / "frf.png")
     plt.close(fig)
 
 
@@ -233,10 +256,14 @@ def test_namespace_and_docstrings():
         dynid.Detection.plot,
         dynid.Diagnosis.plot,
         dynid.Identification.plot,
+        dynid.Detection.plot_frf,
+        dynid.Diagnosis.plot_frf,
+        dynid.Diagnosis.plot_spectra,
+        dynid.segments,
     ]:
         doc = inspect.getdoc(f)
         assert "Parameters\n----------" in doc and "Returns\n-------" in doc, f.__qualname__
-    for f in [dynid.Model.simulate, dynid.Model.identify, dynid.Model.compare, dynid.detect, dynid.diagnose]:
+    for f in [dynid.Model.simulate, dynid.Model.identify, dynid.Model.compare, dynid.detect, dynid.diagnose, dynid.segments, dynid.Diagnosis.plot_spectra]:
         assert "Examples\n--------" in inspect.getdoc(f), f.__qualname__
     # detect: as the command line, at least two levels.
     assert "at least two" in inspect.getdoc(dynid.detect)

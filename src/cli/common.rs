@@ -1,10 +1,8 @@
 //! Helpers shared by the subcommands.
 
 use dsl_parser::ir::ModelIr;
-use dsl_parser::ir::SignalKind;
-use dsl_parser::num::sig;
-use dynid_runtime::data::{cut_cycles, Cycles, Split, SplitOptions};
-use dynid_runtime::data::{default_response, read_record_within, split_record, CsvOptions};
+use dynid_runtime::data::CutAt as RtCutAt;
+use dynid_runtime::data::{read_record_within, CsvOptions, Split, SplitChoice};
 use dynid_runtime::record::Record;
 use miette::miette;
 use std::path::{Path, PathBuf};
@@ -171,9 +169,23 @@ pub struct SplitLevels {
 }
 
 impl SplitArgs {
-    /// With one data file, cut it into levels and print the segment table to stderr;
-    /// with several, `None` (and an error when a split option was given). The file is read
-    /// whole: above the memory limit it is refused before reading unless `allow_large`.
+    /// The choices as the runtime takes them ([`SplitChoice`], shared with Python).
+    pub fn choice(&self) -> SplitChoice {
+        SplitChoice {
+            segments: self.segments,
+            split_by: self.split_by.clone(),
+            cut: match self.cut {
+                CutAt::Auto => RtCutAt::Auto,
+                CutAt::Cycles => RtCutAt::Cycles,
+                CutAt::Amplitude => RtCutAt::Amplitude,
+            },
+        }
+    }
+
+    /// With one data file, cut it into levels ([`SplitChoice::split`]) and print the
+    /// segment table to stderr; with several, `None` (and an error when a split option was
+    /// given). The file is read whole: above the memory limit it is refused before reading
+    /// unless `allow_large`.
     pub fn levels(
         &self,
         ir: &ModelIr,
@@ -181,47 +193,18 @@ impl SplitArgs {
         csv: &CsvOptions,
         allow_large: bool,
     ) -> miette::Result<Option<SplitLevels>> {
-        if data.len() > 1 {
-            let flag = match (&self.segments, &self.split_by, self.cut) {
-                (Some(_), _, _) => "--segments",
-                (None, Some(_), _) => "--split-by",
-                (None, None, CutAt::Auto) => return Ok(None),
-                (None, None, _) => "--cut",
-            };
-            return Err(miette!(
-                code = "dynid::split::several_files",
-                help = "give one file to be split into levels, or drop the flag: with several \
-                        files each file is one level",
-                "{flag} splits a single data file, but {} files were given",
-                data.len()
-            ));
+        let choice = self.choice();
+        if !choice.applies(data.len())? {
+            return Ok(None);
         }
         let Some(path) = data.first() else {
             return Ok(None);
         };
         let origin = path.display().to_string();
-        let signal = match &self.split_by {
-            Some(s) => s.clone(),
-            None => default_response(ir).ok_or_else(|| {
-                miette!(
-                    code = "dynid::split::no_response",
-                    help = "measure a position or velocity of a body, or give one file per level",
-                    "`{}` measures no response to judge the amplitude of `{origin}` by",
-                    ir.name
-                )
-            })?,
-        };
+        // The response is checked before the file is read.
+        choice.response(ir, &origin)?;
         let record = read_record_within(path, csv, allow_large)?;
-        let split = match self.at_cycles(ir, &record, &origin, &signal)? {
-            Some(split) => split,
-            None => {
-                let opts = SplitOptions {
-                    segments: self.segments.unwrap_or(3),
-                    ..Default::default()
-                };
-                split_record(&record, &origin, &signal, &opts)?
-            }
-        };
+        let split = choice.split(ir, &record, &origin)?;
         eprint!("{origin}: {}", split.table());
         let origins = (0..split.segments.len())
             .map(|i| split.label(&origin, i))
@@ -231,74 +214,6 @@ impl SplitArgs {
             origins,
             split,
         }))
-    }
-
-    /// The record cut at its cycles, when `--cut` allows it and a signal repeats (in auto
-    /// mode only with one amplitude over the cycles); `None`: cut by amplitude.
-    fn at_cycles(
-        &self,
-        ir: &ModelIr,
-        record: &Record,
-        origin: &str,
-        response: &str,
-    ) -> miette::Result<Option<Split>> {
-        if self.cut == CutAt::Amplitude {
-            return Ok(None);
-        }
-        // A reference is the planned trajectory itself; the response follows it; an input
-        // repeats with it.
-        let names = |pick: fn(&SignalKind) -> bool| -> Vec<String> {
-            ir.signals
-                .iter()
-                .filter(|s| pick(&s.kind) && s.name != response)
-                .filter(|s| record.column(&s.name).is_some())
-                .map(|s| s.name.clone())
-                .collect()
-        };
-        let mut candidates = names(|k| matches!(k, SignalKind::Reference(_)));
-        candidates.push(response.to_string());
-        candidates.extend(names(|k| matches!(k, SignalKind::Input(_))));
-        let found = candidates.iter().find_map(|c| {
-            cut_cycles(record, c, response, None)
-                .and_then(Result::ok)
-                .map(|s| (c, s))
-        });
-        let Some((by, per_cycle)) = found else {
-            if self.cut == CutAt::Cycles {
-                return Err(miette!(
-                    code = "dynid::split::no_cycles",
-                    help = "cut it by amplitude (`--cut amplitude`), or give one file per level",
-                    "{origin}: no signal repeats at least twice ({} checked: autocorrelation \
-                     below {} at every lag up to half the record)",
-                    candidates.join(", "),
-                    dynid_runtime::data::cycles::MIN_CORRELATION
-                ));
-            }
-            return Ok(None);
-        };
-        if self.cut == CutAt::Auto && !Cycles::alike_amplitudes(&per_cycle) {
-            return Ok(None);
-        }
-        match self.segments {
-            None => Ok(Some(per_cycle)),
-            Some(n) => match cut_cycles(record, by, response, Some(n)) {
-                Some(Ok(split)) => Ok(Some(split)),
-                _ => {
-                    let count = per_cycle.cycles.as_ref().map_or(0, |c| c.cycles);
-                    let period = per_cycle.cycles.as_ref().map_or(0.0, |c| c.period);
-                    Err(miette!(
-                        code = "dynid::split::few_cycles",
-                        help = format!(
-                            "give `--segments {count}` or fewer (whole cycles per segment), or \
-                             cut by amplitude with `--cut amplitude`"
-                        ),
-                        "{origin}: `{by}` repeats every {} s, {count} whole cycles: too few for \
-                         {n} segments of whole cycles",
-                        sig(period, 5, false)
-                    ))
-                }
-            },
-        }
     }
 }
 

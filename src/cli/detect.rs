@@ -122,7 +122,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let ir = super::common::load_model(&args.model)?;
     let csv = args.csv.options(&ir)?;
     let split = args.split.levels(&ir, &args.data, &csv, args.allow_large)?;
-    let cycle_note = split.as_ref().and_then(|s| cycles_note(&s.split));
+    let cycle_note = split.as_ref().and_then(|s| s.split.cycles_note());
     if let Some(n) = &cycle_note {
         eprintln!("warning: {n}");
     }
@@ -229,40 +229,6 @@ pub fn run(args: Args) -> miette::Result<()> {
     }
     result
 }
-
-/// What segments cut at the cycles of one trajectory can tell detection: nothing about an
-/// effect when their amplitudes are alike (`None` for a cut by amplitude, or cycles whose
-/// amplitudes differ).
-fn cycles_note(split: &dynid_runtime::data::Split) -> Option<String> {
-    use dynid_runtime::data::Cycles;
-    let c = split.cycles.as_ref()?;
-    if !Cycles::alike_amplitudes(split) {
-        return None;
-    }
-    let (lo, hi) = split
-        .segments
-        .iter()
-        .fold((f64::INFINITY, 0.0f64), |(lo, hi), s| {
-            (lo.min(s.sigma), hi.max(s.sigma))
-        });
-    Some(format!(
-        "the {} segments are cycles of one repeated trajectory (`{}` every {} s) with one \
-         amplitude (σ of `{}` {} to {}, ratio {:.2}, below {}): detection reads an effect \
-         from how the linear parameters drift between levels of different amplitude, so these \
-         segments cannot show one, and a `linear` verdict from them rules nothing out. Record \
-         the trajectory at several speeds or amplitudes (one file each), or run `dynid \
-         diagnose`, for which cycles are legitimate pieces",
-        split.segments.len(),
-        c.signal,
-        dsl_parser::num::sig(c.period, 5, false),
-        split.signal,
-        dsl_parser::num::sig(lo, 4, false),
-        dsl_parser::num::sig(hi, 4, false),
-        hi / lo,
-        dynid_runtime::data::cycles::ALIKE_RATIO
-    ))
-}
-
 /// The bar of the estimator's template simulations (the step that takes time on long
 /// records) on stderr; indicatif draws nothing where stderr is not a terminal.
 fn template_bar(quiet: bool) -> indicatif::ProgressBar {

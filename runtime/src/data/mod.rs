@@ -30,7 +30,9 @@ pub use csv_file::{read_record_bytes, CsvSource};
 pub use cycles::{cut_cycles, find_period, Cycles};
 pub use format::{detect, read_record, read_record_within, FileSource, Format, FORMATS_READ};
 pub use record::RecordSource;
-pub use split::{default_response, split_record, Segment, Split, SplitError, SplitOptions};
+pub use split::{
+    default_response, split_record, CutAt, Segment, Split, SplitChoice, SplitError, SplitOptions,
+};
 pub use text::MAX_LINE;
 
 use crate::record::Record;

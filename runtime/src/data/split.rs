@@ -139,6 +139,38 @@ impl Split {
         )
     }
 
+    /// What segments cut at the cycles of one trajectory can tell detection: nothing about
+    /// an effect when their amplitudes are alike (`None` for a cut by amplitude, or cycles
+    /// whose amplitudes differ).
+    pub fn cycles_note(&self) -> Option<String> {
+        let c = self.cycles.as_ref()?;
+        if !super::cycles::Cycles::alike_amplitudes(self) {
+            return None;
+        }
+        let (lo, hi) = self
+            .segments
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), s| {
+                (lo.min(s.sigma), hi.max(s.sigma))
+            });
+        Some(format!(
+            "the {} segments are cycles of one repeated trajectory (`{}` every {} s) with one \
+             amplitude (σ of `{}` {} to {}, ratio {:.2}, below {}): detection reads an effect \
+             from how the linear parameters drift between levels of different amplitude, so these \
+             segments cannot show one, and a `linear` verdict from them rules nothing out. Record \
+             the trajectory at several speeds or amplitudes (one file each), or run `dynid \
+             diagnose`, for which cycles are legitimate pieces",
+            self.segments.len(),
+            c.signal,
+            sig(c.period, 5, false),
+            self.signal,
+            sig(lo, 4, false),
+            sig(hi, 4, false),
+            hi / lo,
+            super::cycles::ALIKE_RATIO
+        ))
+    }
+
     /// The segments as a table: level, time span, samples, σ.
     pub fn table(&self) -> String {
         let head = match &self.cycles {
@@ -209,6 +241,40 @@ pub enum SplitError {
         signal: String,
         crossings: usize,
     },
+    #[error("{flag} splits a single data file, but {files} files were given")]
+    #[diagnostic(
+        code(dynid::split::several_files),
+        help("give one file to be split into levels, or drop the flag: with several files each file is one level")
+    )]
+    SeveralFiles { flag: &'static str, files: usize },
+    #[error("`{model}` measures no response to judge the amplitude of `{origin}` by")]
+    #[diagnostic(
+        code(dynid::split::no_response),
+        help("measure a position or velocity of a body, or give one file per level")
+    )]
+    NoResponse { model: String, origin: String },
+    #[error("{origin}: no signal repeats at least twice ({checked} checked: autocorrelation below {correlation} at every lag up to half the record)")]
+    #[diagnostic(
+        code(dynid::split::no_cycles),
+        help("cut it by amplitude (`--cut amplitude`), or give one file per level")
+    )]
+    NoCycles {
+        origin: String,
+        checked: String,
+        correlation: f64,
+    },
+    #[error("{origin}: `{by}` repeats every {period} s, {count} whole cycles: too few for {segments} segments of whole cycles")]
+    #[diagnostic(
+        code(dynid::split::few_cycles),
+        help("give `--segments {count}` or fewer (whole cycles per segment), or cut by amplitude with `--cut amplitude`")
+    )]
+    FewCycles {
+        origin: String,
+        by: String,
+        period: String,
+        count: usize,
+        segments: usize,
+    },
     #[error("{origin}: {n} samples are too short for {segments} segments: each needs at least {min_len} samples ({min_duration} s, 80 / ω₀ with the dominant frequency ω₀ = {omega} rad/s of `{signal}`, so that identification's slowest filter settles)")]
     #[diagnostic(code(dynid::split::too_short), help("{help}"))]
     TooShort {
@@ -221,6 +287,156 @@ pub enum SplitError {
         omega: String,
         help: String,
     },
+}
+
+/// Where one record is cut into levels (`--cut`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CutAt {
+    /// At the cycles of a repeated trajectory when the record repeats with one amplitude,
+    /// else by amplitude.
+    #[default]
+    Auto,
+    /// At the cycles of a repeated trajectory (refused when the record does not repeat).
+    Cycles,
+    /// By the local amplitude of the response.
+    Amplitude,
+}
+
+impl CutAt {
+    /// The spellings of the command line and of Python: `auto`, `cycles`, `amplitude`.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "auto" => Some(Self::Auto),
+            "cycles" => Some(Self::Cycles),
+            "amplitude" => Some(Self::Amplitude),
+            _ => None,
+        }
+    }
+}
+
+/// How one record is cut into levels: the choices of `--segments`, `--split-by` and
+/// `--cut` (Python: `segments=`, `split_by=`, `cut=`), shared by every front end so that
+/// the same record gives the same levels and the same errors.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SplitChoice {
+    /// Number of segments; `None`: one per cycle of a repeated trajectory, else 3 by
+    /// amplitude.
+    pub segments: Option<usize>,
+    /// The signal whose amplitude is judged; `None`: [`default_response`].
+    pub split_by: Option<String>,
+    pub cut: CutAt,
+}
+
+impl SplitChoice {
+    /// Whether `files` records are cut into levels: one record always is; several never,
+    /// and a split option given with several is an error.
+    #[allow(clippy::result_large_err)] // an error is built once, on the way out
+    pub fn applies(&self, files: usize) -> Result<bool, SplitError> {
+        if files <= 1 {
+            return Ok(files == 1);
+        }
+        let flag = match (&self.segments, &self.split_by, self.cut) {
+            (Some(_), _, _) => "--segments",
+            (None, Some(_), _) => "--split-by",
+            (None, None, CutAt::Auto) => return Ok(false),
+            (None, None, _) => "--cut",
+        };
+        Err(SplitError::SeveralFiles { flag, files })
+    }
+
+    /// The response whose amplitude is judged (checked before the record is read).
+    #[allow(clippy::result_large_err)]
+    pub fn response(&self, ir: &ModelIr, origin: &str) -> Result<String, SplitError> {
+        match &self.split_by {
+            Some(s) => Ok(s.clone()),
+            None => default_response(ir).ok_or_else(|| SplitError::NoResponse {
+                model: ir.name.clone(),
+                origin: origin.into(),
+            }),
+        }
+    }
+
+    /// Cut `record` (all columns of one file; `origin` names it in errors) into levels:
+    /// at the cycles of a repeated trajectory when [`Self::cut`] allows it and a signal
+    /// repeats (in auto mode only with one amplitude over the cycles), else by amplitude
+    /// ([`split_record`]).
+    #[allow(clippy::result_large_err)]
+    pub fn split(&self, ir: &ModelIr, record: &Record, origin: &str) -> Result<Split, SplitError> {
+        if let Some(segments) = self.segments.filter(|&n| n < 2) {
+            return Err(SplitError::TooFewSegments { segments });
+        }
+        let response = self.response(ir, origin)?;
+        if let Some(split) = self.at_cycles(ir, record, origin, &response)? {
+            return Ok(split);
+        }
+        let opts = SplitOptions {
+            segments: self.segments.unwrap_or(3),
+            ..Default::default()
+        };
+        split_record(record, origin, &response, &opts)
+    }
+
+    /// The record cut at its cycles, when [`Self::cut`] allows it and a signal repeats;
+    /// `None`: cut by amplitude.
+    #[allow(clippy::result_large_err)]
+    fn at_cycles(
+        &self,
+        ir: &ModelIr,
+        record: &Record,
+        origin: &str,
+        response: &str,
+    ) -> Result<Option<Split>, SplitError> {
+        if self.cut == CutAt::Amplitude {
+            return Ok(None);
+        }
+        // A reference is the planned trajectory itself; the response follows it; an input
+        // repeats with it.
+        let names = |pick: fn(&SignalKind) -> bool| -> Vec<String> {
+            ir.signals
+                .iter()
+                .filter(|s| pick(&s.kind) && s.name != response)
+                .filter(|s| record.column(&s.name).is_some())
+                .map(|s| s.name.clone())
+                .collect()
+        };
+        let mut candidates = names(|k| matches!(k, SignalKind::Reference(_)));
+        candidates.push(response.to_string());
+        candidates.extend(names(|k| matches!(k, SignalKind::Input(_))));
+        let found = candidates.iter().find_map(|c| {
+            super::cycles::cut_cycles(record, c, response, None)
+                .and_then(Result::ok)
+                .map(|s| (c, s))
+        });
+        let Some((by, per_cycle)) = found else {
+            if self.cut == CutAt::Cycles {
+                return Err(SplitError::NoCycles {
+                    origin: origin.into(),
+                    checked: candidates.join(", "),
+                    correlation: super::cycles::MIN_CORRELATION,
+                });
+            }
+            return Ok(None);
+        };
+        if self.cut == CutAt::Auto && !super::cycles::Cycles::alike_amplitudes(&per_cycle) {
+            return Ok(None);
+        }
+        match self.segments {
+            None => Ok(Some(per_cycle)),
+            Some(n) => match super::cycles::cut_cycles(record, by, response, Some(n)) {
+                Some(Ok(split)) => Ok(Some(split)),
+                _ => {
+                    let cycles = per_cycle.cycles.as_ref();
+                    Err(SplitError::FewCycles {
+                        origin: origin.into(),
+                        by: by.clone(),
+                        period: sig(cycles.map_or(0.0, |c| c.period), 5, false),
+                        count: cycles.map_or(0, |c| c.cycles),
+                        segments: n,
+                    })
+                }
+            },
+        }
+    }
 }
 
 /// The response to judge the amplitude by when the user names none: the first measured
