@@ -229,6 +229,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     }
     result
 }
+
 /// The bar of the estimator's template simulations (the step that takes time on long
 /// records) on stderr; indicatif draws nothing where stderr is not a terminal.
 fn template_bar(quiet: bool) -> indicatif::ProgressBar {
