@@ -317,12 +317,14 @@ impl BandFloor {
         for (k, (sum, count)) in self.sums.iter_mut().zip(&mut self.counts).enumerate() {
             let h = 1usize << k;
             let first = start.max(3 * h);
-            let mut acc = 0.0;
+            // Added to the running sum sample by sample: the same order of additions however
+            // the record is cut.
+            let mut acc = *sum;
             for i in first..all.len() {
                 let d = all[i] - 3.0 * all[i - h] + 3.0 * all[i - 2 * h] - all[i - 3 * h];
                 acc += d * d;
             }
-            *sum += acc;
+            *sum = acc;
             *count += all.len().saturating_sub(first);
         }
         let keep = all.len().min(BAND_REACH);
