@@ -1,5 +1,7 @@
 //! Precision side by side on the simulated servo axis: dynid's `identify` with the
-//! defaults against the two classical regressions of [`dynid_runtime::baseline`] on the
+//! defaults (and with the highest corner raised to the band where the encoder stands above
+//! its noise floor, `to noise floor` and `chains 2-step nf`, capped at a fifth of the
+//! Nyquist frequency) against the two classical regressions of [`dynid_runtime::baseline`] on the
 //! same records — IDIM-LS (zero-phase Butterworth at 100 Hz, order 4, decimation 5, rows
 //! at rest below 1 mm/s dropped; classical and Newey–West standard errors) and SVF-LS
 //! (causal fourth-order state-variable filter at 10 Hz and 80 Hz, Newey–West errors).
@@ -242,10 +244,12 @@ fn record(kind: Trajectory, seed: u64) -> (ModelIr, Record) {
 type Estimate = Vec<Option<(f64, f64)>>;
 
 /// The methods compared, by name.
-const METHODS: [&str; 8] = [
+const METHODS: [&str; 10] = [
     "dynid (defaults)",
     "dynid --column-chains",
     "dynid chains, 2-step",
+    "dynid to noise floor",
+    "dynid chains 2-step nf",
     "dynid --keep-rests",
     "IDIM-LS, OLS errors",
     "IDIM-LS, HAC errors",
@@ -294,6 +298,36 @@ fn run_all(ir: &ModelIr, rec: &Record) -> Vec<(Estimate, f64)> {
             }
         })
     };
+    // The highest corner raised to the band where the encoder stands above its noise floor
+    // (`FilterSummary::corners_from`, capped at a fifth of the Nyquist frequency), the
+    // lowest kept, six corners log-spaced between.
+    let to_floor = |opts: IdentifyOptions| {
+        let src = RecordSource::new(rec, ir, "servo").expect("invariant: a simulated record");
+        let levels: Vec<&dyn LevelSource> = vec![&src];
+        let corners: Option<Vec<f64>> =
+            dynid_runtime::identify(ir, &levels, &IdentifyOptions::default())
+                .ok()
+                .and_then(|id| {
+                    let lo = id
+                        .filter
+                        .corners
+                        .iter()
+                        .copied()
+                        .fold(f64::INFINITY, f64::min);
+                    let ts = id.levels[0].ts;
+                    let top = id
+                        .filter
+                        .corners_from
+                        .info_bandwidth?
+                        .min(std::f64::consts::PI / ts / 5.0);
+                    Some(
+                        (0..6)
+                            .map(|i| lo * (top / lo).powf(i as f64 / 5.0))
+                            .collect(),
+                    )
+                });
+        dynid(IdentifyOptions { corners, ..opts })
+    };
     let idim = || baseline::idim_ls(rec, "m.x", "u", &IdimOptions::default());
     let t = Instant::now();
     let idim_fit = idim();
@@ -313,6 +347,12 @@ fn run_all(ir: &ModelIr, rec: &Record) -> Vec<(Estimate, f64)> {
             ..Default::default()
         }),
         dynid(IdentifyOptions {
+            column_chains: true,
+            efficient: true,
+            ..Default::default()
+        }),
+        to_floor(IdentifyOptions::default()),
+        to_floor(IdentifyOptions {
             column_chains: true,
             efficient: true,
             ..Default::default()

@@ -5,7 +5,7 @@ use super::common::{check_outputs, inputs, write_atomically, CsvArgs};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::read_record_within;
 use dynid_runtime::data::{FileSource, LevelSource};
-use dynid_runtime::ident::{print, Identification};
+use dynid_runtime::ident::{corner_moves, print, Identification};
 use dynid_runtime::record::Record;
 use dynid_runtime::refine::{self, RefineOptions};
 use dynid_runtime::sim::DEFAULT_SUBSTEPS;
@@ -167,6 +167,9 @@ pub fn run(args: Args) -> miette::Result<()> {
     }
     for w in &id.fit_warnings {
         eprintln!("warning: {w}");
+    }
+    for m in &id.filter.corner_moves {
+        eprintln!("warning: {}", m.describe());
     }
     let hint = closed_loop_hint(&ir, &args, &id);
     if let Some(h) = &hint {
@@ -476,7 +479,16 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
         allow_large: args.allow_large,
         ..Default::default()
     };
-    Ok(identify(ir, &levels, &opts)?)
+    let mut id = identify(ir, &levels, &opts)?;
+    // Estimates that move with the corners: a check of two further identifications (not
+    // for shape parameters, whose profile is itself many); one that fails (a corner the
+    // record cannot carry) leaves no warning.
+    if ir.shapes.is_empty() {
+        if let Ok(moves) = corner_moves(ir, &levels, &opts, &id) {
+            id.filter.corner_moves = moves.into_iter().filter(|m| m.moved()).collect();
+        }
+    }
+    Ok(id)
 }
 
 /// Human-readable report: equations, parameter table, diagnostics.
@@ -537,6 +549,10 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
             .map(|c| print::fmt_num(*c))
             .collect::<Vec<_>>()
             .join(", ")
+    ));
+    s.push_str(&format!(
+        "corners chosen by: {}\n",
+        id.filter.corners_from.describe()
     ));
     for r in &id.residual {
         let lv: Vec<String> = r.per_level.iter().map(|v| format!("{v:.2e}")).collect();

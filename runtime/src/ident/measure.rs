@@ -43,12 +43,47 @@ pub fn measure<'m>(
         .fold(f64::INFINITY, f64::min);
     let ts_min = stats.iter().map(|s| s.ts).fold(f64::INFINITY, f64::min);
     let omegas: Vec<f64> = stats.iter().flat_map(|s| s.omegas.clone()).collect();
-    let designed = design::fit_corners(&omegas, ts_min, min_duration, bank.order, bank.n_corners);
+    // The band above the noise floor: the lowest over the levels and the measured drivers
+    // whose floor is white noise (a driver with a floor of its own content, such as a
+    // controller's force, carries information up to the Nyquist frequency).
+    let mut info: Option<(String, f64)> = None;
+    for st in &stats {
+        for (k, s) in plan.y.iter().enumerate() {
+            if !plan.drivers.contains(s) || !st.noise_flat[k] {
+                continue;
+            }
+            if let Some(w) = st.info[k] {
+                if info.as_ref().is_none_or(|(_, v)| w < *v) {
+                    info = Some((ir.signal(*s).name.clone(), w));
+                }
+            }
+        }
+    }
+    let designed = design::fit_corners_info(
+        &omegas,
+        info,
+        ts_min,
+        min_duration,
+        bank.order,
+        bank.n_corners,
+    );
+    let given = opts.corners.is_some() || ir.filter.as_ref().is_some_and(|f| !f.corners.is_empty());
+    plan.corner_source = CornerSource {
+        given,
+        lower: designed.as_ref().filter(|_| !given).map(|d| d.lower),
+        upper: designed.as_ref().filter(|_| !given).map(|d| d.upper),
+        info_signal: designed
+            .as_ref()
+            .and_then(|d| d.info_signal.as_ref().map(|(n, _)| n.clone())),
+        info_bandwidth: designed
+            .as_ref()
+            .and_then(|d| d.info_signal.as_ref().map(|(_, w)| *w)),
+    };
     let corners = match (&opts.corners, ir.filter.as_ref().map(|f| &f.corners)) {
         (Some(c), _) => c.clone(),
         (None, Some(c)) if !c.is_empty() => c.clone(),
         _ => match &designed {
-            Some(c) => c.clone(),
+            Some(d) => d.corners.clone(),
             // Not even the fastest admissible corners settle: fall through to the check,
             // which names the record length they need.
             None => {
@@ -122,7 +157,8 @@ pub fn measure<'m>(
                      lowest at least {:.4} rad/s), e.g. `--filter-corners {}`",
                     samples_needed(need, settle),
                     design::min_corner(min_duration, bank.order),
-                    c.iter()
+                    c.corners
+                        .iter()
                         .map(|v| format!("{v:.4}"))
                         .collect::<Vec<_>>()
                         .join(",")
@@ -507,6 +543,9 @@ struct LevelStats {
     noise_var: Vec<f64>,
     /// Whether that estimate comes from a flat floor ([`noise::NoiseFloor::flat`]).
     noise_flat: Vec<bool>,
+    /// Per measured signal: the highest frequency (rad/s) where it stands above its noise
+    /// floor ([`noise::BandFloor::info_bandwidth`]).
+    info: Vec<Option<f64>>,
 }
 
 /// Samples per piece of the first pass: a streamed chunk of a signal is cut into pieces
@@ -526,6 +565,8 @@ struct SignalPass {
     side: i8,
     crossings: usize,
     floor: noise::NoiseFloor,
+    /// Third differences at octave strides: the band above the noise floor.
+    band: noise::BandFloor,
     screen: screen::ColumnScreen,
 }
 
@@ -649,6 +690,7 @@ impl SignalPass {
                 self.side = p.last;
             }
         }
+        self.band.push(c);
         self.screen.push(c);
     }
 }
@@ -700,6 +742,10 @@ fn level_stats(
             .collect(),
         noise_var: sigs.iter().map(|st| st.floor.variance()).collect(),
         noise_flat: sigs.iter().map(|st| st.floor.flat()).collect(),
+        info: sigs
+            .iter()
+            .map(|st| st.band.info_bandwidth(st.floor.variance(), ts))
+            .collect(),
     })
 }
 

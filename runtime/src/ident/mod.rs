@@ -140,6 +140,114 @@ pub fn identify(
     Ok(guarded(&m, levels, opts))
 }
 
+/// Factor by which [`corner_moves`] moves the highest filter corner down and up.
+pub const CORNER_CHECK_FACTOR: f64 = 4.0;
+
+/// One parameter's estimates with the highest filter corner a factor
+/// [`CORNER_CHECK_FACTOR`] below and above the one used (the lowest corner kept: the
+/// record length or the dominant frequencies bound it), see [`corner_moves`].
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct CornerMove {
+    pub param: String,
+    /// The estimate with the highest corner lowered, as used, raised.
+    pub values: [f64; 3],
+    /// Their standard errors.
+    pub stderrs: [f64; 3],
+    /// The highest corner of each (rad/s).
+    pub upper: [f64; 3],
+}
+
+impl CornerMove {
+    /// The estimate moves by more than the standard error of either estimate it is
+    /// compared with.
+    pub fn moved(&self) -> bool {
+        (0..3).step_by(2).any(|k| {
+            let tol = self.stderrs[1].max(self.stderrs[k]);
+            (self.values[k] - self.values[1]).abs() > tol
+        })
+    }
+
+    /// One line for the report: the parameter, its range over the corners and its
+    /// standard error.
+    pub fn describe(&self) -> String {
+        let lo = self.values.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = self
+            .values
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        format!(
+            "`{}` moves with the filter corners: {} … {} (standard error {}) over the highest \
+             corner {} … {} rad/s — a model error at some frequencies, or noise above the band \
+             the data carry",
+            self.param,
+            print::fmt_num(lo),
+            print::fmt_num(hi),
+            print::fmt_num(self.stderrs[1]),
+            print::fmt_num(self.upper[0]),
+            print::fmt_num(self.upper[2]),
+        )
+    }
+}
+
+/// The identification `id` (made with `opts` from `levels`) repeated with the highest
+/// corner a factor [`CORNER_CHECK_FACTOR`] below and above, the other corners log-spaced
+/// again from the same lowest corner; the raised corner stays below half the Nyquist
+/// frequency. Per parameter of `id` estimated in all three. Costs two further
+/// identifications.
+pub fn corner_moves(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+    id: &Identification,
+) -> Result<Vec<CornerMove>, IdentifyError> {
+    let c = &id.filter.corners;
+    let lo = c.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = c.iter().copied().fold(0.0, f64::max);
+    let ts = id.levels.iter().map(|l| l.ts).fold(f64::INFINITY, f64::min);
+    let spread = |top: f64| -> Vec<f64> {
+        let n = c.len();
+        if n == 1 {
+            return vec![top];
+        }
+        (0..n)
+            .map(|i| lo * (top / lo).powf(i as f64 / (n - 1) as f64))
+            .collect()
+    };
+    let down = spread((hi / CORNER_CHECK_FACTOR).max(lo * 2.0).min(hi));
+    let up = spread(
+        (hi * CORNER_CHECK_FACTOR)
+            .min(0.5 * std::f64::consts::PI / ts)
+            .max(hi),
+    );
+    let alt = |corners: Vec<f64>| {
+        identify(
+            ir,
+            levels,
+            &IdentifyOptions {
+                corners: Some(corners),
+                ..opts.clone()
+            },
+        )
+    };
+    let (a, b) = rayon::join(|| alt(down.clone()), || alt(up.clone()));
+    let (a, b) = (a?, b?);
+    let top = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    Ok(id
+        .params
+        .iter()
+        .filter_map(|p| {
+            let (pa, pb) = (a.param(&p.name)?, b.param(&p.name)?);
+            Some(CornerMove {
+                param: p.name.clone(),
+                values: [pa.value, p.value, pb.value],
+                stderrs: [pa.stderr, p.stderr, pb.stderr],
+                upper: [top(&down), hi, top(&up)],
+            })
+        })
+        .collect())
+}
+
 /// The pooled identification with the guard's warnings (see [`guard`]).
 fn guarded(m: &Moments<'_>, levels: &[&dyn LevelSource], opts: &IdentifyOptions) -> Identification {
     let mut id = m.identify_pooled();
@@ -209,6 +317,8 @@ impl<'m> Moments<'m> {
     fn filter_summary(&self) -> FilterSummary {
         FilterSummary {
             corners: self.plan.corners.clone(),
+            corners_from: self.plan.corner_source.clone(),
+            corner_moves: Vec::new(),
             order: self.plan.order,
             drivers: self
                 .plan

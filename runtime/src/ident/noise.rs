@@ -272,6 +272,107 @@ impl NoiseFloor {
     }
 }
 
+/// Octave strides of [`BandFloor`]: `h = 1, 2, 4, …, 2^(OCTAVES − 1)`.
+pub const OCTAVES: usize = 10;
+
+/// Samples [`BandFloor`] keeps from one chunk to the next: the reach of its widest third
+/// difference.
+const BAND_REACH: usize = 3 << (OCTAVES - 1);
+
+/// Streaming mean squares of the third difference of one signal at octave strides
+/// `h = 2ᵏ`, from which the band where the signal stands above its white-noise floor is
+/// read ([`BandFloor::info_bandwidth`]).
+///
+/// At stride `h` the third difference weighs the spectrum with `(2 sin(ωhTₛ/2))⁶`, which
+/// peaks at `ω = π/(h Tₛ)`; white noise of variance `σ²` gives `20 σ²` at every stride,
+/// spread evenly over `0 … π/Tₛ`, so the noise within the octave probed by stride `h` is
+/// about `20 σ² / h`. A signal whose spectrum falls as a position's does (`ω⁻⁴` and
+/// faster) gives a part `S_h = V_h − 20 σ²` that grows with `h`. The signal stands above
+/// its floor at `π/(h Tₛ)` where `h S_h ≥ 20 σ²`.
+#[derive(Clone, Debug)]
+pub struct BandFloor {
+    /// The last [`BAND_REACH`] samples, oldest first (fewer at the start of the record).
+    tail: Vec<f64>,
+    sums: [f64; OCTAVES],
+    counts: [usize; OCTAVES],
+}
+
+impl Default for BandFloor {
+    fn default() -> Self {
+        BandFloor {
+            tail: Vec::new(),
+            sums: [0.0; OCTAVES],
+            counts: [0; OCTAVES],
+        }
+    }
+}
+
+impl BandFloor {
+    /// Feed the next samples. The sums are taken sample by sample in order, so they do not
+    /// depend on how the record is cut into chunks.
+    pub fn push(&mut self, x: &[f64]) {
+        let mut all = std::mem::take(&mut self.tail);
+        let start = all.len();
+        all.extend_from_slice(x);
+        for (k, (sum, count)) in self.sums.iter_mut().zip(&mut self.counts).enumerate() {
+            let h = 1usize << k;
+            let first = start.max(3 * h);
+            // Added to the running sum sample by sample: the same order of additions however
+            // the record is cut.
+            let mut acc = *sum;
+            for i in first..all.len() {
+                let d = all[i] - 3.0 * all[i - h] + 3.0 * all[i - 2 * h] - all[i - 3 * h];
+                acc += d * d;
+            }
+            *sum = acc;
+            *count += all.len().saturating_sub(first);
+        }
+        let keep = all.len().min(BAND_REACH);
+        all.drain(..all.len() - keep);
+        self.tail = all;
+    }
+
+    /// Mean square of the third difference at stride `2ᵏ` (`None`: no difference taken).
+    fn mean_square(&self, k: usize) -> Option<f64> {
+        (self.counts[k] > 0).then(|| self.sums[k] / self.counts[k] as f64)
+    }
+
+    /// The highest angular frequency (rad/s, sample interval `ts`) at which the signal's
+    /// spectrum stands above the white-noise floor of variance `noise_var`: `π/(h Tₛ)` at
+    /// the smallest stride `h` with `h (V_h − 20 σ²) ≥ 20 σ²`, interpolated between
+    /// octaves on a log scale. `None` where the noise is zero (no floor to meet: the whole
+    /// band carries information) or no stride reaches it (the record holds no band above
+    /// the floor that these strides resolve).
+    pub fn info_bandwidth(&self, noise_var: f64, ts: f64) -> Option<f64> {
+        let floor = 20.0 * noise_var;
+        if !(floor > 0.0 && floor.is_finite() && ts > 0.0) {
+            return None;
+        }
+        // log of the ratio `h S_h / (20 σ²)` per octave (`None` once too few samples).
+        let ratio = |k: usize| {
+            self.mean_square(k)
+                .map(|v| ((1usize << k) as f64 * (v - floor).max(0.0) / floor).max(1e-300))
+        };
+        let mut prev: Option<(usize, f64)> = None;
+        for k in 0..OCTAVES {
+            let r = ratio(k)?;
+            if r >= 1.0 {
+                let kk = match prev {
+                    // Interpolate the crossing of 1 between octaves k − 1 and k in log ratio.
+                    Some((j, rp)) if rp > 0.0 => {
+                        let (a, b) = (rp.ln(), r.ln());
+                        j as f64 + if b > a { -a / (b - a) } else { 1.0 }
+                    }
+                    _ => k as f64,
+                };
+                return Some(std::f64::consts::PI / (kk.exp2() * ts));
+            }
+            prev = Some((k, r));
+        }
+        None
+    }
+}
+
 /// An extra column of `w` (after the static roots and the measured signals), computed per
 /// sample from the measured signals.
 #[derive(Clone, Debug, PartialEq)]
@@ -665,6 +766,42 @@ pub(crate) fn debias(plan: &Plan, lm: &mut LevelMoments, var_y: &[f64], hold: Ho
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A slow sine with white noise of `sd`, 20 000 samples at 1 kHz (uniform noise from
+    /// a fixed generator, scaled to `sd`).
+    fn noisy_sine(sd: f64) -> Vec<f64> {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        (0..20_000)
+            .map(|k| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let u = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                (20.0 * k as f64 * 1e-3).sin() + sd * u * 12f64.sqrt()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn band_floor_falls_with_the_noise_and_ignores_chunks() {
+        let width = |sd: f64, chunk: usize| {
+            let x = noisy_sine(sd);
+            let mut b = BandFloor::default();
+            x.chunks(chunk).for_each(|c| b.push(c));
+            b.info_bandwidth(sd * sd, 1e-3)
+        };
+        let (quiet, loud) = (width(1e-4, 20_000), width(1e-2, 20_000));
+        let (quiet, loud) = (quiet.expect("a floor"), loud.expect("a floor"));
+        assert!(loud < quiet, "{loud} {quiet}");
+        // Within the strides' reach and below the Nyquist frequency.
+        assert!(loud > std::f64::consts::PI / 1e-3 / 512.0 && quiet <= std::f64::consts::PI / 1e-3);
+        assert_eq!(width(1e-2, 777), Some(loud));
+        // No noise: no floor to meet.
+        assert_eq!(width(1e-2, 20_000).map(|_| 0), Some(0));
+        let mut b = BandFloor::default();
+        b.push(&noisy_sine(0.0));
+        assert_eq!(b.info_bandwidth(0.0, 1e-3), None);
+    }
     use rand::{Rng, SeedableRng};
     use rand_distr::StandardNormal;
 

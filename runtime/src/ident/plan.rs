@@ -108,6 +108,8 @@ pub(crate) struct Plan {
     /// data has no column for them, so they are streamed as zeros (the terms that use them
     /// are formed from the acceleration instead, never from these roots).
     pub absent: Vec<SignalId>,
+    /// How the corners were chosen (filled in once the data are seen).
+    pub corner_source: super::CornerSource,
 }
 
 /// A filter chain driven by a static basis column `g` (paper eq. 9: the filters may be
@@ -406,6 +408,7 @@ pub(crate) fn build_structure(
         constant,
         integrates,
         absent,
+        corner_source: Default::default(),
     })
 }
 

@@ -263,10 +263,65 @@ pub struct LevelInfo {
     pub rests: Option<super::rests::RestSummary>,
 }
 
+/// How the filter corners were chosen.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct CornerSource {
+    /// Given by the caller (option or the model's filter block): nothing below applies
+    /// to them but the information bandwidth, which is reported all the same.
+    pub given: bool,
+    /// What set the lowest designed corner.
+    pub lower: Option<super::design::LowerBy>,
+    /// What set the highest designed corner.
+    pub upper: Option<super::design::UpperBy>,
+    /// The measured driver with the narrowest band above its noise floor, and that band's
+    /// upper edge in rad/s ([`super::noise::BandFloor::info_bandwidth`]).
+    pub info_signal: Option<String>,
+    pub info_bandwidth: Option<f64>,
+}
+
+impl CornerSource {
+    /// One line for the report, e.g. "the record length (lowest) and the dominant
+    /// frequencies (highest); m.x is above its noise floor up to 628 rad/s".
+    pub fn describe(&self) -> String {
+        use super::design::{LowerBy, UpperBy};
+        let band = match (&self.info_signal, self.info_bandwidth) {
+            (Some(s), Some(w)) => Some(format!(
+                "{s} is above its noise floor up to {} rad/s",
+                dynid_ir::num::sig(w, 3, false)
+            )),
+            _ => None,
+        };
+        if self.given {
+            return match band {
+                Some(b) => format!("given ({b})"),
+                None => "given".into(),
+            };
+        }
+        let lower = match self.lower {
+            Some(LowerBy::RecordLength) => "the record length (lowest)",
+            Some(LowerBy::Spectrum) | None => "the dominant frequencies (lowest)",
+        };
+        let upper = match self.upper {
+            Some(UpperBy::Nyquist) => "a tenth of the Nyquist frequency (highest)",
+            Some(UpperBy::Spectrum) | None => "the dominant frequencies (highest)",
+        };
+        match band {
+            Some(b) => format!("{lower} and {upper}; {b}"),
+            None => format!("{lower} and {upper}"),
+        }
+    }
+}
+
 /// The filter bank that was used.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct FilterSummary {
     pub corners: Vec<f64>,
+    /// How they were chosen.
+    pub corners_from: CornerSource,
+    /// Parameters whose estimates move by more than their standard errors when the highest
+    /// corner is moved a factor 4 down or up ([`super::corner_moves`]; filled in by the
+    /// command line, empty otherwise).
+    pub corner_moves: Vec<super::CornerMove>,
     pub order: usize,
     pub drivers: Vec<String>,
     /// Nonlinear static columns that drive chains of their own (filtered regressors as
