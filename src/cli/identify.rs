@@ -99,6 +99,11 @@ pub struct Args {
     /// not hold there (docs/method.md §7)
     #[arg(long = "keep-rests")]
     pub keep_rests: bool,
+    /// Skip the corner check: by default the fit is repeated with the highest filter corner
+    /// a factor 4 lower and higher (two more passes over the data), and an estimate that
+    /// moves by more than its standard error gets a warning naming the range
+    #[arg(long = "no-corner-check")]
+    pub no_corner_check: bool,
     /// Refine the covariance estimate by minimising the free-run simulation error.
     #[arg(long)]
     pub refine: bool,
@@ -483,7 +488,7 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
     // Estimates that move with the corners: a check of two further identifications (not
     // for shape parameters, whose profile is itself many); one that fails (a corner the
     // record cannot carry) leaves no warning.
-    if ir.shapes.is_empty() {
+    if ir.shapes.is_empty() && !args.no_corner_check {
         if let Ok(moves) = corner_moves(ir, &levels, &opts, &id) {
             id.filter.corner_moves = moves.into_iter().filter(|m| m.moved()).collect();
         }
