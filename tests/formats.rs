@@ -295,6 +295,32 @@ fn the_binary_readers_survive_damaged_files() {
 }
 
 #[test]
+fn inputs_the_fuzzers_found_are_refused_cleanly() {
+    // Files the fuzz targets reported, kept as regression cases: a Parquet file whose
+    // dictionary page the crate's decoder asserted on (a panic, now a format error that calls
+    // the file damaged), and a text file of time stamps alone (a record without columns).
+    use dynid_runtime::data::{fuzz, CsvOptions, FileSource};
+    let ir = dsl_parser::compile_str("fuzz.dyn", FUZZ_MODEL).unwrap();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions");
+    let pq = dir.join("parquet_without_dictionary.parquet");
+    fuzz::check_data_file(&pq, &ir);
+    let opened = FileSource::open(&pq, &ir, &CsvOptions::default());
+    let err = match opened {
+        Ok(src) => {
+            use dynid_runtime::data::LevelSource;
+            src.stream(97, &mut |_, _| {})
+                .expect_err("the damaged page is an error")
+        }
+        Err(e) => e,
+    };
+    let msg = err.to_string();
+    assert!(msg.contains("damaged") && msg.contains("Parquet"), "{msg}");
+    let csv = dir.join("time_only.csv");
+    fuzz::check_csv_bytes(&csv, &std::fs::read(&csv).unwrap(), &ir);
+    fuzz::check_data_file(&csv, &ir);
+}
+
+#[test]
 #[ignore = "writes the binary fuzz target's seed files into $DYNID_FUZZ_SEEDS"]
 fn write_binary_fuzz_seeds() {
     let dir = PathBuf::from(std::env::var("DYNID_FUZZ_SEEDS").expect("DYNID_FUZZ_SEEDS=DIR"));

@@ -443,3 +443,43 @@ pub(super) fn names_from_chars(chars: &[char], rows: usize) -> Vec<String> {
         })
         .collect()
 }
+
+thread_local! {
+    /// Set while a third-party decoder runs under [`guarded`]: its panics are caught and
+    /// reported as errors, so the panic hook stays silent for them.
+    static IN_DECODER: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Run a third-party decoder on the bytes of `path`, turning a panic inside it (a decoder
+/// that asserts on damaged input instead of returning an error) into a format error that
+/// calls the file damaged. The default panic message is kept off the terminal for these.
+pub(super) fn guarded<T>(
+    path: &Path,
+    format: &str,
+    f: impl FnOnce() -> Result<T, DataError>,
+) -> Result<T, DataError> {
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !IN_DECODER.with(|d| d.get()) {
+                previous(info);
+            }
+        }));
+    });
+    let was = IN_DECODER.with(|d| d.replace(true));
+    let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    IN_DECODER.with(|d| d.set(was));
+    out.unwrap_or_else(|payload| {
+        let why = payload
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "an internal assertion".into());
+        Err(format_err(
+            path,
+            format,
+            format!("the file is damaged (its decoder failed: {why})"),
+        ))
+    })
+}

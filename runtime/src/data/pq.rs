@@ -3,7 +3,7 @@
 //! page and a window, not by the record. Pages compressed with Snappy, gzip or LZ4 are read;
 //! ZSTD and Brotli pages give an error saying so.
 
-use super::binary::{describe, format_err, Column, Store, Windows};
+use super::binary::{describe, format_err, guarded, Column, Store, Windows};
 use super::*;
 use parquet::basic::Type as Physical;
 use parquet::column::reader::{ColumnReader, ColumnReaderImpl};
@@ -32,6 +32,10 @@ impl std::fmt::Debug for Pq {
 
 impl Pq {
     pub(super) fn open(path: &Path) -> Result<Pq, DataError> {
+        guarded(path, FORMAT, || Self::open_unguarded(path))
+    }
+
+    fn open_unguarded(path: &Path) -> Result<Pq, DataError> {
         let err = |e: &dyn std::fmt::Display| format_err(path, FORMAT, e);
         let file = std::fs::File::open(path).map_err(|e| DataError::Io {
             path: path.display().to_string(),
@@ -195,6 +199,15 @@ read_records!(Int64Type);
 
 impl Windows for PqWindows<'_> {
     fn next(&mut self, out: &mut [Vec<f64>], max: usize) -> Result<usize, DataError> {
+        // The crate's decoders assert on some damaged pages (a dictionary page missing:
+        // found by the `binary` fuzz target).
+        let path = self.pq.path.clone();
+        guarded(&path, FORMAT, || self.next_unguarded(out, max))
+    }
+}
+
+impl PqWindows<'_> {
+    fn next_unguarded(&mut self, out: &mut [Vec<f64>], max: usize) -> Result<usize, DataError> {
         let path = &self.pq.path;
         let err = |e: &dyn std::fmt::Display| format_err(path, FORMAT, e);
         while self.left == 0 {
