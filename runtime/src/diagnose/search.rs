@@ -149,11 +149,13 @@ pub(super) fn search_step(
                 .into(),
         );
     }
-    let total = cands.len();
-    let done = std::sync::atomic::AtomicUsize::new(0);
+    // The total grows when the backlash gaps are refined (a second round of candidates).
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let total = AtomicUsize::new(cands.len());
+    let done = AtomicUsize::new(0);
     let tick = || {
-        let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-        progress(k, total);
+        let k = done.fetch_add(1, Ordering::Relaxed) + 1;
+        progress(k, total.load(Ordering::Relaxed).max(k));
     };
     let own_passes = |cands: &[(Effect, Location)]| -> Vec<Scored> {
         cands
@@ -209,6 +211,7 @@ pub(super) fn search_step(
         }
     }
     if !refined.is_empty() {
+        total.fetch_add(refined.len(), Ordering::Relaxed);
         results.extend(run(&refined));
     }
     // Keep one backlash (the best gap) per location in the ranking.
