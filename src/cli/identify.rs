@@ -219,7 +219,12 @@ fn closed_loop_hint(ir: &ModelIr, args: &Args, id: &Identification) -> Option<St
         return None;
     }
     let csv = args.csv.options(ir).ok()?;
-    let rec = read_record_within(args.data.first()?, &csv, args.allow_large).ok()?;
+    // The file is read a second time: not a pipe or other stream, which gave its data once.
+    let first = args.data.first()?;
+    if !std::fs::metadata(first).is_ok_and(|m| m.is_file()) {
+        return None;
+    }
+    let rec = read_record_within(first, &csv, args.allow_large).ok()?;
     let found = set_point::set_points(ir, &rec);
     if found.is_empty() {
         return None;
