@@ -311,7 +311,8 @@ fn identify_record(ir: &ModelIr, rec: &Record) -> Identification {
 /// errors m 0.094 %, d 0.131 %, r 0.159 %, f0 0.228 %; mean standard errors 0.025 %,
 /// 0.146 %, 0.212 %, 0.257 %; coverage (|error| < 2 SE) 12, 12 and 11 of 12 for d, r and
 /// f0. The mass keeps a bias of +0.06 … +0.13 % that its standard error does not cover
-/// (docs/method.md §7); with the rests kept every parameter was off by 7–67 %. The bounds:
+/// (it comes from the estimated velocity: `tests/servo_planned.rs`, docs/method.md §7);
+/// with the rests kept every parameter was off by 7–67 %. The bounds:
 /// about 2.5 times the RMS errors, coverage at least 10 of 12 for d, r, f0, and every rest
 /// found (six per cycle, 25 in the record).
 #[test]
@@ -361,11 +362,11 @@ fn planned_moves_leave_the_rests_out() {
 /// estimate lies within two of its standard errors of the whole record's (three for the
 /// mass). Measured (`cargo test --test servo planned_cycles -- --nocapture`): |z| ≤ 0.48
 /// for d and r, 1.21 for f0, 2.02 for m — the cycles' masses lie −0.16 … +0.09 % from
-/// the truth (11 of 16 below), the whole record's +0.06 … +0.13 %: the mass bias moves
-/// with the filter corners, which a cycle alone designs higher. The cycles' standard errors are 4–20
-/// (m) and 10–50 (d, r) times the whole record's, not the twice that four independent
-/// cycles would give, while their estimates spread less than those errors say: per
-/// cycle the errors are conservative.
+/// the truth (11 of 16 below), the whole record's +0.06 … +0.13 %: each identified at its
+/// own designed corners (a cycle alone designs higher ones). The cycles' standard errors are
+/// 4–20 (m) and 10–50 (d, r) times the whole record's at those different corners; at common
+/// corners they are at most 4.1 (m) and 1.8 (d, r) times, and the cycles agree pairwise
+/// within their errors (`tests/servo_planned.rs::planned_cycles_agree_within_their_errors`).
 #[test]
 fn planned_cycles_agree_within_their_errors() {
     let cycle = 6180;
