@@ -524,9 +524,10 @@ fn split_levels(
             (rec, label.clone())
         }
     };
+    // (The error boxed: it is large, and crosses the detached closure's boundary.)
     let split = py
-        .detach(|| choice.split(ir, &record, &origin))
-        .map_err(|e| runtime_error(py, &e))?;
+        .detach(|| choice.split(ir, &record, &origin).map_err(Box::new))
+        .map_err(|e| runtime_error(py, &*e))?;
     let labels = (0..split.segments.len())
         .map(|i| split.label(&origin, i))
         .collect();
