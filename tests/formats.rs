@@ -298,7 +298,8 @@ fn the_binary_readers_survive_damaged_files() {
 fn inputs_the_fuzzers_found_are_refused_cleanly() {
     // Files the fuzz targets reported, kept as regression cases: a Parquet file whose
     // dictionary page the crate's decoder asserted on (a panic, now a format error that calls
-    // the file damaged), and a text file of time stamps alone (a record without columns).
+    // the file damaged), an HDF5 file with a damaged chunk layout, and a text file of time
+    // stamps alone (a record without columns).
     use dynid_runtime::data::{fuzz, CsvOptions, FileSource};
     let ir = dsl_parser::compile_str("fuzz.dyn", FUZZ_MODEL).unwrap();
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions");
@@ -315,6 +316,15 @@ fn inputs_the_fuzzers_found_are_refused_cleanly() {
     };
     let msg = err.to_string();
     assert!(msg.contains("damaged") && msg.contains("Parquet"), "{msg}");
+    // An HDF5 file whose chunk layout would have `hdf5-pure` allocate petabytes (an
+    // abort, not a panic): refused before reading.
+    let h5 = dir.join("hdf5_chunk_grid.h5");
+    fuzz::check_data_file(&h5, &ir);
+    let msg = match FileSource::open(&h5, &ir, &CsvOptions::default()) {
+        Ok(_) => panic!("the damaged chunk layout is read"),
+        Err(e) => e.to_string(),
+    };
+    assert!(msg.contains("chunk layout"), "{msg}");
     let csv = dir.join("time_only.csv");
     fuzz::check_csv_bytes(&csv, &std::fs::read(&csv).unwrap(), &ir);
     fuzz::check_data_file(&csv, &ir);

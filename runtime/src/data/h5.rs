@@ -93,6 +93,9 @@ impl H5 {
                     | DType::U64
             ) && class.as_deref().is_none_or(|c| c != "char");
             let what = class.unwrap_or_else(|| dtype.to_string());
+            if numeric {
+                check_chunk_grid(&handle, &shape).map_err(|m| err(&format!("`{name}`: {m}")))?;
+            }
             sets.push(Ds {
                 name,
                 shape,
@@ -304,4 +307,34 @@ impl Windows for H5Windows<'_> {
         self.pos += count;
         Ok(count)
     }
+}
+
+/// The most chunks a dataset read may be cut into: `hdf5-pure` lays out a slot per chunk of
+/// the whole extent before reading, and a damaged layout (a huge extent, tiny chunks) would
+/// ask for petabytes — an allocation failure that aborts the process (found by the `binary`
+/// fuzz target). Real files hold far fewer: h5py's automatic chunks of about 1 MB cut even
+/// 10⁹ samples into some 10⁴.
+const MAX_CHUNKS: f64 = 1e7;
+
+/// Refuse a chunked dataset whose chunk grid over `shape` has more than [`MAX_CHUNKS`] cells
+/// (or a chunk dimension of zero).
+fn check_chunk_grid(handle: &Dataset, shape: &[usize]) -> Result<(), String> {
+    let Ok(Some(chunk)) = handle.chunk_shape() else {
+        return Ok(());
+    };
+    let mut cells = 1.0f64;
+    for (k, &n) in shape.iter().enumerate() {
+        let c = chunk.get(k).copied().unwrap_or(1);
+        if c == 0 {
+            return Err("its chunk layout has a dimension of zero (a damaged file)".into());
+        }
+        cells *= (n as f64 / c as f64).ceil().max(1.0);
+    }
+    if cells > MAX_CHUNKS {
+        return Err(format!(
+            "its chunk layout cuts it into {cells:.1e} chunks (more than {MAX_CHUNKS:.0e}): a \
+             damaged file, or one saved with tiny chunks — re-save it contiguous or with larger chunks"
+        ));
+    }
+    Ok(())
 }
