@@ -391,6 +391,12 @@ const CASES: &[Case] = &[
         code: "dynid::data::format",
         also: &["`names` holds 3 names"],
     },
+    Case {
+        name: "a MAT v7.3 names cell holding a number",
+        args: &["identify", "{model}", "{dir}/bin/names_cell_number_v73.mat"],
+        code: "dynid::data::format",
+        also: &["of `names` holds double, not a char vector"],
+    },
     case(
         "a truncated HDF5 file",
         &["identify", "{model}", "{dir}/bin/truncated.h5"],
@@ -992,6 +998,20 @@ fn binary_files(dir: &Path) {
         "names_short.mat",
         &mat5_matrix(&names[..names.len() - 1], &cols),
     );
+    // A v7.3 `names` cell whose last cell is a number, not a char vector.
+    let mut b = hdf5_pure::mat::MatBuilder::new(Default::default());
+    let flat: Vec<f64> = cols.iter().flatten().copied().collect();
+    b.write_f64("data", &[cols[0].len(), cols.len()], &flat)
+        .unwrap();
+    b.cell("names", &[1, names.len()], |c| {
+        for n in &names[..names.len() - 1] {
+            c.push_char(n)?;
+        }
+        c.push_scalar_f64(3.0)?;
+        Ok(())
+    })
+    .unwrap();
+    put("names_cell_number_v73.mat", &b.finish().unwrap());
     let h5 = h5_vectors(&names, &cols);
     put("truncated.h5", &h5[..h5.len() / 2]);
     let m73 = mat73_matrix(&names, &cols);

@@ -147,6 +147,11 @@ fn every_format_identifies_as_the_csv_of_the_same_data() {
             vec![],
         ),
         (
+            "MAT v7.3, matrix and names cell",
+            write("v73c", "mat", &bytes(mat73_matrix_cell)),
+            vec![],
+        ),
+        (
             "HDF5, chunked deflated vectors",
             write("vec", "h5", &bytes(h5_vectors)),
             vec![],

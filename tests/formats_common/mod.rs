@@ -127,6 +127,22 @@ pub fn mat73_matrix(names: &[String], cols: &[Vec<f64>]) -> Vec<u8> {
     b.finish().unwrap()
 }
 
+/// As [`mat73_matrix`], with `names` a cell array of char vectors (`names = {'t', ...}`).
+pub fn mat73_matrix_cell(names: &[String], cols: &[Vec<f64>]) -> Vec<u8> {
+    let mut b = hdf5_pure::mat::MatBuilder::new(Default::default());
+    let flat: Vec<f64> = cols.iter().flatten().copied().collect();
+    b.write_f64("data", &[cols[0].len(), cols.len()], &flat)
+        .unwrap();
+    b.cell("names", &[1, names.len()], |c| {
+        for n in names {
+            c.push_char(n)?;
+        }
+        Ok(())
+    })
+    .unwrap();
+    b.finish().unwrap()
+}
+
 /// 1-D datasets, chunked (1000 samples, so windows cross chunks) and deflated.
 pub fn h5_vectors(names: &[String], cols: &[Vec<f64>]) -> Vec<u8> {
     let mut b = hdf5_pure::FileBuilder::new();

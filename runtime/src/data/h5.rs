@@ -186,13 +186,15 @@ impl H5 {
             self.err(format!("`names` is not readable as text ({e}): store it as strings, or as a MATLAB char array"))
         };
         if d.what == "char" {
-            let units = d.handle.read_u16().map_err(|e| bad(&e))?;
-            let chars: Vec<char> = char::decode_utf16(units)
-                .map(|c| c.unwrap_or('\u{fffd}'))
-                .collect();
             // MATLAB's `r×c` char array is stored as HDF5 `[c, r]`.
             let rows = d.shape.get(1).copied().unwrap_or(1);
-            return Ok(names_from_chars(&chars, rows));
+            return Ok(names_from_chars(
+                &utf16_chars(&d.handle).map_err(|e| bad(&e))?,
+                rows,
+            ));
+        }
+        if d.what == "cell" {
+            return self.read_cell_names(d);
         }
         let strings = d.handle.read_string().map_err(|e| bad(&e))?;
         Ok(match strings.as_slice() {
@@ -203,6 +205,82 @@ impl H5 {
                 .collect(),
         })
     }
+}
+
+impl H5 {
+    /// A MATLAB cell array of char vectors (`names = {'t', 'm.x', ...}` saved with
+    /// `-v7.3`): a dataset of object references, each naming one char dataset under
+    /// `#refs#`. The cells are taken in storage order, which for a row or a column of
+    /// cells is the order MATLAB shows.
+    fn read_cell_names(&self, d: &Ds) -> Result<Vec<String>, DataError> {
+        let help = "store `names` as a cell array of char vectors, a char row of names \
+                    separated by commas, or a char matrix with one name per row";
+        if d.shape.len() > 2 || d.shape.iter().filter(|&&n| n > 1).count() > 1 {
+            return Err(self.err(format!(
+                "`names` is a cell array of shape {:?}, not a row or a column: {help}",
+                d.shape
+            )));
+        }
+        // A names list is short; a damaged shape must not make the reader follow
+        // millions of references.
+        let count: usize = d.shape.iter().product();
+        if count > MAX_NAMES {
+            return Err(self.err(format!(
+                "`names` is a cell array of {count} cells, more than {MAX_NAMES} names: {help}"
+            )));
+        }
+        let cells = d.handle.dereference().map_err(|e| {
+            self.err(format!(
+                "`names` is a cell array whose cells cannot be followed ({e}): {help}"
+            ))
+        })?;
+        let mut names = Vec::with_capacity(cells.len());
+        for (k, cell) in cells.into_iter().enumerate() {
+            let hdf5_pure::Object::Dataset(ds) = cell else {
+                return Err(self.err(format!(
+                    "cell {} of `names` is a group, not a char vector: {help}",
+                    k + 1
+                )));
+            };
+            let class = ds
+                .attrs()
+                .ok()
+                .and_then(|a| a.get("MATLAB_class").and_then(attr_text));
+            if class.as_deref() != Some("char") {
+                return Err(self.err(format!(
+                    "cell {} of `names` holds {}, not a char vector: {help}",
+                    k + 1,
+                    class.as_deref().unwrap_or("something other than text")
+                )));
+            }
+            let chars = utf16_chars(&ds).map_err(|e| {
+                self.err(format!(
+                    "cell {} of `names` is not readable as text ({e}): {help}",
+                    k + 1
+                ))
+            })?;
+            names.push(
+                chars
+                    .iter()
+                    .collect::<String>()
+                    .trim_matches(['\0', ' '])
+                    .to_string(),
+            );
+        }
+        Ok(names)
+    }
+}
+
+/// The most cells a `names` cell array may hold.
+const MAX_NAMES: usize = 100_000;
+
+/// The characters of a MATLAB char dataset (UTF-16 code units; unpaired surrogates
+/// become U+FFFD).
+fn utf16_chars(ds: &Dataset) -> Result<Vec<char>, hdf5_pure::Error> {
+    let units = ds.read_u16()?;
+    Ok(char::decode_utf16(units)
+        .map(|c| c.unwrap_or('\u{fffd}'))
+        .collect())
 }
 
 impl Store for H5 {
