@@ -44,46 +44,75 @@ pub fn draw_frf(levels: &[LevelFrf], path: &Path) -> Result<(), PlotError> {
         .is_some_and(|e| e.eq_ignore_ascii_case("png"))
     {
         let root = BitMapBackend::new(path, size).into_drawing_area();
-        draw(&root, levels).map_err(err)?;
+        draw(&root, levels, 0..cols).map_err(err)?;
         root.present().map_err(|e| err(e.to_string()))
     } else {
-        let svg = frf_svg(levels, size).map_err(err)?;
+        let svg = frf_svg(levels, 0..cols, size).map_err(err)?;
         std::fs::write(path, svg).map_err(|e| err(e.to_string()))
     }
 }
 
-/// The figure as an SVG string (for the HTML report).
-pub fn frf_svg_string(levels: &[LevelFrf]) -> Result<String, String> {
+/// Width of one response's column in the HTML report: two columns side by side fit the
+/// report's 1100 px page (a laptop screen) with their margins.
+const REPORT_PANEL_W: u32 = 500;
+
+/// The figure for the HTML report: one SVG per response (a column of three panels
+/// [`REPORT_PANEL_W`] wide), so that the page wraps them instead of growing wider than
+/// the screen.
+pub fn frf_svg_strings(levels: &[LevelFrf]) -> Result<Vec<String>, String> {
     register_font();
-    let cols = levels.first().map_or(1, |l| l.outputs.len().max(1));
-    frf_svg(levels, (PANEL_W * cols as u32, MAG_H + PHASE_H + COH_H))
+    let n = levels.first().map_or(0, |l| l.outputs.len());
+    (0..n)
+        .map(|j| frf_svg(levels, j..j + 1, (REPORT_PANEL_W, MAG_H + PHASE_H + COH_H)))
+        .collect()
 }
 
-fn frf_svg(levels: &[LevelFrf], size: (u32, u32)) -> Result<String, String> {
+fn frf_svg(
+    levels: &[LevelFrf],
+    which: std::ops::Range<usize>,
+    size: (u32, u32),
+) -> Result<String, String> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
-        draw(&root, levels)?;
+        draw(&root, levels, which)?;
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
 }
 
+/// Draw the responses `which` side by side, one column of panels each.
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     levels: &[LevelFrf],
+    which: std::ops::Range<usize>,
 ) -> Result<(), String> {
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let Some(first) = levels.first() else {
         return Ok(());
     };
-    let cols = root.split_evenly((1, first.outputs.len().max(1)));
-    for (j, col) in cols.iter().enumerate() {
+    let cols = root.split_evenly((1, which.len().max(1)));
+    for (col, j) in cols.iter().zip(which) {
         let (mag, rest) = col.split_vertically(MAG_H);
         let (phase, coh) = rest.split_vertically(PHASE_H);
         column(&mag, &phase, &coh, levels, j).map_err(|e| format!("{}: {e}", first.outputs[j]))?;
     }
     Ok(())
+}
+
+/// Labels for a legend: where they are paths, without the folder they all share
+/// (`runs/a/level_1.csv`, `runs/b/level_1.csv` → `a/level_1.csv`, `b/level_1.csv`).
+fn strip_shared_folder<'a>(labels: &[&'a str]) -> Vec<&'a str> {
+    let Some((first, rest)) = labels.split_first() else {
+        return Vec::new();
+    };
+    let mut cut = first.rfind(['/', '\\']).map_or(0, |i| i + 1);
+    for l in rest {
+        while cut > 0 && l.as_bytes().get(..cut) != Some(&first.as_bytes()[..cut]) {
+            cut = first[..cut - 1].rfind(['/', '\\']).map_or(0, |i| i + 1);
+        }
+    }
+    labels.iter().map(|l| &l[cut..]).collect()
 }
 
 /// Log10 of the frequency range over every level, padded.
@@ -166,6 +195,8 @@ fn column<DB: DrawingBackend>(
         .bold_line_style(RGBColor(205, 205, 205))
         .draw()
         .map_err(|e| e.to_string())?;
+    let labels: Vec<&str> = levels.iter().map(|l| l.label.as_str()).collect();
+    let names = strip_shared_folder(&labels);
     for (l, lev) in levels.iter().enumerate() {
         let color = LEVEL_COLORS[l % LEVEL_COLORS.len()];
         let pts: Vec<(f64, f64)> = lev
@@ -176,7 +207,7 @@ fn column<DB: DrawingBackend>(
             .filter(|(_, h)| mag(**h) > 0.0)
             .map(|(f, h)| (f.log10(), mag(*h).log10()))
             .collect();
-        let label = format!("{} measured", lev.label);
+        let label = format!("{} measured", names[l]);
         if periodic {
             chart
                 .draw_series(pts.iter().map(|&p| Circle::new(p, 2, color.filled())))
@@ -211,7 +242,7 @@ fn column<DB: DrawingBackend>(
                     color.mix(0.9).stroke_width(2),
                 ))
                 .map_err(|e| e.to_string())?
-                .label(format!("{} linear model fitted at this level", lev.label))
+                .label(format!("{} linear model", names[l]))
                 .legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 8, y)], color.stroke_width(2))
                 });
@@ -220,7 +251,7 @@ fn column<DB: DrawingBackend>(
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperRight)
-        .label_font(("sans-serif", 11))
+        .label_font(("sans-serif", 13))
         .background_style(WHITE.mix(0.85))
         .border_style(RGBColor(180, 180, 180))
         .draw()
@@ -316,4 +347,31 @@ fn split_wraps(pts: &[(f64, f64)]) -> Vec<Vec<(f64, f64)>> {
         out.last_mut().expect("invariant: never empty").push(*w);
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::strip_shared_folder;
+
+    #[test]
+    fn legends_name_files_without_their_shared_folder() {
+        assert_eq!(
+            strip_shared_folder(&["/tmp/x/data/level_1.csv", "/tmp/x/data/level_2.csv"]),
+            ["level_1.csv", "level_2.csv"]
+        );
+        assert_eq!(
+            strip_shared_folder(&["runs/a/level_1.csv", "runs/b/level_1.csv"]),
+            ["a/level_1.csv", "b/level_1.csv"]
+        );
+        assert_eq!(
+            strip_shared_folder(&["a/l.csv", "l2.csv"]),
+            ["a/l.csv", "l2.csv"]
+        );
+        assert_eq!(
+            strip_shared_folder(&["level 1", "level 2"]),
+            ["level 1", "level 2"]
+        );
+        assert_eq!(strip_shared_folder(&["dir/only.csv"]), ["only.csv"]);
+        assert!(strip_shared_folder(&[]).is_empty());
+    }
 }

@@ -11,7 +11,7 @@ pub mod frf;
 pub mod report;
 
 pub use curves::{draw_curves, plot_curves};
-pub use frf::{draw_frf, frf_svg_string};
+pub use frf::{draw_frf, frf_svg_strings};
 pub use report::render_html;
 
 use plotters::style::FontStyle;

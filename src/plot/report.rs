@@ -819,8 +819,11 @@ fitted to all levels without any found effect.</p>"
 /// The report's section of the frequency response per level (inline SVG, see
 /// [`super::frf`]); a figure that cannot be drawn is said so in its place.
 pub fn frf_section(frfs: &[dynid_runtime::frf::LevelFrf]) -> String {
-    let fig = match super::frf::frf_svg_string(frfs) {
-        Ok(svg) => format!("<div class=\"fig\">{svg}</div>"),
+    let fig = match super::frf::frf_svg_strings(frfs) {
+        Ok(svgs) => svgs
+            .iter()
+            .map(|svg| format!("<div class=\"fig\">{svg}</div>"))
+            .collect(),
         Err(e) => format!("<p>The figure could not be drawn: {}</p>", esc(&e)),
     };
     let method = match frfs.first().map(|f| f.measured.method) {
