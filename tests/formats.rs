@@ -166,6 +166,14 @@ fn every_format_identifies_as_the_csv_of_the_same_data() {
             write("pq", "parquet", &parquet_file),
             vec![],
         ),
+        (
+            "Parquet, ZSTD (polars' default)",
+            write("pqz", "parquet", &|n, c, p| {
+                let zstd = parquet::basic::ZstdLevel::try_new(3).unwrap();
+                parquet_file_compressed(n, c, p, parquet::basic::Compression::ZSTD(zstd))
+            }),
+            vec![],
+        ),
     ];
     for (case, files, extra) in cases {
         let got = identify(&model, &files, &extra, &dir.path().join("out.json"));

@@ -202,14 +202,24 @@ fn parquet_schema(
 
 /// Required DOUBLE columns, Snappy pages, in two row groups.
 pub fn parquet_file(names: &[String], cols: &[Vec<f64>], path: &Path) {
-    use parquet::basic::{Compression, Repetition};
+    parquet_file_compressed(names, cols, path, parquet::basic::Compression::SNAPPY)
+}
+
+/// As [`parquet_file`], pages compressed with `compression`.
+pub fn parquet_file_compressed(
+    names: &[String],
+    cols: &[Vec<f64>],
+    path: &Path,
+    compression: parquet::basic::Compression,
+) {
+    use parquet::basic::Repetition;
     use parquet::file::properties::WriterProperties;
     use parquet::file::writer::SerializedFileWriter;
     use std::sync::Arc;
     let schema = parquet_schema(names, Repetition::REQUIRED);
     let props = Arc::new(
         WriterProperties::builder()
-            .set_compression(Compression::SNAPPY)
+            .set_compression(compression)
             .build(),
     );
     let file = std::fs::File::create(path).unwrap();

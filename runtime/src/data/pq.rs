@@ -1,7 +1,7 @@
 //! Parquet files through the `parquet` crate's column readers (no Arrow): row group by row
 //! group, each column's pages decoded as they are read, so that memory use is bounded by a
-//! page and a window, not by the record. Pages compressed with Snappy, gzip or LZ4 are read;
-//! ZSTD and Brotli pages give an error saying so.
+//! page and a window, not by the record. Pages compressed with Snappy, gzip, LZ4 or ZSTD
+//! are read; Brotli pages give an error saying so.
 
 use super::binary::{describe, format_err, guarded, Column, Store, Windows};
 use super::*;
