@@ -14,7 +14,6 @@ use dynid_runtime::diagnose::Diagnosis;
 use dynid_runtime::frf::{self, LevelFrf};
 use dynid_runtime::ident::Identification;
 use dynid_runtime::record::Record;
-use dynid_runtime::refine::{self, FreeRunError, Progress, RefineOptions, Refinement};
 use serde::Serialize;
 
 /// `{"parameters": {name: {value, stderr, significant}}, "condition", "rows", "residual",
@@ -95,43 +94,7 @@ pub struct DiagnosisJson<'a> {
 }
 
 /// The refinement and the free-run errors of both estimates (JSON `refined`).
-#[derive(Debug, Serialize)]
-pub struct RefineReport {
-    pub refinement: Refinement,
-    /// Free-run errors on the estimation records: start values, refined values.
-    pub estimation: (Vec<FreeRunError>, Vec<FreeRunError>),
-    /// The same on the test records (empty without them).
-    pub test: (Vec<FreeRunError>, Vec<FreeRunError>),
-}
-
-impl RefineReport {
-    /// Refine `start` on the estimation records `est` and score both value sets on `est`
-    /// and on the `test` records; `progress` is called after every iteration.
-    pub fn compute(
-        ir: &ModelIr,
-        start: &[f64],
-        est: &[Record],
-        test: &[Record],
-        opts: &RefineOptions,
-        progress: &dyn Fn(Progress),
-    ) -> miette::Result<Self> {
-        let r = refine::refine_with_progress(ir, est, start, opts, progress)?;
-        let score = |recs: &[Record]| -> miette::Result<(Vec<FreeRunError>, Vec<FreeRunError>)> {
-            if recs.is_empty() {
-                return Ok((Vec::new(), Vec::new()));
-            }
-            Ok((
-                refine::free_run_errors(ir, start, recs, opts.substeps)?,
-                refine::free_run_errors(ir, &r.values(), recs, opts.substeps)?,
-            ))
-        };
-        Ok(RefineReport {
-            estimation: score(est)?,
-            test: score(test)?,
-            refinement: r,
-        })
-    }
-}
+pub use dynid_runtime::refine::RefineReport;
 
 /// The measured FRF of every level with the FRF of the linear model fitted at it
 /// (`fits[l]`; a parameter held over the levels, e.g. a mass, from `det.held`).

@@ -1035,7 +1035,7 @@ impl CompiledModel {
                             report_progress(cb, "refinement", p.iteration, p.max_iter)
                         })
                     })
-                    .map_err(|e| report_error(py, e.as_ref()))?;
+                    .map_err(|e| report_error(py, &e))?;
                 value["refined"] = serde_json::to_value(&report)
                     .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
             }
@@ -1453,28 +1453,14 @@ fn refine_corrected(
 ) -> PyResult<(RefineReport, String)> {
     let fixed = dsl_parser::compile_str(&d.model, &d.fixed_source)
         .map_err(|e| compile_error(py, &e, &d.fixed_source))?;
-    let start: Vec<f64> = fixed
-        .unknowns()
-        .iter()
-        .map(|p| fixed.params[p.index()].nominal().unwrap_or(0.0))
-        .collect();
-    let opts = RefineOptions::default();
-    let report = py
+    let (report, text) = py
         .detach(|| {
-            RefineReport::compute(&fixed, &start, records, &[], &opts, &|p| {
+            rt_refine::refine_corrected(&fixed, records, &|p| {
                 report_progress(progress, "refinement", p.iteration, p.max_iter)
             })
         })
-        .map_err(|e| report_error(py, e.as_ref()))?;
-    if !report.refinement.applied {
-        return Ok((report, d.fixed_source.clone()));
-    }
-    let mut out = fixed.clone();
-    for p in &report.refinement.params {
-        // An unknown of the model by construction (five significant digits, as diagnose).
-        let _ = out.set_nominal(&p.name, dsl_parser::num::round_sig(p.value, 5));
-    }
-    Ok((report, dsl_parser::print::to_source(&out)))
+        .map_err(|e| report_error(py, &e))?;
+    Ok((report, text.unwrap_or_else(|| d.fixed_source.clone())))
 }
 
 /// Panic inside the boundary on purpose: the tests check with it that a panic reaches

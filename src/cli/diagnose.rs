@@ -2,12 +2,12 @@
 //! unmodelled effect explains the gap, and how far it shrinks once that effect is added.
 
 use super::common::{check_outputs, inputs, CsvArgs, SplitArgs, Staged};
-use super::identify::{compute_with_bar, render_refined, RefineReport};
+use super::identify::{progress_bar, render_refined, RefineReport};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::{FileSource, RecordSource, Split};
 use dynid_runtime::diagnose::{self, DiagnoseOptions, Diagnosis};
 use dynid_runtime::record::Record;
-use dynid_runtime::refine::RefineOptions;
+use dynid_runtime::refine::{self, RefineOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use miette::IntoDiagnostic;
 use std::path::{Path, PathBuf};
@@ -238,8 +238,8 @@ fn closed_loop_hint(
     }))
 }
 
-/// The corrected model refined on every level: the report (start: its covariance values)
-/// and the model's text with the refined values.
+/// The corrected model refined on every level ([`refine::refine_corrected`]) with the
+/// iterations on a progress bar: the report and the model's text with the refined values.
 fn refine_corrected(
     d: &Diagnosis,
     records: &[Record],
@@ -247,23 +247,20 @@ fn refine_corrected(
 ) -> miette::Result<(RefineReport, String)> {
     let fixed = dsl_parser::compile_str(&d.model, &d.fixed_source)
         .map_err(|e| miette::miette!("the corrected model does not compile: {e}"))?;
-    let start: Vec<f64> = fixed
-        .unknowns()
-        .iter()
-        .map(|p| fixed.params[p.index()].nominal().unwrap_or(0.0))
-        .collect();
-    let opts = RefineOptions::default();
-    let report = compute_with_bar(&fixed, &start, records, &[], &opts, quiet)?;
-    if !report.refinement.applied {
-        // The model written keeps the corrected model's values (the note says why).
-        return Ok((report, d.fixed_source.clone()));
-    }
-    let mut out = fixed.clone();
-    for p in &report.refinement.params {
-        // An unknown of the model by construction (five significant digits, as diagnose).
-        let _ = out.set_nominal(&p.name, dsl_parser::num::round_sig(p.value, 5));
-    }
-    Ok((report, dsl_parser::print::to_source(&out)))
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        progress_bar(RefineOptions::default().max_iter)
+    };
+    let r = refine::refine_corrected(&fixed, records, &|p| {
+        bar.set_length(p.max_iter as u64);
+        bar.set_position(p.iteration as u64);
+        bar.set_message(format!("{:.3e}", p.cost));
+    });
+    bar.finish_and_clear();
+    let (report, text) = r?;
+    // Not applied: the model written keeps the corrected model's values (the note says why).
+    Ok((report, text.unwrap_or_else(|| d.fixed_source.clone())))
 }
 
 /// Run the diagnosis with a progress bar on stderr.

@@ -389,11 +389,11 @@ pub fn compute_with_bar(
         bar.set_message(format!("{:.3e}", p.cost));
     });
     bar.finish_and_clear();
-    r
+    Ok(r?)
 }
 
 /// The refinement's progress bar on stderr (hidden when stderr is not a terminal).
-fn progress_bar(max_iter: usize) -> indicatif::ProgressBar {
+pub(super) fn progress_bar(max_iter: usize) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::with_draw_target(
         Some(max_iter as u64),
         indicatif::ProgressDrawTarget::stderr(),

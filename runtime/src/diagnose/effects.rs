@@ -167,10 +167,21 @@ pub(super) fn constant_force_sites(ir: &ModelIr, locs: &[Location]) -> Vec<Locat
 }
 
 /// A model variant: the model with the added force elements.
+#[derive(Clone)]
 pub(super) struct Variant {
     pub(super) ir: ModelIr,
     /// Parameter names of the added terms.
     pub(super) added: Vec<String>,
+}
+
+impl Variant {
+    /// This variant with a candidate added: the candidate's model `ir` and its new
+    /// parameter `p`.
+    pub(super) fn with(&self, ir: ModelIr, p: String) -> Variant {
+        let mut added = self.added.clone();
+        added.push(p);
+        Variant { ir, added }
+    }
 }
 
 /// `base` with `effect` added as a new force element at `loc`, its coefficient an unknown

@@ -11,7 +11,9 @@
 //! leave-one-level-out profiles of that jackknife — so the withheld level never informs
 //! the gap it is scored with.
 
-use super::gap::{cv_gap_by, measure_all, sources, training, Data};
+use super::fit::measure_all;
+use super::levels::{sources, training, Data};
+use super::score::cv_gap_by;
 use super::types::{DiagnoseOptions, ModelGap};
 use crate::data::LevelSource;
 use crate::ident::{shape, Identification};

@@ -1,6 +1,6 @@
 //! The diagnosis as text: verdict, location, effect, gaps and the evidence behind them.
 
-use super::types::{Diagnosis, ModelGap, MovedParam, Verdict};
+use super::types::{Diagnosis, FoundEffect, ModelGap, MovedParam, Verdict};
 use super::Effect;
 use super::{fmt_gap, fmt_num, fmt_opt_gap, fmt_si, shrink};
 
@@ -147,6 +147,46 @@ impl Diagnosis {
     pub fn summary(&self) -> String {
         use std::fmt::Write;
         let mut s = String::new();
+        self.write_gaps(&mut s);
+        self.write_where(&mut s);
+        match self.verdict {
+            Verdict::MissingEffect => {
+                for (k, f) in self.found.iter().enumerate() {
+                    self.write_found(&mut s, k, f);
+                }
+                self.write_missing_effect(&mut s);
+            }
+            Verdict::MistunedParameters => self.write_mistuned(&mut s),
+            Verdict::Consistent => {
+                let _ = writeln!(
+                    s,
+                    "No significant unmodelled effect: the model matches the data within {} (statistical gap, {}).",
+                    fmt_gap(self.reidentified.gap.min(self.nominal.gap)),
+                    if self.reidentified.gap < self.nominal.gap {
+                        "re-identified"
+                    } else {
+                        "nominal"
+                    }
+                );
+            }
+            Verdict::Unexplained => {
+                let _ = writeln!(
+                    s,
+                    "No significant unmodelled effect from the library explains the remaining gap of {} (re-identified; pathwise {}).",
+                    fmt_gap(self.reidentified.gap),
+                    fmt_gap(self.reidentified.pathwise)
+                );
+            }
+        }
+        for n in &self.notes {
+            let _ = writeln!(s, "Note: {n}");
+        }
+        s
+    }
+
+    /// The header and the gap tables.
+    fn write_gaps(&self, s: &mut String) {
+        use std::fmt::Write;
         let _ = writeln!(
             s,
             "Model `{}` against {} levels ({}); response signals: {}",
@@ -167,11 +207,16 @@ impl Diagnosis {
         if !self.found.is_empty() {
             rows.push(("corrected model (withheld level)", &self.corrected));
         }
-        s += &gap_table(&rows);
-        s += &signal_table(&self.response_signals, &rows);
-        s += &self.force_table();
+        *s += &gap_table(&rows);
+        *s += &signal_table(&self.response_signals, &rows);
+        *s += &self.force_table();
         let _ = writeln!(s);
-        // Where.
+    }
+
+    /// Where the nominal model misses: the worst signals, the covariance residual of each
+    /// equation, the parameters drifting with the level.
+    fn write_where(&self, s: &mut String) {
+        use std::fmt::Write;
         let worst: Vec<String> = {
             let mut sig: Vec<(String, Option<SignalMeans>)> = self
                 .response_signals
@@ -229,177 +274,161 @@ impl Diagnosis {
             );
         }
         let _ = writeln!(s);
-        match self.verdict {
-            Verdict::MissingEffect => {
-                for (k, f) in self.found.iter().enumerate() {
-                    let step = shrink(f.gap_before, f.gap_after);
-                    // The statistical gap does not see a signal's mean, all that a
-                    // constant force changes: its confidence counts the pathwise shrink.
-                    let mean_only = f.effect == Effect::ConstantForce
-                        && step.is_none_or(|x| x <= 0.0)
-                        && f.pathwise_gap_after < f.pathwise_gap_before;
-                    let seen = if mean_only {
-                        shrink(f.pathwise_gap_before, f.pathwise_gap_after)
-                    } else {
-                        step
-                    };
-                    let conf = confidence(f.value / f.stderr, seen.map_or(0.0, |x| 100.0 * x));
-                    let _ = writeln!(
-                        s,
-                        "{} missing effect: {} at {}{}{}",
-                        if k == 0 { "Most likely" } else { "Also" },
-                        f.effect.name(),
-                        f.location.label(),
-                        f.unit
-                            .map_or(String::new(), |u| format!(": {} {u}", fmt_num(f.value))),
-                        if f.location.elements.is_empty() {
-                            " (body to ground)".to_string()
-                        } else {
-                            format!(" (element {})", f.location.elements.join(", "))
-                        }
-                    );
-                    let _ = writeln!(
-                        s,
-                        "  identified {} = {} ± {} (|p|/σ = {:.0}); withheld gap {} → {} ({}; pathwise {} → {}); confidence: {}",
-                        f.param,
-                        fmt_num(f.value),
-                        fmt_num(f.stderr),
-                        f.value.abs() / f.stderr,
-                        fmt_gap(f.gap_before),
-                        fmt_gap(f.gap_after),
-                        fmt_shrink(step, "smaller")
-                            + if mean_only {
-                                ", a mean the statistical gap does not see"
-                            } else {
-                                ""
-                            },
-                        fmt_gap(f.pathwise_gap_before),
-                        fmt_gap(f.pathwise_gap_after),
-                        conf
-                    );
-                    if let Effect::Backlash { gap } = f.effect {
-                        let _ = writeln!(
-                            s,
-                            "  gap {} ± {} (profiled over the covariance least squares, grid start {})",
-                            fmt_num(gap),
-                            f.shape_stderr.map_or("n/a (flat profile)".into(), fmt_num),
-                            self.ranking
-                                .iter()
-                                .filter(|c| c.location == f.location)
-                                .find_map(|c| match c.effect {
-                                    Effect::Backlash { gap } => Some(fmt_num(gap)),
-                                    _ => None,
-                                })
-                                .unwrap_or_else(|| "–".into()),
-                        );
-                    }
-                }
-                let _ = writeln!(
-                    s,
-                    "Re-identification alone: {} → {}; the effect{}: {} → {} ({})",
-                    fmt_gap(self.gap_before),
-                    fmt_gap(self.gap_reidentified),
-                    if self.found.len() > 1 { "s" } else { "" },
-                    fmt_gap(self.gap_reidentified),
-                    fmt_gap(self.gap_after),
-                    fmt_shrink(self.effect_shrink, "of the re-identified gap removed"),
-                );
-                let _ = writeln!(
-                    s,
-                    "Overall (nominal → corrected): {} → {} ({}); pathwise {} → {}",
-                    fmt_gap(self.gap_before),
-                    fmt_gap(self.gap_after),
-                    fmt_shrink(self.shrink, "of the gap removed"),
-                    fmt_gap(self.pathwise_gap_before),
-                    fmt_gap(self.pathwise_gap_after),
-                );
-                if let Some(next) = self
-                    .ranking
+    }
+
+    /// The `k`-th found effect `f`: what and where, its estimate, gaps and confidence.
+    fn write_found(&self, s: &mut String, k: usize, f: &FoundEffect) {
+        use std::fmt::Write;
+        let step = shrink(f.gap_before, f.gap_after);
+        // The statistical gap does not see a signal's mean, all that a
+        // constant force changes: its confidence counts the pathwise shrink.
+        let mean_only = f.effect == Effect::ConstantForce
+            && step.is_none_or(|x| x <= 0.0)
+            && f.pathwise_gap_after < f.pathwise_gap_before;
+        let seen = if mean_only {
+            shrink(f.pathwise_gap_before, f.pathwise_gap_after)
+        } else {
+            step
+        };
+        let conf = confidence(f.value / f.stderr, seen.map_or(0.0, |x| 100.0 * x));
+        let _ = writeln!(
+            s,
+            "{} missing effect: {} at {}{}{}",
+            if k == 0 { "Most likely" } else { "Also" },
+            f.effect.name(),
+            f.location.label(),
+            f.unit
+                .map_or(String::new(), |u| format!(": {} {u}", fmt_num(f.value))),
+            if f.location.elements.is_empty() {
+                " (body to ground)".to_string()
+            } else {
+                format!(" (element {})", f.location.elements.join(", "))
+            }
+        );
+        let _ = writeln!(
+            s,
+            "  identified {} = {} ± {} (|p|/σ = {:.0}); withheld gap {} → {} ({}; pathwise {} → {}); confidence: {}",
+            f.param,
+            fmt_num(f.value),
+            fmt_num(f.stderr),
+            f.value.abs() / f.stderr,
+            fmt_gap(f.gap_before),
+            fmt_gap(f.gap_after),
+            fmt_shrink(step, "smaller")
+                + if mean_only {
+                    ", a mean the statistical gap does not see"
+                } else {
+                    ""
+                },
+            fmt_gap(f.pathwise_gap_before),
+            fmt_gap(f.pathwise_gap_after),
+            conf
+        );
+        if let Effect::Backlash { gap } = f.effect {
+            let _ = writeln!(
+                s,
+                "  gap {} ± {} (profiled over the covariance least squares, grid start {})",
+                fmt_num(gap),
+                f.shape_stderr.map_or("n/a (flat profile)".into(), fmt_num),
+                self.ranking
                     .iter()
-                    .filter(|c| !c.accepted)
-                    .find(|c| c.gap.is_some())
-                {
-                    let _ = writeln!(
-                        s,
-                        "  runner-up: {} at {} (withheld gap {})",
-                        next.effect.name(),
-                        next.location.label(),
-                        fmt_opt_gap(next.gap)
-                    );
-                }
-                if !self.residual_ranking.is_empty() {
-                    let _ = writeln!(s, "On top of that, below the acceptance threshold:");
-                    for c in self.residual_ranking.iter().take(4) {
-                        let gap = c
-                            .gap
-                            .map_or(String::new(), |g| format!(", withheld gap {}", fmt_gap(g)));
-                        let val = if c.value.is_finite() {
-                            format!("{} ± {}", fmt_num(c.value), fmt_num(c.stderr))
-                        } else {
-                            "–".into()
-                        };
-                        let _ = writeln!(
-                            s,
-                            "  {} at {}: {val}{gap} ({})",
-                            c.effect.name(),
-                            c.location.label(),
-                            if c.note.is_empty() {
-                                "not scored"
-                            } else {
-                                &c.note
-                            }
-                        );
-                    }
-                }
-            }
-            Verdict::MistunedParameters => {
+                    .filter(|c| c.location == f.location)
+                    .find_map(|c| match c.effect {
+                        Effect::Backlash { gap } => Some(fmt_num(gap)),
+                        _ => None,
+                    })
+                    .unwrap_or_else(|| "–".into()),
+            );
+        }
+    }
+
+    /// After the found effects: what re-identification and the effects each removed, the
+    /// runner-up, and what remains below the acceptance threshold.
+    fn write_missing_effect(&self, s: &mut String) {
+        use std::fmt::Write;
+        let _ = writeln!(
+            s,
+            "Re-identification alone: {} → {}; the effect{}: {} → {} ({})",
+            fmt_gap(self.gap_before),
+            fmt_gap(self.gap_reidentified),
+            if self.found.len() > 1 { "s" } else { "" },
+            fmt_gap(self.gap_reidentified),
+            fmt_gap(self.gap_after),
+            fmt_shrink(self.effect_shrink, "of the re-identified gap removed"),
+        );
+        let _ = writeln!(
+            s,
+            "Overall (nominal → corrected): {} → {} ({}); pathwise {} → {}",
+            fmt_gap(self.gap_before),
+            fmt_gap(self.gap_after),
+            fmt_shrink(self.shrink, "of the gap removed"),
+            fmt_gap(self.pathwise_gap_before),
+            fmt_gap(self.pathwise_gap_after),
+        );
+        if let Some(next) = self
+            .ranking
+            .iter()
+            .filter(|c| !c.accepted)
+            .find(|c| c.gap.is_some())
+        {
+            let _ = writeln!(
+                s,
+                "  runner-up: {} at {} (withheld gap {})",
+                next.effect.name(),
+                next.location.label(),
+                fmt_opt_gap(next.gap)
+            );
+        }
+        if !self.residual_ranking.is_empty() {
+            let _ = writeln!(s, "On top of that, below the acceptance threshold:");
+            for c in self.residual_ranking.iter().take(4) {
+                let gap = c
+                    .gap
+                    .map_or(String::new(), |g| format!(", withheld gap {}", fmt_gap(g)));
+                let val = if c.value.is_finite() {
+                    format!("{} ± {}", fmt_num(c.value), fmt_num(c.stderr))
+                } else {
+                    "–".into()
+                };
                 let _ = writeln!(
                     s,
-                    "Mis-tuned parameters: re-identification alone removes the gap ({} → {}; pathwise {} → {}); no significant unmodelled effect.",
-                    fmt_gap(self.nominal.gap),
-                    fmt_gap(self.reidentified.gap),
-                    fmt_gap(self.nominal.pathwise),
-                    fmt_gap(self.reidentified.pathwise)
-                );
-                let mut moved = self.moved.clone();
-                let size = |m: &MovedParam| m.change.map_or(f64::INFINITY, f64::abs);
-                moved.sort_by(|a, b| size(b).total_cmp(&size(a)));
-                for m in moved.iter().take(4) {
-                    let change = m.change.map_or("from 0".into(), |r| format!("{r:+.1} %"));
-                    let _ = writeln!(
-                        s,
-                        "  {}: {} → {} ({change})",
-                        m.name,
-                        fmt_num(m.nominal),
-                        fmt_num(m.identified)
-                    );
-                }
-            }
-            Verdict::Consistent => {
-                let _ = writeln!(
-                    s,
-                    "No significant unmodelled effect: the model matches the data within {} (statistical gap, {}).",
-                    fmt_gap(self.reidentified.gap.min(self.nominal.gap)),
-                    if self.reidentified.gap < self.nominal.gap {
-                        "re-identified"
+                    "  {} at {}: {val}{gap} ({})",
+                    c.effect.name(),
+                    c.location.label(),
+                    if c.note.is_empty() {
+                        "not scored"
                     } else {
-                        "nominal"
+                        &c.note
                     }
                 );
             }
-            Verdict::Unexplained => {
-                let _ = writeln!(
-                    s,
-                    "No significant unmodelled effect from the library explains the remaining gap of {} (re-identified; pathwise {}).",
-                    fmt_gap(self.reidentified.gap),
-                    fmt_gap(self.reidentified.pathwise)
-                );
-            }
         }
-        for n in &self.notes {
-            let _ = writeln!(s, "Note: {n}");
+    }
+
+    /// Mis-tuned parameters: the gaps and the parameters that moved most.
+    fn write_mistuned(&self, s: &mut String) {
+        use std::fmt::Write;
+        let _ = writeln!(
+            s,
+            "Mis-tuned parameters: re-identification alone removes the gap ({} → {}; pathwise {} → {}); no significant unmodelled effect.",
+            fmt_gap(self.nominal.gap),
+            fmt_gap(self.reidentified.gap),
+            fmt_gap(self.nominal.pathwise),
+            fmt_gap(self.reidentified.pathwise)
+        );
+        let mut moved = self.moved.clone();
+        let size = |m: &MovedParam| m.change.map_or(f64::INFINITY, f64::abs);
+        moved.sort_by(|a, b| size(b).total_cmp(&size(a)));
+        for m in moved.iter().take(4) {
+            let change = m.change.map_or("from 0".into(), |r| format!("{r:+.1} %"));
+            let _ = writeln!(
+                s,
+                "  {}: {} → {} ({change})",
+                m.name,
+                fmt_num(m.nominal),
+                fmt_num(m.identified)
+            );
         }
-        s
     }
 }
 

@@ -1,5 +1,6 @@
+use super::sens::{SensModel, SensRk4};
 use super::*;
-use crate::sim::{simulate, SimConfig};
+use crate::sim::{simulate, simulate_driven_from, SimConfig, Start};
 
 const DUFFING: &str = "model duffing {
     body m ~ 1.0

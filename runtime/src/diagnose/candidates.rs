@@ -1,0 +1,200 @@
+//! The candidates of a search step: every effect of the library at every site of the
+//! current model, less what the data cannot support (velocity terms without velocities,
+//! nonlinear terms at bodies measured by accelerations alone) and the kinds already found
+//! at a site; the backlash at a grid of gaps, refined once around the best; and, when no
+//! single effect is accepted, pairs of the first step's best.
+
+use super::effects::{constant_force_sites, locations, Effect, Location};
+use super::levels::Data;
+use super::metrics;
+use super::types::{CandidateScore, FoundEffect};
+use dynid_ir::ir::{BodyId, ModelIr, SignalKind};
+use dynid_ir::num;
+
+/// Every effect at every location on top of `ir`, except the kinds already `found` at a
+/// location (a second copy of a term is collinear with the first). What is not searched,
+/// and why, is said once in `notes`.
+pub(super) fn candidates(
+    ir: &ModelIr,
+    found: &[FoundEffect],
+    data: &Data,
+    notes: &mut Vec<String>,
+) -> Vec<(Effect, Location)> {
+    // A velocity term needs each velocity measured or estimable from a measured position
+    // (identification then differentiates the position, see `ident::velocity`).
+    let vel_measured = ir.signals.iter().all(|s| match s.kind {
+        SignalKind::Velocity(b) => s.measured || ir.signal(ir.position(b)).measured,
+        _ => true,
+    });
+    let locs = locations(ir);
+    let mut cands: Vec<(Effect, Location)> = Vec::new();
+    let mut skipped_velocity = false;
+    // A nonlinear force in the motion of a body measured only by its acceleration cannot
+    // be formed yet (identification refuses it): such sites are not searched, and said so.
+    let accel_only = |node: &str| {
+        ir.bodies
+            .iter()
+            .position(|b| b.name == node)
+            .is_some_and(|b| ir.acceleration_only(BodyId(b as u32)))
+    };
+    let mut skipped_accel: Vec<String> = Vec::new();
+    let already = |kind: &str, loc: &Location| {
+        found
+            .iter()
+            .any(|f| f.effect.kind() == kind && f.location.a == loc.a && f.location.b == loc.b)
+    };
+    let big = largest_level(data);
+    for loc in &locs {
+        if accel_only(&loc.a) || accel_only(&loc.b) {
+            skipped_accel.push(loc.label());
+            continue;
+        }
+        for eff in [
+            Effect::Cubic,
+            Effect::QuadraticStiffness,
+            Effect::Coulomb,
+            Effect::QuadraticDamping,
+            Effect::Prestress,
+        ] {
+            if eff.needs_velocity() && !vel_measured {
+                skipped_velocity = true;
+                continue;
+            }
+            if already(eff.kind(), loc) {
+                continue;
+            }
+            cands.push((eff, loc.clone()));
+        }
+        let sg = sigma_s(data, big, loc);
+        if sg > 0.0 && !already("backlash", loc) {
+            for f in [0.1, 0.25, 0.5, 1.0] {
+                cands.push((
+                    Effect::Backlash {
+                        gap: num::round_sig(f * sg, 3),
+                    },
+                    loc.clone(),
+                ));
+            }
+        }
+    }
+    // A constant force on each body. Where the data carry no mean (centred records) its
+    // column is zero and identification names it unidentifiable: the candidate then has
+    // no value and is not scored ("not resolved by the data").
+    for loc in constant_force_sites(ir, &locs) {
+        if !already(Effect::ConstantForce.kind(), &loc) {
+            cands.push((Effect::ConstantForce, loc));
+        }
+    }
+    note_skipped(&skipped_accel, skipped_velocity, notes);
+    cands
+}
+
+/// Say once what the search leaves out: sites at bodies measured by accelerations alone,
+/// and the velocity terms when no velocity is measured or estimable.
+fn note_skipped(skipped_accel: &[String], skipped_velocity: bool, notes: &mut Vec<String>) {
+    if !skipped_accel.is_empty() && !notes.iter().any(|s| s.contains("accelerations alone")) {
+        notes.push(format!(
+            "no nonlinear effect was searched at {}: a body there is measured by accelerations \
+             alone, whose displacement and velocity the nonlinear terms need (measure its \
+             position to search there)",
+            skipped_accel.join(", ")
+        ));
+    }
+    if skipped_velocity && !notes.iter().any(|s| s.contains("velocities")) {
+        notes.push(
+            "velocities are neither measured nor estimable from positions: Coulomb friction and \
+             quadratic damping candidates were skipped (cubic, quadratic stiffness, backlash, prestress and constant force were searched)"
+                .into(),
+        );
+    }
+}
+
+/// The level whose recorded columns have the largest summed standard deviation.
+fn largest_level(data: &Data) -> usize {
+    let n = data.records.len();
+    (0..n)
+        .max_by(|&a, &b| {
+            let sa = data.records[a]
+                .columns
+                .iter()
+                .map(|c| metrics::std_dev(c))
+                .sum::<f64>();
+            let sb = data.records[b]
+                .columns
+                .iter()
+                .map(|c| metrics::std_dev(c))
+                .sum::<f64>();
+            sa.total_cmp(&sb)
+        })
+        .unwrap_or(0)
+}
+
+/// The standard deviation of the relative displacement `s` at `loc` on level `big` (the
+/// backlash grid's gaps are multiples of it); 0 where a node's position is not recorded.
+fn sigma_s(data: &Data, big: usize, loc: &Location) -> f64 {
+    let rec = &data.records[big];
+    let col = |node: &str| rec.column(&format!("{node}.x"));
+    let s: Vec<f64> = match (loc.a.as_str(), col(&loc.a), col(&loc.b)) {
+        ("ground", _, Some(xb)) => xb.to_vec(),
+        (_, Some(xa), Some(xb)) => xb.iter().zip(xa).map(|(b, a)| b - a).collect(),
+        (_, Some(xa), None) if loc.b == "ground" => xa.iter().map(|a| -a).collect(),
+        _ => return 0.0,
+    };
+    metrics::std_dev(&s)
+}
+
+/// The backlash gaps tried around the best grid gap of each location of `ir` (by the
+/// cross-validated covariance residual among the `ranked` backlash candidates there).
+pub(super) fn refined_backlash<'c>(
+    ir: &ModelIr,
+    ranked: impl Iterator<Item = &'c CandidateScore> + Clone,
+) -> Vec<(Effect, Location)> {
+    let mut refined = Vec::new();
+    for loc in &locations(ir) {
+        let best = ranked
+            .clone()
+            .filter(|s| s.location == *loc && matches!(s.effect, Effect::Backlash { .. }))
+            .min_by(|a, b| a.cv_residual.total_cmp(&b.cv_residual));
+        if let Some(Effect::Backlash { gap }) = best.map(|s| s.effect) {
+            for f in [0.75, 1.35] {
+                refined.push((
+                    Effect::Backlash {
+                        gap: num::round_sig(gap * f, 3),
+                    },
+                    loc.clone(),
+                ));
+            }
+        }
+    }
+    refined
+}
+
+/// How many of the first step's best candidates (by the cross-validated covariance
+/// residual) are tried in pairs when no single effect is accepted: at most
+/// `PAIR_POOL · (PAIR_POOL − 1) / 2 = 28` more measuring passes, and free runs only for the
+/// pairs whose two coefficients are both significant.
+const PAIR_POOL: usize = 8;
+
+/// The pairs of the first step's best candidates in `ranking` (two of a kind at one site
+/// excepted). A candidate the search left without a value (within its error of zero, its
+/// column pruned) may still be half of a pair: those follow the valued ones, in ranking
+/// order.
+pub(super) fn pairs(ranking: &[CandidateScore]) -> Vec<(&CandidateScore, &CandidateScore)> {
+    let pool: Vec<&CandidateScore> = ranking
+        .iter()
+        .filter(|c| c.value.is_finite())
+        .chain(ranking.iter().filter(|c| !c.value.is_finite()))
+        .take(PAIR_POOL)
+        .collect();
+    let mut pairs = Vec::new();
+    for i in 0..pool.len() {
+        for j in i + 1..pool.len() {
+            if pool[i].location != pool[j].location
+                || pool[i].effect.kind() != pool[j].effect.kind()
+            {
+                pairs.push((pool[i], pool[j]));
+            }
+        }
+    }
+    pairs
+}
