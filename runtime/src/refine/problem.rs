@@ -369,14 +369,16 @@ fn check_start(
     Ok(unknowns)
 }
 
-/// The compared signals (measured positions and velocities, as `(body, is velocity,
-/// name)`) and their weights (1 unless given).
+/// A compared signal: `(body, is velocity, name)`.
+type CompareSignal = (usize, bool, String);
+
+/// The compared signals (measured positions and velocities) and their weights (1 unless
+/// given).
 fn compared_signals(
     ir: &ModelIr,
     opts: &RefineOptions,
-) -> Result<(Vec<(usize, bool, String)>, Vec<f64>), RefineError> {
-    // The compared signals: measured positions and velocities.
-    let compared: Vec<(usize, bool, String)> = ir
+) -> Result<(Vec<CompareSignal>, Vec<f64>), RefineError> {
+    let compared: Vec<CompareSignal> = ir
         .signals
         .iter()
         .filter(|s| s.measured)
