@@ -70,7 +70,8 @@ fn simulate_then_identify_writes_json() {
 
 /// Run `identify` on one prepared file (a valid level copied for the others) and return
 /// stderr; checks the exit status, that the error carries `code` and that no `--json` file
-/// appears.
+/// appears. The callers then check only what the message must name (the file, the line,
+/// the column), not its wording.
 fn refused(dir: &Path, bad: &Path, extra: &[&str], code: &str) -> String {
     let json = dir.join("out.json");
     let mut args = vec![
@@ -130,36 +131,25 @@ fn bad_data_is_refused_with_file_and_line() {
 
     let p = write(d, "ragged.csv", &with_line(20, "0.19,1,2"));
     let e = refused(d, &p, &[], "dynid::data::ragged");
-    assert!(
-        e.contains("ragged.csv") && e.contains("line 21") && e.contains("found 3"),
-        "{e}"
-    );
+    assert!(e.contains("ragged.csv") && e.contains("line 21"), "{e}");
 
     let p = write(d, "empty.csv", "");
     let e = refused(d, &p, &[], "dynid::data::empty");
-    assert!(e.contains("empty.csv") && e.contains("empty"), "{e}");
+    assert!(e.contains("empty.csv"), "{e}");
 
     let p = write(d, "short.csv", &rows(50, 0.01));
     let e = refused(d, &p, &[], "dynid::data::too_few_samples");
-    assert!(
-        e.contains("short.csv") && e.contains("only 50 samples"),
-        "{e}"
-    );
+    assert!(e.contains("short.csv") && e.contains("50"), "{e}");
 
     let p = write(d, "jump.csv", &with_line(100, "1.50,0,1,0.5"));
     let e = refused(d, &p, &[], "dynid::data::non_uniform_time");
-    assert!(
-        e.contains("jump.csv") && e.contains("line 101") && e.contains("time step"),
-        "{e}"
-    );
+    assert!(e.contains("jump.csv") && e.contains("line 101"), "{e}");
 
     let p = write(d, "ok.csv", &valid);
-    let e = refused(d, &p, &["--frobnicate"], "--frobnicate");
-    assert!(e.contains("--frobnicate"), "{e}");
+    // (An unknown option is refused by the argument parser, which has no code: it names
+    // the option.)
+    refused(d, &p, &["--frobnicate"], "--frobnicate");
 
     let e = refused(d, &d.join("nowhere.csv"), &[], "dynid::data::io");
-    assert!(
-        e.contains("nowhere.csv") && e.contains("cannot read"),
-        "{e}"
-    );
+    assert!(e.contains("nowhere.csv"), "{e}");
 }

@@ -43,6 +43,20 @@ struct Case {
     oversample: usize,
 }
 
+impl Case {
+    /// The two-mass model, nothing added or withheld, noise-free, 300 s per level, no input
+    /// content between samples; a case names what differs (`..Case::DEFAULT`).
+    const DEFAULT: Case = Case {
+        name: "",
+        base: TWO_MASS,
+        common: &[],
+        truth: &[],
+        noise: 0.0,
+        duration: 300.0,
+        oversample: 1,
+    };
+}
+
 fn run(case: &Case) -> Diagnosis {
     run_at(case, common::seed(11))
 }
@@ -262,12 +276,8 @@ fn assert_shrink(d: &Diagnosis, min: f64) {
 fn cubic_in_the_two_mass_coupling() {
     let d = run(&Case {
         name: "two_mass cubic (m1, m2)",
-        base: TWO_MASS,
-        common: &[],
         truth: &["force nl (m1, m2) = k3 ~ 1.5 * s^3"],
-        noise: 0.0,
-        duration: 300.0,
-        oversample: 1,
+        ..Case::DEFAULT
     });
     assert_found(&d, &[("cubic", "m1", "m2")]);
 }
@@ -276,12 +286,8 @@ fn cubic_in_the_two_mass_coupling() {
 fn coulomb_friction_at_the_wall() {
     let d = run(&Case {
         name: "two_mass Coulomb (ground, m1)",
-        base: TWO_MASS,
-        common: &[],
         truth: &["force fr (ground, m1) = r ~ 0.3 * sign(v)"],
-        noise: 0.0,
-        duration: 300.0,
-        oversample: 1,
+        ..Case::DEFAULT
     });
     assert_found(&d, &[("coulomb", "ground", "m1")]);
 }
@@ -290,12 +296,8 @@ fn coulomb_friction_at_the_wall() {
 fn quadratic_damping_on_a_body_without_a_ground_element() {
     let d = run(&Case {
         name: "two_mass quadratic damping (ground, m2)",
-        base: TWO_MASS,
-        common: &[],
         truth: &["force qd (ground, m2) = q ~ 0.5 * v * abs(v)"],
-        noise: 0.0,
-        duration: 300.0,
-        oversample: 1,
+        ..Case::DEFAULT
     });
     assert_found(&d, &[("quadratic_damping", "ground", "m2")]);
 }
@@ -305,11 +307,8 @@ fn backlash_in_the_chain() {
     let d = run(&Case {
         name: "chain4 backlash (m3, m4)",
         base: CHAIN4,
-        common: &[],
         truth: &["force bl (m3, m4) = kb ~ 4.0 * deadzone(s, 0.1)"],
-        noise: 0.0,
-        duration: 300.0,
-        oversample: 1,
+        ..Case::DEFAULT
     });
     assert_found(&d, &[("backlash", "m3", "m4")]);
     // The gap profiled, not gridded: DYNID_SEED_OFFSET=0..3 gave the gap −0.4 … +0.8 % and
@@ -334,11 +333,8 @@ fn prestress_in_the_chain() {
     let d = run(&Case {
         name: "chain4 prestress (ground, m1)",
         base: CHAIN4,
-        common: &[],
         truth: &["force pre (ground, m1) = f0 ~ 1.0 * sign(s)"],
-        noise: 0.0,
-        duration: 300.0,
-        oversample: 1,
+        ..Case::DEFAULT
     });
     assert_found(&d, &[("prestress", "ground", "m1")]);
 }
@@ -349,12 +345,9 @@ fn asymmetric_spring_at_the_wall() {
     // quadratic one (force monotonic in s: 3 s² + 2 s + 4 > 0) is withheld.
     let d = run(&Case {
         name: "two_mass asymmetric spring (ground, m1)",
-        base: TWO_MASS,
         common: &["force nl (ground, m1) = k3 ~ 1.0 * s^3"],
         truth: &["force asym (ground, m1) = kq ~ 1.0 * s^2"],
-        noise: 0.0,
-        duration: 300.0,
-        oversample: 1,
+        ..Case::DEFAULT
     });
     // Seeds 11–15 (`for o in 0 1 2 3 4; do DYNID_SEED_OFFSET=$o cargo test --test
     // diagnose_withheld -- --nocapture asymmetric; done`): kq = 0.99996 … 1.00016, withheld
@@ -367,15 +360,11 @@ fn asymmetric_spring_at_the_wall() {
 
 const TWO_MISSING: Case = Case {
     name: "two_mass cubic (m1, m2) + Coulomb (ground, m1)",
-    base: TWO_MASS,
-    common: &[],
     truth: &[
         "force nl (m1, m2) = k3 ~ 1.5 * s^3",
         "force fr (ground, m1) = r ~ 0.3 * sign(v)",
     ],
-    noise: 0.0,
-    duration: 300.0,
-    oversample: 1,
+    ..Case::DEFAULT
 };
 
 /// Both withheld effects, over seeds: a verdict that holds on the seed it was written for
@@ -424,12 +413,9 @@ fn two_missing_effects() {
 fn coulomb_with_five_percent_noise() {
     let d = run(&Case {
         name: "two_mass Coulomb (m1, m2), 5 % noise",
-        base: TWO_MASS,
-        common: &[],
         truth: &["force fr (m1, m2) = r ~ 0.3 * sign(v)"],
         noise: 0.05,
-        duration: 300.0,
-        oversample: 1,
+        ..Case::DEFAULT
     });
     assert_eq!(d.found.len(), 1, "{}", d.summary());
     assert_eq!(d.found[0].effect.kind(), "coulomb", "{}", d.summary());
@@ -446,9 +432,7 @@ fn cubic_from_displacement_only_data() {
         base: CHAIN4,
         common: &["measure m1.x, m2.x, m3.x, m4.x, u"],
         truth: &["force nl (m1, m2) = c ~ 3.0 * s^3"],
-        noise: 0.0,
-        duration: 300.0,
-        oversample: 1,
+        ..Case::DEFAULT
     });
     // Velocity candidates are searched too, on velocities estimated from the positions,
     // and must not be taken for the cubic.
@@ -464,12 +448,7 @@ fn cubic_from_displacement_only_data() {
 fn a_matching_model_reports_no_effect() {
     let d = run(&Case {
         name: "two_mass, nothing withheld",
-        base: TWO_MASS,
-        common: &[],
-        truth: &[],
-        noise: 0.0,
-        duration: 300.0,
-        oversample: 1,
+        ..Case::DEFAULT
     });
     assert!(d.found.is_empty(), "{}", d.summary());
     assert_eq!(d.verdict, Verdict::Consistent, "{}", d.summary());
@@ -486,12 +465,9 @@ fn a_matching_model_reports_no_effect() {
 fn cubic_with_input_between_samples() {
     let d = run(&Case {
         name: "two_mass cubic (m1, m2), input between samples",
-        base: TWO_MASS,
-        common: &[],
         truth: &["force nl (m1, m2) = k3 ~ 1.5 * s^3"],
-        noise: 0.0,
-        duration: 300.0,
         oversample: 10,
+        ..Case::DEFAULT
     });
     assert_found(&d, &[("cubic", "m1", "m2")]);
 }
@@ -501,11 +477,9 @@ fn backlash_with_input_between_samples() {
     let d = run(&Case {
         name: "chain4 backlash (m3, m4), input between samples",
         base: CHAIN4,
-        common: &[],
         truth: &["force bl (m3, m4) = kb ~ 4.0 * deadzone(s, 0.1)"],
-        noise: 0.0,
-        duration: 300.0,
         oversample: 10,
+        ..Case::DEFAULT
     });
     assert_found(&d, &[("backlash", "m3", "m4")]);
     // Input content between samples biases the equations the profile minimises:
@@ -518,12 +492,9 @@ fn backlash_with_input_between_samples() {
 fn coulomb_with_input_between_samples() {
     let d = run(&Case {
         name: "two_mass Coulomb (ground, m1), input between samples",
-        base: TWO_MASS,
-        common: &[],
         truth: &["force fr (ground, m1) = r ~ 0.3 * sign(v)"],
-        noise: 0.0,
-        duration: 300.0,
         oversample: 10,
+        ..Case::DEFAULT
     });
     assert_found(&d, &[("coulomb", "ground", "m1")]);
 }
@@ -532,12 +503,10 @@ fn coulomb_with_input_between_samples() {
 fn asymmetric_spring_with_input_between_samples() {
     let d = run(&Case {
         name: "two_mass asymmetric spring (ground, m1), input between samples",
-        base: TWO_MASS,
         common: &["force nl (ground, m1) = k3 ~ 1.0 * s^3"],
         truth: &["force asym (ground, m1) = kq ~ 1.0 * s^2"],
-        noise: 0.0,
-        duration: 300.0,
         oversample: 10,
+        ..Case::DEFAULT
     });
     // The nominal model misses only by 2.1–3.4 %, 3–4 times the floor that even the true
     // model keeps here (0.5–0.7 %, `a_matching_model_with_input_between_samples`): overall
@@ -552,12 +521,8 @@ fn asymmetric_spring_with_input_between_samples() {
 fn a_matching_model_with_input_between_samples() {
     let d = run(&Case {
         name: "two_mass, nothing withheld, input between samples",
-        base: TWO_MASS,
-        common: &[],
-        truth: &[],
-        noise: 0.0,
-        duration: 300.0,
         oversample: 10,
+        ..Case::DEFAULT
     });
     assert!(d.found.is_empty(), "{}", d.summary());
     assert_eq!(d.verdict, Verdict::Consistent, "{}", d.summary());

@@ -12,6 +12,7 @@ mod common;
 mod formats_common;
 
 use common::{dynid, setup_linear_levels, stderr};
+use dynid_runtime::data::fuzz::FUZZ_MODEL;
 use formats_common::*;
 use std::path::{Path, PathBuf};
 
@@ -242,15 +243,6 @@ fn small_seed_files(dir: &Path) -> Vec<PathBuf> {
     out.push(p);
     out
 }
-
-/// The model the `binary` fuzz target reads its files as.
-const FUZZ_MODEL: &str = "model m {
-    body m = 1.0
-    input u on m
-    measure m.x, u
-    spring k (ground, m) ~ 4.0
-    damper d (ground, m) ~ 0.4
-}";
 
 #[test]
 fn the_binary_readers_survive_damaged_files() {

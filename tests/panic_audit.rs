@@ -97,6 +97,8 @@ fn offences(text: &str) -> Vec<(usize, String)> {
 /// at its top, or the invariant of its caller).
 const DATA_SHAPED: &[&str] = &[
     "runtime/src/detect/fit.rs",
+    "runtime/src/detect/fit/template.rs",
+    "runtime/src/detect/fit/wls.rs",
     "runtime/src/ident/solve.rs",
     "runtime/src/ident/stats.rs",
     "runtime/src/refine/qr.rs",

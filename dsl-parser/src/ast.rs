@@ -4,13 +4,10 @@
 //! point at the line of the model file.
 
 use crate::error::{CompileError, ErrorSink};
+use crate::grammar::{DynParser, Rule};
 use crate::ir::Span;
 use pest::iterators::Pair;
 use pest::Parser;
-
-#[derive(pest_derive::Parser)]
-#[grammar = "dyn.pest"]
-pub(crate) struct DynParser;
 
 /// Deeper nesting than this is rejected before parsing so that neither the parser nor the
 /// recursive lowering can exhaust the stack on hostile input.
@@ -193,7 +190,7 @@ pub(crate) fn parse(source: &str, sink: &mut ErrorSink) -> Option<AstModel> {
     let mut pairs = match DynParser::parse(Rule::file, source) {
         Ok(p) => p,
         Err(e) => {
-            sink.push(crate::error::from_pest(sink, e));
+            sink.push(crate::syntax_error::from_pest(sink, e));
             return None;
         }
     };
@@ -315,6 +312,10 @@ fn build_model(p: Pair<Rule>, sink: &mut ErrorSink) -> AstModel {
     AstModel { name, items, span }
 }
 
+/// One statement of a model, by its grammar rule.
+///
+/// Longer than most functions here: one match arm per statement rule of `dyn.pest`, each a
+/// few lines; split apart, the arms would only move into functions called once.
 fn build_item(p: Pair<Rule>, sink: &mut ErrorSink) -> Option<AstItem> {
     let span = span_of(&p);
     let rule = p.as_rule();
@@ -460,6 +461,11 @@ fn build_expr(p: Pair<Rule>, sink: &mut ErrorSink) -> AstExpr {
     e
 }
 
+/// An expression, by its grammar rule (`expr`, `term`, `unary`, `power`, `call`, …),
+/// within the node `budget` of [`MAX_EXPR_NODES`].
+///
+/// Longer than most functions here: one match arm per expression rule, as in
+/// [`build_item`].
 fn build_expr_in(p: Pair<Rule>, sink: &mut ErrorSink, budget: &mut usize) -> AstExpr {
     let span = span_of(&p);
     if *budget == 0 {

@@ -15,13 +15,17 @@
 //! The helpers in [`macro_support`] turn parser diagnostics into `compile_error!`s for the
 //! procedural macros, so that the macro crate stays a thin shim.
 
-use crate::ir::{BinaryOp, ExprId, ExprNode, ModelIr, ParamKind, SignalKind, UnaryOp};
+use crate::ir::{ModelIr, ParamKind, SignalKind};
 use proc_macro2::{Ident, Literal, Span, TokenStream};
-use quote::{format_ident, quote};
-use std::collections::HashSet;
+use quote::quote;
 
+mod eval;
+mod idents;
 pub mod macro_support;
 mod naming;
+
+use eval::basis_eval_impl;
+use idents::{doc, f64_tokens, Names};
 
 pub use naming::{model_name_hint, type_name};
 
@@ -95,124 +99,6 @@ pub fn error_stub(model: &str, opts: &CodegenOptions) -> TokenStream {
     }
 }
 
-/// Identifiers used by the generated code, resolved once so that every item agrees.
-struct Names {
-    ty: Ident,
-    params_ty: Ident,
-    /// Field of each unknown parameter, in `ir.unknowns()` order.
-    fields: Vec<Ident>,
-    /// Associated constant of each signal (SignalId order).
-    signal_consts: Vec<Ident>,
-    /// Local variable holding each signal's sample (SignalId order).
-    signal_locals: Vec<Ident>,
-}
-
-/// Associated items of the model struct that a signal constant must not shadow.
-const RESERVED_CONSTS: &[&str] = &[
-    "NAME",
-    "SOURCE",
-    "PARAM_NAMES",
-    "SIGNAL_NAMES",
-    "N_SIGNALS",
-    "N_ROOTS",
-];
-
-impl Names {
-    fn new(ir: &ModelIr) -> Self {
-        let ty_name = type_name(&ir.name);
-        let upper = |s: &str| sanitize(s).to_ascii_uppercase();
-        let lower = |s: &str| format!("s_{}", sanitize(s).to_ascii_lowercase());
-        Names {
-            ty: Ident::new(&ty_name, Span::call_site()),
-            params_ty: format_ident!("{}Params", ty_name),
-            fields: ir
-                .unknowns()
-                .iter()
-                .map(|p| field_ident(&ir.params[p.index()].name))
-                .collect(),
-            signal_consts: unique(ir.signals.iter().map(|s| upper(&s.name)), RESERVED_CONSTS)
-                .iter()
-                .map(|s| Ident::new(s, Span::call_site()))
-                .collect(),
-            signal_locals: unique(ir.signals.iter().map(|s| lower(&s.name)), &[])
-                .iter()
-                .map(|s| Ident::new(s, Span::call_site()))
-                .collect(),
-        }
-    }
-}
-
-/// `m1.x` → `m1_x`: any character that cannot appear in an identifier becomes `_`.
-fn sanitize(name: &str) -> String {
-    let s: String = name
-        .chars()
-        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
-        .collect();
-    if s.starts_with(|c: char| c.is_ascii_digit()) {
-        format!("_{s}")
-    } else {
-        s
-    }
-}
-
-/// Make names distinct (and distinct from `reserved`) by appending the position.
-fn unique(names: impl Iterator<Item = String>, reserved: &[&str]) -> Vec<String> {
-    let mut seen: HashSet<String> = reserved.iter().map(|s| s.to_string()).collect();
-    names
-        .enumerate()
-        .map(|(i, n)| {
-            let n = if seen.contains(&n) {
-                format!("{n}_{i}")
-            } else {
-                n
-            };
-            seen.insert(n.clone());
-            n
-        })
-        .collect()
-}
-
-/// A struct field for a parameter name; Rust keywords become raw identifiers.
-fn field_ident(name: &str) -> Ident {
-    let name = sanitize(name);
-    if syn::parse_str::<Ident>(&name).is_ok() {
-        Ident::new(&name, Span::call_site())
-    } else if matches!(name.as_str(), "self" | "Self" | "super" | "crate" | "_") {
-        format_ident!("{}_", name)
-    } else {
-        Ident::new_raw(&name, Span::call_site())
-    }
-}
-
-/// An `f64` expression that is bit-for-bit `v`, for a place where the type is known.
-fn f64_tokens(v: f64) -> TokenStream {
-    f64_literal(v, false)
-}
-
-/// An `f64` expression that is bit-for-bit `v`; `suffixed` where the type is not known from
-/// context (the receiver of a method call).
-fn f64_literal(v: f64, suffixed: bool) -> TokenStream {
-    if !v.is_finite() {
-        let bits = Literal::u64_suffixed(v.to_bits());
-        return quote!(f64::from_bits(#bits));
-    }
-    // `Display` of f64 is the shortest representation that parses back to the same bits.
-    let lit = if suffixed {
-        Literal::f64_suffixed(v.abs())
-    } else {
-        Literal::f64_unsuffixed(v.abs())
-    };
-    if v.is_sign_negative() {
-        quote!((-#lit))
-    } else {
-        quote!(#lit)
-    }
-}
-
-fn doc(text: &str) -> TokenStream {
-    quote!(#[doc = #text])
-}
-
 fn params_struct(ir: &ModelIr, n: &Names) -> TokenStream {
     let ty = &n.params_ty;
     let unknowns = ir.unknowns();
@@ -276,6 +162,10 @@ fn params_struct(ir: &ModelIr, n: &Names) -> TokenStream {
     }
 }
 
+/// The unit struct of the model with its name tables, signal index constants and source.
+///
+/// Longer than most functions here: it is a code template, and its `quote!` needs every
+/// table in scope.
 fn model_struct(ir: &ModelIr, source: &str, n: &Names, opts: &CodegenOptions) -> TokenStream {
     let krate = &opts.crate_path;
     let ty = &n.ty;
@@ -365,157 +255,6 @@ fn model_struct(ir: &ModelIr, source: &str, n: &Names, opts: &CodegenOptions) ->
     }
 }
 
-fn basis_eval_impl(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStream {
-    let krate = &opts.crate_path;
-    let ty = &n.ty;
-    let roots = ir.eval_roots();
-    let needed = ir.needed_nodes(&roots);
-
-    // A constant is written as an unsuffixed literal, except where it receives a method call.
-    let receiver = |e: ExprId, value: &[TokenStream]| match ir.exprs[e.index()] {
-        ExprNode::Const(b) => f64_literal(f64::from_bits(b), true),
-        _ => value[e.index()].clone(),
-    };
-    // How each node is referred to: constants inline, signals and computed nodes by name.
-    let mut value: Vec<TokenStream> = Vec::with_capacity(needed.len());
-    let mut body = Vec::new();
-    let mut helpers: Vec<&str> = Vec::new();
-    let mut signals_read = Vec::new();
-    for (i, &need) in needed.iter().enumerate() {
-        let node = ir.exprs[i];
-        if !need {
-            value.push(TokenStream::new());
-            continue;
-        }
-        let rhs = match node {
-            ExprNode::Const(b) => {
-                value.push(f64_tokens(f64::from_bits(b)));
-                continue;
-            }
-            ExprNode::Signal(s) => {
-                signals_read.push(s.index());
-                let local = &n.signal_locals[s.index()];
-                value.push(quote!(#local));
-                continue;
-            }
-            ExprNode::Unary(op, a) => {
-                let a = &receiver(a, &value);
-                match op {
-                    UnaryOp::Neg => quote!(-#a),
-                    UnaryOp::Abs => quote!(#a.abs()),
-                    UnaryOp::Sign => {
-                        helpers.push("sign");
-                        quote!(sign(#a))
-                    }
-                    UnaryOp::Tanh => quote!(#a.tanh()),
-                    UnaryOp::Sqrt => quote!(#a.sqrt()),
-                    UnaryOp::Exp => quote!(#a.exp()),
-                    UnaryOp::Sin => quote!(#a.sin()),
-                    UnaryOp::Cos => quote!(#a.cos()),
-                }
-            }
-            ExprNode::Binary(op, a, b) => {
-                let (a, b) = (&value[a.index()], &value[b.index()]);
-                match op {
-                    BinaryOp::Add => quote!(#a + #b),
-                    BinaryOp::Sub => quote!(#a - #b),
-                    BinaryOp::Mul => quote!(#a * #b),
-                    BinaryOp::Div => quote!(#a / #b),
-                }
-            }
-            // The tape special-cases these two exponents; `a * a * a` is `(a * a) * a`.
-            ExprNode::Powi(a, 2) => {
-                let a = &value[a.index()];
-                quote!(#a * #a)
-            }
-            ExprNode::Powi(a, 3) => {
-                let a = &value[a.index()];
-                quote!(#a * #a * #a)
-            }
-            ExprNode::Powi(a, k) => {
-                let a = &receiver(a, &value);
-                let abs = Literal::u32_unsuffixed(k.unsigned_abs());
-                let k = if k < 0 { quote!(-#abs) } else { quote!(#abs) };
-                quote!(#a.powi(#k))
-            }
-            ExprNode::Deadzone(a, g) => {
-                helpers.push("deadzone");
-                let (a, g) = (&value[a.index()], f64_tokens(f64::from_bits(g)));
-                quote!(deadzone(#a, #g))
-            }
-            ExprNode::Saturate(a, l) => {
-                helpers.push("saturate");
-                let (a, l) = (&value[a.index()], f64_tokens(f64::from_bits(l)));
-                quote!(saturate(#a, #l))
-            }
-        };
-        let local = format_ident!("e{}", i);
-        body.push(quote!(let #local: f64 = #rhs;));
-        value.push(quote!(#local));
-    }
-    signals_read.sort_unstable();
-    signals_read.dedup();
-    helpers.sort_unstable();
-    helpers.dedup();
-
-    let n_roots = Literal::usize_unsuffixed(roots.len());
-    let outs: Vec<Ident> = (0..roots.len()).map(|r| format_ident!("o{}", r)).collect();
-    let stores = roots.iter().zip(&outs).map(|(root, o)| {
-        let v = &value[root.index()];
-        quote!(#o[i] = #v;)
-    });
-    let cols: Vec<Ident> = signals_read
-        .iter()
-        .map(|&s| format_ident!("c_{}", n.signal_locals[s].to_string()))
-        .collect();
-    let locals = signals_read.iter().map(|&s| &n.signal_locals[s]);
-    let sig_idx = signals_read.iter().map(|&s| Literal::usize_unsuffixed(s));
-    let helper_idents = helpers.iter().map(|h| Ident::new(h, Span::call_site()));
-    let uses = if helpers.is_empty() {
-        TokenStream::new()
-    } else {
-        quote!(use #krate::dsl_parser::ir::{#(#helper_idents),*};)
-    };
-    let eval_body = if roots.is_empty() {
-        quote!(let _ = (signals, len, out, scratch);)
-    } else {
-        quote! {
-            #uses
-            let _ = scratch;
-            ::core::assert!(out.len() >= #n_roots * len, "output block too small");
-            // Slicing every column to `len` once lets the compiler drop the bounds checks
-            // in the loop.
-            #(let #cols: &[f64] = &signals[#sig_idx][..len];)*
-            let rest = &mut out[..#n_roots * len];
-            #(let (#outs, rest) = rest.split_at_mut(len);)*
-            let _ = rest;
-            for i in 0..len {
-                #(let #locals: f64 = #cols[i];)*
-                #(#body)*
-                #(#stores)*
-            }
-        }
-    };
-    quote! {
-        impl #krate::runtime::BasisEval for #ty {
-            fn n_roots(&self) -> usize {
-                #n_roots
-            }
-
-            #[allow(clippy::all, unused_variables)]
-            fn eval_block(
-                &self,
-                signals: &[&[f64]],
-                len: usize,
-                out: &mut [f64],
-                scratch: &mut ::std::vec::Vec<f64>,
-            ) {
-                #eval_body
-            }
-        }
-    }
-}
-
 /// Convenience methods that call into the runtime with this model's IR and this struct as
 /// the `BasisEval`: `identify` / `identify_with_options` (in-memory records, one per
 /// excitation level, pooled), `simulate` (the IR with the given unknown parameter values),
@@ -588,70 +327,4 @@ fn conveniences(ir: &ModelIr, n: &Names, opts: &CodegenOptions) -> TokenStream {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn type_names_are_camel_case() {
-        assert_eq!(type_name("two_mass"), "TwoMass");
-        assert_eq!(type_name("sdof"), "Sdof");
-        assert_eq!(type_name("SDOF_rig2"), "SDOFRig2");
-        assert_eq!(type_name("2dof"), "Model2dof");
-    }
-
-    #[test]
-    fn keywords_become_raw_fields() {
-        assert_eq!(field_ident("k").to_string(), "k");
-        assert_eq!(field_ident("type").to_string(), "r#type");
-        assert_eq!(field_ident("self").to_string(), "self_");
-    }
-
-    #[test]
-    fn clashing_names_are_made_unique() {
-        let names = ["M1_X", "M1_X", "SOURCE"].iter().map(|s| s.to_string());
-        assert_eq!(
-            unique(names, RESERVED_CONSTS),
-            ["M1_X", "M1_X_1", "SOURCE_2"]
-        );
-    }
-
-    #[test]
-    fn float_literals_round_trip_bit_for_bit() {
-        for v in [
-            0.1,
-            -0.0,
-            -2.5,
-            1e-300,
-            f64::MIN_POSITIVE,
-            f64::MAX,
-            f64::INFINITY,
-            f64::NAN,
-            std::f64::consts::PI,
-        ] {
-            for suffixed in [false, true] {
-                let expr: syn::Expr = syn::parse2(f64_literal(v, suffixed)).unwrap();
-                let text = quote!(#expr).to_string();
-                let back = parse_f64_expr(&text);
-                assert_eq!(back.to_bits(), v.to_bits(), "{v} printed as {text}");
-            }
-        }
-    }
-
-    /// Evaluates the three shapes `f64_tokens` emits, the way rustc would.
-    fn parse_f64_expr(text: &str) -> f64 {
-        let t = text.replace(' ', "");
-        if let Some(bits) = t.strip_prefix("f64::from_bits(") {
-            return f64::from_bits(bits.trim_end_matches("u64)").parse().unwrap());
-        }
-        let (neg, t) = match t.strip_prefix("(-") {
-            Some(rest) => (true, rest.trim_end_matches(')')),
-            None => (false, t.as_str()),
-        };
-        let v: f64 = t.trim_end_matches("f64").parse().unwrap();
-        if neg {
-            -v
-        } else {
-            v
-        }
-    }
-}
+mod tests;

@@ -28,7 +28,9 @@
 mod ast;
 pub mod codegen;
 pub mod error;
+mod grammar;
 mod lower;
+mod syntax_error;
 
 pub use dynid_ir::{edit, ir, num, print, text};
 

@@ -9,17 +9,9 @@ use libfuzzer_sys::fuzz_target;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-const MODEL: &str = "model m {
-    body m = 1.0
-    input u on m
-    measure m.x, u
-    spring k (ground, m) ~ 4.0
-    damper d (ground, m) ~ 0.4
-}";
-
 fn ir() -> &'static dsl_parser::ir::ModelIr {
     static IR: OnceLock<dsl_parser::ir::ModelIr> = OnceLock::new();
-    IR.get_or_init(|| dsl_parser::compile_str("fuzz.dyn", MODEL).expect("the model compiles"))
+    IR.get_or_init(|| dsl_parser::compile_str("fuzz.dyn", dynid_runtime::data::fuzz::FUZZ_MODEL).expect("the model compiles"))
 }
 
 fn file() -> &'static PathBuf {

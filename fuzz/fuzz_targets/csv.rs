@@ -5,17 +5,9 @@
 use libfuzzer_sys::fuzz_target;
 use std::sync::OnceLock;
 
-const MODEL: &str = "model m {
-    body m1 = 1.0
-    input u on m1
-    measure m1.x, u
-    spring k (ground, m1) ~ 4.0
-    damper d (ground, m1) ~ 0.4
-}";
-
 fn ir() -> &'static dsl_parser::ir::ModelIr {
     static IR: OnceLock<dsl_parser::ir::ModelIr> = OnceLock::new();
-    IR.get_or_init(|| dsl_parser::compile_str("fuzz.dyn", MODEL).expect("the model compiles"))
+    IR.get_or_init(|| dsl_parser::compile_str("fuzz.dyn", dynid_runtime::data::fuzz::FUZZ_MODEL).expect("the model compiles"))
 }
 
 fuzz_target!(|data: &[u8]| {

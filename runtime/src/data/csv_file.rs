@@ -1,9 +1,25 @@
 //! CSV level files: streamed, validated (header, equal field counts, finite numbers,
 //! uniform time step), with an optional binary copy that later passes replay.
+//!
+//! This module opens a source (header, first samples, sample interval) and reads whole
+//! records; `header` checks the header and its renamings and settles the sample interval,
+//! `sniff` tells from the first bytes and the size what the text is, `stream` runs the
+//! passes (parsing the text, or replaying the binary copy).
 
-use super::csv_parse::{parse_body, parse_number, Layout, Role};
+mod header;
+mod sniff;
+mod stream;
+
+use super::csv_parse::parse_number;
 use super::text::{copy_if_stream, read_error, LineCap};
-use super::*;
+use super::{CsvOptions, DataError, LevelSource, MIN_SAMPLES};
+use crate::record::Record;
+use dynid_ir::ir::ModelIr;
+use header::select_measured;
+use sniff::{rows_from_size, sniff, text_size};
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 /// A CSV file bound to a model: validated header, known sample interval; the body is
 /// validated while streaming.
@@ -84,148 +100,6 @@ fn csv_err(path: &Path, e: csv::Error) -> DataError {
     }
 }
 
-/// The header's columns for a message (invisible characters escaped), with a note when one
-/// of them is `wanted` but for invisible characters.
-fn present_columns(header: &[String], wanted: &str) -> String {
-    let escaped: Vec<String> = header.iter().map(|h| dynid_ir::text::escape(h)).collect();
-    let mut out = columns_in_words(&escaped);
-    let clean = |h: &str| -> String {
-        h.chars()
-            .filter(|&c| dynid_ir::text::invisible_name(c).is_none())
-            .collect()
-    };
-    if let Some(h) = header
-        .iter()
-        .find(|h| h.as_str() != wanted && clean(h) == wanted)
-    {
-        let what = dynid_ir::text::describe_invisibles(h).unwrap_or_default();
-        out += &format!(
-            "; column `{}` is `{wanted}` with an invisible character: {what}; remove it",
-            dynid_ir::text::escape(h)
-        );
-    }
-    out
-}
-
-/// Refuse, by their first bytes, files that the CSV reader would misread: UTF-16 text, and
-/// old Mac OS line ends (a carriage return alone), which make the file one line. Returns
-/// the first bytes read.
-fn sniff(path: &Path, text: &Text) -> Result<Vec<u8>, DataError> {
-    const HEAD: usize = 64 << 10;
-    let mut head = Vec::with_capacity(HEAD);
-    let file = match text {
-        Text::Bytes(b) => {
-            head.extend_from_slice(&b[..b.len().min(HEAD)]);
-            None
-        }
-        Text::File => Some(path),
-        Text::Copy(t) => Some(t.path()),
-    };
-    if let Some(f) = file {
-        // The raw bytes (UTF-16 text is full of NUL bytes, which the line reader refuses).
-        let Ok(f) = std::fs::File::open(f) else {
-            // The reader reports it.
-            return Ok(head);
-        };
-        if f.take(HEAD as u64).read_to_end(&mut head).is_err() {
-            return Ok(Vec::new());
-        }
-    }
-    let p = || path.display().to_string();
-    if let Some(kind) = dynid_ir::text::utf16_kind(&head) {
-        return Err(DataError::Encoding {
-            path: p(),
-            kind: kind.into(),
-        });
-    }
-    // A carriage return followed by more text, and no line feed in the first block.
-    let cr = head.iter().position(|&b| b == b'\r');
-    if !head.contains(&b'\n')
-        && cr.is_some_and(|k| head[k + 1..].iter().any(|b| !b.is_ascii_whitespace()))
-    {
-        return Err(DataError::CarriageReturns { path: p() });
-    }
-    Ok(head)
-}
-
-/// Rows of a text of `size` bytes whose first bytes are `head`: the size after the header
-/// line divided by the mean length of the complete rows in `head` (or, where no row ends
-/// in it, by what follows the header there: a row is at least that long).
-fn rows_from_size(size: u64, head: &[u8]) -> f64 {
-    let Some(h) = head.iter().position(|&b| b == b'\n') else {
-        return 0.0;
-    };
-    let body = &head[h + 1..];
-    let (rows, bytes) = match body.iter().rposition(|&b| b == b'\n') {
-        Some(last) => (
-            body[..=last].iter().filter(|&&b| b == b'\n').count(),
-            last + 1,
-        ),
-        None => (1, body.len()),
-    };
-    let per_row = bytes.max(1) as f64 / rows.max(1) as f64;
-    size.saturating_sub(h as u64 + 1) as f64 / per_row
-}
-
-/// The size in bytes of a source's text, where it is known.
-fn text_size(path: &Path, text: &Text) -> Option<u64> {
-    let meta = |p: &Path| {
-        std::fs::metadata(p)
-            .ok()
-            .filter(|m| m.is_file())
-            .map(|m| m.len())
-    };
-    match text {
-        Text::File => meta(path),
-        Text::Copy(t) => meta(t.path()),
-        Text::Bytes(b) => Some(b.len() as u64),
-    }
-}
-
-fn parse_cell(path: &Path, line: u64, column: &str, raw: &[u8]) -> Result<f64, DataError> {
-    parse_number(path, line, column, raw)
-}
-
-/// The header's columns for a message: all of them, or the first few and how many there
-/// are (a header can be up to [`super::MAX_LINE`] long; a message should not be).
-fn columns_in_words(header: &[String]) -> String {
-    const SHOWN: usize = 400;
-    let all = header.join(", ");
-    if all.len() <= SHOWN {
-        return all;
-    }
-    let mut cut = SHOWN;
-    while !all.is_char_boundary(cut) {
-        cut -= 1;
-    }
-    format!("{}… ({} columns)", &all[..cut], header.len())
-}
-
-/// The `(slot, column)` pairs of the measured signals of `ir` in a header (`names` after
-/// the renamings), and the number of slots.
-fn select_measured(
-    path: &Path,
-    ir: &ModelIr,
-    names: &[String],
-    header: &[String],
-) -> Result<(Vec<(usize, usize)>, usize), DataError> {
-    let mut wanted = Vec::new();
-    for s in ir.measured_signals() {
-        let name = &ir.signal(s).name;
-        match names.iter().position(|n| n == name) {
-            Some(k) => wanted.push((s.index(), k)),
-            None => {
-                return Err(DataError::MissingColumn {
-                    path: path.display().to_string(),
-                    signal: name.clone(),
-                    present: present_columns(header, name),
-                })
-            }
-        }
-    }
-    Ok((wanted, ir.signals.len()))
-}
-
 impl CsvSource {
     /// Open `path`, match its header to the measured signals of `ir` and fix the sample
     /// interval (from `t`, else from `opts.ts`).
@@ -278,122 +152,11 @@ impl CsvSource {
         if header.is_empty() || header.iter().all(|h| h.is_empty()) {
             return Err(DataError::Empty { path: p });
         }
-        // One column whose name holds another usual separator: `;` or tab-separated data.
-        if let [only] = header.as_slice() {
-            if let Some(sep) = [",", ";", "\t"]
-                .into_iter()
-                .filter(|s| s.as_bytes() != [delimiter])
-                .find(|s| only.contains(s))
-            {
-                return Err(DataError::Separator {
-                    path: p,
-                    header: dynid_ir::text::escape(only),
-                    separator: if sep == "\t" {
-                        "\\t".into()
-                    } else {
-                        sep.into()
-                    },
-                });
-            }
-        }
-        let mut names = header.clone();
-        for (c, s) in &opts.map {
-            if let Some(k) = header.iter().position(|h| h == c) {
-                names[k] = s.clone();
-            } else {
-                return Err(DataError::MissingColumn {
-                    path: p,
-                    signal: dynid_ir::text::escape(c),
-                    present: present_columns(&header, c),
-                });
-            }
-        }
-        // A renaming onto `t` when the file keeps its own `t` column.
-        let keeps_t = header.iter().any(|h| h == "t") && !opts.map.iter().any(|(c, _)| c == "t");
-        let onto_t = opts.map.iter().find(|(c, s)| s == "t" && c != "t");
-        if let (true, Some((c, _))) = (keeps_t, onto_t) {
-            return Err(DataError::MapOntoTime {
-                path: p,
-                spec: format!("{}=t", dynid_ir::text::escape(c)),
-                column: dynid_ir::text::escape(c),
-            });
-        }
-        for (k, n) in names.iter().enumerate() {
-            if names[..k].contains(n) {
-                return Err(DataError::DuplicateColumn {
-                    path: p,
-                    column: dynid_ir::text::quote(n),
-                });
-            }
-        }
+        let names = header::renamed(path, &header, opts, delimiter)?;
         let (wanted, n_slots) = select(&names, &header)?;
         let t_col = names.iter().position(|n| n == "t");
-        // Lines after the header that are not samples (units).
-        let mut rec = csv::ByteRecord::new();
-        for _ in 0..opts.skip_after_header {
-            match rdr.read_byte_record(&mut rec) {
-                Ok(true) => {}
-                Ok(false) => return Err(DataError::HeaderOnly { path: p }),
-                Err(e) => return Err(csv_err(path, e)),
-            }
-        }
-        rec.clear();
-        // Read the first two samples for the sample interval (and to tell an empty body).
-        let mut first_t = Vec::new();
-        for _ in 0..2 {
-            match rdr.read_byte_record(&mut rec) {
-                Ok(true) => {
-                    let line = rec.position().map_or(0, |p| p.line());
-                    if rec.len() != header.len() {
-                        return Err(DataError::Ragged {
-                            path: p,
-                            line,
-                            expected: header.len(),
-                            found: rec.len(),
-                        });
-                    }
-                    if let Some(tc) = t_col {
-                        first_t.push(parse_cell(path, line, "t", &rec[tc])?);
-                    }
-                }
-                Ok(false) => break,
-                Err(e) => return Err(csv_err(path, e)),
-            }
-        }
-        if rec.is_empty() && first_t.is_empty() && rdr.position().record() <= 1 {
-            return Err(DataError::HeaderOnly { path: p });
-        }
-        let ts = match (opts.ts, first_t.as_slice()) {
-            (Some(ts), [a, b]) => {
-                // `--sample` with a `t` column: the two must agree.
-                let step = b - a;
-                if step.is_finite() && step > 0.0 && (step - ts).abs() > TIME_TOL * ts {
-                    return Err(DataError::SampleConflict { path: p, ts, step });
-                }
-                ts
-            }
-            (Some(ts), _) => ts,
-            (None, [a, b]) => {
-                let ts = b - a;
-                if ts.is_nan() || ts <= 0.0 {
-                    return Err(DataError::TimeNotIncreasing {
-                        path: p,
-                        line: 3,
-                        t: *b,
-                        previous: *a,
-                    });
-                }
-                ts
-            }
-            (None, _) if t_col.is_some() => {
-                return Err(DataError::TooFewSamples {
-                    path: p,
-                    n: first_t.len(),
-                    need: min_samples,
-                })
-            }
-            (None, _) => return Err(DataError::NoSampleInterval { path: p }),
-        };
+        let first_t = first_times(&mut rdr, path, opts.skip_after_header, header.len(), t_col)?;
+        let ts = header::sample_interval(path, opts.ts, &first_t, t_col.is_some(), min_samples)?;
         Ok(CsvSource {
             path: path.to_path_buf(),
             ts,
@@ -451,52 +214,6 @@ impl CsvSource {
         self
     }
 
-    /// Stream the binary copy written by an earlier complete pass.
-    fn stream_copy(
-        &self,
-        file: &mut std::fs::File,
-        max_len: usize,
-        sink: &mut dyn FnMut(&[&[f64]], usize),
-    ) -> Result<(), DataError> {
-        let path = self.path.as_path();
-        file.rewind().map_err(|e| io_err(path, e))?;
-        let width = self.wanted.len();
-        let row_bytes = 8 * width;
-        let mut reader = BufReader::with_capacity(1 << 20, &*file);
-        let mut bufs: Vec<Vec<f64>> = vec![Vec::new(); self.n_slots];
-        for &(s, _) in &self.wanted {
-            bufs[s].reserve(max_len);
-        }
-        let mut raw = vec![0u8; row_bytes * max_len];
-        loop {
-            let mut filled = 0;
-            while filled < raw.len() {
-                match reader.read(&mut raw[filled..]) {
-                    Ok(0) => break,
-                    Ok(k) => filled += k,
-                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                    Err(e) => return Err(io_err(path, e)),
-                }
-            }
-            let len = filled / row_bytes.max(1);
-            if len == 0 {
-                return Ok(());
-            }
-            for (k, &(s, _)) in self.wanted.iter().enumerate() {
-                bufs[s].extend(raw[..len * row_bytes].chunks_exact(row_bytes).map(|row| {
-                    let b = &row[8 * k..8 * k + 8];
-                    f64::from_le_bytes(b.try_into().expect("invariant: 8 bytes"))
-                }));
-            }
-            let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
-            sink(&cols, len);
-            bufs.iter_mut().for_each(Vec::clear);
-            if filled < raw.len() {
-                return Ok(());
-            }
-        }
-    }
-
     /// A CSV reader of the text (`path` names it in errors).
     fn reader(
         path: &Path,
@@ -515,130 +232,6 @@ impl CsvSource {
             .delimiter(delimiter)
             .comment(comment)
             .from_reader(buf))
-    }
-}
-
-impl LevelSource for CsvSource {
-    fn origin(&self) -> String {
-        self.path.display().to_string()
-    }
-    fn ts(&self) -> f64 {
-        self.ts
-    }
-    fn locate(&self, k: usize) -> String {
-        super::locate_sample(self.t0, self.ts, k)
-    }
-    fn stream(
-        &self,
-        max_len: usize,
-        sink: &mut dyn FnMut(&[&[f64]], usize),
-    ) -> Result<(), DataError> {
-        // Passes of one source run one at a time; different sources do not share the lock.
-        let mut replay = self.replay.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(file) = replay.as_mut() {
-            return self.stream_copy(file, max_len, sink);
-        }
-        // (Nothing to copy without selected columns: every pass then parses.)
-        let mut copy = if self.spill && !self.wanted.is_empty() {
-            tempfile::tempfile()
-                .ok()
-                .map(|f| BufWriter::with_capacity(1 << 20, f))
-        } else {
-            None
-        };
-        self.parse(max_len, sink, &mut copy)?;
-        // Keep the copy only if it is complete.
-        *replay = copy.and_then(|w| w.into_inner().ok());
-        Ok(())
-    }
-}
-
-impl CsvSource {
-    /// Stream by parsing the text, validating every row; with `copy`, also write the binary
-    /// copy (dropped, and the text parsed next time, at the first write error).
-    fn parse(
-        &self,
-        max_len: usize,
-        sink: &mut dyn FnMut(&[&[f64]], usize),
-        copy: &mut Option<BufWriter<std::fs::File>>,
-    ) -> Result<(), DataError> {
-        let path = self.path.as_path();
-        let p = || path.display().to_string();
-        let mut roles = vec![Role::Skip; self.n_fields];
-        for (k, &(_, c)) in self.wanted.iter().enumerate() {
-            roles[c] = Role::Wanted(k);
-        }
-        if let Some(tc) = self.t_col {
-            roles[tc] = Role::Time;
-        }
-        let layout = Layout {
-            path,
-            header: &self.header,
-            roles,
-            n_wanted: self.wanted.len(),
-            ts: self.ts,
-            time_tol: TIME_TOL,
-            delimiter: self.delimiter,
-            comment: self.comment,
-            skip_after_header: self.skip_after_header,
-        };
-        let mut bufs: Vec<Vec<f64>> = vec![Vec::new(); self.n_slots];
-        for &(s, _) in &self.wanted {
-            bufs[s].reserve(max_len);
-        }
-        let mut bytes: Vec<u8> = Vec::new();
-        let mut in_chunk = 0usize;
-        let wanted = &self.wanted;
-        let mut flush = |bufs: &mut Vec<Vec<f64>>, len: &mut usize| {
-            if *len == 0 {
-                return;
-            }
-            if let Some(w) = copy {
-                bytes.clear();
-                // Row-major: sample by sample, the wanted columns in order.
-                let cols: Vec<&[f64]> = wanted.iter().map(|&(s, _)| &bufs[s][..*len]).collect();
-                for i in 0..*len {
-                    cols.iter()
-                        .for_each(|c| bytes.extend_from_slice(&c[i].to_le_bytes()));
-                }
-                if w.write_all(&bytes).is_err() {
-                    *copy = None;
-                }
-            }
-            let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
-            sink(&cols, *len);
-            bufs.iter_mut().for_each(Vec::clear);
-            *len = 0;
-        };
-        // Streaming means an error can surface after earlier chunks were handed on; callers
-        // discard their partial results on error.
-        let mut file = open_text(path, &self.text)?;
-        let n = parse_body(&layout, &mut *file, &mut |cols, rows| {
-            let mut done = 0;
-            while done < rows {
-                let take = (max_len - in_chunk).min(rows - done);
-                for (k, &(s, _)) in wanted.iter().enumerate() {
-                    bufs[s].extend_from_slice(&cols[k][done..done + take]);
-                }
-                in_chunk += take;
-                done += take;
-                if in_chunk == max_len {
-                    flush(&mut bufs, &mut in_chunk);
-                }
-            }
-        })?;
-        if n == 0 {
-            return Err(DataError::HeaderOnly { path: p() });
-        }
-        if n < self.min_samples {
-            return Err(DataError::TooFewSamples {
-                path: p(),
-                n,
-                need: self.min_samples,
-            });
-        }
-        flush(&mut bufs, &mut in_chunk);
-        Ok(())
     }
 }
 
@@ -716,4 +309,58 @@ fn read_record_from(
         ts: src.ts,
         t0: src.t0,
     })
+}
+
+/// Past the header: skip `skip` lines (units), then read the first two samples, checking
+/// their field count, and return their time stamps (empty without a `t` column). An empty
+/// body is an error.
+fn first_times(
+    rdr: &mut csv::Reader<Box<dyn Read + Send>>,
+    path: &Path,
+    skip: usize,
+    n_fields: usize,
+    t_col: Option<usize>,
+) -> Result<Vec<f64>, DataError> {
+    let p = || path.display().to_string();
+    // Lines after the header that are not samples (units).
+    let mut rec = csv::ByteRecord::new();
+    for _ in 0..skip {
+        match rdr.read_byte_record(&mut rec) {
+            Ok(true) => {}
+            Ok(false) => return Err(DataError::HeaderOnly { path: p() }),
+            Err(e) => return Err(csv_err(path, e)),
+        }
+    }
+    rec.clear();
+    // Read the first two samples for the sample interval (and to tell an empty body).
+    let mut first_t = Vec::new();
+    for _ in 0..2 {
+        match rdr.read_byte_record(&mut rec) {
+            Ok(true) => {
+                let line = rec.position().map_or(0, |p| p.line());
+                if rec.len() != n_fields {
+                    return Err(DataError::Ragged {
+                        path: p(),
+                        line,
+                        expected: n_fields,
+                        found: rec.len(),
+                    });
+                }
+                if let Some(tc) = t_col {
+                    first_t.push(parse_cell(path, line, "t", &rec[tc])?);
+                }
+            }
+            Ok(false) => break,
+            Err(e) => return Err(csv_err(path, e)),
+        }
+    }
+    if rec.is_empty() && first_t.is_empty() && rdr.position().record() <= 1 {
+        return Err(DataError::HeaderOnly { path: p() });
+    }
+    Ok(first_t)
+}
+
+/// One number of the text, or an error naming its line and column.
+fn parse_cell(path: &Path, line: u64, column: &str, raw: &[u8]) -> Result<f64, DataError> {
+    parse_number(path, line, column, raw)
 }

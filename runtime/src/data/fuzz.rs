@@ -4,6 +4,16 @@
 
 use super::*;
 
+/// The model the `csv` and `binary` fuzz targets (and their deterministic miniatures in the
+/// tests) read their inputs as: one body, measured position and input.
+pub const FUZZ_MODEL: &str = "model m {
+    body m = 1.0
+    input u on m
+    measure m.x, u
+    spring k (ground, m) ~ 4.0
+    damper d (ground, m) ~ 0.4
+}";
+
 /// Open and stream `bytes` as a level of `ir` and read them as a record, from memory
 /// through the same parser as a file (`path` only names them). Panics only if a reader
 /// breaks its contract.
@@ -100,6 +110,9 @@ const SCALES: &[f64] = &[
 /// identification (pooled and per level) and detection. Panics if any returns a
 /// non-finite estimate or standard error (a panic inside is the other failure the fuzzer
 /// finds; a hang shows as its timeout).
+///
+/// Longer than most functions here: the bytes are consumed in one order (model, levels,
+/// noise, scaling), and that order is the fuzz target's input format.
 pub fn check_numerics(bytes: &[u8], irs: &[ModelIr]) -> Reached {
     let mut reached = Reached::default();
     use crate::ident::{identify, identify_per_level, IdentifyOptions};

@@ -2,9 +2,16 @@
 //! found from the file's element tags without reading their data, and the data of the
 //! columns used is streamed: an uncompressed variable is read in windows from its place in
 //! the file, a compressed one (`-v7`) is inflated as it is read, once per pass.
+//!
+//! This module finds the variables and the columns in them; `elements` reads the file's
+//! elements, `store` streams the columns' data.
 
-use super::binary::{describe, format_err, names_from_chars, Column, Store, Windows};
+mod elements;
+mod store;
+
+use super::binary::{names_from_chars, Column, Store};
 use super::*;
+use elements::{chars_of, mi_size, Counted, Parser};
 use std::io::SeekFrom;
 
 const FORMAT: &str = "MAT v5";
@@ -36,81 +43,6 @@ struct Var {
     data: Option<(u32, u64, Place)>,
 }
 
-fn class_name(c: u8) -> &'static str {
-    match c {
-        1 => "cell",
-        2 => "struct",
-        3 => "object",
-        4 => "char",
-        5 => "sparse",
-        6 => "double",
-        7 => "single",
-        8 => "int8",
-        9 => "uint8",
-        10 => "int16",
-        11 => "uint16",
-        12 => "int32",
-        13 => "uint32",
-        14 => "int64",
-        15 => "uint64",
-        _ => "unknown class",
-    }
-}
-
-/// Bytes per element of an `mi*` data type.
-fn mi_size(mi: u32) -> Option<usize> {
-    Some(match mi {
-        1 | 2 | 16 => 1,
-        3 | 4 | 17 => 2,
-        5..=7 => 4,
-        9 | 12 | 13 => 8,
-        _ => return None,
-    })
-}
-
-/// Decode little-endian elements of type `mi` into `out`.
-fn decode(mi: u32, bytes: &[u8], out: &mut Vec<f64>) {
-    macro_rules! conv {
-        ($t:ty, $n:expr) => {
-            out.extend(bytes.chunks_exact($n).map(|b| {
-                <$t>::from_le_bytes(b.try_into().expect("invariant: chunk of the type's size"))
-                    as f64
-            }))
-        };
-    }
-    match mi {
-        1 => conv!(i8, 1),
-        2 | 16 => conv!(u8, 1),
-        3 => conv!(i16, 2),
-        4 | 17 => conv!(u16, 2),
-        5 => conv!(i32, 4),
-        6 => conv!(u32, 4),
-        7 => conv!(f32, 4),
-        9 => conv!(f64, 8),
-        12 => conv!(i64, 8),
-        13 => conv!(u64, 8),
-        _ => {}
-    }
-}
-
-/// A reader that counts the bytes read.
-struct Counted<R> {
-    inner: R,
-    pos: u64,
-}
-
-impl<R: Read> Read for Counted<R> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let k = self.inner.read(buf)?;
-        self.pos += k as u64;
-        Ok(k)
-    }
-}
-
-fn u32_at(b: &[u8], k: usize) -> u32 {
-    u32::from_le_bytes(b[k..k + 4].try_into().expect("invariant: 4 bytes"))
-}
-
 /// A MAT v5 file: its variables, found without reading their data.
 #[derive(Debug)]
 pub(super) struct Mat5 {
@@ -119,115 +51,6 @@ pub(super) struct Mat5 {
     columns: Vec<Column>,
     /// For each column: the variable, and the element offset of its first sample.
     col_var: Vec<(usize, u64)>,
-}
-
-struct Parser<'a> {
-    path: &'a Path,
-}
-
-impl Parser<'_> {
-    fn err(&self, m: impl std::fmt::Display) -> DataError {
-        format_err(self.path, FORMAT, m)
-    }
-
-    fn read_exact(&self, r: &mut dyn Read, buf: &mut [u8], what: &str) -> Result<(), DataError> {
-        r.read_exact(buf).map_err(|e| {
-            if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                self.err(format!("the file ends inside {what}: it is truncated"))
-            } else {
-                self.err(format!("cannot read {what}: {e}"))
-            }
-        })
-    }
-
-    /// A tag: `(type, byte count, inline data)`; skips the padding after inline data.
-    fn tag(&self, r: &mut dyn Read, what: &str) -> Result<(u32, u64, Option<Vec<u8>>), DataError> {
-        let mut b = [0u8; 8];
-        self.read_exact(r, &mut b, what)?;
-        let first = u32_at(&b, 0);
-        if first >> 16 != 0 {
-            // Small data element: type and size in the first word, data in the second.
-            let n = (first >> 16) as usize;
-            if n > 4 {
-                return Err(self.err(format!("{what} has an invalid tag")));
-            }
-            return Ok((first & 0xffff, n as u64, Some(b[4..4 + n].to_vec())));
-        }
-        Ok((first, u32_at(&b, 4) as u64, None))
-    }
-
-    /// Skip `n` bytes.
-    fn skip(&self, r: &mut dyn Read, n: u64, what: &str) -> Result<(), DataError> {
-        let got = std::io::copy(&mut r.take(n), &mut std::io::sink())
-            .map_err(|e| self.err(format!("cannot read {what}: {e}")))?;
-        if got < n {
-            return Err(self.err(format!("the file ends inside {what}: it is truncated")));
-        }
-        Ok(())
-    }
-
-    /// The data of a (non-inline) sub-element of `n` bytes, padded to 8 bytes.
-    fn small_data(&self, r: &mut dyn Read, n: u64, what: &str) -> Result<Vec<u8>, DataError> {
-        if n > MAX_NAMES_BYTES {
-            return Err(self.err(format!("{what} is implausibly large ({n} bytes)")));
-        }
-        let mut v = vec![0u8; n as usize];
-        self.read_exact(r, &mut v, what)?;
-        self.skip(r, (8 - n % 8) % 8, what)?;
-        Ok(v)
-    }
-
-    /// A sub-element read whole (array flags, dimensions, name).
-    fn element(&self, r: &mut dyn Read, what: &str) -> Result<(u32, Vec<u8>), DataError> {
-        let (mi, n, inline) = self.tag(r, what)?;
-        match inline {
-            Some(d) => Ok((mi, d)),
-            None => Ok((mi, self.small_data(r, n, what)?)),
-        }
-    }
-
-    /// The header of a matrix element (after its tag): flags, dimensions, name; then, for
-    /// numeric and char classes, the tag of the real part. `r` is positioned at the data
-    /// (or, for other classes, at the rest of the element) on return.
-    #[allow(clippy::type_complexity)]
-    fn matrix(
-        &self,
-        r: &mut dyn Read,
-    ) -> Result<
-        (
-            String,
-            u8,
-            bool,
-            Vec<usize>,
-            Option<(u32, u64, Option<Vec<u8>>)>,
-        ),
-        DataError,
-    > {
-        let (mi, flags) = self.element(r, "a variable's array flags")?;
-        if mi != 6 || flags.len() < 8 {
-            return Err(self.err("a variable's array flags are malformed"));
-        }
-        let f = u32_at(&flags, 0);
-        let class = (f & 0xff) as u8;
-        let complex = f & 0x800 != 0;
-        let (mi, dims) = self.element(r, "a variable's dimensions")?;
-        if mi != 5 || dims.len() % 4 != 0 || dims.is_empty() {
-            return Err(self.err("a variable's dimensions are malformed"));
-        }
-        let dims: Vec<usize> = dims
-            .chunks_exact(4)
-            .map(|b| i32::from_le_bytes(b.try_into().expect("invariant: 4 bytes")).max(0) as usize)
-            .collect();
-        let (_, name) = self.element(r, "a variable's name")?;
-        let name = String::from_utf8_lossy(&name).into_owned();
-        let numeric = (6..=15).contains(&class) || class == 4;
-        let data = if numeric {
-            Some(self.tag(r, "a variable's data")?)
-        } else {
-            None
-        };
-        Ok((name, class, complex, dims, data))
-    }
 }
 
 impl Mat5 {
@@ -265,60 +88,8 @@ impl Mat5 {
                     size - start
                 )));
             }
-            match mi {
-                MI_MATRIX => {
-                    let mut c = Counted {
-                        inner: (&mut r).take(n),
-                        pos: 0,
-                    };
-                    let (name, class, complex, dims, data) = ps.matrix(&mut c)?;
-                    let data = data.map(|(mi, n, inline)| {
-                        let place = match inline {
-                            Some(d) => Place::Inline(d),
-                            None => Place::Raw(start + c.pos),
-                        };
-                        (mi, n, place)
-                    });
-                    if let Some((_, n, Place::Raw(at))) = &data {
-                        if at + n > size {
-                            return Err(ps.err(format!("the data of `{name}` runs past the end of the file: it is truncated")));
-                        }
-                    }
-                    vars.push(Var {
-                        name,
-                        class,
-                        complex,
-                        dims,
-                        data,
-                    });
-                }
-                MI_COMPRESSED => {
-                    let z = flate2::read::ZlibDecoder::new((&mut r).take(n));
-                    let mut c = Counted { inner: z, pos: 0 };
-                    let (mi, _, _) = ps.tag(&mut c, "a compressed variable")?;
-                    if mi == MI_MATRIX {
-                        let (name, class, complex, dims, data) = ps.matrix(&mut c)?;
-                        let data = data.map(|(mi, n2, inline)| {
-                            let place = match inline {
-                                Some(d) => Place::Inline(d),
-                                None => Place::Zip {
-                                    offset: start,
-                                    len: n,
-                                    skip: c.pos,
-                                },
-                            };
-                            (mi, n2, place)
-                        });
-                        vars.push(Var {
-                            name,
-                            class,
-                            complex,
-                            dims,
-                            data,
-                        });
-                    }
-                }
-                _ => {}
+            if let Some(v) = read_variable(&ps, &mut r, mi, n, start, size)? {
+                vars.push(v);
             }
             // Elements are 8-byte aligned; compressed ones are not padded.
             pos = if mi == MI_COMPRESSED {
@@ -527,123 +298,73 @@ impl Mat5 {
     }
 }
 
-/// The characters of a char array's data of type `mi`.
-fn chars_of(mi: u32, bytes: &[u8]) -> Option<Vec<char>> {
-    match mi {
-        1 | 2 | 16 => Some(String::from_utf8_lossy(bytes).chars().collect()),
-        3 | 4 | 17 => {
-            let units: Vec<u16> = bytes
-                .chunks_exact(2)
-                .map(|b| u16::from_le_bytes([b[0], b[1]]))
-                .collect();
-            Some(
-                char::decode_utf16(units)
-                    .map(|c| c.unwrap_or('\u{fffd}'))
-                    .collect(),
-            )
-        }
-        _ => None,
-    }
-}
-
-impl Store for Mat5 {
-    fn format(&self) -> &'static str {
-        FORMAT
-    }
-    fn columns(&self) -> &[Column] {
-        &self.columns
-    }
-    fn contents(&self) -> String {
-        if self.vars.is_empty() {
-            return "no variables".into();
-        }
-        self.vars
-            .iter()
-            .map(|v| {
-                let what = if v.complex {
-                    format!("complex {}", class_name(v.class))
-                } else {
-                    class_name(v.class).to_string()
-                };
-                describe(&v.name, &what, &v.dims)
-            })
-            .collect::<Vec<_>>()
-            .join(", ")
-    }
-    fn open(&self, cols: &[usize]) -> Result<Box<dyn Windows + '_>, DataError> {
-        let ps = Parser { path: &self.path };
-        let mut readers = Vec::with_capacity(cols.len());
-        for &c in cols {
-            let (vi, first) = self.col_var[c];
-            let v = &self.vars[vi];
-            let (mi, n, place) = v
-                .data
-                .as_ref()
-                .expect("invariant: usable variables have data");
-            let size =
-                mi_size(*mi).expect("invariant: usable variables have a numeric type") as u64;
-            let len = self.columns[c].len as u64;
-            // (Saturating: the dimensions come from the file.)
-            if first.saturating_add(len).saturating_mul(size) > *n {
-                return Err(ps.err(format!(
-                    "`{}` is {} but its data holds only {n} bytes of {}-byte values",
-                    v.name,
-                    v.dims
-                        .iter()
-                        .map(|d| d.to_string())
-                        .collect::<Vec<_>>()
-                        .join("×"),
-                    size
-                )));
-            }
-            let mut r = self.data_reader(place)?;
-            ps.skip(&mut r, first * size, "a variable's data")?;
-            readers.push(ColReader {
-                r,
-                mi: *mi,
-                size: size as usize,
-                left: len,
-                name: v.name.clone(),
-            });
-        }
-        Ok(Box::new(Mat5Windows {
-            path: &self.path,
-            readers,
-            buf: Vec::new(),
-        }))
-    }
-}
-
-struct ColReader {
-    r: Box<dyn Read + Send>,
+/// The variable of the element at `start` (type `mi`, `n` bytes, read from `r`) in a file
+/// of `size` bytes: a matrix, or the matrix inside a compressed element; `None` for any
+/// other element.
+fn read_variable(
+    ps: &Parser,
+    r: &mut dyn Read,
     mi: u32,
-    size: usize,
-    left: u64,
-    name: String,
-}
-
-struct Mat5Windows<'a> {
-    path: &'a Path,
-    readers: Vec<ColReader>,
-    buf: Vec<u8>,
-}
-
-impl Windows for Mat5Windows<'_> {
-    fn next(&mut self, out: &mut [Vec<f64>], max: usize) -> Result<usize, DataError> {
-        let ps = Parser { path: self.path };
-        let mut got = 0;
-        for (k, c) in self.readers.iter_mut().enumerate() {
-            let take = (max as u64).min(c.left) as usize;
-            self.buf.resize(take * c.size, 0);
-            ps.read_exact(
-                &mut c.r,
-                &mut self.buf,
-                &format!("the data of `{}`", c.name),
-            )?;
-            decode(c.mi, &self.buf, &mut out[k]);
-            c.left -= take as u64;
-            got = take;
+    n: u64,
+    start: u64,
+    size: u64,
+) -> Result<Option<Var>, DataError> {
+    match mi {
+        MI_MATRIX => {
+            let mut c = Counted {
+                inner: Read::take(&mut *r, n),
+                pos: 0,
+            };
+            let (name, class, complex, dims, data) = ps.matrix(&mut c)?;
+            let data = data.map(|(mi, n, inline)| {
+                let place = match inline {
+                    Some(d) => Place::Inline(d),
+                    None => Place::Raw(start + c.pos),
+                };
+                (mi, n, place)
+            });
+            if let Some((_, n, Place::Raw(at))) = &data {
+                if at + n > size {
+                    return Err(ps.err(format!(
+                        "the data of `{name}` runs past the end of the file: it is truncated"
+                    )));
+                }
+            }
+            return Ok(Some(Var {
+                name,
+                class,
+                complex,
+                dims,
+                data,
+            }));
         }
-        Ok(got)
+        MI_COMPRESSED => {
+            let z = flate2::read::ZlibDecoder::new(Read::take(&mut *r, n));
+            let mut c = Counted { inner: z, pos: 0 };
+            let (mi, _, _) = ps.tag(&mut c, "a compressed variable")?;
+            if mi == MI_MATRIX {
+                let (name, class, complex, dims, data) = ps.matrix(&mut c)?;
+                let data = data.map(|(mi, n2, inline)| {
+                    let place = match inline {
+                        Some(d) => Place::Inline(d),
+                        None => Place::Zip {
+                            offset: start,
+                            len: n,
+                            skip: c.pos,
+                        },
+                    };
+                    (mi, n2, place)
+                });
+                return Ok(Some(Var {
+                    name,
+                    class,
+                    complex,
+                    dims,
+                    data,
+                }));
+            }
+        }
+        _ => {}
     }
+    Ok(None)
 }

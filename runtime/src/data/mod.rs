@@ -37,9 +37,9 @@ pub use text::MAX_LINE;
 
 use crate::record::Record;
 use dynid_ir::ir::ModelIr;
-use std::io::{BufReader, BufWriter, Read, Seek, Write};
+use std::io::{BufReader, Read, Seek};
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// Fewest samples any record may have (the filters need far more; identification checks
 /// the actual need against the filter time constants).

@@ -9,11 +9,20 @@
 //!
 //! k, d and p enter linearly (solved by SVD of the whitened design, never the normal
 //! equations); a shape parameter θ_j by a log-grid search refined by golden section.
+//!
+//! This module fits; `wls` solves the weighted least squares, `template` turns a fit into
+//! the reported estimates and curves.
 
 use nalgebra::{DMatrix, DVector};
 
 use super::candidate::{Candidate, Dependence, Distribution};
-use super::{Estimate, Prediction, TemplateFit};
+use super::TemplateFit;
+
+mod template;
+mod wls;
+
+use template::{coef_corr, estimates, predictions};
+pub(crate) use wls::{aicc, weighted_ls, weighted_mean, LsFit};
 
 /// One curve of an element as the fit sees it.
 #[derive(Clone, Debug)]
@@ -98,83 +107,6 @@ impl ElementData {
     pub(crate) fn n_bases(&self) -> usize {
         usize::from(self.stiffness.is_some()) + usize::from(self.damping.is_some())
     }
-}
-
-pub(crate) struct LsFit {
-    pub beta: Vec<f64>,
-    pub cov: DMatrix<f64>,
-    pub chi2: f64,
-    pub cond: f64,
-}
-
-/// Singular values below this fraction of the largest make a design rank-deficient.
-const RANK_TOL: f64 = 1e-10;
-
-/// Weighted LS of `a β ≈ y` with row standard errors `se`; `None` when rank-deficient.
-pub(crate) fn weighted_ls(a: &DMatrix<f64>, y: &[f64], se: &[f64]) -> Option<LsFit> {
-    let (n, m) = a.shape();
-    // Fewer points than coefficients: the fit is underdetermined (and a thin SVD has only
-    // `n` singular values). Rows must match the errors given.
-    if n < m || m == 0 || y.len() != n || se.len() != n {
-        return None;
-    }
-    // shape: checked just above: `n ≥ m ≥ 1` rows of `a`, `y` and `se`, so the thin SVD has
-    // `m` singular values, `u` is `n × m` and `v_t` is `m × m`.
-    let mut aw = a.clone();
-    let mut yw = DVector::zeros(n);
-    for i in 0..n {
-        for j in 0..m {
-            aw[(i, j)] /= se[i];
-        }
-        yw[i] = y[i] / se[i];
-    }
-    // Column scaling makes the rank test and the condition number independent of units.
-    let scale: Vec<f64> = (0..m)
-        .map(|j| {
-            let c = aw.column(j).norm();
-            if c > 0.0 {
-                c
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    for (j, &s) in scale.iter().enumerate() {
-        aw.column_mut(j).scale_mut(1.0 / s);
-    }
-    let svd = aw.clone().svd(true, true);
-    let smax = svd.singular_values.max();
-    let smin = svd.singular_values.min();
-    if smax.is_nan() || smax <= 0.0 || smin < RANK_TOL * smax {
-        return None;
-    }
-    let u = svd.u.as_ref()?;
-    let vt = svd.v_t.as_ref()?;
-    let uty = u.transpose() * &yw;
-    let mut z = DVector::zeros(m);
-    for k in 0..m {
-        z[k] = uty[k] / svd.singular_values[k];
-    }
-    let bs = vt.transpose() * z;
-    let r = &yw - &aw * &bs;
-    let mut vs = vt.transpose();
-    for k in 0..m {
-        vs.column_mut(k).scale_mut(1.0 / svd.singular_values[k]);
-    }
-    let mut cov = &vs * vs.transpose();
-    let mut beta = vec![0.0; m];
-    for j in 0..m {
-        beta[j] = bs[j] / scale[j];
-        for k in 0..m {
-            cov[(j, k)] /= scale[j] * scale[k];
-        }
-    }
-    Some(LsFit {
-        beta,
-        cov,
-        chi2: r.norm_squared(),
-        cond: smax / smin,
-    })
 }
 
 /// Rows of the template design at given shapes: bases first, then one column per effect.
@@ -339,49 +271,6 @@ pub(crate) fn constant_chi2(el: &ElementData) -> (f64, usize) {
     (chi2, el.n_bases())
 }
 
-pub(crate) fn weighted_mean(y: &[f64], se: &[f64]) -> (f64, f64) {
-    let sw: f64 = se.iter().map(|s| 1.0 / (s * s)).sum();
-    let m = y.iter().zip(se).map(|(y, s)| y / (s * s)).sum::<f64>() / sw;
-    (m, 1.0 / sw.sqrt())
-}
-
-/// AICc for a fit with known row variances; `∞` when the sample is too small for the
-/// correction (N ≤ K + 1): such a fit is saturated and carries no evidence.
-pub(crate) fn aicc(chi2: f64, k: usize, n: usize) -> f64 {
-    if n <= k + 1 {
-        return f64::INFINITY;
-    }
-    let (k, n) = (k as f64, n as f64);
-    chi2 + 2.0 * k + 2.0 * k * (k + 1.0) / (n - k - 1.0)
-}
-
-/// Intensities along a continuous path through the levels (sorted by σ_s, log-linear
-/// between neighbours, extrapolated a little), for drawing template curves.
-fn level_path(el: &ElementData, n: usize) -> Vec<(f64, f64)> {
-    if el.sigma_s.is_empty() || n < 2 {
-        return Vec::new();
-    }
-    let mut idx: Vec<usize> = (0..el.sigma_s.len()).collect();
-    idx.sort_by(|&a, &b| el.sigma_s[a].total_cmp(&el.sigma_s[b]));
-    let ls: Vec<f64> = idx.iter().map(|&i| el.sigma_s[i].ln()).collect();
-    let lv: Vec<f64> = idx.iter().map(|&i| el.sigma_v[i].ln()).collect();
-    let last = (idx.len() - 1) as f64;
-    let (t0, t1) = (-0.15 * last.max(1.0), last + 0.15 * last.max(1.0));
-    (0..n)
-        .map(|i| {
-            let t = t0 + (t1 - t0) * i as f64 / (n - 1) as f64;
-            if idx.len() == 1 {
-                return (ls[0].exp(), lv[0].exp());
-            }
-            let k = (t.floor().max(0.0) as usize).min(idx.len() - 2);
-            let f = t - k as f64;
-            let s = ls[k] + f * (ls[k + 1] - ls[k]);
-            let v = lv[k] + f * (lv[k + 1] - lv[k]);
-            (s.exp(), v.exp())
-        })
-        .collect()
-}
-
 /// Standard error of θ_j from the curvature of the χ² profile in ln θ (Δχ² = 1 at one
 /// standard error); NaN where the profile is flat or not convex.
 fn profile_stderr(
@@ -457,8 +346,6 @@ pub(crate) fn fit_template(
         }
     }
     let fit = solve(el, effects, &thetas)?;
-    // shape: `fit.beta` and `fit.cov` have one entry per base and effect (the design's
-    // columns), `joint` one more per shaped effect; `col` counts exactly those.
     let n = el.n_points();
     let k_params = el.n_bases() + effects.len() + shaped.len();
     let dof = n.saturating_sub(k_params);
@@ -479,98 +366,15 @@ pub(crate) fn fit_template(
     // (β, ln θ) at the optimum includes that. Where θ is not resolved (rank-deficient
     // augmented design) the conditional errors stand and θ's error comes from the χ² profile.
     let joint = joint_covariance(el, effects, &thetas, &shaped, &fit.beta);
-    let cov = joint.as_ref().unwrap_or(&fit.cov);
-    let mut estimates = Vec::new();
-    let mut col = 0;
-    for c in [&el.stiffness, &el.damping].into_iter().flatten() {
-        estimates.push(Estimate {
-            name: format!("{} (linear part)", c.param),
-            value: fit.beta[col],
-            stderr: cov[(col, col)].sqrt() * inflate,
-        });
-        col += 1;
-    }
-    for e in effects {
-        estimates.push(Estimate {
-            name: e.coef_name.clone(),
-            value: fit.beta[col],
-            stderr: cov[(col, col)].sqrt() * inflate,
-        });
-        col += 1;
-    }
-    for &j in &shaped {
-        let shape = effects[j].shape.as_ref().expect("invariant: shaped effect");
-        let th = thetas[j];
-        let se = match &joint {
-            // Error of ln θ → error of θ.
-            Some(cov) => th * cov[(col, col)].sqrt() * inflate,
-            None => profile_stderr(el, effects, &thetas, j, fit.chi2) * inflate,
-        };
-        col += 1;
-        estimates.push(Estimate {
-            name: shape.name.clone(),
-            value: th,
-            stderr: se,
-        });
-    }
-    // Smooth predictions for plots.
-    let path = level_path(el, 80);
-    let mut pk = Prediction {
-        param: el
-            .stiffness
-            .as_ref()
-            .map(|c| c.param.clone())
-            .unwrap_or_default(),
-        sigma: Vec::new(),
-        value: Vec::new(),
-    };
-    let mut pd = Prediction {
-        param: el
-            .damping
-            .as_ref()
-            .map(|c| c.param.clone())
-            .unwrap_or_default(),
-        sigma: Vec::new(),
-        value: Vec::new(),
-    };
+    let estimates = estimates(el, effects, &thetas, &shaped, &fit, joint.as_ref(), inflate);
+    let predictions = predictions(el, effects, &thetas, &fit.beta);
     let nb = el.n_bases();
-    for &(ss, sv) in &path {
-        let (mut yk, mut yd) = (0.0, 0.0);
-        for (j, e) in effects.iter().enumerate() {
-            let (hk, hd) = el.gains_at(e, ss, sv, thetas[j]);
-            yk += fit.beta[nb + j] * hk;
-            yd += fit.beta[nb + j] * hd;
-        }
-        pk.sigma.push(ss);
-        pk.value.push(yk);
-        pd.sigma.push(sv);
-        pd.value.push(yd);
-    }
-    let mut predictions = Vec::new();
-    let mut col = 0;
-    if el.stiffness.is_some() {
-        pk.value.iter_mut().for_each(|y| *y += fit.beta[col]);
-        predictions.push(pk);
-        col += 1;
-    }
-    if el.damping.is_some() {
-        pd.value.iter_mut().for_each(|y| *y += fit.beta[col]);
-        predictions.push(pd);
-    }
     let explained = if chi2_const > 0.0 {
         1.0 - fit.chi2 / chi2_const
     } else {
         1.0
     };
-    // Largest |correlation| between two effect coefficients: near 1 they trade off.
-    let mut coef_corr: f64 = 0.0;
-    for a in 0..effects.len() {
-        for b in 0..a {
-            let (i, j) = (nb + a, nb + b);
-            let r = fit.cov[(i, j)] / (fit.cov[(i, i)] * fit.cov[(j, j)]).sqrt();
-            coef_corr = coef_corr.max(r.abs());
-        }
-    }
+    let coef_corr = coef_corr(&fit.cov, nb, effects.len());
     Some(TemplateFit {
         coef_corr,
         name: effects

@@ -1,7 +1,15 @@
 //! Driven runs: the model driven by recorded input columns, from rest or from the
 //! measured state of the first sample.
 
-use super::*;
+use super::config::config_error;
+use super::error::SimError;
+use super::guard::{check_divergence, divergence_limit, Resolution};
+use super::law;
+use super::mech::{Mechanics, Rk4};
+use super::parameter_values;
+use crate::describe::std_dev;
+use crate::record::Record;
+use dynid_ir::ir::{InputId, ModelIr, SignalKind};
 
 /// Drive `ir` with measured inputs and return its simulated response.
 ///
@@ -40,6 +48,10 @@ pub enum Start {
 }
 
 /// [`simulate_driven`] from a chosen initial state.
+///
+/// Longer than most functions here: after the checks of the input record, the loop is the
+/// driven run's inner loop (control laws, recording, hold, RK4), whose state every stage
+/// shares, as in the excited run's level loop.
 pub fn simulate_driven_from(
     ir: &ModelIr,
     input: &Record,

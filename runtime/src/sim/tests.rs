@@ -1,6 +1,6 @@
 use super::test_models::{integration_error, sdof, tracking, two_mass_chain, SdofParams};
 use super::*;
-use crate::describe::mean;
+use crate::describe::{mean, std_dev};
 use dynid_ir::ir::FormFilter;
 use nalgebra::DMatrix;
 

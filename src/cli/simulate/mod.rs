@@ -1,12 +1,16 @@
 //! `dynid simulate`: synthetic test data from a model, or the model's response to
 //! measured inputs.
 
-use super::common::{check_run_dir, load_model, Staged};
+mod driven;
+
+use super::common::{check_run_dir, load_model};
+use driven::run_driven;
 use dsl_parser::ir::ModelIr;
-use dynid_runtime::data;
+use dynid::output::LevelWritten;
+use dynid_runtime::describe::std_dev;
 use dynid_runtime::record::Record;
 use dynid_runtime::sim::{self, SimConfig, DEFAULT_SUBSTEPS};
-use miette::{Context, IntoDiagnostic};
+use miette::IntoDiagnostic;
 use std::path::{Path, PathBuf};
 
 /// Shown by `--help` after the options. (The subcommand's one-line description in
@@ -231,6 +235,18 @@ fn run_excited(ir: &ModelIr, args: &Args) -> miette::Result<()> {
     });
     bar.finish_and_clear();
     let (truth, written) = out?;
+    print_excited(ir, args, &cfg, &truth, &written)
+}
+
+/// What `simulate` prints after an excited run: the truth and each level's file,
+/// sample count and standard deviations, as JSON or as text.
+fn print_excited(
+    ir: &ModelIr,
+    args: &Args,
+    cfg: &SimConfig,
+    truth: &sim::Truth,
+    written: &[LevelWritten],
+) -> miette::Result<()> {
     let mut paths: Vec<PathBuf> = written.iter().map(|w| w.path.clone()).collect();
     paths.push(args.out.join("truth.json"));
     let names: Vec<String> = ir
@@ -320,129 +336,7 @@ fn pd_control(ir: &ModelIr, args: &Args) -> miette::Result<Option<sim::PdControl
     }))
 }
 
-fn run_driven(ir: &ModelIr, args: &Args, input: &Path) -> miette::Result<()> {
-    check_run_dir(
-        &args.out,
-        "--out",
-        &["driven.csv".into(), "truth.json".into()],
-        [
-            (args.model.as_path(), "the model"),
-            (input, "the input file"),
-        ],
-        [],
-    )?;
-    let record = read_input_csv(input, args.allow_large)?;
-    check_response_memory(ir, &record, input, args.allow_large)?;
-    sim::check_steps(
-        record.len() as f64 * args.substeps as f64,
-        &format!(
-            "driving `{}` with {} samples × {} RK4 sub-steps",
-            ir.name,
-            record.len(),
-            args.substeps
-        ),
-        "--allow-long",
-        args.allow_long,
-    )?;
-    // The free-run convention of every comparison with data: from the measured state when
-    // the file holds positions, else from rest.
-    let measured = ir.bodies.iter().enumerate().any(|(b, _)| {
-        record.column(&ir.signals[2 * b].name).is_some()
-            || record.column(&ir.signals[2 * b + 1].name).is_some()
-    });
-    let response = sim::simulate_driven_from(ir, &record, args.substeps, sim::Start::Measured)
-        .map_err(miette::Report::new)
-        .wrap_err_with(|| format!("driving `{}` with `{}`", ir.name, input.display()))?;
-    let params = sim::parameter_values(ir).map_err(miette::Report::new)?;
-    dynid::output::create_dir(&args.out)?;
-    let csv = args.out.join("driven.csv");
-    let truth = serde_json::json!({
-        "model": ir.name,
-        "mode": "driven",
-        "input": input.display().to_string(),
-        "parameters": ir.params.iter().zip(&params)
-            .map(|(p, v)| (p.name.clone(), *v))
-            .collect::<std::collections::BTreeMap<_, _>>(),
-        "substeps": args.substeps,
-        "initial_state": if measured { sim::FREE_RUN_START } else { "rest (no position or velocity column)" },
-        "files": ["driven.csv"],
-    });
-    let json_path = args.out.join("truth.json");
-    let mut staged = Staged::new();
-    dynid::output::stage_driven(
-        &mut staged,
-        &args.out,
-        &response,
-        &(serde_json::to_string_pretty(&truth).into_diagnostic()? + "\n"),
-    )?;
-    staged.commit()?;
-    let summary = level_summary(&response, &csv, None);
-    match args.format {
-        Format::Json => println!(
-            "{}",
-            serde_json::to_string_pretty(
-                &serde_json::json!({ "truth": truth, "levels": [summary] })
-            )
-            .into_diagnostic()?
-        ),
-        Format::Text => {
-            println!(
-                "simulated `{}` driven by `{}` ({} samples, Ts = {} s, from {})",
-                ir.name,
-                input.display(),
-                response.len(),
-                response.ts,
-                if measured {
-                    sim::FREE_RUN_START
-                } else {
-                    "rest: the file has no position or velocity column"
-                }
-            );
-            print_summary(&summary);
-            println!("  {}", json_path.display());
-        }
-    }
-    Ok(())
-}
-
-/// The driving inputs: the shared CSV reader, whose errors name the file and line; a
-/// record whose memory (estimated from the file's size) is above the limit is refused
-/// before it is read, unless `allow_large`.
-fn read_input_csv(path: &Path, allow_large: bool) -> miette::Result<Record> {
-    Ok(data::read_record_within(
-        path,
-        &data::CsvOptions::default(),
-        allow_large,
-    )?)
-}
-
-/// Refuse a driven simulation whose response (every signal of the model at every sample
-/// of `record`, held whole) would take more than the memory limit, unless `allow_large`.
-fn check_response_memory(
-    ir: &ModelIr,
-    record: &Record,
-    input: &Path,
-    allow_large: bool,
-) -> miette::Result<()> {
-    use dynid_runtime::limits::{bytes_in_words, MAX_BYTES};
-    let bytes = record.len() as f64 * (ir.signals.len() as f64 + 1.0) * 8.0;
-    if allow_large || bytes <= MAX_BYTES {
-        return Ok(());
-    }
-    Err(miette::miette!(
-        code = "dynid::sim::too_large",
-        help = "drive the model with a shorter record, or give `--allow-large` to run it anyway",
-        "driving `{}` with the {} samples of `{}` would hold a response of {} in memory \
-         ({} signals), above the limit of {}",
-        ir.name,
-        record.len(),
-        input.display(),
-        bytes_in_words(bytes),
-        ir.signals.len() + 1,
-        bytes_in_words(MAX_BYTES)
-    ))
-}
-
+/// The progress bar of an excited run, on stderr.
 fn progress_bar(total: u64) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::with_draw_target(
         Some(total),
@@ -456,6 +350,7 @@ fn progress_bar(total: u64) -> indicatif::ProgressBar {
     bar
 }
 
+/// The summary of one written level (file, level, samples, signals, their std).
 fn level_summary(r: &Record, path: &Path, level: Option<f64>) -> serde_json::Value {
     serde_json::json!({
         "file": path.display().to_string(),
@@ -466,6 +361,7 @@ fn level_summary(r: &Record, path: &Path, level: Option<f64>) -> serde_json::Val
     })
 }
 
+/// One line of text for a [`level_summary`].
 fn print_summary(s: &serde_json::Value) {
     let stds = s["signals"]
         .as_array()
@@ -488,173 +384,5 @@ fn print_summary(s: &serde_json::Value) {
     println!("  {} — {level}std {stds}", s["file"].as_str().unwrap_or(""));
 }
 
-use dynid_runtime::describe::std_dev;
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-        let p = dir.join(name);
-        std::fs::write(&p, text).unwrap();
-        p
-    }
-
-    #[test]
-    fn input_csv_errors_name_line_and_column() {
-        let dir = tempfile::tempdir().unwrap();
-        // The error's code, and its text (which must name the line and column).
-        let err = |text: &str| {
-            let e = read_input_csv(&write(dir.path(), "a.csv", text), false).unwrap_err();
-            let code = e.code().map(|c| c.to_string()).unwrap_or_default();
-            (code, format!("{e:?}"))
-        };
-        let is = |(code, e): (String, String), want: &str, line: &str| {
-            assert_eq!(code, want, "{e}");
-            assert!(e.contains(line), "{e}");
-        };
-        is(
-            err("u\n1\n2\n"),
-            "dynid::data::no_sample_interval",
-            "no `t` column",
-        );
-        is(err("t,u\n0,1\n0.1\n"), "dynid::data::ragged", "line 3");
-        let nan = err("t,u\n0,1\n0.1,NaN\n");
-        assert!(nan.1.contains("`u`"), "{}", nan.1);
-        is(nan, "dynid::data::non_finite", "line 3");
-        is(
-            err("t,u\n0,1\n0.1,x\n"),
-            "dynid::data::not_a_number",
-            "line 3",
-        );
-        // A step of two intervals: a dropped sample, named as such (the same code as an
-        // uneven step, told apart by the message).
-        let (code, e) = err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n");
-        assert_eq!(code, "dynid::data::non_uniform_time", "{e}");
-        assert!(e.contains("line 4: a sample is missing"), "{e}");
-        let (code, e) = err("t,u\n0,1\n0.1,2\n0.25,2\n0.35,1\n");
-        assert_eq!(code, "dynid::data::non_uniform_time", "{e}");
-        assert!(e.contains("line 4: the time step"), "{e}");
-        let r = read_input_csv(
-            &write(dir.path(), "b.csv", "t,u\n1,1\n1.5,2\n2,3\n\n"),
-            false,
-        )
-        .unwrap();
-        assert_eq!(
-            (r.t0, r.ts, r.names.clone()),
-            (1.0, 0.5, vec!["u".to_string()])
-        );
-        assert_eq!(r.columns, vec![vec![1.0, 2.0, 3.0]]);
-    }
-
-    fn args(model: PathBuf, out: PathBuf) -> Args {
-        Args {
-            model,
-            levels: Some(vec![6.0, 15.0]),
-            duration: 20.0,
-            sample: 0.01,
-            seed: 3,
-            noise: 0.0,
-            clean_inputs: false,
-            substeps: DEFAULT_SUBSTEPS,
-            burn_in: 5.0,
-            input_oversample: 1,
-            quantise: None,
-            pd: None,
-            reference_rms: 0.03,
-            reference_corner: 5.0,
-            smooth_reference: false,
-            tachometer: false,
-            out,
-            excitation: Default::default(),
-            input: None,
-            format: Format::Json,
-            allow_long: false,
-            allow_large: false,
-        }
-    }
-
-    #[test]
-    fn writes_levels_and_truth_then_drives_with_a_level() {
-        use dynid_runtime::sim::test_models::{sdof, SdofParams};
-        let dir = tempfile::tempdir().unwrap();
-        let ir = sdof(
-            &SdofParams::benchmark(),
-            dsl_parser::ir::FormFilter::Lowpass { corner: 10.0 },
-            vec![1.0],
-        );
-        let model = write(
-            dir.path(),
-            "sdof.json",
-            &serde_json::to_string(&ir).unwrap(),
-        );
-        let out = dir.path().join("out");
-        run(args(model.clone(), out.clone())).unwrap();
-        let mut files: Vec<String> = std::fs::read_dir(&out)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().into_string().unwrap())
-            .collect();
-        files.sort();
-        assert_eq!(files, ["level_1.csv", "level_2.csv", "truth.json"]);
-        let truth: sim::Truth =
-            serde_json::from_str(&std::fs::read_to_string(out.join("truth.json")).unwrap())
-                .unwrap();
-        assert_eq!(truth.levels, [6.0, 15.0]);
-        assert_eq!(truth.files, ["level_1.csv", "level_2.csv"]);
-        let level = read_input_csv(&out.join("level_2.csv"), false).unwrap();
-        assert_eq!(level.names, ["m1.x", "m1.v", "u"]);
-        assert_eq!(level.len(), 2000);
-
-        let driven_out = dir.path().join("driven");
-        let mut a = args(model, driven_out.clone());
-        a.input = Some(out.join("level_2.csv"));
-        run(a).unwrap();
-        let driven = read_input_csv(&driven_out.join("driven.csv"), false).unwrap();
-        assert_eq!(driven.len(), level.len());
-        assert_eq!(driven.column("u"), level.column("u"));
-    }
-
-    #[test]
-    fn closed_loop_quantised_oversampled_run_writes_the_reference() {
-        use dynid_runtime::sim::test_models::ServoAxis;
-        let dir = tempfile::tempdir().unwrap();
-        let model = write(
-            dir.path(),
-            "servo.json",
-            &serde_json::to_string(&ServoAxis::standard().model()).unwrap(),
-        );
-        let out = dir.path().join("out");
-        let mut a = args(model, out.clone());
-        a.levels = None;
-        a.duration = 2.0;
-        a.burn_in = 1.0;
-        a.sample = 1e-3;
-        a.input_oversample = 4;
-        a.quantise = Some(1e-6);
-        a.pd = Some(vec![80000.0, 2680.0]);
-        run(a).unwrap();
-        let level = read_input_csv(&out.join("level_1.csv"), false).unwrap();
-        assert_eq!(level.names, ["m.x", "u", "m.x_ref"]);
-        assert_eq!(level.len(), 2000);
-        let truth: sim::Truth =
-            serde_json::from_str(&std::fs::read_to_string(out.join("truth.json")).unwrap())
-                .unwrap();
-        assert_eq!(truth.input_oversample, 4);
-        assert_eq!(truth.control.unwrap().kd, 2680.0);
-        let mut bad = args(dir.path().join("servo.json"), dir.path().join("bad"));
-        bad.pd = Some(vec![1.0]);
-        let e = run(bad).unwrap_err();
-        assert!(format!("{e:?}").contains("two gains"), "{e:?}");
-    }
-
-    #[test]
-    fn failures_leave_no_output() {
-        let dir = tempfile::tempdir().unwrap();
-        let out = dir.path().join("out");
-        let e = run(args(dir.path().join("missing.json"), out.clone())).unwrap_err();
-        assert!(format!("{e:?}").contains("missing.json"));
-        let e = run(args(write(dir.path(), "m.dyn", "model m {}"), out.clone())).unwrap_err();
-        assert!(format!("{e:?}").contains("m.dyn"));
-        assert!(!out.exists());
-    }
-}
+mod tests;

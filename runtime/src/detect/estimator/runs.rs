@@ -1,0 +1,274 @@
+//! The estimator run on simulated data: the head of every measured level (its inputs),
+//! the model with a candidate effect added at p = factor × the linearisation's estimate,
+//! driven by those inputs and fitted per level exactly as the data were. Each run gives
+//! the curves that [`super::score`] compares with the measured ones.
+
+use rayon::prelude::*;
+
+use dynid_ir::edit::NewTerm;
+use dynid_ir::ir::{BinaryOp, ExprArena, ExprId, ExprNode, ModelIr, SignalKind, UnaryOp};
+
+use super::super::{Candidate, ElementFinding};
+use super::P_FACTORS;
+use crate::data::{LevelSource, RecordSource};
+use crate::ident::IdentifyOptions;
+use crate::record::Record;
+use crate::sim::{simulate_driven_from, Start};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// RK4 steps per sample of the driven runs.
+const SUBSTEPS: usize = 4;
+
+/// Builds a force basis from the element's s and v.
+type BasisFn = Box<dyn Fn(&mut ExprArena, ExprId, ExprId) -> ExprId>;
+
+/// A single-effect template of the element: effect, coefficient name, its estimate, the
+/// shape θ and the element's linear parts, as the statistical linearisation fitted them.
+pub(super) struct Single {
+    pub(super) effect: String,
+    pub(super) coef: String,
+    pub(super) p: f64,
+    pub(super) theta: f64,
+    pub(super) linear_parts: Vec<(String, f64)>,
+}
+
+/// A candidate evaluated through the estimator.
+pub(super) struct Trial {
+    pub(super) effect: String,
+    pub(super) coef_name: String,
+    /// p at every factor of [`P_FACTORS`].
+    pub(super) ps: Vec<f64>,
+    /// Per factor, the curves of the simulated fits.
+    pub(super) curves: Vec<Curves>,
+}
+
+/// The force basis of a built-in candidate as an expression of the element's s and v, with
+/// its shape θ; `None` for a candidate the language cannot write (a user-declared one).
+fn basis_of(name: &str, theta: f64) -> Option<BasisFn> {
+    Some(match name {
+        "cubic stiffness" => Box::new(|a: &mut ExprArena, s, _| a.intern(ExprNode::Powi(s, 3))),
+        "Coulomb friction" => Box::new(|a: &mut ExprArena, _, v| a.unary(UnaryOp::Sign, v)),
+        "quadratic damping" => Box::new(|a: &mut ExprArena, _, v| {
+            let av = a.unary(UnaryOp::Abs, v);
+            a.binary(BinaryOp::Mul, v, av)
+        }),
+        "prestress" => Box::new(|a: &mut ExprArena, s, _| a.unary(UnaryOp::Sign, s)),
+        "backlash" if theta.is_finite() && theta > 0.0 => {
+            Box::new(move |a: &mut ExprArena, s, _| {
+                a.intern(ExprNode::Deadzone(s, theta.to_bits()))
+            })
+        }
+        _ => return None,
+    })
+}
+
+/// The first `max` samples of every measured signal of a level, as a record, and the
+/// level's length. When the head is shorter than the level, its input columns are scaled
+/// to the standard deviation of the whole level: the drift of an effect of s grows with
+/// the level's intensity, and a head whose input happens to be a few per cent weaker than
+/// the whole record would predict a drift that much smaller.
+pub(super) fn head_record(
+    ir: &ModelIr,
+    src: &dyn LevelSource,
+    max: usize,
+    chunk: usize,
+) -> Option<(Record, usize)> {
+    let measured = ir.measured_signals();
+    let mut cols: Vec<Vec<f64>> = measured.iter().map(|_| Vec::new()).collect();
+    // Sums about the first sample of each column, over the whole level.
+    let mut shift: Vec<Option<f64>> = vec![None; measured.len()];
+    let mut s1 = vec![0.0; measured.len()];
+    let mut s2 = vec![0.0; measured.len()];
+    let mut n = 0usize;
+    src.stream(chunk, &mut |c, len| {
+        for (j, s) in measured.iter().enumerate() {
+            let Some(x) = c.get(s.index()).filter(|x| x.len() >= len) else {
+                continue;
+            };
+            let take = max.saturating_sub(cols[j].len()).min(len);
+            cols[j].extend_from_slice(&x[..take]);
+            let sh = *shift[j].get_or_insert(x.first().copied().unwrap_or(0.0));
+            for &v in &x[..len] {
+                s1[j] += v - sh;
+                s2[j] += (v - sh) * (v - sh);
+            }
+        }
+        n += len;
+    })
+    .ok()?;
+    let sd = |s1: f64, s2: f64, n: usize| {
+        let nf = n.max(1) as f64;
+        (s2 / nf - (s1 / nf).powi(2)).max(0.0).sqrt()
+    };
+    for (j, s) in measured.iter().enumerate() {
+        let col = &mut cols[j];
+        if col.len() >= n || !matches!(ir.signal(*s).kind, SignalKind::Input(_)) {
+            continue;
+        }
+        let sh = col.first().copied().unwrap_or(0.0);
+        let (a, b) = col.iter().fold((0.0, 0.0), |(a, b), v| {
+            (a + v - sh, b + (v - sh) * (v - sh))
+        });
+        let (whole, head) = (sd(s1[j], s2[j], n), sd(a, b, col.len()));
+        if whole > 0.0 && head > 0.0 && whole.is_finite() && head.is_finite() {
+            let mean = sh + a / col.len() as f64;
+            let g = whole / head;
+            col.iter_mut().for_each(|v| *v = mean + g * (*v - mean));
+        }
+    }
+    Some((
+        Record {
+            names: measured
+                .iter()
+                .map(|s| ir.signal(*s).name.clone())
+                .collect(),
+            columns: cols,
+            ts: src.ts(),
+            t0: 0.0,
+        },
+        n,
+    ))
+}
+
+/// Per parameter name: the values and standard errors of its curve from the per-level fits
+/// of simulated levels.
+pub(super) type Curves = Vec<(String, Vec<f64>, Vec<f64>)>;
+
+/// Drive `model` with the level inputs and fit the linear model `ir` per level.
+fn estimator_curves(
+    ir: &ModelIr,
+    model: &ModelIr,
+    inputs: &[Record],
+    ident: &IdentifyOptions,
+    hold_inertia: bool,
+) -> Option<Curves> {
+    let sims: Vec<Record> = inputs
+        .iter()
+        .map(|r| simulate_driven_from(model, r, SUBSTEPS, Start::Measured).ok())
+        .collect::<Option<_>>()?;
+    let srcs: Vec<RecordSource> = sims
+        .iter()
+        .enumerate()
+        .map(|(i, r)| RecordSource::new(r, ir, format!("simulated level {}", i + 1)).ok())
+        .collect::<Option<_>>()?;
+    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
+    let fits = super::super::level_fits(ir, &levels, ident, hold_inertia).ok()?;
+    Some(
+        fits.input
+            .curves
+            .into_iter()
+            .map(|c| (c.param, c.values, c.stderrs))
+            .collect(),
+    )
+}
+
+/// The single-effect templates of `finding`'s ranking that the estimator can run: a
+/// built-in effect with a finite, non-zero coefficient, its shape and the element's linear
+/// parts as the statistical linearisation fitted them.
+pub(super) fn singles_of(finding: &ElementFinding, builtins: &[Candidate]) -> Vec<Single> {
+    finding
+        .ranking
+        .iter()
+        .filter(|f| f.effects.len() == 1)
+        .filter_map(|f| {
+            let c = builtins.iter().find(|c| c.name == f.effects[0])?;
+            let est = f.effect_estimates();
+            let p = est.first()?.value;
+            let theta = c
+                .shape
+                .as_ref()
+                .and_then(|s| est.iter().find(|e| e.name == s.name))
+                .map_or(0.0, |e| e.value);
+            let linear_parts = f
+                .estimates
+                .iter()
+                .filter_map(|e| {
+                    e.name
+                        .strip_suffix(" (linear part)")
+                        .map(|n| (n.to_string(), e.value))
+                })
+                .collect();
+            (p.is_finite() && p != 0.0).then(|| Single {
+                effect: c.name.clone(),
+                coef: c.coef_name.clone(),
+                p,
+                theta,
+                linear_parts,
+            })
+        })
+        .collect()
+}
+
+/// The estimator's trials of `singles` at element `(a, b)`: each run at every factor of
+/// [`P_FACTORS`] (in parallel), `base` plus the candidate driven by `inputs` and fitted
+/// with `sim_ident`; a trial whose runs all succeed is kept. `done` and `total` count the
+/// simulations for `progress`.
+#[allow(clippy::too_many_arguments)] // the run's inputs and its progress counters
+pub(super) fn run_trials(
+    ir: &ModelIr,
+    base: &ModelIr,
+    singles: &[Single],
+    (a, b): (&str, &str),
+    inputs: &[Record],
+    sim_ident: &IdentifyOptions,
+    hold_inertia: bool,
+    (done, total): (&AtomicUsize, &AtomicUsize),
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Vec<Trial> {
+    let jobs: Vec<(usize, usize)> = (0..singles.len())
+        .flat_map(|c| (0..P_FACTORS.len()).map(move |k| (c, k)))
+        .collect();
+    let total = total.fetch_add(jobs.len(), Ordering::Relaxed) + jobs.len();
+    let runs: Vec<Option<Curves>> = jobs
+        .par_iter()
+        .map(|&(c, k)| {
+            let run = || -> Option<Curves> {
+                let Single {
+                    effect,
+                    p,
+                    theta,
+                    linear_parts,
+                    ..
+                } = &singles[c];
+                let mut model = base.clone();
+                for (param, v) in linear_parts {
+                    let _ = model.set_nominal(param, *v);
+                }
+                let basis = basis_of(effect, *theta)?;
+                let pname = model.fresh_name("p_candidate");
+                let fname = model.fresh_name("candidate");
+                model
+                    .add_force(
+                        &fname,
+                        (a, b),
+                        &[NewTerm {
+                            param: &pname,
+                            nominal: Some(P_FACTORS[k] * p),
+                            basis: &*basis,
+                        }],
+                    )
+                    .ok()?;
+                estimator_curves(ir, &model, inputs, sim_ident, hold_inertia)
+            };
+            let out = run();
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(n, total);
+            out
+        })
+        .collect();
+    singles
+        .iter()
+        .enumerate()
+        .filter_map(|(c, single)| {
+            let curves: Vec<Curves> = (0..P_FACTORS.len())
+                .map(|k| runs[c * P_FACTORS.len() + k].clone())
+                .collect::<Option<_>>()?;
+            Some(Trial {
+                effect: single.effect.clone(),
+                coef_name: single.coef.clone(),
+                ps: P_FACTORS.iter().map(|f| f * single.p).collect(),
+                curves,
+            })
+        })
+        .collect()
+}
