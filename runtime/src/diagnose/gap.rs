@@ -5,7 +5,7 @@
 use super::metrics;
 use super::types::{DiagnoseError, DiagnoseOptions, LevelGap, ModelGap, SignalGap};
 use crate::data::{DataError, LevelSource, RecordSource};
-use crate::ident::{measure, Identification, Moments};
+use crate::ident::{measure, Identification, Measurement};
 use crate::record::Record;
 use crate::sim::{simulate_driven_from, Start};
 use crate::tape::Tape;
@@ -234,7 +234,7 @@ pub(super) fn measure_all<'m>(
     ir: &'m ModelIr,
     data: &Data,
     opts: &DiagnoseOptions,
-) -> Result<Moments<'m>, DiagnoseError> {
+) -> Result<Measurement<'m>, DiagnoseError> {
     let srcs = sources(ir, data)?;
     let refs: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
     let tape = Tape::compile(ir, &ir.eval_roots());
@@ -253,7 +253,7 @@ pub(super) fn training(n: usize, w: usize) -> Vec<usize> {
 /// optionally restricted to the rows of one equation; `None` when those rows are all zero
 /// or the residual is not finite.
 pub(super) fn cov_residual(
-    m: &Moments,
+    m: &Measurement,
     p: &[f64],
     w: usize,
     equation: Option<&str>,
@@ -301,7 +301,11 @@ pub(super) fn param_vector(ir: &ModelIr, id: &Identification) -> Vec<f64> {
 
 /// Cross-validated scores of a variant: covariance residual (mean over withheld levels)
 /// and the training fits per withheld level.
-pub(super) fn cross_validate(m: &Moments, ir: &ModelIr, n: usize) -> (f64, Vec<Identification>) {
+pub(super) fn cross_validate(
+    m: &Measurement,
+    ir: &ModelIr,
+    n: usize,
+) -> (f64, Vec<Identification>) {
     let mut fits = Vec::with_capacity(n);
     let (mut res, mut k) = (0.0, 0);
     for w in 0..n {

@@ -6,7 +6,7 @@ use super::gap::Data;
 use super::gap::{cross_validate, cv_gap, measure_all};
 use super::types::{CandidateScore, DiagnoseOptions, FoundEffect, ModelGap};
 use super::{fmt_gap, metrics};
-use crate::ident::{Identification, Moments};
+use crate::ident::{Identification, Measurement};
 use dynid_ir::ir::{ModelIr, SignalKind};
 use dynid_ir::num;
 use rayon::prelude::*;
@@ -456,7 +456,7 @@ fn score_of(
     eff: Effect,
     loc: &Location,
     p: &str,
-    m: &Moments,
+    m: &Measurement,
     cir: &ModelIr,
     n: usize,
 ) -> (CandidateScore, Vec<Identification>, Identification) {
@@ -527,7 +527,7 @@ const SHARED_PASS_GROUP: usize = 64;
 
 /// Every candidate of a group scored from ONE measuring pass: the model `base` with all candidate
 /// terms added is measured once, and each candidate is solved from its own columns of
-/// those moments ([`Moments::restricted`]), exactly the problem its own pass would give.
+/// those moments ([`Measurement::restricted`]), exactly the problem its own pass would give.
 /// `None` when that model cannot be measured (the caller then measures every candidate on
 /// its own, which drops only the candidates that fail).
 fn shared_pass(
