@@ -1,6 +1,6 @@
 //! Measurements of the simulator and of the noise correction that are too slow for the test
-//! suite: they print the figures quoted in the module documentation of `sim` and
-//! `ident::noise` (and in docs/method.md) instead of asserting.
+//! suite: they print the figures quoted in the module documentation of `sim`, in
+//! docs/performance.md (the noise correction) and in docs/method.md instead of asserting.
 //!
 //! `cargo run --release -p dynid-runtime --features test-support --example measurements -- <which>`
 //! where `<which>` is
@@ -10,7 +10,7 @@
 //! - `servo`: tracking error and force autocorrelation of the standard servo axis, seeds 1–6
 //!   (the bounds of `sim::tests::servo_axis_tracks_its_reference_with_a_coloured_force`);
 //! - `noise`: errors of (d, k, k3, r) with and without the noise correction at 0 / 5 / 10 %
-//!   noise on every channel, seeds 11–13, and the estimated noise levels (`ident::noise`).
+//!   noise on every channel, seeds 11–13, and the estimated noise levels (docs/performance.md).
 
 use dynid_ir::ir::FormFilter;
 use dynid_runtime::data::{LevelSource, RecordSource};

@@ -31,6 +31,7 @@ pub(crate) mod prefetch;
 pub mod record;
 pub mod refine;
 pub mod set_point;
+pub mod settle;
 pub mod silverbox;
 pub mod sim;
 pub mod tape;

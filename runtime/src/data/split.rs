@@ -20,7 +20,7 @@
 //! log-amplitude span.
 //!
 //! **Shortest segment.** Identification designs its slowest filter corner at half the
-//! lowest dominant frequency of the data, `λ = ω₀/2` ([`crate::ident::filter::design_corners`]),
+//! lowest dominant frequency of the data, `λ = ω₀/2` ([`crate::ident::design::design_corners`]),
 //! and a chain of `n` sections settles only on a record of [`SETTLE`]` · n / λ` seconds; on
 //! a shorter one it lifts that corner above the design ([`crate::ident::design::fit_corners`]).
 //! So every segment spans at least
@@ -38,8 +38,8 @@
 //! the length at which identification runs with its designed filters.
 
 use super::MIN_SAMPLES;
-use crate::ident::design::SETTLE;
 use crate::record::Record;
+use crate::settle::SETTLE;
 use dynid_ir::ir::{ModelIr, SignalKind};
 use dynid_ir::num::sig;
 use serde::Serialize;

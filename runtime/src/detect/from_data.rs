@@ -33,7 +33,7 @@ use serde::Serialize;
 use super::{detect, Candidate, DetectError, DetectOptions, Detection, DetectionInput};
 use super::{Distribution, ElementIntensity, HeldParam, ParamCurve, Role};
 use crate::data::{DataError, LevelSource};
-use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions, Moments};
+use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions, Measurement};
 use crate::tape::{Tape, TapeScratch};
 
 /// Hysteresis of the zero-crossing count, as a fraction of σ_s.
@@ -307,7 +307,7 @@ fn intensities(
 /// Unknown body masses and the value to hold each at in per-level fits: the weighted mean
 /// of its free per-level estimates (see [`level_fits`] for why). A mass that some level
 /// cannot estimate is not held.
-pub fn held_inertia(ir: &ModelIr, moments: &Moments) -> Vec<HeldParam> {
+pub fn held_inertia(ir: &ModelIr, moments: &Measurement) -> Vec<HeldParam> {
     let groups = groups(ir);
     let free: Vec<Identification> = (0..moments.levels().len())
         .map(|i| moments.identify_level(i))
@@ -342,7 +342,7 @@ pub fn held_inertia(ir: &ModelIr, moments: &Moments) -> Vec<HeldParam> {
 /// at a loud level the mean it puts into the data can hide in the spread of the mean (the
 /// loudest level of `models/sdof_offset.dyn` over 1000 s cannot resolve it), so it gets
 /// no curve. A constant force that the pooled fit cannot estimate is not held.
-fn held_constant_forces(ir: &ModelIr, moments: &Moments) -> Vec<HeldParam> {
+fn held_constant_forces(ir: &ModelIr, moments: &Measurement) -> Vec<HeldParam> {
     let constant: Vec<ParamId> = ir
         .unknowns()
         .into_iter()

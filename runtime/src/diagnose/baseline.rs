@@ -9,7 +9,7 @@ use super::score::{cov_residual, cv_gap, level_gap, model_gap};
 use super::types::{DiagnoseError, DiagnoseOptions, EquationGap, LevelGap, ModelGap};
 use super::types::{MovedParam, ParamDrift};
 use crate::data::LevelSource;
-use crate::ident::{Identification, LikelyCause, Moments};
+use crate::ident::{Identification, LikelyCause, Measurement};
 use dynid_ir::ir::{ModelIr, ParamId};
 use rayon::prelude::*;
 
@@ -80,7 +80,7 @@ fn nominal_gap(
 }
 
 /// The covariance residual of each equation on each level with the nominal values.
-fn equation_gaps(ir: &ModelIr, m: &Moments, n: usize) -> Vec<EquationGap> {
+fn equation_gaps(ir: &ModelIr, m: &Measurement, n: usize) -> Vec<EquationGap> {
     let p_nom: Vec<f64> = ir
         .unknowns()
         .iter()
@@ -106,7 +106,7 @@ fn equation_gaps(ir: &ModelIr, m: &Moments, n: usize) -> Vec<EquationGap> {
 fn data_notes(
     ir: &ModelIr,
     data: &Data,
-    m: &Moments,
+    m: &Measurement,
     pooled: &Identification,
     opts: &DiagnoseOptions,
     notes: &mut Vec<String>,
@@ -139,7 +139,7 @@ fn data_notes(
 /// Each unknown's estimate per level and how far it drifts. Masses are held at one value,
 /// as detection does: a mass fitted freely per level trades off against the stiffness and
 /// hides its drift (Silverbox: m and a each scatter by 10 % while their ratio rises 8 %).
-fn drift(ir: &ModelIr, m: &Moments, pooled: &Identification, n: usize) -> Vec<ParamDrift> {
+fn drift(ir: &ModelIr, m: &Measurement, pooled: &Identification, n: usize) -> Vec<ParamDrift> {
     let held: Vec<(String, f64)> = crate::detect::held_inertia(ir, m)
         .into_iter()
         .map(|h| (h.param, h.value))

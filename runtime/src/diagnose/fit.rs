@@ -8,7 +8,7 @@ use super::levels::{sources, training, Data};
 use super::score::cov_residual;
 use super::types::{CandidateScore, DiagnoseError, DiagnoseOptions};
 use crate::data::LevelSource;
-use crate::ident::{measure, Identification, Moments};
+use crate::ident::{measure, Identification, Measurement};
 use crate::tape::Tape;
 use dynid_ir::ir::{BodyId, ModelIr};
 use rayon::prelude::*;
@@ -18,7 +18,7 @@ pub(super) fn measure_all<'m>(
     ir: &'m ModelIr,
     data: &Data,
     opts: &DiagnoseOptions,
-) -> Result<Moments<'m>, DiagnoseError> {
+) -> Result<Measurement<'m>, DiagnoseError> {
     let srcs = sources(ir, data)?;
     let refs: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
     let tape = Tape::compile(ir, &ir.eval_roots());
@@ -45,7 +45,7 @@ fn param_vector(ir: &ModelIr, id: &Identification) -> Vec<f64> {
 
 /// Cross-validated scores of a variant: covariance residual (mean over withheld levels)
 /// and the training fits per withheld level.
-pub(super) fn cross_validate(m: &Moments, ir: &ModelIr, n: usize) -> (f64, Vec<Identification>) {
+pub(super) fn cross_validate(m: &Measurement, ir: &ModelIr, n: usize) -> (f64, Vec<Identification>) {
     let mut fits = Vec::with_capacity(n);
     let (mut res, mut k) = (0.0, 0);
     for w in 0..n {
@@ -152,7 +152,7 @@ fn fit_of(
     eff: Effect,
     loc: &Location,
     p: &str,
-    m: &Moments,
+    m: &Measurement,
     cir: &ModelIr,
     n: usize,
 ) -> (CandidateScore, Vec<Identification>, Identification) {
@@ -211,7 +211,7 @@ const SHARED_PASS_GROUP: usize = 64;
 
 /// Every candidate of a group fitted from ONE measuring pass: the model `base` with all
 /// candidate terms added is measured once, and each candidate is solved from its own
-/// columns of those moments ([`Moments::restricted`]), exactly the problem its own pass
+/// columns of those moments ([`Measurement::restricted`]), exactly the problem its own pass
 /// would give. `None` when that model cannot be measured (the caller then measures every
 /// candidate on its own, which drops only the candidates that fail).
 fn shared_pass(

@@ -6,7 +6,7 @@
 use super::levels::{unit_of, with_values, Data};
 use super::metrics;
 use super::types::{DiagnoseOptions, LevelGap, ModelGap, SignalGap};
-use crate::ident::{Identification, Moments};
+use crate::ident::{Identification, Measurement};
 use crate::sim::{simulate_driven_from, Start};
 use dynid_ir::ir::ModelIr;
 use rayon::prelude::*;
@@ -211,7 +211,7 @@ pub(super) fn cv_gap_by<'i>(
 /// optionally restricted to the rows of one equation; `None` when those rows are all zero
 /// or the residual is not finite.
 pub(super) fn cov_residual(
-    m: &Moments,
+    m: &Measurement,
     p: &[f64],
     w: usize,
     equation: Option<&str>,

@@ -3,7 +3,7 @@
 //! A level's rows `(C, c)` are read from its moments: the whole record's (the estimate) and
 //! each hat window's (the standard errors, see [`super::stats`]). A model is solved many
 //! times from the same moments — pooled, per level, in each cross-validation fold, and, in
-//! a structure search, as each of hundreds of sub-models ([`Moments::restricted`]) that
+//! a structure search, as each of hundreds of sub-models ([`Measurement::restricted`]) that
 //! share all columns but one. So the rows are formed one column at a time (an unknown's,
 //! or the right-hand side's), at every level and window at once, and a formed column is
 //! kept and shared: a solve only gathers the columns it uses.
@@ -11,7 +11,7 @@
 //! A hat window's entries are read one by one from the block sums ([`Hat`]), never as the
 //! whole `n_i × n_w` matrices: a column needs a few entries per row.
 //!
-//! [`Moments::restricted`]: super::Moments::restricted
+//! [`Measurement::restricted`]: super::measurement::Measurement::restricted
 
 use super::moments::{Hat, LevelMoments, MomentView, Window};
 use super::plan::{BasisMoment, Instrument, Plan, TermCoef};

@@ -1,6 +1,10 @@
-//! Filter corners that fit the record.
+//! The filter design: corners spread over the band where the response has power
+//! ([`design_corners`]) and fitted to the record, and the time blocks of the standard
+//! errors ([`blocks`]). The bank itself (drivers, order) is chosen in `super::bank`.
 //!
-//! The spectral design ([`super::filter::design_corners`]) spreads the corners over the band
+//! # Corners that fit the record
+//!
+//! The spectral design ([`design_corners`]) spreads the corners over the band
 //! where the response has power. On a short record its slowest chain may not forget its
 //! start: a chain of `n` sections with corner `λ` has time constant `τ = n/λ`, and the record
 //! must span at least [`SETTLE`]` · τ`. So the lowest corner is lifted to
@@ -14,10 +18,8 @@
 //! piecewise-linear input model stays accurate. A record is too short only when even
 //! `λ_min` leaves no room below that cap (`λ_min > cap / 2`).
 
+pub use crate::settle::SETTLE;
 use std::f64::consts::PI;
-
-/// Record length in time constants of the slowest chain.
-pub const SETTLE: f64 = 10.0;
 
 /// Lowest corner (rad/s) that a record of `duration` seconds supports with `order` sections.
 pub fn min_corner(duration: f64, order: usize) -> f64 {
@@ -39,7 +41,32 @@ fn spread(lo: f64, hi: f64, count: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Corners from the dominant frequencies `omegas` (see [`super::filter::design_corners`]),
+/// Log-spaced corner frequencies covering the band where the response has power.
+///
+/// `omegas` are dominant angular frequencies estimated from the data (zero-crossing rates of
+/// the positions); the band runs from half the lowest to eight times the highest, and
+/// is capped at [`max_corner`] (a tenth of the Nyquist frequency) so that the
+/// piecewise-linear input model stays accurate.
+pub fn design_corners(omegas: &[f64], ts: f64, count: usize) -> Vec<f64> {
+    let finite: Vec<f64> = omegas
+        .iter()
+        .copied()
+        .filter(|w| w.is_finite() && *w > 0.0)
+        .collect();
+    let nyq = PI / ts;
+    let (lo, hi) = if finite.is_empty() {
+        (nyq / 1000.0, nyq / 20.0)
+    } else {
+        let mn = finite.iter().copied().fold(f64::INFINITY, f64::min);
+        let mx = finite.iter().copied().fold(0.0, f64::max);
+        (mn / 2.0, mx * 8.0)
+    };
+    let hi = hi.min(max_corner(ts));
+    let lo = lo.min(hi / 8.0);
+    spread(lo, hi, count)
+}
+
+/// Corners from the dominant frequencies `omegas` (see [`design_corners`]),
 /// lifted where needed so that chains of `order` sections settle within `duration` seconds.
 /// `None` when the record is too short for any corner below the cap.
 pub fn fit_corners(
@@ -49,7 +76,7 @@ pub fn fit_corners(
     order: usize,
     count: usize,
 ) -> Option<Vec<f64>> {
-    let base = super::filter::design_corners(omegas, ts, count);
+    let base = design_corners(omegas, ts, count);
     // A little above the bound, so that corners printed with four decimals still fit.
     let lmin = min_corner(duration, order) * 1.001;
     let cap = max_corner(ts);
@@ -117,7 +144,7 @@ pub fn fit_corners_info(
     count: usize,
 ) -> Option<Designed> {
     let base = fit_corners(omegas, ts, duration, order, count)?;
-    let spectral = super::filter::design_corners(omegas, ts, count);
+    let spectral = design_corners(omegas, ts, count);
     let lo = base.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = base.iter().copied().fold(0.0, f64::max);
     let lower = if spectral == base || lo > min_corner(duration, order) * 1.002 {
@@ -149,7 +176,7 @@ pub const MAX_BLOCKS: usize = 80;
 ///
 /// Each level's hat windows are centred on the level's total, which takes a share of the
 /// variance that shrinks as the blocks grow in number: on the SDOF benchmark (3 × 200 s,
-/// 5 % noise, 20 seeds; `ident::tests::standard_errors_cover_the_error`) 20 blocks of
+/// 5 % noise, 20 seeds; `ident::tests::estimates::standard_errors_cover_the_error`) 20 blocks of
 /// 10 s gave standard errors about a fifth low (rms z 1.19–1.31), 80 blocks within 1 % of
 /// 160 (rms z 1.03–1.05). Blocks much shorter than the slowest chain's time constant
 /// overstated them on the closed-loop servo record (25 s, τ = 2.5 s; the 12 seeds of
@@ -164,6 +191,13 @@ pub fn blocks(duration: f64, tau: f64, samples: usize) -> usize {
     by_memory
         .clamp(MIN_BLOCKS, MAX_BLOCKS)
         .min((samples / 4).max(MIN_BLOCKS))
+}
+
+/// The time constant of the slowest chain, `order / λ_min`: the slowest section must
+/// forget its start within a small part of the record.
+pub fn time_constant(corners: &[f64], order: usize) -> f64 {
+    let lam_min = corners.iter().copied().fold(f64::INFINITY, f64::min);
+    order as f64 / lam_min
 }
 
 /// Shortest record (seconds) on which `corners` settle with `order` sections.
@@ -194,7 +228,7 @@ mod tests {
     #[test]
     fn long_records_keep_the_spectral_design() {
         let w = [2.0, 9.0];
-        let base = super::super::filter::design_corners(&w, 0.01, 6);
+        let base = super::design_corners(&w, 0.01, 6);
         assert_eq!(fit_corners(&w, 0.01, 2000.0, 4, 6), Some(base));
     }
 

@@ -34,12 +34,15 @@
 //! mass is fixed in the model, a second probe identifies it: when that explains the data,
 //! the fixed mass is likely wrong. Else a body or an element that the data show is missing.
 
-use super::{measure, EquationResidual, Identification, IdentifyOptions, Moments};
+use super::measure::measure;
+use super::measurement::Measurement;
+use super::types::{
+    EquationResidual, FitCheck, FitWarning, Identification, IdentifyOptions, LevelInfo, LikelyCause,
+};
 use crate::data::LevelSource;
 use crate::tape::Tape;
 use dynid_ir::edit::NewTerm;
 use dynid_ir::ir::{Coef, ModelIr, ParamId, ParamIr, ParamKind, SignalKind};
-use serde::Serialize;
 
 /// Relative residual of an equation above which, at every level, the model does not
 /// explain the data (see the module doc for the figures it is set from).
@@ -51,62 +54,6 @@ pub const LEVEL_SPREAD_T: f64 = 6.0;
 
 /// The constant-force probe explains a residual when it leaves at most this fraction of it.
 pub const PROBE_SHRINK: f64 = 0.3;
-
-/// What the guard saw.
-#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum FitCheck {
-    /// An equation's relative residual above [`RESIDUAL_WARN`] at every level.
-    LargeResidual,
-    /// A pooled estimate outside every level's own.
-    LevelsDisagree,
-    /// Two levels with the same record.
-    DuplicateLevel,
-}
-
-/// The likely cause the guard names.
-#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum LikelyCause {
-    /// A constant force explains the residual: a position sensor's zero offset, or an
-    /// unmodelled constant force.
-    SensorOffset,
-    /// A constant force explains the residual, and no force of the model depends on a
-    /// position (so a sensor's zero offset enters no equation): an unmodelled constant
-    /// force (gravity on an inclined axis, a cable, an amplifier's bias).
-    ConstantForce,
-    /// A body or an element that the data show is not in the model.
-    MissingBody,
-    /// The equation's mass is fixed in the model (not identified) and likely wrong, or a
-    /// body or element is missing.
-    WrongMass,
-    /// The levels do not share one set of parameters (a level from another set-up, other
-    /// units, or an effect that changes with the amplitude).
-    LevelsInconsistent,
-    /// One record given as two levels: it counts twice, and the standard errors come out
-    /// √2 too small.
-    SameRecordTwice,
-}
-
-/// A residual the model cannot explain, with its likely cause and what to do.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct FitWarning {
-    pub check: FitCheck,
-    pub cause: LikelyCause,
-    /// The equation (body) or parameter concerned.
-    pub subject: String,
-    /// The largest relative residual of the equation over the levels, or, for levels that
-    /// disagree, the pooled estimate's distance from the nearest level's in that level's
-    /// standard errors.
-    pub value: f64,
-    pub message: String,
-}
-
-impl std::fmt::Display for FitWarning {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.message)
-    }
-}
 
 /// The smallest and the largest of an equation's residuals over the levels (`None` when
 /// one is not finite).
@@ -133,8 +80,11 @@ fn worst(id: &Identification) -> f64 {
 }
 
 /// The warnings of the pooled identification `id` from the moments `m` of `levels`.
+///
+/// Long: the symptoms and the probes that name a cause share the residuals and the probe
+/// identifications, each computed once, in the order of the module documentation.
 pub(crate) fn check(
-    m: &Moments<'_>,
+    m: &Measurement<'_>,
     id: &Identification,
     levels: &[&dyn LevelSource],
     opts: &IdentifyOptions,
@@ -241,7 +191,7 @@ pub(crate) fn check(
 /// first-pass mean, spread and noise of every signal, to the last bit (distinct records
 /// never agree in all of them).
 fn duplicates(id: &Identification) -> Vec<FitWarning> {
-    let same = |a: &super::LevelInfo, b: &super::LevelInfo| {
+    let same = |a: &LevelInfo, b: &LevelInfo| {
         a.samples == b.samples
             && a.ts == b.ts
             && a.mean == b.mean
@@ -269,7 +219,7 @@ fn duplicates(id: &Identification) -> Vec<FitWarning> {
 
 /// Parameters whose pooled estimate lies outside every level's own: `(name, pooled,
 /// nearest level's value, distance in that level's standard errors)`.
-fn levels_disagree(m: &Moments<'_>, id: &Identification) -> Vec<(String, f64, f64, f64)> {
+fn levels_disagree(m: &Measurement<'_>, id: &Identification) -> Vec<(String, f64, f64, f64)> {
     let n = m.levels().len();
     if n < 2 {
         return Vec::new();

@@ -24,26 +24,17 @@
 //! The number of blocks is chosen from the record (at most [`super::design::MAX_BLOCKS`])
 //! unless it is given, so the estimate takes the largest: an upper bound.
 //!
-//! Checked against the peak resident memory of `dynid identify` on chains of `N` unit
+//! The estimate bounds the peak resident memory of `dynid identify` on chains of `N` unit
 //! masses, springs and dampers between neighbours, every position measured (the model of
-//! this module's tests and of `tests/bounded_work.rs`):
-//!
-//! ```text
-//! dynid simulate chainN.dyn --duration 1300 --sample 0.02 --seed 3 --out eN
-//! /usr/bin/time -v dynid identify chainN.dyn eN/level_1.csv eN/level_2.csv eN/level_3.csv
-//! ```
-//!
-//! | N  | blocks chosen | peak RSS | estimate (blocks chosen) | estimate (before reading) |
-//! |----|---------------|----------|--------------------------|---------------------------|
-//! | 10 | 80            | 157 MB   | 185 MB                   | 185 MB (× 1.18)           |
-//! | 20 | 48            | 454 MB   | 500 MB                   | 739 MB (× 1.63)           |
-//!
-//! (debug build of 25 November 2026, 2 cores; `estimates_bound_the_measured_peaks` holds
-//! the figures.) Before reading, the estimate takes the most blocks, 80: a record that
-//! chooses fewer (a short one, or slow filter corners) takes less.
+//! this module's tests and of `tests/bounded_work.rs`; the test
+//! `estimates_bound_the_measured_peaks` holds the measured peaks, docs/performance.md lists
+//! them). Before reading, the estimate takes the most blocks, 80: a record that chooses
+//! fewer (a short one, or slow filter corners) takes less.
 
+use super::accumulate::TASK_LEN;
+use super::design;
 use super::plan::{build_structure, Plan};
-use super::{design, moments::TASK_LEN, IdentifyError, IdentifyOptions};
+use super::types::{IdentifyError, IdentifyOptions};
 use crate::limits::{bytes_in_words, MAX_BYTES};
 use dynid_ir::ir::ModelIr;
 
@@ -110,7 +101,7 @@ pub fn estimate(
     levels: usize,
     opts: &IdentifyOptions,
 ) -> Result<MemoryEstimate, IdentifyError> {
-    let bank = super::measure::choose_bank(ir, opts)?;
+    let bank = super::bank::choose_bank(ir, opts)?;
     let mut plan = build_structure(ir, opts.balance.unwrap_or(false), &bank)?;
     if opts.noise_correction {
         // Attached only where the data turn out noisy: the estimate assumes they do.
@@ -142,15 +133,21 @@ pub fn estimate(
 fn bytes(plan: &Plan, levels: usize, blocks: usize, chunk: usize) -> f64 {
     let l = levels as f64;
     let b = blocks as f64;
-    let (n_i, n_w, n_q) = (plan.n_i() as f64, plan.n_w() as f64, plan.n_q() as f64);
+    let (n_row_signals, n_col_signals, n_snap_cols) = (
+        plan.n_row_signals() as f64,
+        plan.n_col_signals() as f64,
+        plan.n_snap_cols() as f64,
+    );
     let r = plan.rows.len() as f64;
     let p = plan.unknowns.len() as f64;
     let threads = rayon::current_num_threads().max(1) as f64;
     let task = TASK_LEN as f64;
-    let moments = l * (2.0 * b * n_i * n_w + (b + 1.0) * n_i * n_q);
-    let views = l * n_i * (n_w + n_q);
+    let moments =
+        l * (2.0 * b * n_row_signals * n_col_signals + (b + 1.0) * n_row_signals * n_snap_cols);
+    let views = l * n_row_signals * (n_col_signals + n_snap_cols);
     let tasks = (chunk as f64 / task).ceil() + 2.0;
-    let streaming = l.min(threads) * tasks * n_i * 2.0 * n_w + threads * task * (n_i + 3.0 * n_w);
+    let streaming = l.min(threads) * tasks * n_row_signals * 2.0 * n_col_signals
+        + threads * task * (n_row_signals + 3.0 * n_col_signals);
     let columns = (p + 1.0) * l * (b + 2.0) * r;
     let solve = SOLVE_COPIES * l * r * (p + 1.0);
     let windows = l * (b + 1.0) * r;

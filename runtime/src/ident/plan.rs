@@ -7,16 +7,13 @@
 //! signals), and boundary snapshots use `q = [w; v̂]` where `v̂` are end-point velocity
 //! estimates of bodies whose velocity is not measured.
 
-use super::IdentifyError;
+use super::bank::BankChoice;
+use super::noise::fix::{linear_form, split_factor, ColumnFix, ExtraColumn};
+use super::types::{CornerSource, IdentifyError};
 use dynid_ir::ir::{Basis, BodyId, ExprId, ModelIr, ParamKind, SignalId, SignalKind};
 
-/// Lowest degree of the chain state `J` of a band-pass instrument `J''`: the instrument
-/// then holds sections 2 … of its chain, none of which weighs the current sample of the
-/// driver (relative degree ≥ 2, as every other instrument).
-pub(crate) const ACC_MIN_DEGREE: usize = 4;
-
 /// A sparse linear combination of the row signals `ι`.
-pub(crate) type Comb = Vec<(usize, f64)>;
+pub(crate) type RowCombination = Vec<(usize, f64)>;
 
 /// How a term's basis becomes a moment with an instrument `a` (see [`super::moments`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -56,15 +53,15 @@ pub(crate) struct PlanTerm {
 #[derive(Clone, Debug)]
 pub(crate) struct Instrument {
     pub label: String,
-    pub a: Comb,
-    pub a1: Option<Comb>,
-    pub a2: Option<Comb>,
+    pub a: RowCombination,
+    pub a1: Option<RowCombination>,
+    pub a2: Option<RowCombination>,
     /// Power balance `v_l`: used only in equation `l`, where `⟨v_l ẍ_l⟩ = [v_l²/2]/T`.
     pub power: Option<BodyId>,
     /// A band-pass instrument `a = J''` (a filter state differentiated twice): its
     /// antiderivatives `J'` and `J`, which integrate a measured acceleration.
-    pub i1: Option<Comb>,
-    pub i2: Option<Comb>,
+    pub i1: Option<RowCombination>,
+    pub i2: Option<RowCombination>,
 }
 
 #[derive(Clone, Debug)]
@@ -96,9 +93,9 @@ pub(crate) struct Plan {
     pub constant: Vec<bool>,
     /// Columns of `w` after the measured signals, needed by the noise corrections
     /// ([`super::noise`]); empty unless they are attached.
-    pub extra: Vec<super::noise::ExtraColumn>,
+    pub extra: Vec<ExtraColumn>,
     /// Noise corrections of static columns ([`super::noise::attach`]).
-    pub fixes: Vec<super::noise::ColumnFix>,
+    pub fixes: Vec<ColumnFix>,
     /// Static columns linear in measured signals: (column, [(index into `y`, coefficient)]).
     pub linear_roots: Vec<(usize, Vec<(usize, f64)>)>,
     /// Some term integrates a measured acceleration ([`BasisMoment::D1Acc`],
@@ -109,13 +106,14 @@ pub(crate) struct Plan {
     /// are formed from the acceleration instead, never from these roots).
     pub absent: Vec<SignalId>,
     /// How the corners were chosen (filled in once the data are seen).
-    pub corner_source: super::CornerSource,
+    pub corner_source: CornerSource,
 }
 
-/// A filter chain driven by a static basis column `g` (paper eq. 9: the filters may be
-/// driven by the extended state): its states are low-pass versions of the column itself,
-/// instruments that carry the column's own information (a Coulomb column's switching, a
-/// cubic spring's peaks) where chains of positions and inputs see it only weakly.
+/// A filter chain driven by a static basis column `g` (the filters may be driven by the
+/// extended state: Schiehlen & Krause, see docs/method.md, References, eq. 9): its states
+/// are low-pass versions of the column itself, instruments that carry the column's own
+/// information (a Coulomb column's switching, a cubic spring's peaks) where chains of
+/// positions and inputs see it only weakly.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct RootDriver {
     /// Index into `roots` (the column `g`).
@@ -127,37 +125,31 @@ pub(crate) struct RootDriver {
     pub delayed: bool,
 }
 
-/// Filter choices resolved from options, the model's filter block and the data.
-#[derive(Clone, Debug)]
-pub(crate) struct BankChoice {
-    /// Drive chains by the nonlinear static columns too ([`RootDriver`]).
-    pub regressors: bool,
-    pub drivers: Vec<SignalId>,
-    pub order: usize,
-    pub min_degree: usize,
-    pub n_corners: usize,
-}
-
 impl Plan {
     /// Chains per corner: the signal drivers, then the column drivers.
     pub fn n_drivers(&self) -> usize {
         self.drivers.len() + self.root_drivers.len()
     }
-    pub fn n_z(&self) -> usize {
+    /// Filter states `ζ`: drivers × corners × order.
+    pub fn n_filter_states(&self) -> usize {
         self.n_drivers() * self.corners.len() * self.order
     }
-    pub fn n_i(&self) -> usize {
-        self.n_z() + self.y.len()
+    /// Row signals `ι = [ζ; y]` (the `n_i` of the notation): filter states, then measured
+    /// signals.
+    pub fn n_row_signals(&self) -> usize {
+        self.n_filter_states() + self.y.len()
     }
-    pub fn n_w(&self) -> usize {
+    /// Column signals `w = [g; y]` (`n_w`): static roots, measured signals, noise columns.
+    pub fn n_col_signals(&self) -> usize {
         self.roots.len() + self.y.len() + self.extra.len()
     }
-    pub fn n_q(&self) -> usize {
-        self.n_w() + self.vhat_bodies.len()
+    /// Snapshot columns `q = [w; v̂]` (`n_q`): `w` and the end-point velocity estimates.
+    pub fn n_snap_cols(&self) -> usize {
+        self.n_col_signals() + self.vhat_bodies.len()
     }
     /// Row index of a measured signal in `ι`.
     pub fn iota_y(&self, s: SignalId) -> Option<usize> {
-        self.y_of[s.index()].map(|k| self.n_z() + k)
+        self.y_of[s.index()].map(|k| self.n_filter_states() + k)
     }
     /// Filter state index of (driver, corner, section `i` = relative degree − 1).
     pub fn state(&self, d: usize, c: usize, i: usize) -> usize {
@@ -166,6 +158,10 @@ impl Plan {
 }
 
 /// Check that every term can be formed from the measured signals and classify it.
+///
+/// Long: one walk over the equations' terms fills the plan's tables (columns, instruments,
+/// term moments) together, and the order of that walk is the order of the columns of `w`,
+/// on which every moment depends bit for bit.
 pub(crate) fn build_structure(
     ir: &ModelIr,
     balance: bool,
@@ -218,7 +214,7 @@ pub(crate) fn build_structure(
                         term: dynid_ir::print::render_expr(ir, e),
                         body: ir.bodies[body_of.index()].name.clone(),
                     };
-                    let lin = super::noise::linear_form(ir, e).ok_or_else(nonlinear)?;
+                    let lin = linear_form(ir, e).ok_or_else(nonlinear)?;
                     for (s, c) in lin {
                         let part = match accel_only_signal(ir, s) {
                             Some(b) => {
@@ -329,7 +325,7 @@ pub(crate) fn build_structure(
         }
         equations.push(terms);
     }
-    let n_w = n_g + y.len();
+    let n_col_signals = n_g + y.len();
     let integrates = equations
         .iter()
         .flatten()
@@ -354,7 +350,7 @@ pub(crate) fn build_structure(
     for eq in &mut equations {
         for t in eq.iter_mut() {
             if let BasisMoment::D2Pos(x, q) = t.basis {
-                t.basis = BasisMoment::D2Pos(x, n_w + (usize::MAX - q));
+                t.basis = BasisMoment::D2Pos(x, n_col_signals + (usize::MAX - q));
             }
         }
     }
@@ -367,7 +363,7 @@ pub(crate) fn build_structure(
             };
             // Constant and linear columns add nothing: their chains are the constant or
             // combinations of the measured signals' chains.
-            let linear = |r| super::noise::linear_form(ir, super::noise::split_factor(ir, r).1);
+            let linear = |r| linear_form(ir, split_factor(ir, r).1);
             if w >= n_g
                 || ir.is_constant(roots[w])
                 || linear(roots[w]).is_some()
@@ -418,238 +414,5 @@ fn accel_only_signal(ir: &ModelIr, s: SignalId) -> Option<BodyId> {
     match ir.signal(s).kind {
         SignalKind::Position(b) | SignalKind::Velocity(b) if ir.acceleration_only(b) => Some(b),
         _ => None,
-    }
-}
-
-impl Plan {
-    /// Why an unknown column that is zero (or, for a constant force, has no mean) cannot be
-    /// identified.
-    pub fn zero_column_reason(&self, col: usize) -> String {
-        if self.constant.get(col).copied().unwrap_or(false) {
-            "a constant force needs data whose mean is not zero: every signal driving the \
-             filters has zero mean (the records were centred), so its column (the mean of \
-             each filter output) is zero but for the filters' start — measure without \
-             removing the mean, or remove the term"
-                .into()
-        } else {
-            "never excited at these levels: its column of moments is zero \
-             (the term it multiplies vanishes on the data)"
-                .into()
-        }
-    }
-
-    /// Fix the corners and derive the instruments and the computable rows.
-    pub fn set_corners(&mut self, ir: &ModelIr, corners: &[f64]) {
-        assert_eq!(corners.len(), self.corners.len());
-        self.corners = corners.to_vec();
-        let mut inst = Vec::new();
-        for d in 0..self.n_drivers() {
-            let driver = self.driver_name(ir, d);
-            for (c, &lam) in self.corners.iter().enumerate() {
-                for i in (self.min_degree - 1)..self.order {
-                    let a = vec![(self.state(d, c, i), 1.0)];
-                    let a1 = self.deriv(ir, &a);
-                    let a2 = a1.as_ref().and_then(|a1| self.deriv(ir, a1));
-                    inst.push(Instrument {
-                        label: format!("ζ{}({driver}, λ={lam:.3})", i + 1),
-                        a,
-                        a1,
-                        a2,
-                        power: None,
-                        i1: None,
-                        i2: None,
-                    });
-                }
-                if !self.integrates {
-                    continue;
-                }
-                // Band-pass instruments `ζᵢ''` (a double zero at s = 0): `ζᵢ'` and `ζᵢ` are
-                // their integrals, stable filters of the same driver. Degree ≥ 4 keeps the
-                // first section (which weighs the current sample) out of `ζᵢ''`.
-                for i in (self.min_degree.max(ACC_MIN_DEGREE) - 1)..self.order {
-                    let j = vec![(self.state(d, c, i), 1.0)];
-                    let Some(j1) = self.deriv(ir, &j) else {
-                        continue;
-                    };
-                    let Some(a) = self.deriv(ir, &j1) else {
-                        continue;
-                    };
-                    let a1 = self.deriv(ir, &a);
-                    let a2 = a1.as_ref().and_then(|a1| self.deriv(ir, a1));
-                    inst.push(Instrument {
-                        label: format!("ζ{}''({driver}, λ={lam:.3})", i + 1),
-                        a,
-                        a1,
-                        a2,
-                        power: None,
-                        i1: Some(j1),
-                        i2: Some(j),
-                    });
-                }
-            }
-        }
-        if self.balance {
-            for (b, body) in ir.bodies.iter().enumerate() {
-                let bid = BodyId(b as u32);
-                let (Some(xi), Some(vi)) =
-                    (self.iota_y(ir.position(bid)), self.iota_y(ir.velocity(bid)))
-                else {
-                    continue;
-                };
-                inst.push(Instrument {
-                    label: format!("{}.x (virial)", body.name),
-                    a: vec![(xi, 1.0)],
-                    a1: Some(vec![(vi, 1.0)]),
-                    a2: None,
-                    power: None,
-                    i1: None,
-                    i2: None,
-                });
-                inst.push(Instrument {
-                    label: format!("{}.v (power balance)", body.name),
-                    a: vec![(vi, 1.0)],
-                    a1: None,
-                    a2: None,
-                    power: Some(bid),
-                    i1: None,
-                    i2: None,
-                });
-            }
-        }
-        let w_signals: Vec<Vec<SignalId>> = self
-            .roots
-            .iter()
-            .map(|&r| {
-                // An estimated velocity depends on samples of its position.
-                let mut sig = ir.expr_signals(r);
-                for &(v, x) in &self.estimated {
-                    if sig.contains(&v) && !sig.contains(&x) {
-                        sig.push(x);
-                    }
-                }
-                sig
-            })
-            .chain(self.y.iter().map(|&s| vec![s]))
-            .collect();
-        let mut rows = Vec::new();
-        for (k, ins) in inst.iter().enumerate() {
-            let filter_row = ins.a.iter().all(|&(i, _)| i < self.n_z());
-            for (l, eq) in self.equations.iter().enumerate() {
-                if let Some(p) = ins.power {
-                    if p.index() != l {
-                        continue;
-                    }
-                }
-                let ok = eq.iter().all(|t| {
-                    computable(ins, &t.basis)
-                        && (!filter_row || self.noise_free(ir, ins, &t.basis, &w_signals))
-                });
-                if ok {
-                    rows.push((k, l));
-                }
-            }
-        }
-        self.instruments = inst;
-        self.rows = rows;
-    }
-
-    /// Signals that a combination depends on within the same sample: the driver of a
-    /// relative-degree-1 state (its exact discretisation weighs the current input sample
-    /// by `≈ λTₛ/2`) and raw measured signals.
-    fn same_sample(&self, ir: &ModelIr, c: &Comb) -> Vec<SignalId> {
-        let n_z = self.n_z();
-        let mut out = Vec::new();
-        for &(k, _) in c {
-            if k >= n_z {
-                out.push(self.y[k - n_z]);
-            } else if k % self.order == 0 {
-                let d = k / self.order / self.corners.len();
-                match d.checked_sub(self.drivers.len()) {
-                    None => out.push(self.drivers[d]),
-                    Some(r) if !self.root_drivers[r].delayed => {
-                        out.extend(ir.expr_signals(self.roots[self.root_drivers[r].root]))
-                    }
-                    Some(_) => {}
-                }
-            }
-        }
-        out
-    }
-
-    /// The signal or column that drives chain `d`, for labels.
-    pub fn driver_name(&self, ir: &ModelIr, d: usize) -> String {
-        match d.checked_sub(self.drivers.len()) {
-            None => ir.signal(self.drivers[d]).name.clone(),
-            Some(r) => dynid_ir::print::render_expr(ir, self.roots[self.root_drivers[r].root]),
-        }
-    }
-
-    /// Whether a filter instrument's moment with this basis keeps white measurement noise
-    /// out: no product may pair a signal with something that depends on the same sample of
-    /// that signal, or the noise variance enters the moment (amplified by `λ²` in `ι''`).
-    fn noise_free(
-        &self,
-        ir: &ModelIr,
-        ins: &Instrument,
-        b: &BasisMoment,
-        w_signals: &[Vec<SignalId>],
-    ) -> bool {
-        let (comb, col) = match *b {
-            BasisMoment::Static(w) => (Some(&ins.a), w),
-            BasisMoment::D1Pos(x) => (ins.a1.as_ref(), x),
-            BasisMoment::D2Vel(v, _) => (ins.a1.as_ref(), v),
-            BasisMoment::D2Pos(x, _) => (ins.a2.as_ref(), x),
-            BasisMoment::D1Acc(w) => (ins.i1.as_ref(), w),
-            BasisMoment::D0Acc(w) => (ins.i2.as_ref(), w),
-        };
-        let Some(comb) = comb else { return true };
-        let hazards = self.same_sample(ir, comb);
-        !w_signals[col].iter().any(|s| hazards.contains(s))
-    }
-
-    /// Time derivative of `a·ι`, if it is again a combination of `ι`: filter states
-    /// differentiate through `ζ' = F ζ + H s`; a measured position differentiates to its
-    /// measured velocity; anything else (an input, a velocity) has no computable derivative.
-    fn deriv(&self, ir: &ModelIr, a: &Comb) -> Option<Comb> {
-        let n_z = self.n_z();
-        let mut out: Comb = Vec::new();
-        let mut add = |k: usize, v: f64| match out.iter_mut().find(|(j, _)| *j == k) {
-            Some(e) => e.1 += v,
-            None => out.push((k, v)),
-        };
-        for &(k, coef) in a {
-            if k < n_z {
-                let chain = k / self.order;
-                let i = k % self.order;
-                let lam = self.corners[chain % self.corners.len()];
-                let d = chain / self.corners.len();
-                add(k, -lam * coef);
-                if i == 0 {
-                    // A column driver is no row signal: its chain's first state has no
-                    // computable derivative.
-                    add(self.iota_y(*self.drivers.get(d)?)?, lam * coef);
-                } else {
-                    add(k - 1, lam * coef);
-                }
-            } else {
-                let sig = self.y[k - n_z];
-                match ir.signal(sig).kind {
-                    SignalKind::Position(b) => add(self.iota_y(ir.velocity(b))?, coef),
-                    _ => return None,
-                }
-            }
-        }
-        Some(out)
-    }
-}
-
-fn computable(ins: &Instrument, b: &BasisMoment) -> bool {
-    match *b {
-        BasisMoment::Static(_) => true,
-        BasisMoment::D1Pos(_) => ins.a1.is_some(),
-        BasisMoment::D2Vel(_, body) => ins.a1.is_some() || ins.power == Some(body),
-        BasisMoment::D2Pos(_, _) => ins.a2.is_some(),
-        BasisMoment::D1Acc(_) => ins.i1.is_some(),
-        BasisMoment::D0Acc(_) => ins.i2.is_some(),
     }
 }

@@ -1,7 +1,7 @@
 //! Identified equations as a person reads them:
 //! `m1: 1.000 m1.x'' + 0.4010(±0.0020) m1.x' + 3.990 m1.x + … = u`.
 
-use super::Identification;
+use super::types::Identification;
 use dynid_ir::ir::{Basis, ModelIr, ParamKind, TermOrigin};
 use dynid_ir::print::render_basis;
 

@@ -15,13 +15,13 @@
 //! sub-model reads its columns of them, so a search over hundreds of candidates forms rows
 //! once, not once per candidate and per fold.
 
+use super::measurement::Measurement;
 use super::plan::{BasisMoment, TermCoef};
-use super::Moments;
 use dynid_ir::ir::ModelIr;
 use rayon::prelude::*;
 use std::sync::Arc;
 
-impl<'m> Moments<'m> {
+impl<'m> Measurement<'m> {
     /// The least-squares column of the unknown parameter `name`, if it is one.
     pub fn column(&self, name: &str) -> Option<usize> {
         self.plan
@@ -53,7 +53,9 @@ impl<'m> Moments<'m> {
     ///
     /// Returns `None` when `ir` has a different number of unknowns or of equations, or a
     /// column is out of range.
-    pub fn restricted<'c>(&self, ir: &'c ModelIr, cols: &[usize]) -> Option<Moments<'c>> {
+    ///
+    /// Long: the sub-model's plan and columns are built field by field from this model's.
+    pub fn restricted<'c>(&self, ir: &'c ModelIr, cols: &[usize]) -> Option<Measurement<'c>> {
         let plan = &self.plan;
         let unknowns = ir.unknowns();
         if unknowns.len() != cols.len()
@@ -121,7 +123,7 @@ impl<'m> Moments<'m> {
                 .chain([Arc::clone(&mine[mine.len() - 1])])
                 .collect(),
         };
-        Some(Moments {
+        Some(Measurement {
             ir,
             plan: sub,
             store: Arc::clone(&self.store),

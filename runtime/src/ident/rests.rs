@@ -17,8 +17,9 @@
 //! what `sign(v)` describes). The speed is the central difference of the measured
 //! position (or the measured velocity), both measured in a first pass over the level.
 
-use crate::data::LevelSource;
+use crate::data::{DataError, LevelSource};
 use dynid_ir::ir::{Basis, BodyId, ExprNode, ModelIr, SignalKind, UnaryOp};
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// A sample is at rest below this fraction of the RMS speed.
@@ -138,6 +139,8 @@ impl Speed {
 /// The rest intervals of one level as half-open sample ranges `[a, b)`, in order, with
 /// their summary. Two passes over the level: the RMS speed of each body, then the runs
 /// below the threshold.
+///
+/// Long: the two streamed passes share the per-body state they build.
 pub(crate) fn find(
     ir: &ModelIr,
     bodies: &[BodyId],
@@ -280,6 +283,65 @@ pub(crate) fn layout(
         kept.push(true);
     }
     (bounds, kept)
+}
+
+/// A level's rests to leave out (`None`: none are looked for), with their summary.
+pub(crate) type LevelRests = Option<(Intervals, RestSummary)>;
+
+/// Rests are left out only where they are a real share of the level
+/// ([`MIN_REST_SHARE`]) and enough motion remains for the blocks of the standard
+/// errors (a record that hardly moves is identified as it is).
+pub(crate) fn left_out(
+    r: &[(usize, usize)],
+    summary: &RestSummary,
+    n: usize,
+    n_blocks: usize,
+) -> bool {
+    !r.is_empty()
+        && summary.samples as f64 >= MIN_REST_SHARE * n as f64
+        && n.saturating_sub(summary.samples) >= n_blocks.saturating_mul(4)
+}
+
+/// Rests of bodies with a Coulomb term, per level (see the module documentation): found, and emptied where
+/// they are not left out ([`rests_left_out`]).
+pub(crate) fn find_levels(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    samples: &[usize],
+    n_blocks: usize,
+    keep_rests: bool,
+    chunk: usize,
+) -> Result<Vec<LevelRests>, DataError> {
+    let rest_bodies = if keep_rests { Vec::new() } else { bodies(ir) };
+    let found: Vec<LevelRests> = if rest_bodies.is_empty() {
+        vec![None; levels.len()]
+    } else {
+        crate::first_error_in_order(
+            levels
+                .par_iter()
+                .map(|src| find(ir, &rest_bodies, *src, chunk).map(Some)),
+        )?
+    };
+    Ok(found
+        .into_iter()
+        .zip(samples)
+        .map(|(f, &n)| {
+            f.map(|(r, summary)| {
+                if r.is_empty() || left_out(&r, &summary, n, n_blocks) {
+                    (r, summary)
+                } else {
+                    (
+                        Vec::new(),
+                        RestSummary {
+                            intervals: 0,
+                            samples: 0,
+                            ..summary
+                        },
+                    )
+                }
+            })
+        })
+        .collect())
 }
 
 #[cfg(test)]

@@ -23,9 +23,10 @@
 //! error; even so one seed of eight lies 6.7 reported errors off (`tests/shape_profile.rs`,
 //! `DYNID_SEED_OFFSET=k … -- --nocapture` prints the figures).
 
-use super::{measure, IdentifyError, IdentifyOptions, ShapeEstimate};
+use super::measure::measure;
+use super::types::Identification;
+use super::types::{IdentifyError, IdentifyOptions, ShapeEstimate, SIGNIFICANCE_T};
 use crate::data::LevelSource;
-use crate::ident::Identification;
 use crate::tape::Tape;
 use dynid_ir::ir::ModelIr;
 
@@ -84,7 +85,7 @@ pub fn profile(
                     if d.is_finite() {
                         p.stderr =
                             (p.stderr.powi(2) + d * d * (jack * jack - before * before)).sqrt();
-                        p.significant = p.value.abs() > super::SIGNIFICANCE_T * p.stderr;
+                        p.significant = p.value.abs() > SIGNIFICANCE_T * p.stderr;
                     }
                 }
                 sh.stderr = Some(jack);
@@ -124,6 +125,9 @@ impl Default for Search {
 }
 
 /// [`profile`] with any pooled fit: `fit(model at trial shape values)`.
+///
+/// Long: sweeps over the shape values, each a one-dimensional search, share the trials and
+/// the best fit so far.
 pub fn profile_with<E>(
     ir: &ModelIr,
     search: &Search,
@@ -256,7 +260,7 @@ pub fn profile_with<E>(
             })
             .sum();
         p.stderr = (p.stderr * p.stderr + extra).sqrt();
-        p.significant = p.value.abs() > super::SIGNIFICANCE_T * p.stderr;
+        p.significant = p.value.abs() > SIGNIFICANCE_T * p.stderr;
     }
     Ok((at, id))
 }

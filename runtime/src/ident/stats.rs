@@ -35,11 +35,11 @@
 use super::columns::Column;
 use super::moments::LevelMoments;
 use super::solve::LsSolution;
-use super::{ParamEstimate, SIGNIFICANCE_T};
+use super::types::SIGNIFICANCE_T;
+use super::types::{ParamEstimate, Quantity, Warning};
 use dynid_ir::ir::{ElementKind, ExprNode, ModelIr, UnaryOp};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
-use serde::Serialize;
 use std::sync::Arc;
 
 /// The centred window contributions of one level's residual rows (see the module doc):
@@ -339,6 +339,9 @@ fn covariance_derivative_times(
 /// (`a`, `b`, row-major, `na` columns) and `H = (Σ A_lᵀ W_l A_l)⁻¹ = P Pᵀ` (`P` the second
 /// step's pseudo-inverse). Without the correction the standard errors come out low: the
 /// weighting is estimated from the same residuals whose noise it then down-weights.
+///
+/// Long: the formula above computed term by term; split, its intermediate matrices would
+/// pass between the pieces.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn efficient_stderr(
     first: &LsSolution,
@@ -452,47 +455,6 @@ pub(crate) fn efficient_stderr(
             }
         })
         .collect()
-}
-
-/// What a parameter is physically, where the IR says so.
-#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
-pub enum Quantity {
-    Mass,
-    Damping,
-    Friction,
-    Stiffness,
-}
-
-impl std::fmt::Display for Quantity {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Quantity::Mass => "mass",
-            Quantity::Damping => "damping coefficient",
-            Quantity::Friction => "friction coefficient",
-            Quantity::Stiffness => "spring stiffness",
-        })
-    }
-}
-
-/// A negative estimate of a quantity that must be non-negative.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct Warning {
-    pub param: String,
-    pub quantity: Quantity,
-    /// The coefficient as it enters the equation (`scale · value`) and its standard error.
-    pub coefficient: f64,
-    pub stderr: f64,
-    /// More than [`SIGNIFICANCE_T`] standard errors below zero: the fit contradicts physics
-    /// (else the estimate is consistent with zero).
-    pub unphysical: bool,
-    pub message: String,
-}
-
-impl std::fmt::Display for Warning {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.message)
-    }
 }
 
 /// The physical kind of parameter `name` and the scale it enters with, from the IR.

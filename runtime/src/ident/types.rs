@@ -1,7 +1,25 @@
 //! What identification is configured with and what it returns: options, errors and the
 //! result types.
 
-use super::*;
+use super::design::{LowerBy, UpperBy};
+use super::filter::Hold;
+use super::moments::PhaseTimes;
+use super::noise::NoiseSummary;
+use super::rests::RestSummary;
+use super::velocity::VelocityEstimate;
+use crate::data::DataError;
+use dynid_ir::ir::SignalId;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// A level counts as centred (its mean removed) when every signal driving the filters has
+/// `|mean| ≤ CENTRED_REL · std`: far below any sampling spread of a mean, far above the
+/// rounding left by subtracting one.
+pub const CENTRED_REL: f64 = 1e-9;
+
+/// An estimate counts as significant when `|value| > SIGNIFICANCE_T · stderr` (about 95 %
+/// two-sided for a normal estimate).
+pub const SIGNIFICANCE_T: f64 = 2.0;
 
 /// Choices of the identification; `Default` gives the method's recommended settings.
 #[derive(Clone, Debug)]
@@ -260,7 +278,7 @@ pub struct LevelInfo {
     pub blocks: usize,
     /// Rests left out of this level's moments (`None`: the model has no `sign` of a
     /// velocity, or rests were kept on request).
-    pub rests: Option<super::rests::RestSummary>,
+    pub rests: Option<RestSummary>,
 }
 
 /// How the filter corners were chosen.
@@ -270,11 +288,11 @@ pub struct CornerSource {
     /// to them but the information bandwidth, which is reported all the same.
     pub given: bool,
     /// What set the lowest designed corner.
-    pub lower: Option<super::design::LowerBy>,
+    pub lower: Option<LowerBy>,
     /// What set the highest designed corner.
-    pub upper: Option<super::design::UpperBy>,
+    pub upper: Option<UpperBy>,
     /// The measured driver with the narrowest band above its noise floor, and that band's
-    /// upper edge in rad/s ([`super::noise::BandFloor::info_bandwidth`]).
+    /// upper edge in rad/s ([`super::first_pass::floor::BandFloor::info_bandwidth`]).
     pub info_signal: Option<String>,
     pub info_bandwidth: Option<f64>,
 }
@@ -283,7 +301,6 @@ impl CornerSource {
     /// One line for the report, e.g. "the record length (lowest) and the dominant
     /// frequencies (highest); m.x is above its noise floor up to 628 rad/s".
     pub fn describe(&self) -> String {
-        use super::design::{LowerBy, UpperBy};
         let band = match (&self.info_signal, self.info_bandwidth) {
             (Some(s), Some(w)) => Some(format!(
                 "{s} is above its noise floor up to {} rad/s",
@@ -321,7 +338,7 @@ pub struct FilterSummary {
     /// Parameters whose estimates move by more than their standard errors when the highest
     /// corner is moved a factor 4 down or up ([`super::corner_moves`]; filled in by the
     /// command line, empty otherwise).
-    pub corner_moves: Vec<super::CornerMove>,
+    pub corner_moves: Vec<CornerMove>,
     pub order: usize,
     pub drivers: Vec<String>,
     /// Nonlinear static columns that drive chains of their own (filtered regressors as
@@ -404,4 +421,115 @@ pub struct LinearSystem {
     pub cols: usize,
     /// `level i: instrument → equation` per row.
     pub row_labels: Vec<String>,
+}
+
+/// What a parameter is physically, where the IR says so.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Quantity {
+    Mass,
+    Damping,
+    Friction,
+    Stiffness,
+}
+
+impl std::fmt::Display for Quantity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Quantity::Mass => "mass",
+            Quantity::Damping => "damping coefficient",
+            Quantity::Friction => "friction coefficient",
+            Quantity::Stiffness => "spring stiffness",
+        })
+    }
+}
+
+/// A negative estimate of a quantity that must be non-negative.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Warning {
+    pub param: String,
+    pub quantity: Quantity,
+    /// The coefficient as it enters the equation (`scale · value`) and its standard error.
+    pub coefficient: f64,
+    pub stderr: f64,
+    /// More than [`super::SIGNIFICANCE_T`] standard errors below zero: the fit contradicts physics
+    /// (else the estimate is consistent with zero).
+    pub unphysical: bool,
+    pub message: String,
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+/// What the guard saw.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum FitCheck {
+    /// An equation's relative residual above [`super::guard::RESIDUAL_WARN`] at every level.
+    LargeResidual,
+    /// A pooled estimate outside every level's own.
+    LevelsDisagree,
+    /// Two levels with the same record.
+    DuplicateLevel,
+}
+
+/// The likely cause the guard names.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum LikelyCause {
+    /// A constant force explains the residual: a position sensor's zero offset, or an
+    /// unmodelled constant force.
+    SensorOffset,
+    /// A constant force explains the residual, and no force of the model depends on a
+    /// position (so a sensor's zero offset enters no equation): an unmodelled constant
+    /// force (gravity on an inclined axis, a cable, an amplifier's bias).
+    ConstantForce,
+    /// A body or an element that the data show is not in the model.
+    MissingBody,
+    /// The equation's mass is fixed in the model (not identified) and likely wrong, or a
+    /// body or element is missing.
+    WrongMass,
+    /// The levels do not share one set of parameters (a level from another set-up, other
+    /// units, or an effect that changes with the amplitude).
+    LevelsInconsistent,
+    /// One record given as two levels: it counts twice, and the standard errors come out
+    /// √2 too small.
+    SameRecordTwice,
+}
+
+/// A residual the model cannot explain, with its likely cause and what to do.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct FitWarning {
+    pub check: FitCheck,
+    pub cause: LikelyCause,
+    /// The equation (body) or parameter concerned.
+    pub subject: String,
+    /// The largest relative residual of the equation over the levels, or, for levels that
+    /// disagree, the pooled estimate's distance from the nearest level's in that level's
+    /// standard errors.
+    pub value: f64,
+    pub message: String,
+}
+
+impl std::fmt::Display for FitWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+/// One parameter's estimates with the highest filter corner a factor
+/// [`super::CORNER_CHECK_FACTOR`] below and above the one used (the lowest corner kept: the
+/// record length or the dominant frequencies bound it), see [`super::corner_moves`].
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct CornerMove {
+    pub param: String,
+    /// The estimate with the highest corner lowered, as used, raised.
+    pub values: [f64; 3],
+    /// Their standard errors.
+    pub stderrs: [f64; 3],
+    /// The highest corner of each (rad/s).
+    pub upper: [f64; 3],
 }

@@ -1,0 +1,289 @@
+//! The measuring pass, as a sequence of named steps: check the request, choose the bank and
+//! the structure of the problem, take the first pass over every level (statistics, noise
+//! floors, screens), decide the noise corrections, design the corners and the time blocks
+//! and check that every level is long enough, prepare the level sources (estimated
+//! velocities, zero-filled columns) and the rests to leave out, then stream every level once
+//! through the filters to accumulate its moments.
+
+mod checks;
+mod pass;
+
+use crate::basis::BasisEval;
+use crate::data::LevelSource;
+use crate::ident::accel::ZeroFill;
+use crate::ident::bank::{choose_bank, BankChoice};
+use crate::ident::columns::ColumnStore;
+use crate::ident::design::{self, Designed};
+use crate::ident::first_pass::{self, LevelSpan, LevelStats};
+use crate::ident::measurement::Measurement;
+use crate::ident::plan::{build_structure, Plan};
+use crate::ident::rests;
+use crate::ident::types::{CornerSource, IdentifyError, IdentifyOptions};
+use crate::ident::velocity::{self, EstimatedVelocity, VelocityEstimate};
+use crate::ident::{memory, noise};
+use checks::{check_corners, check_lengths, check_rows};
+use dynid_ir::ir::ModelIr;
+use pass::{centred_levels, level_infos, Pass};
+use rayon::prelude::*;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Stream every level once through the filters and accumulate the moments.
+pub fn measure<'m>(
+    ir: &'m ModelIr,
+    eval: &dyn BasisEval,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Result<Measurement<'m>, IdentifyError> {
+    check_request(ir, levels, opts)?;
+    // Before any sample is read: a model too large for memory is refused with the estimate.
+    memory::check(ir, levels.len(), opts, 0.0, "identification")?;
+    let bank = choose_bank(ir, opts)?;
+    let mut plan = build_structure(ir, opts.balance.unwrap_or(false), &bank)?;
+
+    let t0 = Instant::now();
+    let stats = first_pass::all_levels(ir, &plan, levels, opts.chunk_len)?;
+    let stats_time = t0.elapsed();
+    let (noise_var, noise) = noise::decide(ir, &mut plan, &stats, opts.noise_correction);
+
+    let n_blocks = set_filters(ir, opts, &bank, &mut plan, &stats, levels)?;
+    check_rows(&plan, levels.len())?;
+
+    let estimators = velocity_estimators(&plan, levels, opts.chunk_len)?;
+    let estimated = velocity_estimates(ir, &plan, &estimators);
+    let sources: Vec<&dyn LevelSource> = if estimators.is_empty() {
+        levels.to_vec()
+    } else {
+        estimators.iter().map(|e| e as &dyn LevelSource).collect()
+    };
+    let zero_filled = zero_fill(&plan, &sources);
+    let sources: Vec<&dyn LevelSource> = if zero_filled.is_empty() {
+        sources
+    } else {
+        zero_filled.iter().map(|z| z as &dyn LevelSource).collect()
+    };
+    let samples: Vec<usize> = stats.iter().map(|s| s.n).collect();
+    let rests = rests::find_levels(
+        ir,
+        levels,
+        &samples,
+        n_blocks,
+        opts.keep_rests,
+        opts.chunk_len,
+    )?;
+
+    let pass = Pass {
+        ir,
+        eval,
+        plan: &plan,
+        n_blocks,
+        opts,
+    };
+    let t_pass = Instant::now();
+    let (moments, mut times) = pass.all(&sources, &stats, &noise_var, &rests, &estimators)?;
+    times.read += stats_time;
+    times.pass += t_pass.elapsed();
+    let infos = level_infos(ir, &plan, &stats, levels, &moments, &rests);
+    let centred = centred_levels(&plan, &stats);
+    Ok(Measurement {
+        ir,
+        store: Arc::new(ColumnStore::new(plan.clone(), moments)),
+        cols: None,
+        plan,
+        infos,
+        centred,
+        estimated,
+        rcond: opts.rcond,
+        times,
+        prune_t: 0.0,
+        noise,
+        efficient: opts.efficient,
+    })
+}
+
+/// Refuse a request that cannot be measured: no level, nothing to identify, or block and
+/// chunk counts below two.
+fn check_request(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Result<(), IdentifyError> {
+    if levels.is_empty() {
+        return Err(IdentifyError::NoLevels);
+    }
+    if ir.unknowns().is_empty() {
+        return Err(IdentifyError::NoUnknowns);
+    }
+    if opts.chunk_len < 2 || opts.n_blocks.is_some_and(|b| b < 2) {
+        return Err(IdentifyError::BadOption {
+            message: "chunk length and number of blocks must be at least 2".into(),
+            help: "use the defaults".into(),
+        });
+    }
+    Ok(())
+}
+
+/// Design the filter corners from the first pass (or take the given ones), check them and
+/// the length of every level, and set them in the plan; the number of time blocks.
+fn set_filters(
+    ir: &ModelIr,
+    opts: &IdentifyOptions,
+    bank: &BankChoice,
+    plan: &mut Plan,
+    stats: &[LevelStats],
+    levels: &[&dyn LevelSource],
+) -> Result<usize, IdentifyError> {
+    let span = LevelSpan::of(stats);
+    let designed = design_from_data(ir, plan, stats, &span, bank.order, bank.n_corners);
+    let given = corners_given(ir, opts);
+    plan.corner_source = corner_source(given, designed.as_ref());
+    let corners = chosen_corners(ir, opts, designed.as_ref(), &span, bank.n_corners);
+    check_corners(&corners, given, stats, &span, levels)?;
+    plan.corners = vec![0.0; corners.len()];
+    plan.set_corners(ir, &corners);
+    let n_blocks = opts.n_blocks.unwrap_or_else(|| {
+        design::blocks(
+            span.min_duration,
+            design::time_constant(&corners, bank.order),
+            span.min_samples,
+        )
+    });
+    check_lengths(
+        stats,
+        levels,
+        &corners,
+        bank.order,
+        n_blocks,
+        designed.as_ref(),
+        &span,
+    )?;
+    Ok(n_blocks)
+}
+
+/// Corners designed from the dominant frequencies of the drivers and fitted to the
+/// shortest level, with the band above the noise floor carried for the report: the lowest
+/// over the levels and the measured drivers whose floor is white noise (a driver with a
+/// floor of its own content, such as a controller's force, carries information up to the
+/// Nyquist frequency).
+fn design_from_data(
+    ir: &ModelIr,
+    plan: &Plan,
+    stats: &[LevelStats],
+    span: &LevelSpan,
+    order: usize,
+    n_corners: usize,
+) -> Option<Designed> {
+    let omegas: Vec<f64> = stats.iter().flat_map(|s| s.omegas.clone()).collect();
+    let mut info: Option<(String, f64)> = None;
+    for st in stats {
+        for (k, s) in plan.y.iter().enumerate() {
+            if !plan.drivers.contains(s) || !st.noise_flat[k] {
+                continue;
+            }
+            if let Some(w) = st.info[k] {
+                if info.as_ref().is_none_or(|(_, v)| w < *v) {
+                    info = Some((ir.signal(*s).name.clone(), w));
+                }
+            }
+        }
+    }
+    design::fit_corners_info(
+        &omegas,
+        info,
+        span.ts_min,
+        span.min_duration,
+        order,
+        n_corners,
+    )
+}
+
+/// Whether the corners are given (by the options or the model's filter block).
+fn corners_given(ir: &ModelIr, opts: &IdentifyOptions) -> bool {
+    opts.corners.is_some() || ir.filter.as_ref().is_some_and(|f| !f.corners.is_empty())
+}
+
+/// Where the corners come from, for the report.
+fn corner_source(given: bool, designed: Option<&Designed>) -> CornerSource {
+    CornerSource {
+        given,
+        lower: designed.filter(|_| !given).map(|d| d.lower),
+        upper: designed.filter(|_| !given).map(|d| d.upper),
+        info_signal: designed.and_then(|d| d.info_signal.as_ref().map(|(n, _)| n.clone())),
+        info_bandwidth: designed.and_then(|d| d.info_signal.as_ref().map(|(_, w)| *w)),
+    }
+}
+
+/// The corners used: the options', else the model's, else the designed ones.
+fn chosen_corners(
+    ir: &ModelIr,
+    opts: &IdentifyOptions,
+    designed: Option<&Designed>,
+    span: &LevelSpan,
+    n_corners: usize,
+) -> Vec<f64> {
+    match (&opts.corners, ir.filter.as_ref().map(|f| &f.corners)) {
+        (Some(c), _) => c.clone(),
+        (None, Some(c)) if !c.is_empty() => c.clone(),
+        _ => match designed {
+            Some(d) => d.corners.clone(),
+            // Not even the fastest admissible corners settle: fall through to the length
+            // check, which names the record length they need.
+            None => {
+                let cap = design::max_corner(span.ts_min);
+                vec![cap / 2.0; n_corners]
+            }
+        },
+    }
+}
+
+/// Unmeasured velocities in nonlinear terms: estimated from the positions, per level
+/// (none where the plan estimates none).
+fn velocity_estimators<'a>(
+    plan: &Plan,
+    levels: &[&'a dyn LevelSource],
+    chunk: usize,
+) -> Result<Vec<EstimatedVelocity<'a>>, IdentifyError> {
+    let targets: Vec<(usize, usize)> = plan
+        .estimated
+        .iter()
+        .map(|(v, x)| (v.index(), x.index()))
+        .collect();
+    if targets.is_empty() {
+        return Ok(Vec::new());
+    }
+    Ok(crate::first_error_in_order(levels.par_iter().map(|src| {
+        EstimatedVelocity::design(*src, &targets, chunk)
+    }))?)
+}
+
+/// The report of each estimated velocity: from which position, with which filter per level.
+fn velocity_estimates(
+    ir: &ModelIr,
+    plan: &Plan,
+    estimators: &[EstimatedVelocity<'_>],
+) -> Vec<VelocityEstimate> {
+    plan.estimated
+        .iter()
+        .enumerate()
+        .map(|(k, (v, x))| VelocityEstimate {
+            signal: ir.signal(*v).name.clone(),
+            from: ir.signal(*x).name.clone(),
+            method: velocity::METHOD.into(),
+            cutoff: estimators.iter().map(|e| e.designs()[k].1).collect(),
+            half_width: estimators.iter().map(|e| e.designs()[k].2).collect(),
+        })
+        .collect()
+}
+
+/// Positions and velocities of acceleration-only bodies that roots read: streamed as zeros
+/// (none where the plan has no such body).
+fn zero_fill<'a>(plan: &Plan, sources: &[&'a dyn LevelSource]) -> Vec<ZeroFill<'a>> {
+    if plan.absent.is_empty() {
+        return Vec::new();
+    }
+    let slots: Vec<usize> = plan.absent.iter().map(|s| s.index()).collect();
+    sources
+        .iter()
+        .map(|s| ZeroFill::new(*s, slots.clone()))
+        .collect()
+}

@@ -1,0 +1,158 @@
+//! Recovery of known parameters from simulated records, and what the report names.
+
+use super::*;
+
+#[test]
+fn sdof_noise_free_within_one_percent() {
+    let ir = sdof_model("");
+    for balance in [false, true] {
+        let opts = IdentifyOptions {
+            balance: Some(balance),
+            ..Default::default()
+        };
+        let id = run(&ir, sdof_data(), &opts);
+        let e = rel_errors(&id, &sdof_truth());
+        eprintln!(
+            "noise 0 %, balance {balance}: (d, k, k3, r) {} cond {:.1} corners {:?}",
+            fmt_errs(&e),
+            id.condition,
+            id.filter.corners
+        );
+        // The known bias of noise-free data (docs/method.md, "Known bias"): d −0.12 % and
+        // r −0.08 % without balancing, the doc's figures to their last digit (fixed data);
+        // every error within 0.3 %, 2.5 times the largest.
+        if !balance {
+            figures::check("docs/method.md", "bias.d", 100.0 * e[0]);
+            figures::check("docs/method.md", "bias.r", 100.0 * e[3]);
+        }
+        assert!(e.iter().all(|e| e.abs() < 0.003), "{}", fmt_errs(&e));
+        assert!(id.unidentifiable.is_empty());
+        // The standard errors are of the size of the errors, not orders of magnitude off.
+        for (p, e) in id.params.iter().zip(&e) {
+            assert!(p.stderr > 0.0 && p.stderr < 0.01 * p.value.abs(), "{p:?}");
+            assert!(
+                (e * p.value).abs() < 6.0 * p.stderr + 1e-3 * p.value.abs(),
+                "{p:?} err {e}"
+            );
+        }
+    }
+}
+
+#[test]
+fn sdof_five_percent_noise_within_two_percent() {
+    let ir = sdof_model("");
+    let recs = noisy_sdof_data();
+    for balance in [false, true] {
+        let opts = IdentifyOptions {
+            balance: Some(balance),
+            ..Default::default()
+        };
+        let id = run(&ir, recs, &opts);
+        let e = rel_errors(&id, &sdof_truth());
+        eprintln!(
+            "noise 5 %, balance {balance}: (d, k, k3, r) {}",
+            fmt_errs(&e)
+        );
+        assert!(e.iter().all(|e| e.abs() < 0.02), "{}", fmt_errs(&e));
+    }
+}
+
+/// From 8192 samples up the chunk length is only how the streamed work is cut: the same
+/// filter corners (designed from the first pass) and the same estimates to rounding, on
+/// noisy records (noise on every channel). Measured: values within 1.7e-15, standard
+/// errors within 1.9e-14 (relative; chunks of 30 000 and 10⁶ against 8192). With the
+/// zero-crossing reference taken from the whole first chunk the corners differed.
+#[test]
+fn chunks_of_8192_samples_and_more_give_the_same_identification() {
+    let ir = sdof_model("");
+    let recs = noisy_sdof_data();
+    let with = |chunk_len| {
+        let opts = IdentifyOptions {
+            chunk_len,
+            ..Default::default()
+        };
+        run(&ir, recs, &opts)
+    };
+    let base = with(8192);
+    for chunk in [30_000, 1_000_000] {
+        let id = with(chunk);
+        assert_eq!(id.filter.corners, base.filter.corners, "chunks of {chunk}");
+        assert_eq!(id.params.len(), base.params.len());
+        for (a, b) in id.params.iter().zip(&base.params) {
+            assert_eq!(a.name, b.name);
+            let (dv, ds) = (
+                (a.value - b.value).abs() / b.value.abs(),
+                (a.stderr - b.stderr).abs() / b.stderr,
+            );
+            assert!(
+                dv < 1e-14 && ds < 1e-13,
+                "chunks of {chunk}, {}: {} ± {} against {} ± {}",
+                a.name,
+                a.value,
+                a.stderr,
+                b.value,
+                b.stderr
+            );
+        }
+    }
+}
+
+#[test]
+fn duffing_from_positions_only_within_one_percent() {
+    let ir = duffing_model();
+    let truth = [("d", 0.4), ("k", 4.0), ("k3", 2.0)];
+    for eta in [0.0, 0.05] {
+        let recs = simulate(&ir, eta, 2000);
+        let id = run(&ir, &recs, &IdentifyOptions::default());
+        let e = rel_errors(&id, &truth);
+        eprintln!(
+            "displacement only, noise {eta}: (d, k, k3) {} order {} degrees {:?}",
+            fmt_errs(&e),
+            id.filter.order,
+            id.filter.instrument_degrees
+        );
+        let tol = if eta == 0.0 { 0.01 } else { 0.02 };
+        assert!(e.iter().all(|e| e.abs() < tol), "{}", fmt_errs(&e));
+    }
+}
+
+#[test]
+fn unexcited_deadzone_is_named_and_gets_no_value() {
+    // A gap larger than any displacement: the deadzone term is identically zero.
+    let ir = sdof_model("force gap (ground, m1) = kgap ~ 1.0 * deadzone(s, 1000)");
+    let id = run(&ir, sdof_data(), &IdentifyOptions::default());
+    assert!(id.param("kgap").is_none());
+    let u = id.unidentifiable.iter().find(|u| u.name == "kgap").unwrap();
+    assert!(u.reason.contains("never excited"), "{}", u.reason);
+    let e = rel_errors(&id, &sdof_truth());
+    assert!(e.iter().all(|e| e.abs() < 0.01), "{}", fmt_errs(&e));
+}
+
+#[test]
+fn duplicated_column_is_reported_as_collinear() {
+    // A second linear spring on the same coordinate: `k` and `k_b` cannot be told apart.
+    let ir = sdof_model("spring k_b (ground, m1)");
+    let id = run(&ir, &sdof_data()[..2], &IdentifyOptions::default());
+    assert_eq!(id.unidentifiable.len(), 1, "{:?}", id.unidentifiable);
+    let u = &id.unidentifiable[0];
+    assert!(u.reason.contains("collinear with `"), "{}", u.reason);
+    // The remaining spring carries the whole stiffness.
+    let k = id.param("k").or(id.param("k_b")).unwrap();
+    assert!((k.value / 4.0 - 1.0).abs() < 0.01);
+}
+
+#[test]
+fn printer_writes_the_identified_equation() {
+    let ir = sdof_model("");
+    let id = run(&ir, sdof_data(), &IdentifyOptions::default());
+    let s = print::format_equations(&ir, &id);
+    assert!(
+        s.starts_with("m1: 1.000 m1.x'' + 0.39") || s.starts_with("m1: 1.000 m1.x'' + 0.40"),
+        "{s}"
+    );
+    assert!(s.contains("(±0.00"), "{s}");
+    assert!(
+        s.contains(" m1.x^3 + ") && s.contains(" sign(m1.v) = u"),
+        "{s}"
+    );
+}
