@@ -42,7 +42,15 @@ pub fn print_row(bench: &str, figure: &str, reference: &str, command: &str) {
     println!("\nrow for docs/performance.md:");
     println!(
         "{}",
-        format_row(bench, figure, reference, &today(), &commit(), &cpu(), command)
+        format_row(
+            bench,
+            figure,
+            reference,
+            &today(),
+            &commit(),
+            &cpu(),
+            command
+        )
     );
 }
 
