@@ -27,7 +27,7 @@ use std::path::Path;
 use std::time::Instant;
 
 mod common;
-use common::{memory, print_row, reset_peak};
+use common::{bench_env, memory, print_row, reset_peak};
 
 /// The chain of `n` masses (m = 1), springs from 6 at the wall down to 3 at the free end,
 /// dampers 0.3, the input at the free end.
@@ -152,7 +152,7 @@ fn main() {
                 );
             }
         }
-        print_summary(&lines, duration);
+        print_summary(&lines);
         return;
     }
     for n in ns {
@@ -191,14 +191,14 @@ fn main() {
         }
     }
     if child.is_none() {
-        print_summary(&lines, duration);
+        print_summary(&lines);
     }
 }
 
 /// The row of docs/performance.md from the table's lines: time and peak per chain length
 /// (the shared pass), and, where the reference path ran too, its time over the shared
 /// pass's.
-fn print_summary(lines: &[String], duration: f64) {
+fn print_summary(lines: &[String]) {
     let cells = |l: &str| -> Vec<String> {
         l.trim_matches('|')
             .split('|')
@@ -231,7 +231,8 @@ fn print_summary(lines: &[String], duration: f64) {
         "one measuring pass per candidate where `DYNID_BENCH_REFERENCE=1`, else none \
          (absolute times)",
         &format!(
-            "DYNID_BENCH_DURATION={duration} cargo bench -p dynid-runtime --bench diagnose_chain"
+            "{}cargo bench -p dynid-runtime --bench diagnose_chain",
+            bench_env()
         ),
     );
 }

@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod common;
-use common::{best_of, memory, print_row, reset_peak};
+use common::{bench_env, best_of, memory, print_row, reset_peak};
 
 fn shares(t: &PhaseTimes) -> String {
     let parts = [
@@ -266,7 +266,7 @@ fn scaling(n: usize, threads: &[usize]) -> String {
             t_pass / t_ref,
             rec.len() as f64 / t_pass / 1e6
         );
-        speed_up = format!("1 → {k} threads: the pass {:.2}× faster", base / t_pass);
+        speed_up = format!("1 → {k} threads: the pass's speed-up {:.2}×", base / t_pass);
     }
     speed_up
 }
@@ -319,6 +319,9 @@ fn main() {
         &figures.join("; "),
         "one pass that streams the same levels from memory and sums every value; \
          one pass that splits and parses every CSV field; the pass on one thread",
-        "cargo bench -p dynid-runtime --bench identify",
+        &format!(
+            "{}cargo bench -p dynid-runtime --bench identify",
+            bench_env()
+        ),
     );
 }

@@ -519,6 +519,9 @@ fn main() {
         "servo_precision",
         &figure,
         "IDIM-LS and SVF-LS (`baseline`) on the same records",
-        &format!("DYNID_BENCH_SEEDS={seeds} cargo bench -p dynid-runtime --bench servo_precision"),
+        &format!(
+            "{}cargo bench -p dynid-runtime --bench servo_precision",
+            common::bench_env()
+        ),
     );
 }

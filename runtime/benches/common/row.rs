@@ -54,6 +54,16 @@ pub fn print_row(bench: &str, figure: &str, reference: &str, command: &str) {
     );
 }
 
+/// The `DYNID_BENCH_*` variables of this run (but the one a bench sets for its own child
+/// processes), as they would be typed before the command.
+pub fn bench_env() -> String {
+    let mut vars: Vec<(String, String)> = std::env::vars()
+        .filter(|(k, _)| k.starts_with("DYNID_BENCH_") && k != "DYNID_BENCH_CHILD")
+        .collect();
+    vars.sort();
+    vars.iter().map(|(k, v)| format!("{k}={v} ")).collect()
+}
+
 fn output(cmd: &str, args: &[&str]) -> Option<String> {
     let out = std::process::Command::new(cmd).args(args).output().ok()?;
     let s = String::from_utf8(out.stdout).ok()?.trim().to_string();
