@@ -154,7 +154,8 @@ fn row_fault(cells: &[String]) -> Option<String> {
         });
     let hash = commit.trim_end_matches('+');
     let committed = hash.len() >= 7 && hash.chars().all(|c| c.is_ascii_hexdigit());
-    if !unmeasured && !(dated && committed && !cpu.is_empty()) {
+    let complete = dated && committed && !cpu.is_empty();
+    if !(unmeasured || complete) {
         return Some(format!(
             "date `{date}`, commit `{commit}`, CPU `{cpu}`: a run gives all three (or `—` \
              in each before the first run)"
