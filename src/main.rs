@@ -6,9 +6,8 @@ mod cli;
 use clap::Parser;
 
 /// mimalloc, not the system allocator: a structure search frees and allocates many
-/// multi-megabyte buffers on several threads, which fragmented glibc's arenas (peak memory
-/// of `diagnose` on the 16-mass chain of `runtime/benches/diagnose_chain.rs`, run back to
-/// back: 480 MiB with glibc's allocator, 181 MiB with mimalloc, same code, similar time).
+/// multi-megabyte buffers on several threads, which fragmented glibc's arenas (the peak
+/// memory of `diagnose` with each allocator: docs/performance.md, `diagnose_chain`).
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

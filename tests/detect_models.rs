@@ -309,7 +309,8 @@ fn chain4_hardening_springs_are_found() {
                 .any(|t| best.contains(t)),
                 "{element}: {best} is not among its true effects"
             ),
-            // The paper's inverse pair (prestress against backlash) may be reported as such.
+            // Schiehlen & Krause's inverse pair (prestress against backlash) may be reported
+            // as such.
             Verdict::Ambiguous { candidates } if element.starts_with("k4") => assert!(
                 candidates
                     .iter()

@@ -109,3 +109,137 @@ fn every_marked_figure_is_read_by_a_test() {
         unread.join("\n")
     );
 }
+
+#[path = "../runtime/benches/common/row.rs"]
+mod row;
+
+/// The cells of the Markdown table row `line` (`None` when it is not a row).
+fn cells(line: &str) -> Option<Vec<String>> {
+    let inner = line.trim().strip_prefix('|')?.strip_suffix('|')?;
+    // `\|` inside a cell is a literal bar.
+    let mut out = vec![String::new()];
+    let mut chars = inner.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '\\' if chars.peek() == Some(&'|') => {
+                out.last_mut().unwrap().push('|');
+                chars.next();
+            }
+            '|' => out.push(String::new()),
+            c => out.last_mut().unwrap().push(c),
+        }
+    }
+    Some(out.into_iter().map(|c| c.trim().to_string()).collect())
+}
+
+/// What is wrong with one row of the table of docs/performance.md (`None`: nothing).
+fn row_fault(cells: &[String]) -> Option<String> {
+    if cells.len() != row::COLUMNS.len() {
+        return Some(format!(
+            "{} cells, the table has {}",
+            cells.len(),
+            row::COLUMNS.len()
+        ));
+    }
+    let bench = cells[0].trim_matches('`');
+    let (date, commit, cpu) = (&cells[3], &cells[4], &cells[5]);
+    let unmeasured = [date, commit, cpu].iter().all(|c| c.as_str() == "—");
+    let dated = date.len() == 10
+        && date.chars().enumerate().all(|(i, c)| {
+            if i == 4 || i == 7 {
+                c == '-'
+            } else {
+                c.is_ascii_digit()
+            }
+        });
+    let hash = commit.trim_end_matches('+');
+    let committed = hash.len() >= 7 && hash.chars().all(|c| c.is_ascii_hexdigit());
+    let complete = dated && committed && !cpu.is_empty();
+    if !(unmeasured || complete) {
+        return Some(format!(
+            "date `{date}`, commit `{commit}`, CPU `{cpu}`: a run gives all three (or `—` \
+             in each before the first run)"
+        ));
+    }
+    if cells[1].is_empty() || cells[2].is_empty() {
+        return Some("no figure or no reference".into());
+    }
+    if !cells[6].contains(&format!("--bench {bench}")) {
+        return Some(format!("the command does not run `--bench {bench}`"));
+    }
+    None
+}
+
+/// The row a bench prints is a row of the table (same columns, and it passes the checks).
+#[test]
+fn the_row_a_bench_prints_fits_the_table() {
+    let line = row::format_row(
+        "identify",
+        "identification 12× the reference | pass 9.6×",
+        "one pass that sums every value",
+        "2026-11-24",
+        "2af4f42+",
+        "Intel Xeon, 2 threads",
+        "cargo bench -p dynid-runtime --bench identify",
+    );
+    let c = cells(&line).expect("a table row");
+    assert_eq!(c[1], "identification 12× the reference | pass 9.6×");
+    assert_eq!(row_fault(&c), None, "{line}");
+    let mut stale = c.clone();
+    stale[4] = "?".into();
+    assert!(row_fault(&stale).is_some());
+}
+
+/// docs/performance.md has a well-formed row for every bench of `runtime/benches/` and
+/// `benches/`, and every bench prints its row (`row::print_row`).
+#[test]
+fn every_bench_has_a_row_in_the_performance_table() {
+    let root = figures::root();
+    let doc = std::fs::read_to_string(root.join("docs/performance.md")).unwrap();
+    let header = format!("| {} |", row::COLUMNS.join(" | "));
+    let start = doc
+        .find(&header)
+        .expect("docs/performance.md holds the table with the columns of row::COLUMNS");
+    let rows: Vec<Vec<String>> = doc[start..]
+        .lines()
+        .skip(2)
+        .take_while(|l| l.starts_with('|'))
+        .map(|l| cells(l).expect("a table row"))
+        .collect();
+    let mut faults = Vec::new();
+    for r in &rows {
+        if let Some(f) = row_fault(r) {
+            faults.push(format!("row `{}`: {f}", r[0]));
+        }
+    }
+    let mut benches = Vec::new();
+    for dir in ["runtime/benches", "benches"] {
+        for e in std::fs::read_dir(root.join(dir)).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "rs") {
+                let name = p.file_stem().unwrap().to_str().unwrap().to_string();
+                let src = std::fs::read_to_string(&p).unwrap();
+                if !src.contains("print_row(") {
+                    faults.push(format!("{dir}/{name}.rs does not print its row"));
+                }
+                benches.push(name);
+            }
+        }
+    }
+    assert!(benches.len() >= 5, "benches found: {benches:?}");
+    for b in &benches {
+        if !rows.iter().any(|r| r[0] == format!("`{b}`")) {
+            faults.push(format!("no row for the bench `{b}`"));
+        }
+    }
+    for r in &rows {
+        if !benches.iter().any(|b| r[0] == format!("`{b}`")) {
+            faults.push(format!("row `{}` names no bench", r[0]));
+        }
+    }
+    assert!(
+        faults.is_empty(),
+        "docs/performance.md:\n{}",
+        faults.join("\n")
+    );
+}

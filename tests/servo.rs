@@ -7,35 +7,22 @@
 //! 0.5 m/s). Identified with the default settings: the filters are designed from the
 //! record, the velocity in the Coulomb term is estimated from the encoder positions.
 //!
-//! What the method reaches here (`cargo test --test servo -- --nocapture`, seeds 1–12):
-//! mass within 0.03 %, viscous friction within 1.1 %, Coulomb friction within 3.3 % (10 of
-//! 12 seeds within 2 %), offset within 4.6 %; standard errors 0.01–0.05 % (m), 0.15–1 % (d),
-//! 0.5–2.7 % (r), 0.4–2.5 % (f0). The Coulomb coefficient is limited by what one 25 s
-//! record carries, not by the estimated velocity: with the velocity measured instead, the
-//! RMS errors over the same seeds are 0.63 % (d) and 1.73 % (r), against 0.47 % and 1.36 %
-//! estimated (`estimated_velocity_costs_no_accuracy`).
-//!
-//! A slower trajectory (3 cm RMS, velocity RMS 0.15 m/s) sticks at reversals: 1.2 % of the
-//! samples at |v| < 10⁻⁵ m/s and stops (|v| < 10⁻⁴ m/s) of up to 50 ms, against 0.1 % and
-//! 19 ms here (`the_slow_trajectory_sticks`, seed 1). There the zero-phase velocity
-//! estimate cannot say on which side of zero a stopped axis is: seeds 1–8 gave d within
-//! 23 %, r within 19 % (measured velocity: 7.5 % and 6.4 %), standard errors of d 1.3–68 %
-//! (`slow_trajectory_errors`, which checks the figures README.md quotes). Where the friction error came from in earlier
-//! versions of this axis: a reference whose velocity is a random walk made the
-//! derivative-gain force rough between samples; a controller that differenced the encoder
-//! over one 0.1 ms step instead of one sample interval put ±27 N of force jitter between
-//! samples (d, r off by up to 23 %).
+//! What the method reaches here, on this trajectory and on a slower one (3 cm RMS, velocity
+//! RMS 0.15 m/s) that sticks at its reversals, is quoted once, in the servo example of
+//! README.md ("Real records"); `servo_axis_from_encoder_and_force_alone` and
+//! `slow_trajectory_errors` check those figures (`cargo test --test servo -- --nocapture`
+//! prints every seed). Each bound below states the spread it comes from.
 mod common;
 mod figures;
+mod servo_common;
 
 use dynid::dsl_parser::ir::ModelIr;
 use dynid::runtime::data::{LevelSource, RecordSource};
 use dynid::runtime::ident::Identification;
 use dynid::runtime::record::Record;
-use dynid::runtime::sim::{self, test_models, test_models::ServoAxis};
+use dynid::runtime::sim::{self, test_models::ServoAxis};
 use dynid::runtime::{identify, IdentifyOptions};
-
-const TRUTH: [(&str, f64); 4] = [("m", 50.0), ("d", 120.0), ("r", 15.0), ("f0", -2.0)];
+use servo_common::{errors, planned_record, TRUTH};
 
 /// The axis of the module doc at `seed`, identified; `measured_velocity` records the
 /// velocity and gives it to the identification instead of estimating it.
@@ -97,37 +84,28 @@ fn rms_and_coverage(
     acc.iter().map(|&(m, c)| (m.sqrt(), c)).collect()
 }
 
-/// `(relative error, relative standard error)` of each parameter of [`TRUTH`].
-fn errors(id: &Identification) -> Vec<(f64, f64)> {
-    TRUTH
-        .iter()
-        .map(|&(name, t)| {
-            let p = id.param(name).expect("estimated");
-            (p.value / t - 1.0, p.stderr / t.abs())
-        })
-        .collect()
-}
-
+/// The errors as one line, two decimals.
 fn row(errs: &[(f64, f64)]) -> String {
-    TRUTH
-        .iter()
-        .zip(errs)
-        .map(|((n, _), (e, s))| format!("{n} {:+.2} % (±{:.2} %)", 100.0 * e, 100.0 * s))
-        .collect::<Vec<_>>()
-        .join(", ")
+    servo_common::row(errs, 2)
 }
 
 #[test]
 fn servo_axis_from_encoder_and_force_alone() {
     let mut worst = [0.0f64; 4];
+    // Σ (error / SE)² per parameter, for the RMS of error / SE that docs/method.md §6 quotes.
+    let mut z2 = [0.0f64; 4];
     for seed in 1..=12 {
         let id = servo(seed, false);
         assert!(id.unidentifiable.is_empty(), "{:?}", id.unidentifiable);
         assert_eq!(id.estimated.len(), 1, "the velocity is estimated");
         let errs = errors(&id);
         println!("seed {seed}: {}", row(&errs));
-        // Seeds 1–12: m 0.03 %, d 1.12 %, r 3.31 %, f0 4.61 % at most (module documentation;
-        // d and r checked below against README.md); each bound about twice that.
+        for (z, (e, s)) in z2.iter_mut().zip(&errs) {
+            *z += (e / s).powi(2);
+        }
+        // Seeds 1–12: m 0.03 %, d 1.12 %, r 3.31 %, f0 4.61 % at most (printed above with
+        // `-- --nocapture`; d and r checked below against README.md); each bound about
+        // twice that.
         for (((name, _), (e, s)), w) in TRUTH.iter().zip(&errs).zip(&mut worst) {
             *w = w.max(100.0 * e.abs());
             let bound = match *name {
@@ -153,6 +131,16 @@ fn servo_axis_from_encoder_and_force_alone() {
     // README.md quotes the largest errors of d and r.
     figures::check("README.md", "servo.d", worst[1]);
     figures::check("README.md", "servo.r", worst[2]);
+    let z: Vec<f64> = z2.iter().map(|s| (s / 12.0).sqrt()).collect();
+    println!(
+        "RMS error / SE: m {:.2}, d {:.2}, r {:.2}, f0 {:.2}",
+        z[0], z[1], z[2], z[3]
+    );
+    if common::seeds_as_documented() {
+        figures::check("docs/method.md", "servo.d_z", z[1]);
+        figures::check("docs/method.md", "servo.r_z", z[2]);
+        figures::check("docs/method.md", "servo.f0_z", z[3]);
+    }
 }
 
 /// The same seeds with the velocity measured instead of estimated: the RMS errors over the
@@ -283,27 +271,9 @@ fn column_chains_shrink_the_damping_and_friction_errors() {
     }
 }
 
-/// A planned record of the axis ([`ServoAxis::planned`]: point-to-point moves of 10 cm at
-/// 0.4, 0.2 and 0.1 m/s, 0.33 s at rest before each, cycles of 6.18 s, four in the record),
-/// with white noise of 1 % of the force's spread on the force, drawn from the seed (the
-/// encoder's rounding is deterministic: without it every seed would give the same record).
-/// As in `runtime/benches/servo_precision.rs`.
-fn planned_record(seed: u64) -> (ModelIr, Record) {
-    let mut axis = ServoAxis::planned();
-    axis.extra_forces = vec![("offset".into(), "f0 ~ -2.0".into())];
-    let mut cfg = axis.config(seed);
-    cfg.input_oversample = 10;
-    let mut out = sim::simulate(&axis.true_model(), &cfg).expect("closed-loop simulation");
-    let mut rec = out.records.remove(0);
-    test_models::add_noise(&mut rec, "u", 0.01, seed);
-    (axis.model(), rec)
-}
-
 /// Identify `rec` with the default options.
 fn identify_record(ir: &ModelIr, rec: &Record) -> Identification {
-    let src = RecordSource::new(rec, ir, "planned").expect("record");
-    let levels: Vec<&dyn LevelSource> = vec![&src];
-    identify(ir, &levels, &IdentifyOptions::default()).expect("identification")
+    servo_common::identify_record(ir, rec, &IdentifyOptions::default())
 }
 
 /// Planned moves with dwells, seeds 1–12: the rests (a third of every cycle) are left out

@@ -17,14 +17,14 @@
 //! - the record cut into its cycles, all identified with the same corners, gives cycle
 //!   estimates consistent within their errors (`planned_cycles_agree_within_their_errors`).
 
-use dynid::dsl_parser::ir::ModelIr;
-use dynid::runtime::data::{LevelSource, RecordSource};
-use dynid::runtime::ident::{Hold, Identification};
-use dynid::runtime::record::Record;
-use dynid::runtime::sim::{self, test_models, test_models::ServoAxis};
-use dynid::runtime::{identify, IdentifyOptions};
+mod figures;
+mod servo_common;
 
-const TRUTH: [(&str, f64); 4] = [("m", 50.0), ("d", 120.0), ("r", 15.0), ("f0", -2.0)];
+use dynid::runtime::ident::Hold;
+use dynid::runtime::IdentifyOptions;
+use servo_common::{
+    errors, identify_record as ident, planned_axis, planned_record, planned_record_of, TRUTH,
+};
 
 /// Samples per cycle of `ServoAxis::planned` at 1 kHz.
 const CYCLE: usize = 6180;
@@ -38,42 +38,9 @@ fn seeds(default: u64) -> std::ops::RangeInclusive<u64> {
     1..=n
 }
 
-/// The planned record at `seed` (as in the bench `servo_precision`).
-fn planned_record(seed: u64) -> (ModelIr, Record) {
-    let mut axis = ServoAxis::planned();
-    axis.extra_forces = vec![("offset".into(), "f0 ~ -2.0".into())];
-    let mut cfg = axis.config(seed);
-    cfg.input_oversample = 10;
-    let mut out = sim::simulate(&axis.true_model(), &cfg).expect("closed-loop simulation");
-    let mut rec = out.records.remove(0);
-    test_models::add_noise(&mut rec, "u", 0.01, seed);
-    (axis.model(), rec)
-}
-
-fn ident(ir: &ModelIr, rec: &Record, opts: &IdentifyOptions) -> Identification {
-    let src = RecordSource::new(rec, ir, "planned").expect("record");
-    let levels: Vec<&dyn LevelSource> = vec![&src];
-    identify(ir, &levels, opts).expect("identification")
-}
-
-/// `(relative error, relative standard error)` of each parameter of [`TRUTH`].
-fn errors(id: &Identification) -> Vec<(f64, f64)> {
-    TRUTH
-        .iter()
-        .map(|&(name, t)| {
-            let p = id.param(name).expect("estimated");
-            (p.value / t - 1.0, p.stderr / t.abs())
-        })
-        .collect()
-}
-
+/// The errors as one line, three decimals.
 fn row(errs: &[(f64, f64)]) -> String {
-    TRUTH
-        .iter()
-        .zip(errs)
-        .map(|((n, _), (e, s))| format!("{n} {:+.3} % (±{:.3} %)", 100.0 * e, 100.0 * s))
-        .collect::<Vec<_>>()
-        .join(", ")
+    servo_common::row(errs, 3)
 }
 
 /// Per parameter over the seeds: mean error, mean SE, coverage (|e| < 2 SE), RMS of e/SE.
@@ -109,12 +76,27 @@ fn planned_errors_cover_damping_friction_offset() {
         println!("seed {seed}: {}", row(&e));
         all.push(e);
     }
+    // docs/method.md §6 quotes the short form's figures (seeds 1–12).
+    let documented = all.len() == 12;
     for ((name, _), (mean, se, cover, z)) in TRUTH.iter().zip(summary(&all)) {
         println!(
             "{name}: mean error {:+.3} %, mean SE {:.3} %, coverage {cover:.2}, RMS e/SE {z:.2}",
             100.0 * mean,
             100.0 * se
         );
+        if documented {
+            if *name == "m" {
+                figures::check("docs/method.md", "planned.m_bias", 100.0 * mean);
+                figures::check("docs/method.md", "planned.m_se", 100.0 * se);
+            } else {
+                let marker = match *name {
+                    "d" => "planned.d_z",
+                    "r" => "planned.r_z",
+                    _ => "planned.f0_z",
+                };
+                figures::check("docs/method.md", marker, z);
+            }
+        }
         if *name == "m" {
             assert!(mean.abs() < 0.002, "`m`: mean error {:+.3} %", 100.0 * mean);
             continue;
@@ -151,16 +133,11 @@ fn planned_mass_bias_comes_from_the_estimated_velocity() {
         };
         let estimated = ident(&ir, &rec, &opts);
         // The same record with the simulated velocity recorded (`m.v`), given as measured.
-        let mut axis = ServoAxis::planned();
-        axis.extra_forces = vec![("offset".into(), "f0 ~ -2.0".into())];
+        let axis = planned_axis();
         let (mut truth, mut with_v) = (axis.true_model(), axis.model());
         truth.signals[1].measured = true;
         with_v.signals[1].measured = true;
-        let mut cfg = axis.config(seed);
-        cfg.input_oversample = 10;
-        let mut out = sim::simulate(&truth, &cfg).expect("closed-loop simulation");
-        let mut rec_v = out.records.remove(0);
-        test_models::add_noise(&mut rec_v, "u", 0.01, seed);
+        let rec_v = planned_record_of(&axis, &truth, seed, 10);
         assert_eq!(rec_v.column("m.x"), rec.column("m.x"), "the same positions");
         let measured = ident(&with_v, &rec_v, &opts);
         println!("seed {seed}: estimated v {}", row(&errors(&estimated)));
@@ -213,14 +190,9 @@ fn planned_mass_variants() {
     for (name, updates, resolution, hold, corners) in variants {
         let mut all = Vec::new();
         for seed in seeds(4) {
-            let mut axis = ServoAxis::planned();
-            axis.extra_forces = vec![("offset".into(), "f0 ~ -2.0".into())];
+            let mut axis = planned_axis();
             axis.resolution = resolution;
-            let mut cfg = axis.config(seed);
-            cfg.input_oversample = updates;
-            let mut out = sim::simulate(&axis.true_model(), &cfg).expect("closed-loop simulation");
-            let mut rec = out.records.remove(0);
-            test_models::add_noise(&mut rec, "u", 0.01, seed);
+            let rec = planned_record_of(&axis, &axis.true_model(), seed, updates);
             let ir = axis.model();
             let mut opts = IdentifyOptions::default();
             if let Some(h) = hold {

@@ -27,7 +27,7 @@ use std::path::Path;
 use std::time::Instant;
 
 mod common;
-use common::{memory, reset_peak};
+use common::{bench_env, memory, print_row, reset_peak};
 
 /// The chain of `n` masses (m = 1), springs from 6 at the wall down to 3 at the free end,
 /// dampers 0.3, the input at the free end.
@@ -128,6 +128,8 @@ fn main() {
     if child.is_none() {
         print_header(duration, &dir);
     }
+    // The table's lines, for the row of docs/performance.md.
+    let mut lines = Vec::new();
     if child.is_none() && ns.len() * paths.len() > 1 {
         for &n in &ns {
             for &shared in &paths {
@@ -141,6 +143,7 @@ fn main() {
                 let text = String::from_utf8_lossy(&out.stdout);
                 for line in text.lines().filter(|l| l.starts_with(&format!("| {n} |"))) {
                     println!("{line}");
+                    lines.push(line.to_string());
                 }
                 assert!(
                     out.status.success(),
@@ -149,6 +152,7 @@ fn main() {
                 );
             }
         }
+        print_summary(&lines);
         return;
     }
     for n in ns {
@@ -172,7 +176,7 @@ fn main() {
         }
         for shared in &paths {
             let (secs, peak, ok, found) = timed(&model, &recs, *shared);
-            println!(
+            let line = format!(
                 "| {n} | {} | {secs:.1} s | {peak} | {} | {} |",
                 if *shared {
                     "one shared pass"
@@ -182,8 +186,55 @@ fn main() {
                 if ok { "yes" } else { "no" },
                 if found.is_empty() { "none" } else { &found }
             );
+            println!("{line}");
+            lines.push(line);
         }
     }
+    if child.is_none() {
+        print_summary(&lines);
+    }
+}
+
+/// The row of docs/performance.md from the table's lines: time and peak per chain length
+/// (the shared pass), and, where the reference path ran too, its time over the shared
+/// pass's.
+fn print_summary(lines: &[String]) {
+    let cells = |l: &str| -> Vec<String> {
+        l.trim_matches('|')
+            .split('|')
+            .map(|c| c.trim().to_string())
+            .collect()
+    };
+    let secs = |c: &str| c.trim_end_matches(" s").parse::<f64>().ok();
+    let rows: Vec<Vec<String>> = lines.iter().map(|l| cells(l)).collect();
+    let mut parts = Vec::new();
+    for r in rows
+        .iter()
+        .filter(|r| r.len() >= 5 && r[1] == "one shared pass")
+    {
+        let mut part = format!("n = {}: {} / {}, verdict right: {}", r[0], r[2], r[3], r[4]);
+        let own = rows
+            .iter()
+            .find(|o| o.len() >= 5 && o[0] == r[0] && o[1] == "one pass per candidate")
+            .and_then(|o| secs(&o[2]));
+        if let (Some(t), Some(t_own)) = (secs(&r[2]), own) {
+            part.push_str(&format!(
+                "; one pass per candidate {:.1}× the time",
+                t_own / t
+            ));
+        }
+        parts.push(part);
+    }
+    print_row(
+        "diagnose_chain",
+        &parts.join("; "),
+        "one measuring pass per candidate where `DYNID_BENCH_REFERENCE=1`, else none \
+         (absolute times)",
+        &format!(
+            "{}cargo bench -p dynid-runtime --bench diagnose_chain",
+            bench_env()
+        ),
+    );
 }
 
 fn print_header(duration: f64, dir: &Path) {

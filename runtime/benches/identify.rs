@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod common;
-use common::{best_of, memory, reset_peak};
+use common::{bench_env, best_of, memory, print_row, reset_peak};
 
 fn shares(t: &PhaseTimes) -> String {
     let parts = [
@@ -95,7 +95,16 @@ fn memory_reference(levels: &[&dyn LevelSource], chunk: usize) -> f64 {
         .sum()
 }
 
-fn run(n: usize) {
+/// The ratios of one run: identification and its pass against the reference pass, the CSV
+/// identification and dynid's parse alone against the reference parse.
+struct Ratios {
+    memory: f64,
+    pass: f64,
+    csv: f64,
+    parse: f64,
+}
+
+fn run(n: usize) -> Ratios {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/two_mass.dyn");
     let ir = dsl_parser::compile_file(&path).expect("models/two_mass.dyn");
     let ts = 0.01;
@@ -126,6 +135,7 @@ fn run(n: usize) {
     let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
     let (t_ref, _) = best_of(3, || black_box(memory_reference(&levels, opts.chunk_len)));
     let (t_mem, id) = best_of(3, || identify(&ir, &levels, &opts).unwrap());
+    let (memory_ratio, pass_ratio) = (t_mem / t_ref, id.times.pass.as_secs_f64() / t_ref);
     println!(
         "memory: {t_mem:.3} s, {:.1} M samples/s, {:.0}× the reference pass ({t_ref:.4} s); \
          pass {:.3} s = {:.1}× the reference; {}",
@@ -193,13 +203,19 @@ fn run(n: usize) {
         "  parse alone (one validated pass): {t_parse:.3} s, {:.2}× the reference parse",
         t_parse / t_ref
     );
+    Ratios {
+        memory: memory_ratio,
+        pass: pass_ratio,
+        csv: t_csv / t_ref,
+        parse: t_parse / t_ref,
+    }
 }
 
 /// Thread scaling of identification on one level of `n` samples from memory: per thread
 /// count (a rayon pool of that size), the best of three of the whole identification, of
 /// the filter-and-moment pass inside it, and of the reference pass (one level: one thread
 /// streams it whatever the pool).
-fn scaling(n: usize, threads: &[usize]) {
+fn scaling(n: usize, threads: &[usize]) -> String {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/two_mass.dyn");
     let ir = dsl_parser::compile_file(&path).expect("models/two_mass.dyn");
     let ts = 0.01;
@@ -228,6 +244,7 @@ fn scaling(n: usize, threads: &[usize]) {
         "threads  identify (s)  pass (s)  pass speed-up  pass / reference  M samples/s (pass)"
     );
     let mut base = None;
+    let mut speed_up = String::new();
     for &k in threads {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(k)
@@ -249,7 +266,9 @@ fn scaling(n: usize, threads: &[usize]) {
             t_pass / t_ref,
             rec.len() as f64 / t_pass / 1e6
         );
+        speed_up = format!("1 → {k} threads: the pass's speed-up {:.2}×", base / t_pass);
     }
+    speed_up
 }
 
 /// The identification's options, with `DYNID_BENCH_CHUNK` (samples per streamed chunk)
@@ -274,8 +293,14 @@ fn env_list(name: &str) -> Option<Vec<usize>> {
 fn main() {
     let lengths = env_list("DYNID_BENCH_SAMPLES").unwrap_or_else(|| vec![100_000, 1_000_000]);
     // A length of 0 skips the runs (e.g. to take only the thread-scaling table).
+    let mut figures = Vec::new();
     for n in lengths.into_iter().filter(|&n| n > 0) {
-        run(n);
+        let r = run(n);
+        figures.push(format!(
+            "{n} samples per level: identification {:.1}× the reference, the pass {:.1}×; \
+             from CSV {:.2}× the reference parse, parse alone {:.2}×",
+            r.memory, r.pass, r.csv, r.parse
+        ));
     }
     let n = env_list("DYNID_BENCH_SCALING_SAMPLES")
         .and_then(|v| v.first().copied())
@@ -287,6 +312,16 @@ fn main() {
             .collect()
     });
     if n > 0 {
-        scaling(n, &threads);
+        figures.push(scaling(n, &threads));
     }
+    print_row(
+        "identify",
+        &figures.join("; "),
+        "one pass that streams the same levels from memory and sums every value; \
+         one pass that splits and parses every CSV field; the pass on one thread",
+        &format!(
+            "{}cargo bench -p dynid-runtime --bench identify",
+            bench_env()
+        ),
+    );
 }

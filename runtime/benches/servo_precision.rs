@@ -496,4 +496,32 @@ fn main() {
             );
         }
     }
+    // The row of docs/performance.md: dynid's defaults against IDIM-LS (HAC errors) on d.
+    let find = |kind: Trajectory, method: &str| {
+        rows.iter()
+            .find(|r| r.trajectory == kind.label() && r.method == method && r.param == "d")
+    };
+    let figure = Trajectory::ALL
+        .iter()
+        .filter_map(|&kind| {
+            let (ours, idim) = (find(kind, METHODS[0])?, find(kind, METHODS[7])?);
+            Some(format!(
+                "{}, d: RMS error {:.1}× IDIM-LS's, RMS error / SE {:.2} (IDIM-LS {:.2})",
+                kind.label(),
+                ours.rms_error / idim.rms_error,
+                ours.rms_z,
+                idim.rms_z
+            ))
+        })
+        .collect::<Vec<_>>()
+        .join("; ");
+    common::print_row(
+        "servo_precision",
+        &figure,
+        "IDIM-LS and SVF-LS (`baseline`) on the same records",
+        &format!(
+            "{}cargo bench -p dynid-runtime --bench servo_precision",
+            common::bench_env()
+        ),
+    );
 }

@@ -323,8 +323,9 @@ pub struct EquationIr {
     pub terms: Vec<TermIr>,
 }
 
-/// How simulation drives an input or a reference: a form filter (paper eq. 2) that turns
-/// white noise of intensity `level` into the signal, or a planned trajectory.
+/// How simulation drives an input or a reference: a form filter (Schiehlen & Krause eq. 2;
+/// docs/method.md, References) that turns white noise of intensity `level` into the signal,
+/// or a planned trajectory.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum FormFilter {
     /// `u' = −corner·u + level·w`.

@@ -5,6 +5,9 @@
 
 use std::time::Instant;
 
+mod row;
+pub use row::{bench_env, print_row};
+
 /// The allocator of the `dynid` binary (see `src/main.rs`), so that peak memory and times
 /// here are those of the tool.
 #[global_allocator]

@@ -1,4 +1,5 @@
-//! Detection of hidden nonlinearities from per-level linear fits (paper §2).
+//! Detection of hidden nonlinearities from per-level linear fits (Schiehlen & Krause §2;
+//! docs/method.md, References).
 //!
 //! A linear model fitted separately at each excitation level gives, for every linear
 //! parameter, a curve over the levels. A linear element gives a constant; an element that

@@ -143,12 +143,9 @@ pub const SIM_SAMPLES: usize = 100_000;
 
 /// The distributions statistical linearisation averages over.
 ///
-/// Measured on simulated data with known truth (4 seeds, `cargo run --release --example
-/// detect_measurements -- linearisation_bias`), the per-level fits follow the *measured* distribution of s —
-/// a hardening spring makes s light-tailed, and the Gaussian form puts the implied k3
-/// 24 % low, the measured one 1 % — but the *Gaussian* form of v: with the measured
-/// distribution of v the implied Coulomb r and quadratic c came out 4–5 % high instead of
-/// within 1–3 %. Hence the default.
+/// The per-level fits follow the *measured* distribution of s (a hardening spring makes s
+/// light-tailed) but the *Gaussian* form of v: hence the default (measured on simulated data
+/// with known truth: docs/performance.md, "Measurements behind defaults").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Linearisation {
     /// Gaussian s and v (the closed forms of the table).

@@ -1,4 +1,5 @@
-//! Form filters (paper eq. 2): white noise of intensity `level` shaped into an input.
+//! Form filters (Schiehlen & Krause eq. 2; docs/method.md, References): white noise of
+//! intensity `level` shaped into an input.
 //!
 //! The linear part is an Ornstein–Uhlenbeck process `z' = A z + L level w`. It is
 //! advanced at the sample rate with its exact discretisation: the transition `Φ = e^{A h}`

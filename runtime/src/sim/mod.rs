@@ -4,9 +4,9 @@
 //!
 //! - **Parameters**: known values, and the nominal value of every unknown parameter (an
 //!   unknown parameter without a nominal value is an error that names it).
-//! - **Excitation** (paper eq. 2): each input with an `excite` line is the output of its
-//!   form filter driven by white noise of the level's intensity; see [`excite`] for the
-//!   exact discretisation. Inputs without an `excite` line are identically zero. Level `k`
+//! - **Excitation** (Schiehlen & Krause eq. 2; docs/method.md, References): each input
+//!   with an `excite` line is the output of its form filter driven by white noise of the
+//!   level's intensity; see [`excite`] for the exact discretisation. Inputs without an `excite` line are identically zero. Level `k`
 //!   of every excited input is simulated together as experiment `k`. An `excite … moves(…)`
 //!   line drives its input or reference by planned point-to-point moves instead, repeated
 //!   in cycles from the first recorded sample and evaluated in closed form at every step of
@@ -55,15 +55,11 @@
 //!
 //! # Integration error
 //!
-//! Measured on the SDOF benchmark `ẍ + 0.4 ẋ + 4 x + 2 x³ + 0.3 sign(ẋ) = u` (low-pass
-//! form filter, corner 10 rad/s, levels 6/15/40, Ts = 0.01 s): the RMS difference between
-//! 20 sub-steps ([`DEFAULT_SUBSTEPS`]) and 80 sub-steps, relative to the signal's standard
-//! deviation, is 1.0e-4 (worst of position and velocity over the three levels, 500 s each).
-//! The Coulomb term makes the error first order in the step (3.9e-4 at 5 sub-steps, 2.0e-4
-//! at 10, 5.4e-5 at 40), since RK4 steps across velocity reversals blindly; for smooth
-//! models the error is far smaller. 1e-4 is well below the identification floors of the
-//! method (≥ 1e-3 relative), so the default stays at 20. Printed by `cargo run --release -p
-//! dynid-runtime --features test-support --example measurements -- integration`.
+//! Classical RK4 has a local error of order `h⁵`; a Coulomb term makes it first order in
+//! the step, since RK4 steps across velocity reversals blindly. [`DEFAULT_SUBSTEPS`] keeps
+//! the error on the SDOF benchmark well below the identification floors of the method
+//! (≥ 1e-3 relative): the measurement, and the command that prints it, are in
+//! docs/performance.md ("Measurements behind defaults").
 //!
 //! # Divergence
 //!
