@@ -1,97 +1,25 @@
-//! The JSON of the results: one schema for the command line (`--json`) and the Python
-//! package (`to_dict()`), built here for both.
+//! The results' JSON and what the front ends build around it, shared by the command line
+//! (`--json`) and the Python package (`to_dict()`).
 //!
-//! - [`identification`]: `dynid identify --json` (with `refined` from [`RefineReport`]);
-//! - [`detection`]: `dynid detect --json`;
-//! - [`DiagnosisJson`]: `dynid diagnose --json`;
-//! - [`level_frfs`] and [`diagnosis_frfs`]: the frequency responses per level that the
-//!   detection and diagnosis JSON (`frf`) carry.
+//! The documents themselves are the runtime's ([`dynid_runtime::schema`], one schema for
+//! both front ends; docs/json.md): [`IdentifyDoc`], [`DetectDoc`], [`DiagnosisJson`].
+//! The refinement report that `refined` carries ([`RefineReport`]) is the runtime's too.
+//! Built here: [`level_frfs`] and [`diagnosis_frfs`], the frequency responses per level that the
+//! detection and diagnosis JSON (`frf`) carry.
 
 use dsl_parser::ir::ModelIr;
-use dynid_runtime::data::{LevelSource, Split};
-use dynid_runtime::detect::{Detection, LevelFits, LevelsTooAlike};
+use dynid_runtime::data::LevelSource;
+use dynid_runtime::detect::Detection;
 use dynid_runtime::diagnose::Diagnosis;
 use dynid_runtime::frf::{self, LevelFrf};
 use dynid_runtime::ident::Identification;
 use dynid_runtime::record::Record;
-use serde::Serialize;
+pub use dynid_runtime::schema::{
+    detection_warnings, DetectDoc, DiagnoseDoc, IdentifyDoc, SCHEMA_VERSION,
+};
 
-/// `{"parameters": {name: {value, stderr, significant}}, "condition", "rows", "residual",
-/// "levels", "unidentifiable", "warnings", "fit_warnings", "filter", "estimated", "shapes"}`.
-pub fn identification(id: &Identification) -> serde_json::Value {
-    let params: serde_json::Map<String, serde_json::Value> = id
-        .params
-        .iter()
-        .map(|p| {
-            (
-                p.name.clone(),
-                serde_json::json!({
-                    "value": p.value,
-                    "stderr": p.stderr,
-                    "significant": p.significant,
-                }),
-            )
-        })
-        .collect();
-    let residual: serde_json::Map<String, serde_json::Value> = id
-        .residual
-        .iter()
-        .map(|r| (r.equation.clone(), serde_json::json!(r.per_level)))
-        .collect();
-    serde_json::json!({
-        "parameters": params,
-        "condition": id.condition,
-        "rows": id.rows,
-        "residual": residual,
-        "levels": id.levels,
-        "unidentifiable": id.unidentifiable,
-        "warnings": id.warnings,
-        "fit_warnings": id.fit_warnings,
-        "filter": id.filter,
-        "estimated": id.estimated,
-        "shapes": id.shapes,
-    })
-}
-
-/// The JSON of a detection: the detection, the element intensities, where each σ_v came
-/// from, the jackknife's blocks, the segments of a split record, the warnings and the
-/// frequency response per level.
-pub fn detection(
-    det: &Detection,
-    fits: &LevelFits,
-    warnings: &[LevelsTooAlike],
-    segments: Option<&Split>,
-    cycles_note: Option<&str>,
-    frf: &[LevelFrf],
-) -> serde_json::Value {
-    serde_json::json!({
-        "detection": det,
-        "intensities": fits.input.elements,
-        "sigma_v_source": fits.sigma_v_source,
-        "jackknife_blocks": fits.n_blocks,
-        "segments": segments,
-        "warnings": warnings,
-        "cycles_note": cycles_note,
-        "frf": frf,
-    })
-}
-
-/// The JSON of a diagnosis: its fields, with the extras next to them.
-#[derive(Serialize)]
-pub struct DiagnosisJson<'a> {
-    #[serde(flatten)]
-    pub diagnosis: &'a Diagnosis,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub segments: Option<&'a Split>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub refined: Option<&'a RefineReport>,
-    /// How every free run of the diagnosis starts.
-    pub free_run_start: &'static str,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub closed_loop_hint: Option<&'a str>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub frf: Option<&'a [LevelFrf]>,
-}
+/// The JSON of a diagnosis, with the refinement of its corrected model.
+pub type DiagnosisJson<'a> = DiagnoseDoc<'a, RefineReport>;
 
 /// The refinement and the free-run errors of both estimates (JSON `refined`).
 pub use dynid_runtime::refine::RefineReport;

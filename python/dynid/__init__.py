@@ -488,9 +488,10 @@ class Identification:
         Returns
         -------
         dict
-            ``parameters`` ({name: {value, stderr, significant}}), ``condition``, ``rows``,
-            ``residual``, ``levels``, ``unidentifiable``, ``warnings``, ``fit_warnings``,
-            ``filter``, ``estimated``, ``shapes``, and ``refined`` after a refinement.
+            ``schema_version``, ``parameters`` ({name: {value, stderr, significant}}),
+            ``condition``, ``rows``, ``residual``, ``levels``, ``unidentifiable``,
+            ``warnings``, ``fit_warnings``, ``filter``, ``estimated``, ``shapes``, and
+            ``refined`` after a refinement (every key: docs/json.md).
         """
         return self._d
 
@@ -807,8 +808,9 @@ class Detection:
         Returns
         -------
         dict
-            ``detection``, ``intensities``, ``sigma_v_source``, ``jackknife_blocks``,
-            ``segments``, ``warnings``, ``cycles_note``, ``frf``.
+            ``schema_version``, ``detection``, ``intensities``, ``sigma_v_source``,
+            ``jackknife_blocks``, ``segments``, ``warnings``, ``cycles_note``, ``frf``
+            (every key: docs/json.md).
         """
         return self._d
 
@@ -989,7 +991,8 @@ class Diagnosis:
         Returns
         -------
         dict
-            The diagnosis' fields with ``free_run_start`` and ``frf``.
+            ``schema_version`` and the diagnosis' fields with ``free_run_start`` and
+            ``frf`` (every key: docs/json.md).
         """
         return self._d
 

@@ -30,6 +30,7 @@ pub mod limits;
 pub(crate) mod prefetch;
 pub mod record;
 pub mod refine;
+pub mod schema;
 pub mod set_point;
 pub mod settle;
 pub mod silverbox;

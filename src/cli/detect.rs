@@ -4,9 +4,7 @@
 use super::common::{check_outputs, inputs, CsvArgs, SplitArgs, Staged};
 use dynid::plot::draw_curves;
 use dynid_runtime::data::{FileSource, LevelSource, RecordSource};
-use dynid_runtime::detect::{
-    detect_from_data_with_progress, levels_too_alike, DetectOptions, SigmaVSource,
-};
+use dynid_runtime::detect::{detect_from_data_with_progress, DetectOptions, SigmaVSource};
 use dynid_runtime::IdentifyOptions;
 use miette::{miette, IntoDiagnostic, WrapErr};
 use std::path::PathBuf;
@@ -154,7 +152,7 @@ pub fn run(args: Args) -> miette::Result<()> {
         .map(|s| s as &dyn LevelSource)
         .chain(segments.iter().map(|s| s as &dyn LevelSource))
         .collect();
-    let mut dopts = DetectOptions {
+    let dopts = DetectOptions {
         alpha: args.alpha,
         ..Default::default()
     };
@@ -170,9 +168,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let found = detect_from_data_with_progress(&ir, &levels, &iopts, &dopts, &[], &progress);
     bar.finish_and_clear();
     let (det, fits) = found?;
-    // The options the test ran with (the jackknife's degrees of freedom filled in).
-    dopts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
-    let warnings = levels_too_alike(&det, &dopts);
+    let warnings = dynid::schema::detection_warnings(&det, &fits, &dopts);
     let frfs = if args.json.is_some() || args.plot.is_some() {
         super::frf::level_frfs(&ir, &levels, &det, &fits.fits, args.frf.frf_periods)?
     } else {
@@ -184,15 +180,16 @@ pub fn run(args: Args) -> miette::Result<()> {
     let result = (|| -> miette::Result<()> {
         let mut staged = Staged::new();
         if let Some(out) = &args.json {
-            let text = serde_json::to_string_pretty(&dynid::schema::detection(
+            let doc = dynid::schema::DetectDoc::new(
                 &det,
                 &fits,
                 &warnings,
                 split.as_ref().map(|s| &s.split),
-                cycle_note.as_deref(),
                 &frfs,
-            ))
-            .into_diagnostic()?;
+            );
+            // Through a `Value`: the keys sorted, as the file has always had them.
+            let value = serde_json::to_value(doc).into_diagnostic()?;
+            let text = serde_json::to_string_pretty(&value).into_diagnostic()?;
             staged.write(out, text.as_bytes())?;
         }
         if let Some(out) = &args.plot {

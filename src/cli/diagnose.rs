@@ -342,6 +342,7 @@ pub fn write_outputs_with(
     let js = match json {
         Some(_) => Some(
             serde_json::to_string_pretty(&dynid::schema::DiagnosisJson {
+                schema_version: dynid::schema::SCHEMA_VERSION,
                 diagnosis: d,
                 segments: extras.segments,
                 refined: extras.refined,

@@ -29,7 +29,7 @@ pub use binary::BinarySource;
 pub use csv_file::{read_record_bytes, CsvSource};
 pub use cycles::{cut_cycles, find_period, Cycles};
 pub use format::{detect, read_record, read_record_within, FileSource, Format, FORMATS_READ};
-pub use record::RecordSource;
+pub use record::{check_columns, RecordSource};
 pub use split::{
     default_response, split_record, CutAt, Segment, Split, SplitChoice, SplitError, SplitOptions,
 };

@@ -1,16 +1,20 @@
 //! `dynid identify MODEL.dyn DATA.csv...`: identify the unknown parameters from one CSV file
 //! per excitation level, print the identified equations and optionally write JSON.
+//!
+//! This file holds the command's arguments and the order of its steps (identification,
+//! corner check, closed-loop hint, refinement); [`text`] writes the report on the terminal,
+//! [`json`] the document of `--json` (the runtime's schema).
 
 use super::common::{check_outputs, inputs, write_atomically, CsvArgs};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::read_record_within;
 use dynid_runtime::data::{FileSource, LevelSource};
-use dynid_runtime::ident::{corner_moves, print, Identification};
+use dynid_runtime::ident::{corner_moves, Identification};
 use dynid_runtime::record::Record;
 use dynid_runtime::refine::{self, RefineOptions};
 use dynid_runtime::sim::DEFAULT_SUBSTEPS;
 use dynid_runtime::{identify, IdentifyOptions};
-use miette::{miette, IntoDiagnostic};
+use miette::miette;
 use std::path::PathBuf;
 
 const LONG_HELP: &str = "\
@@ -141,7 +145,11 @@ pub struct Args {
     pub allow_large: bool,
 }
 
+mod json;
+mod text;
+
 pub use dynid::schema::RefineReport;
+pub use text::{render, render_refined};
 
 pub fn run(args: Args) -> miette::Result<()> {
     if args.segments.is_some() {
@@ -189,15 +197,9 @@ pub fn run(args: Args) -> miette::Result<()> {
         None => None,
     };
     if let Some(out) = &args.json {
-        let mut v = to_json(&id);
-        if let Some(r) = &refined {
-            v["refined"] = serde_json::to_value(r).into_diagnostic()?;
-        }
-        if let Some(h) = hint {
-            // Only where there is one: otherwise the JSON stays that of the Python package's `to_dict()`.
-            v["closed_loop_hint"] = serde_json::Value::String(h);
-        }
-        let text = serde_json::to_string_pretty(&v).into_diagnostic()?;
+        // The hint only where there is one: otherwise the document is that of the Python
+        // package's `to_dict()`.
+        let text = json::document(&id, refined.as_ref(), hint.as_deref())?;
         write_atomically(out, text.as_bytes())?;
     }
     Ok(())
@@ -406,71 +408,6 @@ pub(super) fn progress_bar(max_iter: usize) -> indicatif::ProgressBar {
     bar
 }
 
-/// Both estimates side by side, and their free-run errors.
-pub fn render_refined(rep: &RefineReport) -> String {
-    let r = &rep.refinement;
-    let mut s = format!(
-        "\noutput-error refinement: {} iterations ({}), {} sub-records, {} samples, \
-         mean-square weighted error {:.3e} -> {:.3e}\n",
-        r.iterations,
-        if r.converged {
-            "converged"
-        } else {
-            "iteration limit"
-        },
-        r.segments,
-        r.samples,
-        r.cost_start,
-        r.cost_end
-    );
-    if let Some(note) = &r.note {
-        s.push_str(&format!("refinement {note}\n"));
-    }
-    s.push_str(&format!(
-        "{:<12} {:>14} {:>14} {:>12} {:>9}\n",
-        "parameter", "covariance", "refined", "std. error", "change"
-    ));
-    for p in &r.params {
-        let change = if p.start != 0.0 {
-            format!("{:>+8.2}%", 100.0 * (p.value / p.start - 1.0))
-        } else {
-            format!("{:>9}", "-")
-        };
-        s.push_str(&format!(
-            "{:<12} {:>14} {:>14} {:>12} {change}\n",
-            p.name,
-            print::fmt_num(p.start),
-            print::fmt_num(p.value),
-            print::fmt_num(p.stderr),
-        ));
-    }
-    s.push_str(
-        "(std. error of the refined values from the final Jacobian, white residuals assumed: \
-         a lower bound)\n",
-    );
-    s.push_str(&format!(
-        "\n{:<28} {:>14} {:>14}\n",
-        "free-run RMS error", "covariance", "refined"
-    ));
-    for (what, (cov, refd)) in [("estimation", &rep.estimation), ("test", &rep.test)] {
-        for (c, f) in cov.iter().zip(refd) {
-            s.push_str(&format!(
-                "{:<28} {:>14} {:>14}   ({:.2}% -> {:.2}% of the signal std)\n",
-                format!("{what} {}", c.signal),
-                print::fmt_num(c.rms),
-                print::fmt_num(f.rms),
-                100.0 * c.relative,
-                100.0 * f.relative
-            ));
-        }
-    }
-    s.push_str(&format!(
-        "(each record driven by its inputs from its {})\n",
-        refine::FREE_RUN_START
-    ));
-    s
-}
-
 /// Identify from the CSV files named in `args`.
 pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identification> {
     let csv = args.csv.options(ir)?;
@@ -501,300 +438,5 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
     Ok(id)
 }
 
-/// Human-readable report: equations, parameter table, diagnostics.
-pub fn render(ir: &ModelIr, id: &Identification) -> String {
-    let mut s = print::format_equations(ir, id);
-    s.push('\n');
-    s.push_str(&format!(
-        "{:<12} {:>14} {:>12} {:>9}\n",
-        "parameter", "value", "std. error", "rel."
-    ));
-    for p in &id.params {
-        let rel = if p.value != 0.0 {
-            format!("{:>8.2}%", 100.0 * p.stderr / p.value.abs())
-        } else {
-            format!("{:>9}", "-")
-        };
-        s.push_str(&format!(
-            "{:<12} {:>14} {:>12} {rel}{}\n",
-            p.name,
-            print::fmt_num(p.value),
-            print::fmt_num(p.stderr),
-            if p.significant { "" } else { "  (n.s.)" }
-        ));
-    }
-    for sh in &id.shapes {
-        let (se, rel) = match sh.stderr {
-            Some(e) if sh.value != 0.0 => (
-                print::fmt_num(e),
-                format!("{:>8.2}%", 100.0 * e / sh.value.abs()),
-            ),
-            Some(e) => (print::fmt_num(e), format!("{:>9}", "-")),
-            None => ("–".to_string(), format!("{:>9}", "-")),
-        };
-        s.push_str(&format!(
-            "{:<12} {:>14} {:>12} {rel}  (shape, profiled)\n",
-            sh.name,
-            print::fmt_num(sh.value),
-            se
-        ));
-    }
-    if id.params.iter().any(|p| !p.significant) {
-        s.push_str(&format!(
-            "(n.s.): not significant, |value| ≤ {} std. errors — kept in the fit; the data \
-             do not show the term\n",
-            dynid_runtime::ident::SIGNIFICANCE_T
-        ));
-    }
-    for u in &id.unidentifiable {
-        s.push_str(&format!("{:<12} not identifiable: {}\n", u.name, u.reason));
-    }
-    s.push_str(&format!(
-        "\ncondition {:.3e}, {} rows, filter corners {} rad/s\n",
-        id.condition,
-        id.rows,
-        id.filter
-            .corners
-            .iter()
-            .map(|c| print::fmt_num(*c))
-            .collect::<Vec<_>>()
-            .join(", ")
-    ));
-    s.push_str(&format!(
-        "corners chosen by: {}\n",
-        id.filter.corners_from.describe()
-    ));
-    for r in &id.residual {
-        let lv: Vec<String> = r.per_level.iter().map(|v| format!("{v:.2e}")).collect();
-        s.push_str(&format!("residual {}: {}\n", r.equation, lv.join(" / ")));
-    }
-    for e in &id.estimated {
-        let cut: Vec<String> = e.cutoff.iter().map(|c| print::fmt_num(*c)).collect();
-        s.push_str(&format!(
-            "velocity {} estimated from {} (zero-phase differentiator, cutoff {} rad/s per level)\n",
-            e.signal,
-            e.from,
-            cut.join(" / ")
-        ));
-    }
-    s.push_str(&rest_line(id));
-    s.push_str(&noise_line(&id.noise));
-    s
-}
-
-/// One line where rests were left out: how many, per level, and the speed below which a
-/// body counted as standing still (on the first level that has rests). Nothing where no
-/// level has one.
-fn rest_line(id: &dynid_runtime::ident::Identification) -> String {
-    let found: Vec<&dynid_runtime::ident::RestSummary> = id
-        .levels
-        .iter()
-        .filter_map(|l| l.rests.as_ref())
-        .filter(|r| r.intervals > 0)
-        .collect();
-    let Some(first) = found.first() else {
-        return String::new();
-    };
-    let per_level: Vec<String> = id
-        .levels
-        .iter()
-        .map(|l| match &l.rests {
-            Some(r) => format!(
-                "{} ({} samples, {:.0}%)",
-                r.intervals,
-                r.samples,
-                100.0 * r.samples as f64 / l.samples.max(1) as f64
-            ),
-            None => "-".into(),
-        })
-        .collect();
-    let thr: Vec<String> = first
-        .threshold
-        .iter()
-        .map(|(b, t)| format!("{b} {} m/s", print::fmt_num(*t)))
-        .collect();
-    format!(
-        "rests left out of the moments (at rest a Coulomb force is anywhere within its bound): {} \
-         per level; at rest: speed below {} % of the RMS ({}) for at \
-         least {} ms (--keep-rests keeps them)\n",
-        per_level.join(" / "),
-        100.0 * dynid_runtime::ident::rests::REST_FRACTION,
-        thr.join(", "),
-        1e3 * dynid_runtime::ident::rests::MIN_REST
-    )
-}
-
-/// One line: the estimated noise per signal and what was done about it.
-fn noise_line(n: &dynid_runtime::ident::NoiseSummary) -> String {
-    let levels: Vec<String> = n
-        .fraction
-        .iter()
-        .map(|(sig, f)| format!("{sig} {:.1}%", 100.0 * f))
-        .collect();
-    let mut s = format!(
-        "measurement noise (estimated std / signal std, largest level): {}",
-        levels.join(", ")
-    );
-    if !n.uncertain.is_empty() {
-        s.push_str(&format!(
-            " (uncertain, floor dominated by the signal: {})",
-            n.uncertain.join(", ")
-        ));
-    }
-    if !n.corrected.is_empty() {
-        s.push_str(&format!("; de-biased: {}", n.corrected.join(", ")));
-    }
-    if !n.uncorrected.is_empty() {
-        s.push_str(&format!(
-            "; {}: {}",
-            if n.enabled {
-                "no correction for"
-            } else {
-                "correction off, biased"
-            },
-            n.uncorrected.join(", ")
-        ));
-    }
-    s.push('\n');
-    s
-}
-
-/// The JSON of `identify --json` ([`dynid::schema::identification`]).
-pub fn to_json(id: &Identification) -> serde_json::Value {
-    dynid::schema::identification(id)
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use dsl_parser::ir::FormFilter;
-    use dynid_runtime::sim::test_models::{sdof, SdofParams};
-    use dynid_runtime::sim::{simulate, SimConfig};
-    use std::path::Path;
-
-    fn sdof_ir() -> ModelIr {
-        sdof(
-            &SdofParams::benchmark(),
-            FormFilter::Lowpass { corner: 10.0 },
-            vec![6.0, 15.0, 40.0],
-        )
-    }
-    use std::io::Write;
-
-    fn write_csv(path: &Path, rec: &dynid_runtime::record::Record) {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-        writeln!(f, "t,disp,{}", rec.names[1..].join(",")).unwrap();
-        for k in 0..rec.len() {
-            write!(f, "{:.2}", k as f64 * rec.ts).unwrap();
-            for c in &rec.columns {
-                write!(f, ",{:e}", c[k]).unwrap();
-            }
-            writeln!(f).unwrap();
-        }
-    }
-
-    #[test]
-    fn identifies_from_csv_files_and_writes_json() {
-        let dir = tempfile::tempdir().unwrap();
-        let ir = sdof_ir();
-        let cfg = SimConfig {
-            duration: 400.0,
-            seed: 10,
-            ..Default::default()
-        };
-        let mut data = Vec::new();
-        for (i, rec) in simulate(&ir, &cfg).unwrap().records.iter().enumerate() {
-            let p = dir.path().join(format!("level{i}.csv"));
-            write_csv(&p, rec);
-            data.push(p);
-        }
-        let out = dir.path().join("result.json");
-        let args = Args {
-            model: "sdof.dyn".into(),
-            data,
-            json: Some(out.clone()),
-            csv: CsvArgs {
-                map: vec!["disp=m1.x".into()],
-                ..Default::default()
-            },
-            filter_corners: None,
-            no_balance: false,
-            balance: false,
-            no_noise_correction: false,
-            column_chains: false,
-            keep_rests: false,
-            no_corner_check: false,
-            refine: false,
-            test: Vec::new(),
-            weight: Vec::new(),
-            segment: None,
-            segments: None,
-            substeps: DEFAULT_SUBSTEPS,
-            allow_long: false,
-            allow_large: false,
-        };
-        let id = identify_files(&ir, &args).unwrap();
-        // Three noise-free levels of 400 s, as in tests/cli_identify.rs, whose seeds 5–9 gave
-        // at most 0.19 % (r); this seed (`cargo test -p dynid --bin dynid identifies_from_csv
-        // -- --nocapture`) gives d −0.12 %, k −0.02 %, k3 −0.04 %, r −0.06 %. The bound is
-        // 0.4 %, about twice the largest.
-        for (n, t) in [("d", 0.4), ("k", 4.0), ("k3", 2.0), ("r", 0.3)] {
-            let p = id.param(n).unwrap();
-            eprintln!("{n} {:+.3} %", 100.0 * (p.value / t - 1.0));
-            assert!((p.value / t - 1.0).abs() < 0.004, "{n}: {p:?}");
-        }
-        let text = render(&ir, &id);
-        assert!(text.starts_with("m1: 1.000 m1.x'' + "), "{text}");
-        write_atomically(
-            &out,
-            serde_json::to_string(&to_json(&id)).unwrap().as_bytes(),
-        )
-        .unwrap();
-        let v: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
-        assert!(v["parameters"]["k3"]["value"].as_f64().unwrap() > 1.9);
-        assert!(v["parameters"]["k3"]["stderr"].as_f64().unwrap() > 0.0);
-        assert!(v["condition"].as_f64().unwrap() >= 1.0);
-        assert_eq!(v["levels"].as_array().unwrap().len(), 3);
-        assert!(v["unidentifiable"].as_array().unwrap().is_empty());
-        assert_eq!(v["parameters"]["k3"]["significant"], true);
-        assert!(v["warnings"].as_array().unwrap().is_empty());
-        // No temporary files are left next to the output.
-        let n_files = std::fs::read_dir(dir.path()).unwrap().count();
-        assert_eq!(n_files, 4);
-    }
-
-    #[test]
-    fn bad_data_is_an_error_naming_the_file() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("bad.csv");
-        std::fs::write(&p, "t,m1.x,u\n0,1,2\n").unwrap();
-        let ir = sdof_ir();
-        let args = Args {
-            model: "sdof.dyn".into(),
-            data: vec![p.clone()],
-            json: None,
-            csv: CsvArgs::default(),
-            filter_corners: None,
-            no_balance: false,
-            balance: false,
-            no_noise_correction: false,
-            column_chains: false,
-            keep_rests: false,
-            no_corner_check: false,
-            refine: false,
-            test: Vec::new(),
-            weight: Vec::new(),
-            segment: None,
-            segments: None,
-            substeps: DEFAULT_SUBSTEPS,
-            allow_long: false,
-            allow_large: false,
-        };
-        let e = identify_files(&ir, &args).unwrap_err();
-        let code = e.code().map(|c| c.to_string());
-        let e = format!("{e:?}");
-        assert_eq!(code.as_deref(), Some("dynid::data::missing_column"), "{e}");
-        assert!(e.contains("bad.csv") && e.contains("`m1.v`"), "{e}");
-    }
-}
+mod tests;
