@@ -45,7 +45,11 @@ fn param_vector(ir: &ModelIr, id: &Identification) -> Vec<f64> {
 
 /// Cross-validated scores of a variant: covariance residual (mean over withheld levels)
 /// and the training fits per withheld level.
-pub(super) fn cross_validate(m: &Measurement, ir: &ModelIr, n: usize) -> (f64, Vec<Identification>) {
+pub(super) fn cross_validate(
+    m: &Measurement,
+    ir: &ModelIr,
+    n: usize,
+) -> (f64, Vec<Identification>) {
     let mut fits = Vec::with_capacity(n);
     let (mut res, mut k) = (0.0, 0);
     for w in 0..n {

@@ -104,10 +104,7 @@ pub(super) fn fit_p(t: &Trial, scope: &[Scoped], share: &[f64]) -> Option<(f64, 
     let grid: Vec<f64> = (0..=P_STEPS)
         .map(|i| lo + (hi - lo) * i as f64 / P_STEPS as f64)
         .collect();
-    let chis: Vec<f64> = grid
-        .iter()
-        .map(|&p| chi2_at(t, scope, p, share))
-        .collect();
+    let chis: Vec<f64> = grid.iter().map(|&p| chi2_at(t, scope, p, share)).collect();
     let best = (0..grid.len()).min_by(|&i, &j| chis[i].total_cmp(&chis[j]))?;
     if !chis[best].is_finite() {
         return None;
