@@ -126,7 +126,7 @@ fn si_rig_25_s_at_1_khz_within_five_percent() {
 fn free_mass_25_s_at_1_khz_within_five_percent() {
     // No spring: the position wanders and rarely crosses its mean, so 25 s hold little
     // information on the slow end; the spread over seeds is wide (one of these three seeds
-    // is off by 5–6 % with a jackknife error of 37 %). Each estimate is checked against its
+    // is off by 5–6 % with a standard error of 37 %). Each estimate is checked against its
     // own standard error, the median over the seeds against 5 %.
     let ir = dsl_parser::compile_str(
         "free",

@@ -809,7 +809,8 @@ class Detection:
         -------
         dict
             ``schema_version``, ``detection``, ``intensities``, ``sigma_v_source``,
-            ``jackknife_blocks``, ``segments``, ``warnings``, ``cycles_note``, ``frf``
+            ``batch_blocks`` (also as ``jackknife_blocks`` until schema version 3),
+            ``segments``, ``warnings``, ``cycles_note``, ``frf``
             (every key: docs/json.md).
         """
         return self._d

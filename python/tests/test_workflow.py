@@ -70,7 +70,7 @@ def test_identify_to_dict_is_the_cli_json(csv_levels, tmp_path):
     expected = cli_json(exe, ["identify", str(model), *files], tmp_path)
     got = dynid.Model.from_file(model).identify(files).to_dict()
     assert got == expected
-    assert got["schema_version"] == 1  # docs/json.md
+    assert got["schema_version"] == 2  # docs/json.md
 
 
 def test_detect_to_dict_is_the_cli_json(csv_levels, tmp_path):
@@ -79,7 +79,7 @@ def test_detect_to_dict_is_the_cli_json(csv_levels, tmp_path):
     expected = cli_json(exe, ["detect", str(model), *files], tmp_path)
     got = dynid.detect(model, files).to_dict()
     assert got == expected
-    assert got["schema_version"] == 1
+    assert got["schema_version"] == 2
 
 
 def test_diagnose_to_dict_is_the_cli_json(csv_levels, tmp_path):
@@ -88,7 +88,7 @@ def test_diagnose_to_dict_is_the_cli_json(csv_levels, tmp_path):
     expected = cli_json(exe, ["diagnose", str(model), *files, "--quiet"], tmp_path)
     got = dynid.diagnose(model, files).to_dict()
     assert got == expected
-    assert got["schema_version"] == 1
+    assert got["schema_version"] == 2
 
 
 def test_csv_files_and_arrays_give_the_same_parameters(csv_levels):

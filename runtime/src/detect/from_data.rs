@@ -507,7 +507,7 @@ pub fn level_fits(
     })
 }
 
-/// [`level_fits`] followed by [`detect`], with the jackknife's degrees of freedom filled in
+/// [`level_fits`] followed by [`detect`], with the batch-means errors' degrees of freedom filled in
 /// when `detect_opts.se_dof` is `None`, and the means the linear model cannot explain
 /// ([`super::unexplained_means`]).
 pub fn detect_from_data(

@@ -78,7 +78,7 @@ fn critical(alpha: f64, dof: usize, se_dof: Option<f64>) -> f64 {
 /// The stiffness and damping curves of `det` that stayed constant on levels too alike to
 /// reveal an effect of [`MAX_INVISIBLE`] of their value. `opts` must be the options the
 /// detection ran with (`se_dof` included: [`super::detect_from_data`] sets it to the
-/// jackknife blocks minus one).
+/// batch-means blocks minus one).
 pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooAlike> {
     let mut out = Vec::new();
     for r in &det.params {
@@ -144,7 +144,7 @@ pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooA
 }
 
 /// The warnings of [`levels_too_alike`] that `dynid detect` gives on `levels` for the model
-/// `ir`: its per-level fits with the default detection settings (the jackknife's degrees
+/// `ir`: its per-level fits with the default detection settings (the batch-means errors' degrees
 /// of freedom filled in as [`super::detect_from_data`] does), without the search for
 /// constant forces. For a front end that does not run the detection itself (the diagnosis).
 pub fn levels_too_alike_in(

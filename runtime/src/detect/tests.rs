@@ -267,7 +267,7 @@ fn cubic_and_coulomb_together() {
 
 /// Fraction of fully linear elements (constant k and d, 5 levels) that are not reported
 /// linear, over `n` seeds. With `se_dof`, the stated errors are themselves noisy as a
-/// jackknife's are: true error × √(χ²_ν/ν).
+/// batch-means errors are: true error × √(χ²_ν/ν).
 fn false_alarm_rate(
     n: u64,
     se_dof: Option<f64>,
@@ -316,13 +316,13 @@ fn false_alarm_rate(
 fn linear_system_reported_linear() {
     // Exact standard errors: two curves at α = 1e-3 each → ≈ 0.2 %.
     let exact = false_alarm_rate(2000, None, None, None);
-    // Jackknife-like errors from 10 blocks (ν = 9), referred to F(L−1, 9).
+    // Batch-means errors from 10 blocks (ν = 9), referred to F(L−1, 9).
     let jack_f = false_alarm_rate(2000, None, Some(9.0), Some(9.0));
     // The same errors taken at face value (what the F reference protects against).
     let jack_naive = false_alarm_rate(2000, None, Some(9.0), None);
     println!(
-        "false-alarm rate over 2000 seeds: exact se {:.2} %, jackknife se with F test {:.2} %, \
-         jackknife se taken as exact {:.2} %",
+        "false-alarm rate over 2000 seeds: exact se {:.2} %, batch-means se with F test {:.2} %, \
+         batch-means se taken as exact {:.2} %",
         100.0 * exact,
         100.0 * jack_f,
         100.0 * jack_naive

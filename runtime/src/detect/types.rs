@@ -42,7 +42,7 @@ pub struct ParamCurve {
     pub element: String,
     pub role: Role,
     pub values: Vec<f64>,
-    /// Standard errors (e.g. block jackknife), same length, all > 0.
+    /// Standard errors (e.g. batch means over time blocks), same length, all > 0.
     pub stderrs: Vec<f64>,
 }
 
@@ -98,9 +98,9 @@ pub struct DetectOptions {
     /// standard errors get so small that the ~1 % bias of any linear fit to a real rig
     /// would be "significant"; 2 % is below what the templates are needed for.
     pub min_rel_change: f64,
-    /// Degrees of freedom of the standard errors (block jackknife with B blocks: B − 1).
+    /// Degrees of freedom of the standard errors (batch means over B blocks: B − 1).
     /// When set, the constancy statistic χ²/(L−1) is referred to F(L−1, ν) instead of
-    /// χ²_(L−1)/(L−1): a jackknife variance from 10 blocks is itself uncertain by ~±45 %,
+    /// χ²_(L−1)/(L−1): a batch-means variance from 10 blocks is itself uncertain by ~±45 %,
     /// and treating it as exact inflates false alarms several-fold. F with the dof of one
     /// level is conservative when the levels' errors are estimated independently.
     pub se_dof: Option<f64>,

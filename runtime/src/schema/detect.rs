@@ -18,7 +18,9 @@ pub struct DetectDoc<'a> {
     pub detection: &'a Detection,
     pub intensities: &'a [ElementIntensity],
     pub sigma_v_source: &'a [SigmaVSource],
-    /// The time blocks of the standard errors (fewest over the levels).
+    /// The time blocks of the batch-means standard errors (fewest over the levels).
+    pub batch_blocks: usize,
+    /// `batch_blocks` under its name before schema version 2 (removed in version 3).
     pub jackknife_blocks: usize,
     /// The segments, where one record was cut into the levels (else `null`).
     pub segments: Option<&'a Split>,
@@ -44,6 +46,7 @@ impl<'a> DetectDoc<'a> {
             detection: det,
             intensities: &fits.input.elements,
             sigma_v_source: &fits.sigma_v_source,
+            batch_blocks: fits.n_blocks,
             jackknife_blocks: fits.n_blocks,
             segments,
             warnings,

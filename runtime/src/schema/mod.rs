@@ -22,7 +22,7 @@ pub use diagnose::DiagnoseDoc;
 pub use identify::IdentifyDoc;
 
 /// The version of the JSON documents (key `schema_version`).
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// The type parameter of a document without a refinement (`refined` is then absent).
 #[derive(Debug, serde::Serialize)]

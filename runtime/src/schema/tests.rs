@@ -105,6 +105,7 @@ fn detect_document_carries_the_warnings_of_the_tests_degrees_of_freedom() {
     assert_eq!(
         keys(&v),
         [
+            "batch_blocks",
             "cycles_note",
             "detection",
             "frf",
@@ -116,6 +117,8 @@ fn detect_document_carries_the_warnings_of_the_tests_degrees_of_freedom() {
             "warnings"
         ]
     );
+    assert_eq!(v["batch_blocks"], fits.n_blocks);
+    // The name before schema version 2, kept for one version.
     assert_eq!(v["jackknife_blocks"], fits.n_blocks);
     assert_eq!(v["detection"], serde_json::to_value(&det).unwrap());
     assert!(v["segments"].is_null() && v["cycles_note"].is_null());

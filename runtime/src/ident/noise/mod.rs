@@ -21,7 +21,7 @@
 //! deviation are corrected; below that the bias (`∝ σ²`) is negligible next to the
 //! estimates' spread (the measured errors with and without the correction are in
 //! docs/performance.md, from the example `measurements -- noise`). The moments are changed
-//! after accumulation, block by block, so the jackknife sees the corrected moments too.
+//! after accumulation, block by block, so the batch-means errors see the corrected moments too.
 //!
 //! - `c·sᵖ` with `s = Σ aₖ yₖ` a linear form in measured signals (noise variance
 //!   `σ_s² = Σ aₖ² σₖ²`): the column becomes that of the unbiased polynomial

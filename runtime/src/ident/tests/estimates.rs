@@ -147,7 +147,7 @@ fn standard_errors_cover_the_error() {
     for (k, n) in inside.iter().enumerate() {
         assert!(*n >= 17, "{}: {n} of {seeds}", truth[k].0);
     }
-    // Standard errors of the right order: a jackknife that was erratic by a factor of up
+    // Standard errors of the right order: an error estimate erratic by a factor of up
     // to ten, or an uncorrected noise bias, would fail this.
     for (k, v) in z2.iter().enumerate() {
         let rms = (v / seeds as f64).sqrt();
