@@ -2,7 +2,8 @@
 //! unreachable (`expect("invariant: …")`, or `expect("grammar: …")` where the parser's
 //! grammar guarantees the shape), and no bare `unwrap()` remains: bad input must come back
 //! as an error, never as a panic. Unit-test modules (`#[cfg(test)] mod tests { … }` at the
-//! end of a file, `tests.rs`) and test-only helpers are exempt. Arithmetic on a count
+//! end of a file, `tests.rs`, a `tests/` folder its parent declares `#[cfg(test)] mod tests;`)
+//! and test-only helpers are exempt. Arithmetic on a count
 //! converted from a float (`x.ceil() as usize + 1`) is checked or saturating: the
 //! conversion saturates, and the `+` after it overflows.
 //!
@@ -30,11 +31,33 @@ fn is_test_file(p: &Path) -> bool {
         || p.ends_with("data/fuzz.rs")
 }
 
+/// A folder `tests/` of unit tests inside a source tree: its parent module (`mod.rs` or
+/// `lib.rs` beside it) declares it `#[cfg(test)] mod tests;`, so none of it is built into
+/// the library. A `tests/` folder declared otherwise is audited like any other code.
+fn is_test_folder(dir: &Path) -> bool {
+    if dir.file_name().is_none_or(|n| n != "tests") {
+        return false;
+    }
+    let Some(parent) = dir.parent() else {
+        return false;
+    };
+    ["mod.rs", "lib.rs"].iter().any(|m| {
+        std::fs::read_to_string(parent.join(m)).is_ok_and(|text| {
+            let lines: Vec<&str> = text.lines().map(str::trim).collect();
+            lines
+                .windows(2)
+                .any(|w| w[0] == "#[cfg(test)]" && w[1] == "mod tests;")
+        })
+    })
+}
+
 fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     for e in std::fs::read_dir(dir).unwrap() {
         let p = e.unwrap().path();
         if p.is_dir() {
-            rust_files(&p, out);
+            if !is_test_folder(&p) {
+                rust_files(&p, out);
+            }
         } else if p.extension().is_some_and(|e| e == "rs") && !is_test_file(&p) {
             out.push(p);
         }
@@ -161,6 +184,18 @@ fn the_audit_reads_past_a_test_module_declared_elsewhere() {
     let text = "#[cfg(test)]\nmod tests;\nfn a() {\n    x.unwrap();\n}\n";
     let found: Vec<usize> = offences(text).iter().map(|o| o.0).collect();
     assert_eq!(found, [4]);
+}
+
+#[test]
+fn only_a_tests_folder_declared_cfg_test_is_left_out() {
+    let dir = tempfile::tempdir().unwrap();
+    for (module, decl) in [("a", "#[cfg(test)]\nmod tests;\n"), ("b", "mod tests;\n")] {
+        std::fs::create_dir_all(dir.path().join(module).join("tests")).unwrap();
+        std::fs::write(dir.path().join(module).join("mod.rs"), decl).unwrap();
+    }
+    assert!(is_test_folder(&dir.path().join("a").join("tests")));
+    assert!(!is_test_folder(&dir.path().join("b").join("tests")));
+    assert!(!is_test_folder(&dir.path().join("a")));
 }
 
 #[test]

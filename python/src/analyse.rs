@@ -5,7 +5,7 @@ use crate::errors::{
     compile_error, guarded, identify_error, option_error, report_error, runtime_error,
 };
 use crate::levels::{bind, bind_held, refs, segment_sources, split_choice, split_levels, LevelIn};
-use crate::model::{json, read_records, report_progress, CompiledModel, SimLevel};
+use crate::model::{json, read_records, report_progress, sim_level, CompiledModel, SimLevel};
 use dynid::dsl_parser;
 use dynid::runtime::data::Split;
 use dynid::runtime::detect::detect_from_data;
@@ -120,17 +120,7 @@ pub(crate) fn split<'py>(
                 "dynid::split::option",
             ));
         };
-        let out = records
-            .into_iter()
-            .map(|r| {
-                let cols = r
-                    .columns
-                    .into_iter()
-                    .map(|c| PyArray1::from_vec(py, c))
-                    .collect();
-                (r.names, cols, r.ts, r.t0)
-            })
-            .collect();
+        let out = records.into_iter().map(|r| sim_level(py, r)).collect();
         Ok((json(&split)?, split.table(), out, labels))
     })
 }

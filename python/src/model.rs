@@ -36,6 +36,17 @@ pub(crate) struct CompiledModel {
 /// One simulated level: signal names, columns, sample interval, start time.
 pub(crate) type SimLevel<'py> = (Vec<String>, Vec<Bound<'py, PyArray1<f64>>>, f64, f64);
 
+/// A record as Python receives it: names, one NumPy array per column (moved, no copy), the
+/// sample interval and the start time.
+pub(crate) fn sim_level(py: Python<'_>, r: Record) -> SimLevel<'_> {
+    let cols = r
+        .columns
+        .into_iter()
+        .map(|c| PyArray1::from_vec(py, c))
+        .collect();
+    (r.names, cols, r.ts, r.t0)
+}
+
 pub(crate) fn json<T: serde::Serialize>(v: &T) -> PyResult<String> {
     serde_json::to_string(v).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))
 }
@@ -136,18 +147,7 @@ impl CompiledModel {
                 .detach(|| sim::simulate(ir, &cfg))
                 .map_err(|e| runtime_error(py, &e))?;
             let truth = json(&out.truth)?;
-            let records = out
-                .records
-                .into_iter()
-                .map(|r| {
-                    let cols = r
-                        .columns
-                        .into_iter()
-                        .map(|c| PyArray1::from_vec(py, c))
-                        .collect();
-                    (r.names, cols, r.ts, r.t0)
-                })
-                .collect();
+            let records = out.records.into_iter().map(|r| sim_level(py, r)).collect();
             Ok((records, truth))
         })
     }
@@ -195,17 +195,7 @@ impl CompiledModel {
                         .collect::<Result<Vec<_>, _>>()
                 })
                 .map_err(|e| runtime_error(py, &e))?;
-            Ok(runs
-                .into_iter()
-                .map(|r| {
-                    let cols = r
-                        .columns
-                        .into_iter()
-                        .map(|c| PyArray1::from_vec(py, c))
-                        .collect();
-                    (r.names, cols, r.ts, r.t0)
-                })
-                .collect())
+            Ok(runs.into_iter().map(|r| sim_level(py, r)).collect())
         })
     }
 
