@@ -227,7 +227,7 @@ impl CompiledModel {
             let sources = bind(py, ir, &levels)?;
             let opts = IdentifyOptions {
                 corners,
-                balance: Some(balance),
+                balance,
                 noise_correction,
                 column_chains,
                 keep_rests,

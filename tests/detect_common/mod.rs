@@ -41,7 +41,7 @@ pub fn detect_levels(ir: &ModelIr, records: &[Record], balance: bool) -> (Detect
         .collect();
     let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
     let opts = IdentifyOptions {
-        balance: Some(balance),
+        balance,
         ..Default::default()
     };
     // The progress contract: one call per template simulation, numbered 1…N, each with a

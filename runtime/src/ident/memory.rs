@@ -102,7 +102,7 @@ pub fn estimate(
     opts: &IdentifyOptions,
 ) -> Result<MemoryEstimate, IdentifyError> {
     let bank = super::bank::choose_bank(ir, opts)?;
-    let mut plan = build_structure(ir, opts.balance.unwrap_or(false), &bank)?;
+    let mut plan = build_structure(ir, opts.balance, &bank)?;
     if opts.noise_correction {
         // Attached only where the data turn out noisy: the estimate assumes they do.
         super::noise::attach(&mut plan, ir);

@@ -34,9 +34,9 @@ pub struct IdentifyOptions {
     /// Signals driving the filter bank. `None`: the model's filter block, else the measured
     /// positions and inputs.
     pub drivers: Option<Vec<SignalId>>,
-    /// Add virial and power-balance rows where velocities are measured. `None`: off — they
-    /// were measured not to improve the pooled estimate (see the crate tests).
-    pub balance: Option<bool>,
+    /// Add virial and power-balance rows where velocities are measured (default: no; they
+    /// do not improve the pooled estimate, `ident::tests::recovery`).
+    pub balance: bool,
     /// Time blocks per level for the standard errors (hat windows span two blocks). `None`:
     /// chosen from the record ([`design::blocks`]: between 20 and 80).
     pub n_blocks: Option<usize>,
@@ -80,7 +80,7 @@ impl Default for IdentifyOptions {
             n_corners: 6,
             order: None,
             drivers: None,
-            balance: None,
+            balance: false,
             n_blocks: None,
             chunk_len: 8192,
             rcond: 1e-10,

@@ -81,10 +81,11 @@ pub struct Args {
         allow_hyphen_values = true
     )]
     pub filter_corners: Option<Vec<f64>>,
-    /// Leave out the virial / power-balance rows (the default).
+    /// Leave out the virial / power-balance rows. They are left out unless `--balance` is
+    /// given; this flag only makes that explicit in a script.
     #[arg(long = "no-balance", conflicts_with = "balance")]
     pub no_balance: bool,
-    /// Add virial / power-balance rows where velocities are measured.
+    /// Add virial / power-balance rows where velocities are measured (off by default).
     #[arg(long)]
     pub balance: bool,
     /// Leave the moments of nonlinear terms uncorrected for measurement noise (by default
@@ -419,7 +420,7 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
     let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
     let opts = IdentifyOptions {
         corners: args.filter_corners.clone(),
-        balance: Some(args.balance && !args.no_balance),
+        balance: args.balance && !args.no_balance,
         noise_correction: !args.no_noise_correction,
         column_chains: args.column_chains,
         keep_rests: args.keep_rests,

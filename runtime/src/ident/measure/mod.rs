@@ -39,7 +39,7 @@ pub fn measure<'m>(
     // Before any sample is read: a model too large for memory is refused with the estimate.
     memory::check(ir, levels.len(), opts, 0.0, "identification")?;
     let bank = choose_bank(ir, opts)?;
-    let mut plan = build_structure(ir, opts.balance.unwrap_or(false), &bank)?;
+    let mut plan = build_structure(ir, opts.balance, &bank)?;
 
     let t0 = Instant::now();
     let stats = first_pass::all_levels(ir, &plan, levels, opts.chunk_len)?;

@@ -7,7 +7,7 @@ fn sdof_noise_free_within_one_percent() {
     let ir = sdof_model("");
     for balance in [false, true] {
         let opts = IdentifyOptions {
-            balance: Some(balance),
+            balance,
             ..Default::default()
         };
         let id = run(&ir, sdof_data(), &opts);
@@ -44,7 +44,7 @@ fn sdof_five_percent_noise_within_two_percent() {
     let recs = noisy_sdof_data();
     for balance in [false, true] {
         let opts = IdentifyOptions {
-            balance: Some(balance),
+            balance,
             ..Default::default()
         };
         let id = run(&ir, recs, &opts);
