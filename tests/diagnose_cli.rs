@@ -4,32 +4,10 @@
 mod common;
 mod figures;
 
-use common::{dynid, stderr};
+use common::{dynid, model_path as model, stderr, two_mass_levels as simulate};
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
-
-fn model(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("models")
-        .join(name)
-}
-
-/// Three levels of two_mass (cubic coupling spring and Coulomb friction) in `dir/data`.
-fn simulate(dir: &Path) -> Vec<PathBuf> {
-    let data = dir.join("data");
-    let st = dynid()
-        .arg("simulate")
-        .arg(model("two_mass.dyn"))
-        .args(["--duration", "200", "--seed", "5", "--out"])
-        .arg(&data)
-        .output()
-        .unwrap();
-    assert!(st.status.success(), "{}", stderr(&st));
-    (1..=3)
-        .map(|i| data.join(format!("level_{i}.csv")))
-        .collect()
-}
 
 /// Files directly in `dir` (not the data folder).
 fn files_in(dir: &Path) -> Vec<String> {

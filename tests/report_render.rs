@@ -10,7 +10,7 @@
 
 mod common;
 
-use common::{dynid, stderr};
+use common::{dynid, model_path as model, stderr, two_mass_levels};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -148,12 +148,6 @@ fn assert_readable(what: &str, l: &Layout, min_figures: usize, fit_window: bool)
     }
 }
 
-fn model(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("models")
-        .join(name)
-}
-
 #[test]
 fn the_report_and_the_detect_figures_are_readable_on_a_laptop_screen() {
     let Some(browser) = browser() else {
@@ -165,18 +159,7 @@ fn the_report_and_the_detect_figures_are_readable_on_a_laptop_screen() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("data");
-    let st = dynid()
-        .arg("simulate")
-        .arg(model("two_mass.dyn"))
-        .args(["--duration", "200", "--seed", "5", "--out"])
-        .arg(&data)
-        .output()
-        .unwrap();
-    assert!(st.status.success(), "{}", stderr(&st));
-    let levels: Vec<PathBuf> = (1..=3)
-        .map(|i| data.join(format!("level_{i}.csv")))
-        .collect();
+    let levels = two_mass_levels(dir.path());
     let shots = Path::new(env!("CARGO_TARGET_TMPDIR")).join("report_render");
     std::fs::create_dir_all(&shots).unwrap();
 

@@ -83,7 +83,6 @@ pub fn error_row(case: &str, ir: &ModelIr, id: &Identification) -> Vec<(String, 
     errs
 }
 
-/// The `dynid` binary of this build.
 /// `models/NAME` as an absolute path (the CLI tests run in temporary folders).
 pub fn model_path(name: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -91,8 +90,26 @@ pub fn model_path(name: &str) -> std::path::PathBuf {
         .join(name)
 }
 
+/// The `dynid` binary of this build.
 pub fn dynid() -> std::process::Command {
     std::process::Command::new(env!("CARGO_BIN_EXE_dynid"))
+}
+
+/// Three levels of two_mass (cubic coupling spring and Coulomb friction; 200 s, seed 5)
+/// written by `dynid simulate` into `dir/data`: the data of the CLI's diagnosis tests.
+pub fn two_mass_levels(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let data = dir.join("data");
+    let st = dynid()
+        .arg("simulate")
+        .arg(model_path("two_mass.dyn"))
+        .args(["--duration", "200", "--seed", "5", "--out"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{}", stderr(&st));
+    (1..=3)
+        .map(|i| data.join(format!("level_{i}.csv")))
+        .collect()
 }
 
 /// A command's standard error with miette's line wrapping undone.

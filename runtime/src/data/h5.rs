@@ -75,10 +75,7 @@ impl H5 {
                 .map(|&d| d as usize)
                 .collect();
             let dtype = handle.dtype().map_err(|e| err(&e))?;
-            let class = handle
-                .attrs()
-                .ok()
-                .and_then(|a| a.get("MATLAB_class").and_then(attr_text));
+            let class = matlab_class(&handle);
             let numeric = matches!(
                 dtype,
                 DType::F32
@@ -242,10 +239,7 @@ impl H5 {
                     k + 1
                 )));
             };
-            let class = ds
-                .attrs()
-                .ok()
-                .and_then(|a| a.get("MATLAB_class").and_then(attr_text));
+            let class = matlab_class(&ds);
             if class.as_deref() != Some("char") {
                 return Err(self.err(format!(
                     "cell {} of `names` holds {}, not a char vector: {help}",
@@ -273,6 +267,13 @@ impl H5 {
 
 /// The most cells a `names` cell array may hold.
 const MAX_NAMES: usize = 100_000;
+
+/// A dataset's `MATLAB_class` attribute (`double`, `char`, `cell`, …), where it has one.
+fn matlab_class(ds: &Dataset) -> Option<String> {
+    ds.attrs()
+        .ok()
+        .and_then(|a| a.get("MATLAB_class").and_then(attr_text))
+}
 
 /// The characters of a MATLAB char dataset (UTF-16 code units; unpaired surrogates
 /// become U+FFFD).
