@@ -4,7 +4,7 @@
 //! views and the inverse of compilation ([`print`]), the edits a back end may make to a
 //! model ([`edit`]: add a force element, set a nominal value), the number formats
 //! ([`num`]) and the quoting of user text in messages ([`text`]: invisible and control
-//! characters escaped and named). It depends on serde alone — no grammar, no code generator, no I/O — so the
+//! characters escaped and named). It depends on serde and serde_json alone — no grammar, no code generator, no I/O — so the
 //! numerics (`dynid-runtime`) link it without the language front end (`dsl-parser`), which
 //! re-exports it as `dsl_parser::{ir, print, edit, num, text}`.
 

@@ -12,7 +12,6 @@
 mod binary;
 mod csv_file;
 mod csv_parse;
-pub mod cycles;
 mod format;
 #[doc(hidden)]
 pub mod fuzz;
@@ -27,9 +26,9 @@ mod text;
 
 pub use binary::BinarySource;
 pub use csv_file::{read_record_bytes, CsvSource};
-pub use cycles::{cut_cycles, find_period, Cycles};
 pub use format::{detect, read_record, read_record_within, FileSource, Format, FORMATS_READ};
 pub use record::{check_columns, RecordSource};
+pub use split::cycles::{self, cut_cycles, find_period, Cycles};
 pub use split::{
     default_response, split_record, CutAt, Segment, Split, SplitChoice, SplitError, SplitOptions,
 };

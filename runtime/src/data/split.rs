@@ -62,6 +62,7 @@ const MIN_CROSSINGS: usize = 10;
 const CROSSING_HYSTERESIS: f64 = 0.05;
 
 mod choice;
+pub mod cycles;
 mod error;
 
 pub use choice::{CutAt, SplitChoice};
@@ -99,7 +100,7 @@ pub struct Segment {
 }
 
 /// The segments of a record: cut by amplitude, sorted by [`Segment::sigma`], smallest
-/// first; cut at cycles ([`super::cycles`]), in time order.
+/// first; cut at cycles ([`cycles`]), in time order.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Split {
     /// The signal whose amplitude was judged.
@@ -114,7 +115,7 @@ pub struct Split {
     /// Cut at the cycles of a repeated signal: the period and the cuts (`None`: cut by
     /// amplitude).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub cycles: Option<super::cycles::Cycles>,
+    pub cycles: Option<cycles::Cycles>,
 }
 
 impl Split {
@@ -150,7 +151,7 @@ impl Split {
     /// whose amplitudes differ).
     pub fn cycles_note(&self) -> Option<String> {
         let c = self.cycles.as_ref()?;
-        if !super::cycles::Cycles::alike_amplitudes(self) {
+        if !cycles::Cycles::alike_amplitudes(self) {
             return None;
         }
         let (lo, hi) = self
@@ -173,7 +174,7 @@ impl Split {
             sig(lo, 4, false),
             sig(hi, 4, false),
             hi / lo,
-            super::cycles::ALIKE_RATIO
+            cycles::ALIKE_RATIO
         ))
     }
 

@@ -1,9 +1,10 @@
 //! The front ends' choice of how one record is cut into levels (`--segments`, `--split-by`,
 //! `--cut`; Python `segments=`, `split_by=`, `cut=`): at the cycles of a repeated
-//! trajectory (`super::super::cycles`) or by amplitude ([`super::split_record`]).
+//! trajectory (`super::cycles`) or by amplitude ([`super::split_record`]).
 
-use super::super::cycles::{cut_cycles, Cycles, MIN_CORRELATION};
-use super::{default_response, split_record, Split, SplitError, SplitOptions};
+use super::cycles::{cut_cycles, Cycles, MIN_CORRELATION};
+use super::error::SplitError;
+use super::{default_response, split_record, Split, SplitOptions};
 use crate::record::Record;
 use dynid_ir::ir::{ModelIr, SignalKind};
 use dynid_ir::num::sig;

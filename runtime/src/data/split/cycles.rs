@@ -28,8 +28,8 @@
 //! they serve diagnosis (a withheld cycle is new data for the same motion) but tell
 //! detection nothing ([`Cycles::alike_amplitudes`]).
 
-use super::split::{Segment, Split};
-use super::MIN_SAMPLES;
+use super::{Segment, Split};
+use crate::data::MIN_SAMPLES;
 use crate::record::Record;
 use dynid_ir::num::sig;
 use realfft::num_complex::Complex;
