@@ -1,7 +1,7 @@
 //! Identification and detection must survive any small record: random scales (tiny, huge,
 //! subnormal), constant columns, raw values and few levels give estimates that are finite
 //! or an error — never a panic, a hang (libFuzzer's `-timeout`) or a non-finite result
-//! (`dynid_runtime::data::fuzz::check_numerics`).
+//! (`dynid_runtime::fuzz::check_numerics`).
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -10,7 +10,7 @@ use std::sync::OnceLock;
 fn irs() -> &'static [dsl_parser::ir::ModelIr] {
     static IRS: OnceLock<Vec<dsl_parser::ir::ModelIr>> = OnceLock::new();
     IRS.get_or_init(|| {
-        dynid_runtime::data::fuzz::NUMERIC_MODELS
+        dynid_runtime::fuzz::NUMERIC_MODELS
             .iter()
             .map(|m| dsl_parser::compile_str("fuzz.dyn", m).expect("the model compiles"))
             .collect()
@@ -18,5 +18,5 @@ fn irs() -> &'static [dsl_parser::ir::ModelIr] {
 }
 
 fuzz_target!(|data: &[u8]| {
-    dynid_runtime::data::fuzz::check_numerics(data, irs());
+    dynid_runtime::fuzz::check_numerics(data, irs());
 });

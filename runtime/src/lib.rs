@@ -25,6 +25,8 @@ pub mod detect;
 pub mod diagnose;
 mod fft;
 pub mod frf;
+#[doc(hidden)]
+pub mod fuzz;
 pub mod ident;
 pub mod limits;
 pub(crate) mod prefetch;

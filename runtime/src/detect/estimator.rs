@@ -34,8 +34,10 @@ mod score;
 
 use dynid_ir::ir::{ModelIr, Node};
 
-use super::{fmt_pm, Candidate, DetectOptions, Detection, Role};
-use super::{EstimatorFit, LevelFits, Verdict};
+use super::candidate::Candidate;
+use super::format::fmt_pm;
+use super::from_data::{groups, LevelFits};
+use super::types::{DetectOptions, Detection, EstimatorFit, Role, Verdict};
 use crate::data::LevelSource;
 use crate::ident::IdentifyOptions;
 use crate::record::Record;
@@ -106,7 +108,7 @@ pub(crate) fn refine(
         sim_ident.corners = Some(f.filter.corners.clone());
         sim_ident.order = Some(f.filter.order);
     }
-    let sites = super::from_data::groups(ir);
+    let sites = groups(ir);
     // The linear part at the levels' values: held masses at their held values, every other
     // unknown at the weighted mean of its curve.
     let mut base = ir.clone();

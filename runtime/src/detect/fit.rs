@@ -16,7 +16,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::candidate::{Candidate, Dependence, Distribution};
-use super::TemplateFit;
+use super::types::TemplateFit;
 
 mod template;
 mod wls;

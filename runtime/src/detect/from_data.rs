@@ -24,46 +24,22 @@
 //!   ±2.5 % of the measured σ_v on a linear oscillator, up to −12 % where friction or a
 //!   hardening spring makes the motion non-Gaussian (tests/detect_models.rs).
 //! * **Errors.** Per-level standard errors are the identification's batch-means sandwich
-//!   over `n_blocks` time blocks (the fewest of any level), so [`DetectOptions::se_dof`]
+//!   over `n_blocks` time blocks (the fewest of any level), so [`super::DetectOptions::se_dof`]
 //!   is set to `n_blocks − 1` unless the caller chose a value.
 
 use dynid_ir::ir::{Basis, ElementKind, ModelIr, ParamId};
 use serde::Serialize;
 
-use super::{detect, Candidate, DetectError, DetectOptions, Detection, DetectionInput};
-use super::{Distribution, ElementIntensity, HeldParam, ParamCurve, Role};
-use crate::data::{DataError, LevelSource};
-use crate::ident::{measure, Identification, IdentifyError, IdentifyOptions, Measurement};
+use super::candidate::Distribution;
+use super::fit::weighted_mean;
+use super::types::{DetectError, DetectionInput, ElementIntensity, FromDataError, HeldParam};
+use super::types::{ParamCurve, Role};
+use crate::data::LevelSource;
+use crate::ident::{measure, Identification, IdentifyOptions, Measurement};
 use crate::tape::{Tape, TapeScratch};
 
 /// Hysteresis of the zero-crossing count, as a fraction of σ_s.
 const CROSSING_HYSTERESIS: f64 = 0.05;
-
-/// Errors of detection from data: identification and data errors pass through.
-#[derive(Debug, thiserror::Error, miette::Diagnostic)]
-pub enum FromDataError {
-    #[error(transparent)]
-    #[diagnostic(transparent)]
-    Identify(#[from] IdentifyError),
-    #[error(transparent)]
-    #[diagnostic(transparent)]
-    Detect(#[from] DetectError),
-    #[error(transparent)]
-    #[diagnostic(transparent)]
-    Data(#[from] DataError),
-    #[error("{origin}: the relative displacement of element `{element}` does not vary")]
-    #[diagnostic(
-        code(dynid::detect::no_motion),
-        help("check that the element's signals are measured and the record is excited")
-    )]
-    NoMotion { origin: String, element: String },
-    #[error("element `{element}` moves with body `{body}`, which is measured only by its acceleration: detection needs the element's displacement")]
-    #[diagnostic(
-        code(dynid::detect::acceleration_only),
-        help("measure `{body}.x` (or `{body}.v`) as well: the parameter curves of detection and diagnosis are drawn over each element's displacement amplitude and its distribution, which accelerations alone do not give yet; `identify` forms the linear terms from `{body}.a` alone")
-    )]
-    AccelerationOnly { element: String, body: String },
-}
 
 /// How an element's σ_v was obtained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -327,7 +303,7 @@ pub fn held_inertia(ir: &ModelIr, moments: &Measurement) -> Vec<HeldParam> {
                 return None;
             }
             let (y, se): (Vec<f64>, Vec<f64>) = est.into_iter().unzip();
-            let (value, stderr) = super::fit::weighted_mean(&y, &se);
+            let (value, stderr) = weighted_mean(&y, &se);
             Some(HeldParam {
                 param: name.clone(),
                 value,
@@ -505,39 +481,4 @@ pub fn level_fits(
             .collect(),
         n_blocks,
     })
-}
-
-/// [`level_fits`] followed by [`detect`], with the batch-means errors' degrees of freedom filled in
-/// when `detect_opts.se_dof` is `None`, and the means the linear model cannot explain
-/// ([`super::unexplained_means`]).
-pub fn detect_from_data(
-    ir: &ModelIr,
-    levels: &[&dyn LevelSource],
-    ident_opts: &IdentifyOptions,
-    detect_opts: &DetectOptions,
-    extra: &[Candidate],
-) -> Result<(Detection, LevelFits), FromDataError> {
-    detect_from_data_with_progress(ir, levels, ident_opts, detect_opts, extra, &|_, _| {})
-}
-
-/// [`detect_from_data`], calling `progress(done, total)` as the estimator's template
-/// simulations finish — the step that takes time on long records (`total` grows as
-/// drifting elements are reached; called from worker threads).
-pub fn detect_from_data_with_progress(
-    ir: &ModelIr,
-    levels: &[&dyn LevelSource],
-    ident_opts: &IdentifyOptions,
-    detect_opts: &DetectOptions,
-    extra: &[Candidate],
-    progress: &(dyn Fn(usize, usize) + Sync),
-) -> Result<(Detection, LevelFits), FromDataError> {
-    let fits = level_fits(ir, levels, ident_opts, detect_opts.hold_inertia)?;
-    let mut opts = detect_opts.clone();
-    if opts.se_dof.is_none() {
-        opts.se_dof = Some(fits.n_blocks as f64 - 1.0);
-    }
-    let mut det = detect(&fits.input, extra, &opts)?;
-    super::estimator::refine(ir, levels, ident_opts, &opts, &fits, &mut det, progress);
-    det.constant_forces = super::unexplained_means(ir, levels, ident_opts)?;
-    Ok((det, fits))
 }

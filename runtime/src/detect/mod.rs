@@ -29,6 +29,7 @@
 mod candidate;
 mod estimator;
 mod fit;
+mod format;
 pub mod from_data;
 pub mod offset;
 mod quad;
@@ -41,20 +42,20 @@ mod types;
 mod tests;
 
 pub use candidate::{Candidate, Dependence, Distribution, ShapeParam};
-pub use from_data::{
-    detect_from_data, detect_from_data_with_progress, held_inertia, level_fits, FromDataError,
-    LevelFits, SigmaVSource,
-};
-pub use offset::{unexplained_means, ConstantForceFinding};
+pub use format::{fmt_g, fmt_pm};
+pub use from_data::{held_inertia, level_fits, LevelFits, SigmaVSource};
+pub use offset::unexplained_means;
 pub use quad::NormalRule;
-pub use render::{fmt_g, fmt_pm};
 pub use resolution::{levels_too_alike, levels_too_alike_in, LevelsTooAlike};
 pub use types::{
-    DetectError, DetectOptions, Detection, DetectionInput, ElementFinding, ElementIntensity,
-    Estimate, EstimatorFit, HeldParam, Linearisation, ParamCurve, ParamCurveResult, Prediction,
-    Role, Suspected, TemplateFit, Verdict,
+    ConstantForceFinding, DetectError, DetectOptions, Detection, DetectionInput, ElementFinding,
+    ElementIntensity, Estimate, EstimatorFit, FromDataError, HeldParam, Linearisation, ParamCurve,
+    ParamCurveResult, Prediction, Role, Suspected, TemplateFit, Verdict,
 };
 
+use crate::data::LevelSource;
+use crate::ident::IdentifyOptions;
+use dynid_ir::ir::ModelIr;
 use fit::{CurveData, ElementData};
 
 fn check_len(what: &str, got: usize, expected: usize) -> Result<(), DetectError> {
@@ -510,4 +511,39 @@ fn trend(c: &Candidate, el: &ElementData) -> f64 {
         hk + hd
     };
     (h(hi) - h(lo)).signum()
+}
+
+/// [`level_fits`] followed by [`detect`], with the batch-means errors' degrees of freedom filled in
+/// when `detect_opts.se_dof` is `None`, and the means the linear model cannot explain
+/// ([`unexplained_means`]).
+pub fn detect_from_data(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    ident_opts: &IdentifyOptions,
+    detect_opts: &DetectOptions,
+    extra: &[Candidate],
+) -> Result<(Detection, LevelFits), FromDataError> {
+    detect_from_data_with_progress(ir, levels, ident_opts, detect_opts, extra, &|_, _| {})
+}
+
+/// [`detect_from_data`], calling `progress(done, total)` as the estimator's template
+/// simulations finish — the step that takes time on long records (`total` grows as
+/// drifting elements are reached; called from worker threads).
+pub fn detect_from_data_with_progress(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    ident_opts: &IdentifyOptions,
+    detect_opts: &DetectOptions,
+    extra: &[Candidate],
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<(Detection, LevelFits), FromDataError> {
+    let fits = level_fits(ir, levels, ident_opts, detect_opts.hold_inertia)?;
+    let mut opts = detect_opts.clone();
+    if opts.se_dof.is_none() {
+        opts.se_dof = Some(fits.n_blocks as f64 - 1.0);
+    }
+    let mut det = detect(&fits.input, extra, &opts)?;
+    estimator::refine(ir, levels, ident_opts, &opts, &fits, &mut det, progress);
+    det.constant_forces = unexplained_means(ir, levels, ident_opts)?;
+    Ok((det, fits))
 }

@@ -13,13 +13,13 @@
 //! the levels' estimates. Data without a mean (centred records) leave that column zero:
 //! identification names it unidentifiable, and nothing is reported.
 
-use super::from_data::FromDataError;
+use super::fit::weighted_mean;
+use super::types::{ConstantForceFinding, FromDataError};
 use crate::data::LevelSource;
 use crate::ident::{measure, IdentifyOptions};
 use crate::tape::Tape;
 use dynid_ir::edit::NewTerm;
 use dynid_ir::ir::{Basis, ModelIr};
-use serde::{Deserialize, Serialize};
 
 /// The weighted mean of the levels' constant forces must be this many of its standard
 /// errors from zero, and every level's at least [`LEVEL_T`] of its own, with the mean's
@@ -29,20 +29,6 @@ use serde::{Deserialize, Serialize};
 pub const MEAN_T: f64 = 6.0;
 /// See [`MEAN_T`].
 pub const LEVEL_T: f64 = 2.0;
-
-/// A constant force the data show on a body that the model gives none.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ConstantForceFinding {
-    pub body: String,
-    /// The force as `force off (ground, body) = f0` writes it (it pushes the body by
-    /// `−f0`), in N: the weighted mean of the levels' estimates, and its standard error.
-    pub value: f64,
-    pub stderr: f64,
-    /// Each level's estimate and standard error (N).
-    pub per_level: Vec<(f64, f64)>,
-    /// The finding as one sentence.
-    pub message: String,
-}
 
 /// Whether the equation of body `b` (index) already has a constant term.
 fn has_constant(ir: &ModelIr, b: usize) -> bool {
@@ -102,7 +88,7 @@ pub fn unexplained_means(
             .collect();
         let Some(own) = own else { continue };
         let (y, se): (Vec<f64>, Vec<f64>) = own.iter().copied().unzip();
-        let (value, stderr) = super::fit::weighted_mean(&y, &se);
+        let (value, stderr) = weighted_mean(&y, &se);
         let agree = own
             .iter()
             .all(|&(v, s)| v.signum() == value.signum() && v.abs() >= LEVEL_T * s);

@@ -1,18 +1,8 @@
-//! The plain-text report of a [`Detection`] and the number formats it uses.
+//! The plain-text report of a [`Detection`].
 
-use super::{Detection, Verdict};
-use dynid_ir::num;
+use super::format::{fmt_g, fmt_pm};
+use super::types::{Detection, Verdict};
 use dynid_ir::print::aligned;
-
-/// `value ± stderr` with the value rounded to the stderr's second significant digit.
-pub fn fmt_pm(value: f64, stderr: f64) -> String {
-    num::pm(value, stderr)
-}
-
-/// Four significant digits, plain notation where readable.
-pub fn fmt_g(x: f64) -> String {
-    num::sig(x, 4, true)
-}
 
 impl Detection {
     /// A plain-text report: the constancy test of every curve, then one block per element

@@ -28,8 +28,9 @@
 //! and the 2 % minimum change alone needs only `f = 3 %`; at a factor 1.1 it needs 22 %
 //! before any noise.
 
+use super::from_data::level_fits;
 use super::stats::{chi2_sf, f_sf};
-use super::{DetectOptions, Detection, Role};
+use super::types::{DetectOptions, Detection, FromDataError, Role, Verdict};
 use serde::Serialize;
 
 /// Largest effect (fraction of the curve's mean at the level where the effect is largest)
@@ -91,7 +92,7 @@ pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooA
             .elements
             .iter()
             .find(|e| e.element == r.curve.element)
-            .is_none_or(|e| e.verdict == super::Verdict::Linear);
+            .is_none_or(|e| e.verdict == Verdict::Linear);
         if !linear {
             continue;
         }
@@ -151,9 +152,9 @@ pub fn levels_too_alike_in(
     ir: &dynid_ir::ir::ModelIr,
     levels: &[&dyn crate::data::LevelSource],
     ident_opts: &crate::ident::IdentifyOptions,
-) -> Result<Vec<LevelsTooAlike>, super::FromDataError> {
+) -> Result<Vec<LevelsTooAlike>, FromDataError> {
     let mut opts = DetectOptions::default();
-    let fits = super::level_fits(ir, levels, ident_opts, opts.hold_inertia)?;
+    let fits = level_fits(ir, levels, ident_opts, opts.hold_inertia)?;
     opts.se_dof.get_or_insert(fits.n_blocks as f64 - 1.0);
     let det = super::detect(&fits.input, &[], &opts)?;
     Ok(levels_too_alike(&det, &opts))

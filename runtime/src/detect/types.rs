@@ -2,7 +2,10 @@
 //! (the constancy test of every curve, the template fits and the verdict of every element)
 //! and its errors. All of it is plain data that round-trips through JSON.
 
-use super::{fmt_g, fmt_pm, Distribution};
+use super::candidate::Distribution;
+use super::format::{fmt_g, fmt_pm};
+use crate::data::DataError;
+use crate::ident::IdentifyError;
 use serde::{Deserialize, Serialize};
 
 /// Non-finite numbers (an undetermined standard error, the AICc of a saturated fit) are
@@ -424,7 +427,7 @@ pub struct Detection {
     /// Means of the data that the linear model cannot explain: a constant force on a body
     /// ([`super::unexplained_means`], filled by [`super::detect_from_data`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub constant_forces: Vec<super::ConstantForceFinding>,
+    pub constant_forces: Vec<ConstantForceFinding>,
 }
 
 #[derive(Debug, thiserror::Error, miette::Diagnostic)]
@@ -472,4 +475,44 @@ pub enum DetectError {
         first: String,
         second: String,
     },
+}
+
+/// A constant force the data show on a body that the model gives none.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ConstantForceFinding {
+    pub body: String,
+    /// The force as `force off (ground, body) = f0` writes it (it pushes the body by
+    /// `−f0`), in N: the weighted mean of the levels' estimates, and its standard error.
+    pub value: f64,
+    pub stderr: f64,
+    /// Each level's estimate and standard error (N).
+    pub per_level: Vec<(f64, f64)>,
+    /// The finding as one sentence.
+    pub message: String,
+}
+
+/// Errors of detection from data: identification and data errors pass through.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+pub enum FromDataError {
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Identify(#[from] IdentifyError),
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Detect(#[from] DetectError),
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Data(#[from] DataError),
+    #[error("{origin}: the relative displacement of element `{element}` does not vary")]
+    #[diagnostic(
+        code(dynid::detect::no_motion),
+        help("check that the element's signals are measured and the record is excited")
+    )]
+    NoMotion { origin: String, element: String },
+    #[error("element `{element}` moves with body `{body}`, which is measured only by its acceleration: detection needs the element's displacement")]
+    #[diagnostic(
+        code(dynid::detect::acceleration_only),
+        help("measure `{body}.x` (or `{body}.v`) as well: the parameter curves of detection and diagnosis are drawn over each element's displacement amplitude and its distribution, which accelerations alone do not give yet; `identify` forms the linear terms from `{body}.a` alone")
+    )]
+    AccelerationOnly { element: String, body: String },
 }

@@ -4,10 +4,10 @@
 
 use super::baseline::Baseline;
 use super::force::{self, Channel};
+use super::format::shrink;
 use super::levels::{unit_of, with_values, Data};
 use super::score::level_gap;
 use super::search::{Outcome, Reached};
-use super::shrink;
 use super::types::{
     CorrectedParam, DiagnoseOptions, Diagnosis, ForceGap, ForceGapValue, ModelGap, Spectrum, Trace,
     Verdict,

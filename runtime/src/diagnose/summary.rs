@@ -1,8 +1,8 @@
 //! The diagnosis as text: verdict, location, effect, gaps and the evidence behind them.
 
-use super::types::{Diagnosis, FoundEffect, ModelGap, MovedParam, Verdict};
-use super::Effect;
-use super::{fmt_gap, fmt_num, fmt_opt_gap, fmt_si, shrink};
+use super::effects::Effect;
+use super::format::{fmt_gap, fmt_num, fmt_opt_gap, fmt_si, shrink};
+use super::types::{Diagnosis, FoundEffect, ModelGap, MovedParam, SignalGap, Verdict};
 
 /// A shrink as "N % `word`" (e.g. "N % smaller"), "N % larger" when the gap grew, "N×
 /// larger" when it more than doubled (a percentage of a gap near zero says nothing), or
@@ -64,7 +64,7 @@ pub type SignalMeans = (f64, f64, String);
 /// Means over the levels of one signal's gaps in a model's gap; `None` when no level has
 /// the signal.
 pub fn signal_means(g: &ModelGap, signal: &str) -> Option<SignalMeans> {
-    let v: Vec<&super::SignalGap> = g
+    let v: Vec<&SignalGap> = g
         .levels
         .iter()
         .filter_map(|l| l.signals.iter().find(|s| s.signal == signal))
@@ -137,7 +137,7 @@ impl Diagnosis {
                 "  (force channel: the force the model needs for the measured motion minus the \
                  recorded one, RMS below {} Hz on the motion, rests left out; % of the recorded \
                  force's std)",
-                super::fmt_num(f.band_hz)
+                fmt_num(f.band_hz)
             );
         }
         s

@@ -51,6 +51,25 @@ impl CornerMove {
     }
 }
 
+/// The corner check as `dynid identify` and Python's `Model.identify` run it: the
+/// [`corner_moves`] of `id` whose estimate moved ([`CornerMove::moved`]), stored in
+/// `id.filter.corner_moves`. Skipped for a model with shape parameters (their profile is
+/// itself many identifications); a check that fails (a corner the record cannot carry)
+/// leaves the list empty and no warning.
+pub fn check_corners(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+    id: &mut Identification,
+) {
+    if !ir.shapes.is_empty() {
+        return;
+    }
+    if let Ok(moves) = corner_moves(ir, levels, opts, id) {
+        id.filter.corner_moves = moves.into_iter().filter(CornerMove::moved).collect();
+    }
+}
+
 /// The identification `id` (made with `opts` from `levels`) repeated with the highest
 /// corner a factor [`CORNER_CHECK_FACTOR`] below and above, the other corners log-spaced
 /// again from the same lowest corner; the raised corner stays below half the Nyquist

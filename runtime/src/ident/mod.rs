@@ -86,7 +86,7 @@ mod stats;
 mod types;
 pub mod velocity;
 
-pub use corners::{corner_moves, CORNER_CHECK_FACTOR, CORNER_CHECK_MIN_REL};
+pub use corners::{check_corners, corner_moves, CORNER_CHECK_FACTOR, CORNER_CHECK_MIN_REL};
 pub use filter::Hold;
 pub use identify::{assemble, identify, identify_per_level, identify_with};
 pub use measure::measure;

@@ -8,9 +8,11 @@ use rayon::prelude::*;
 use dynid_ir::edit::NewTerm;
 use dynid_ir::ir::{BinaryOp, ExprArena, ExprId, ExprNode, ModelIr, SignalKind, UnaryOp};
 
-use super::super::{Candidate, ElementFinding};
 use super::P_FACTORS;
 use crate::data::{LevelSource, RecordSource};
+use crate::detect::candidate::Candidate;
+use crate::detect::from_data::level_fits;
+use crate::detect::types::ElementFinding;
 use crate::ident::IdentifyOptions;
 use crate::record::Record;
 use crate::sim::{simulate_driven_from, Start};
@@ -152,7 +154,7 @@ fn estimator_curves(
         .map(|(i, r)| RecordSource::new(r, ir, format!("simulated level {}", i + 1)).ok())
         .collect::<Option<_>>()?;
     let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
-    let fits = super::super::level_fits(ir, &levels, ident, hold_inertia).ok()?;
+    let fits = level_fits(ir, &levels, ident, hold_inertia).ok()?;
     Some(
         fits.input
             .curves

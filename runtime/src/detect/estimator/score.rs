@@ -3,9 +3,11 @@
 //! a fine grid with its standard error from the χ² profile, and the constancy test of the
 //! corrected curves.
 
-use super::super::{constancy_test, DetectOptions, ParamCurve, ParamCurveResult, Role};
 use super::runs::Trial;
 use super::P_STEPS;
+use crate::detect::constancy_test;
+use crate::detect::fit::weighted_mean;
+use crate::detect::types::{DetectOptions, ParamCurve, ParamCurveResult, Role};
 
 /// The measured curves in the scope of one element: (param, element, values, stderrs used).
 pub(super) struct Scoped<'a> {
@@ -82,7 +84,7 @@ pub(super) fn chi2_at(t: &Trial, scope: &[Scoped], p: f64, share: &[f64]) -> f64
             return f64::INFINITY;
         };
         let c = corrected_curve(s.curve, s.se, &d, &e);
-        let (m, _) = super::super::fit::weighted_mean(&c.values, &c.stderrs);
+        let (m, _) = weighted_mean(&c.values, &c.stderrs);
         chi2 += c
             .values
             .iter()

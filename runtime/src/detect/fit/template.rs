@@ -1,9 +1,10 @@
 //! A fitted template as the detection reports it: its estimates with standard errors, the
 //! predicted curves for plots, and how strongly its coefficients trade off.
 
-use super::super::{Estimate, Prediction};
 use super::wls::LsFit;
-use super::{profile_stderr, Candidate, ElementData};
+use super::{profile_stderr, ElementData};
+use crate::detect::candidate::Candidate;
+use crate::detect::types::{Estimate, Prediction};
 use nalgebra::DMatrix;
 
 /// The estimates of a fitted template: the linear parts, the effects' coefficients and
