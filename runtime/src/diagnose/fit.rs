@@ -1,7 +1,8 @@
 //! Fitting: the moments of a model on every level, its covariance estimate on all levels
 //! and on the training levels of every withheld level, and the cross-validated covariance
 //! residual — for the model as given and for every candidate, either measured on its own
-//! or, many candidates at once, in one shared pass over the data.
+//! or, many candidates at once, in one shared pass over the data (the two differ only in
+//! how a candidate's moments are measured: `fit_each` takes that step as an argument).
 
 use super::effects::{add_effect, Effect, Location, Variant};
 use super::levels::{sources, training, Data};
@@ -127,14 +128,34 @@ fn own_passes(
     opts: &DiagnoseOptions,
     tick: &(dyn Fn() + Sync),
 ) -> Vec<Fitted> {
-    let n = data.records.len();
+    fit_each(base, cands, data.records.len(), tick, &|_, cir| {
+        measure_all(cir, data, opts).ok()
+    })
+}
+
+/// How a candidate's moments are measured, given its place in the list and its model: a
+/// pass of its own, or its columns read from a shared pass.
+type MeasureCandidate<'a> =
+    dyn for<'c> Fn(usize, &'c ModelIr) -> Option<Measurement<'c>> + Sync + 'a;
+
+/// Every candidate of `cands` added to `base` and fitted on the `n` levels, in parallel,
+/// its moments measured by `moments`; `tick` after each. A candidate whose model cannot be
+/// built or measured is left out.
+fn fit_each(
+    base: &Variant,
+    cands: &[(Effect, Location)],
+    n: usize,
+    tick: &(dyn Fn() + Sync),
+    moments: &MeasureCandidate,
+) -> Vec<Fitted> {
     cands
         .par_iter()
-        .filter_map(|(eff, loc)| {
+        .enumerate()
+        .filter_map(|(k, (eff, loc))| {
             let out = (|| {
                 let (cir, p) = add_effect(&base.ir, *eff, loc)?;
                 let (score, fits, fit) = {
-                    let m = measure_all(&cir, data, opts).ok()?;
+                    let m = moments(k, &cir)?;
                     fit_of(*eff, loc, &p, &m, &cir, n)
                 };
                 Some(Fitted {
@@ -244,29 +265,11 @@ fn shared_pass(
         .collect::<Option<_>>()?;
     // Every candidate reads the base model's columns: form them once.
     m.keep_columns(&base_cols);
-    let out = cands
-        .par_iter()
-        .zip(&in_all)
-        .filter_map(|((eff, loc), p_all)| {
-            let out = (|| {
-                let col = m.column(p_all.as_ref()?)?;
-                let (cir, p) = add_effect(ir, *eff, loc)?;
-                let cols: Vec<usize> = base_cols.iter().copied().chain([col]).collect();
-                let (score, fits, fit) = {
-                    let mc = m.restricted(&cir, &cols)?;
-                    fit_of(*eff, loc, &p, &mc, &cir, n)
-                };
-                Some(Fitted {
-                    score,
-                    variant: base.with(cir, p),
-                    fits,
-                    fit,
-                })
-            })();
-            tick();
-            out
-        })
-        .collect();
+    let out = fit_each(base, cands, n, tick, &|k, cir| {
+        let col = m.column(in_all[k].as_ref()?)?;
+        let cols: Vec<usize> = base_cols.iter().copied().chain([col]).collect();
+        m.restricted(cir, &cols)
+    });
     Some(out)
 }
 
