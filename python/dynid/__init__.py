@@ -1376,6 +1376,7 @@ class Model:
         substeps: int = _SUBSTEPS,
         allow_long: bool = False,
         progress=None,
+        corner_check: bool = True,
     ) -> Identification:
         """Identify the unknown parameters, all levels pooled, as ``dynid identify``.
 
@@ -1409,6 +1410,11 @@ class Model:
             With ``refine``: called as ``progress(stage, done, total)`` after every
             iteration (stage ``"refinement"``, done and the most iterations allowed),
             from the thread doing the work; ``True`` draws a tqdm bar (tqdm optional).
+        corner_check : bool, default True
+            Repeat the identification with the highest filter corner moved a factor 4 down
+            and up, and list the estimates that move (``filter.corner_moves`` of
+            ``to_dict()``; two further identifications); ``False`` is
+            ``--no-corner-check``.
 
         Returns
         -------
@@ -1454,6 +1460,7 @@ class Model:
             bool(allow_large),
             rarg,
             _progress(progress),
+            bool(corner_check),
         )
         return Identification(_json.loads(js), eq, model=self, data=data)
 

@@ -10,6 +10,7 @@ use dynid::dsl_parser;
 use dynid::dsl_parser::ir::ModelIr;
 use dynid::dsl_parser::ir::SignalKind;
 use dynid::runtime::diagnose as rt_diagnose;
+use dynid::runtime::ident::check_corners;
 use dynid::runtime::ident::print::format_equations;
 use dynid::runtime::identify;
 use dynid::runtime::record::Record;
@@ -200,8 +201,9 @@ impl CompiledModel {
     }
 
     /// Identify the unknown parameters from all levels pooled: `(json, equations)`, the
-    /// JSON that of `dynid identify --json` (with `refined` after a refinement).
-    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None))]
+    /// JSON that of `dynid identify --json` (with `refined` after a refinement), the corner
+    /// check included unless `corner_check` is false (`--no-corner-check`).
+    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None, corner_check=true))]
     #[allow(clippy::too_many_arguments)]
     fn identify(
         &self,
@@ -215,6 +217,7 @@ impl CompiledModel {
         allow_large: bool,
         refine: Option<RefineArg<'_>>,
         progress: Option<Py<PyAny>>,
+        corner_check: bool,
     ) -> PyResult<(String, String)> {
         guarded(py, || {
             let ir = &self.ir;
@@ -235,7 +238,14 @@ impl CompiledModel {
                 ..Default::default()
             };
             let id = py
-                .detach(|| identify(ir, &refs(&sources), &opts))
+                .detach(|| {
+                    let levels = refs(&sources);
+                    let mut id = identify(ir, &levels, &opts)?;
+                    if corner_check {
+                        check_corners(ir, &levels, &opts, &mut id);
+                    }
+                    Ok::<_, dynid::runtime::IdentifyError>(id)
+                })
                 .map_err(|e| identify_error(py, &e))?;
             let mut report = None;
             if let Some((weights, shooting, substeps, test, allow_long)) = refine {

@@ -9,7 +9,7 @@ use super::common::{check_outputs, inputs, write_atomically, CsvArgs};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::read_record_within;
 use dynid_runtime::data::{FileSource, LevelSource};
-use dynid_runtime::ident::{corner_moves, Identification};
+use dynid_runtime::ident::{check_corners, Identification};
 use dynid_runtime::record::Record;
 use dynid_runtime::refine::{self, RefineOptions};
 use dynid_runtime::sim::DEFAULT_SUBSTEPS;
@@ -428,13 +428,9 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
         ..Default::default()
     };
     let mut id = identify(ir, &levels, &opts)?;
-    // Estimates that move with the corners: a check of two further identifications (not
-    // for shape parameters, whose profile is itself many); one that fails (a corner the
-    // record cannot carry) leaves no warning.
-    if ir.shapes.is_empty() && !args.no_corner_check {
-        if let Ok(moves) = corner_moves(ir, &levels, &opts, &id) {
-            id.filter.corner_moves = moves.into_iter().filter(|m| m.moved()).collect();
-        }
+    // Estimates that move with the corners: two further identifications.
+    if !args.no_corner_check {
+        check_corners(ir, &levels, &opts, &mut id);
     }
     Ok(id)
 }
