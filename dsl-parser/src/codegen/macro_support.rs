@@ -5,7 +5,8 @@
 //! list of diagnostics; the diagnostics are used only through [`miette::Diagnostic`], whose
 //! labels are byte offsets into `source`.
 
-use super::{error_stub, generate, model_name_hint, CodegenOptions};
+use super::naming::model_name_hint;
+use super::{error_stub, generate, CodegenOptions};
 use crate::ir::ModelIr;
 use miette::Diagnostic;
 use proc_macro2::{Delimiter, Span, TokenStream, TokenTree};

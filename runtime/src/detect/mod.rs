@@ -24,7 +24,9 @@
 //! identification, element grouping, measured intensities) for the CLI.
 //!
 //! Files: `types` holds the input and result types and the errors, `render` the text
-//! report; this file is the pipeline from the curves to the verdicts.
+//! report (`format` its number formats); this file is the pipeline from the curves to the
+//! verdicts ([`detect`]) and from measured levels to them ([`detect_from_data`]: the level
+//! fits of `from_data`, then the estimator's refinement and the unexplained means).
 
 mod candidate;
 mod estimator;

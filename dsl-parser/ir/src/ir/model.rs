@@ -2,10 +2,11 @@
 //! their kinds, the terms of an equation, and the check of the invariants listed in the
 //! parent module.
 
+use super::eval::eval_node;
 use super::{
-    eval_node, Basis, BinaryOp, BodyId, Coef, ControlIr, ElementGroup, ElementId, ExprId, ExprNode,
-    InputId, ModelIr, Node, ParamId, ParamKind, ReferenceId, ShapeIr, SignalId, SignalIr,
-    SignalKind, TermOrigin, UnaryOp,
+    Basis, BinaryOp, BodyId, Coef, ControlIr, ElementGroup, ElementId, ExprId, ExprNode, InputId,
+    ModelIr, Node, ParamId, ParamKind, ReferenceId, ShapeIr, SignalId, SignalIr, SignalKind,
+    TermOrigin, UnaryOp,
 };
 
 impl ModelIr {
