@@ -6,6 +6,10 @@ mod common;
 mod formats_common;
 
 use common::dynid;
+use formats_common::{
+    doubles, element, h5_vectors, mat5_file, mat5_matrix, mat5_vectors, mat73_matrix, matrix,
+    parquet_with_null,
+};
 
 use std::path::{Path, PathBuf};
 
@@ -15,13 +19,23 @@ fn model(name: &str) -> PathBuf {
 
 /// One case: the arguments (`{dir}` is replaced by the case's temporary directory and
 /// `{model}` by a copy of `models/sdof_linear.dyn` in it), the error code the message must
-/// carry, and further text it must contain.
+/// carry, further text it must contain, and the bad file it reads, if it brings one.
 struct Case {
     name: &'static str,
     args: &'static [&'static str],
     code: &'static str,
     also: &'static [&'static str],
+    file: Option<File>,
 }
+
+/// A case's bad file: its path under `{dir}`, and its bytes made from the shared inputs.
+struct File {
+    name: &'static str,
+    make: fn(&Inputs) -> Vec<u8>,
+}
+
+/// The fields a case leaves at their defaults (`..CASE`).
+const CASE: Case = case("", &[], "");
 
 const fn case(name: &'static str, args: &'static [&'static str], code: &'static str) -> Case {
     Case {
@@ -29,6 +43,17 @@ const fn case(name: &'static str, args: &'static [&'static str], code: &'static 
         args,
         code,
         also: &[],
+        file: None,
+    }
+}
+
+impl Case {
+    /// The case with its bad file `name` (a path under `{dir}`), made by `make`.
+    const fn with_file(self, name: &'static str, make: fn(&Inputs) -> Vec<u8>) -> Case {
+        Case {
+            file: Some(File { name, make }),
+            ..self
+        }
     }
 }
 
@@ -38,7 +63,65 @@ fn sdof_with(line: &str) -> String {
     base.replace("damper d (ground, m) ~ 0.4", line)
 }
 
-/// Files written by `setup` into every case's directory.
+fn text(s: &str) -> Vec<u8> {
+    s.as_bytes().to_vec()
+}
+
+/// What the bad files are made from: level 1 of the simulated data (its text and its
+/// columns) and the model compiled to JSON.
+struct Inputs {
+    level: String,
+    names: Vec<String>,
+    cols: Vec<Vec<f64>>,
+    ir: serde_json::Value,
+}
+
+impl Inputs {
+    /// Level 1 with its lines (0 = header) edited.
+    fn edited(&self, edit: impl Fn(&mut Vec<String>)) -> Vec<u8> {
+        let mut l: Vec<String> = self.level.lines().map(String::from).collect();
+        edit(&mut l);
+        (l.join("\n") + "\n").into_bytes()
+    }
+
+    /// The compiled model (JSON IR) with one defect.
+    fn defect(&self, edit: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
+        let mut v = self.ir.clone();
+        edit(&mut v);
+        serde_json::to_vec(&v).unwrap()
+    }
+
+    /// The columns with a NaN at sample 50 of `m.x`.
+    fn with_nan(&self) -> Vec<Vec<f64>> {
+        let mut cols = self.cols.clone();
+        let x = self.names.iter().position(|n| n == "m.x").unwrap();
+        cols[x][49] = f64::NAN;
+        cols
+    }
+
+    /// Level 1 as a Parquet file.
+    fn parquet(&self) -> Vec<u8> {
+        written(|p| formats_common::parquet_file(&self.names, &self.cols, p))
+    }
+}
+
+/// The bytes `write` puts into a file (for writers that take a path).
+fn written(write: impl Fn(&Path)) -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("f");
+    write(&p);
+    std::fs::read(p).unwrap()
+}
+
+/// Replace field `f` of line `i` (0 = header).
+fn set(l: &mut [String], i: usize, f: usize, v: &str) {
+    let mut fields: Vec<String> = l[i].split(',').map(String::from).collect();
+    fields[f] = v.to_string();
+    l[i] = fields.join(",");
+}
+
+/// The files every case may read (the simulated levels, a directory, a file to keep),
+/// then each case's own bad file.
 fn setup(dir: &Path) {
     let st = dynid()
         .arg("simulate")
@@ -48,55 +131,8 @@ fn setup(dir: &Path) {
         .output()
         .unwrap();
     assert!(st.status.success());
-    let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
     std::fs::create_dir(dir.join("a_directory")).unwrap();
     std::fs::write(dir.join("existing_file"), "keep me\n").unwrap();
-
-    // Models.
-    write(
-        "syntax.dyn",
-        "model m {\n    body m = 1.0\n    spring k (ground, m) ~\n}\n",
-    );
-    write("empty.dyn", "");
-    write("undefined.dyn", &sdof_with("damper d (ground, q) ~ 0.4"));
-    write("duplicate.dyn", &sdof_with("damper k (ground, m) ~ 0.4"));
-    write(
-        "bad_call.dyn",
-        &sdof_with("force f (ground, m) = c ~ 1.0 * frob(s)"),
-    );
-    write(
-        "reserved.dyn",
-        &sdof_with("damper ground (ground, m) ~ 0.4"),
-    );
-    write(
-        "nothing_unknown.dyn",
-        "model m {\n    body m = 1.0\n    input u on m\n    spring k (ground, m) = 4.0\n}\n",
-    );
-    let mut latin1 = sdof_with("damper d (ground, m) ~ 0.4").into_bytes();
-    latin1.splice(0..0, b"// d\xe9placement\n".iter().copied());
-    std::fs::write(dir.join("latin1.dyn"), latin1).unwrap();
-    write(
-        "power_tower.dyn",
-        &sdof_with(
-            "damper d (ground, m) ~ 0.4\n    force p (ground, m) = c ~ 0.0 * ((s^64)^64)^64",
-        ),
-    );
-    write(
-        "sqrt_negative.dyn",
-        &sdof_with("damper d (ground, m) ~ 0.4\n    force p (ground, m) = c ~ 0.0 * sqrt(s)"),
-    );
-    write(
-        "exp_overflow.dyn",
-        &sdof_with("damper d (ground, m) ~ 0.4\n    force p (ground, m) = c ~ 0.0 * exp(1000 * s)"),
-    );
-    write(
-        "softening.dyn",
-        &sdof_with("damper d (ground, m) ~ 0.4\n    force nl (ground, m) = k3 ~ -2.0 * s^3")
-            .replace("levels [6, 15, 40]", "levels [0.5, 500]"),
-    );
-    write("garbage.json", "{\"bodies\": [");
-
-    // Compiled models (JSON IR) with one defect each.
     let out = dynid()
         .arg("compile")
         .arg(model("sdof_linear.dyn"))
@@ -104,98 +140,17 @@ fn setup(dir: &Path) {
         .output()
         .unwrap();
     assert!(out.status.success());
-    let ir: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let defect = |name: &str, edit: &dyn Fn(&mut serde_json::Value)| {
-        let mut v = ir.clone();
-        edit(&mut v);
-        std::fs::write(dir.join(name), serde_json::to_string(&v).unwrap()).unwrap();
+    let (names, cols) = formats_common::read_csv(&dir.join("data/level_1.csv"));
+    let inputs = Inputs {
+        level: std::fs::read_to_string(dir.join("data/level_1.csv")).unwrap(),
+        names,
+        cols,
+        ir: serde_json::from_slice(&out.stdout).unwrap(),
     };
-    defect("param_index.json", &|v| {
-        v["equations"][0]["terms"][1]["coef"]["param"] = 99.into();
-    });
-    defect("expr_index.json", &|v| {
-        v["elements"][0]["terms"][0]["basis"] = 999.into();
-    });
-    defect("negative_mass.json", &|v| {
-        v["bodies"][0]["mass"]["scale"] = (-1.0).into();
-    });
-
-    // Data: level 1 with one defect each.
-    let level = std::fs::read_to_string(dir.join("data/level_1.csv")).unwrap();
-    let lines: Vec<&str> = level.lines().collect();
-    let edited = |name: &str, edit: &dyn Fn(&mut Vec<String>)| {
-        let mut l: Vec<String> = lines.iter().map(|s| s.to_string()).collect();
-        edit(&mut l);
-        std::fs::write(dir.join(name), l.join("\n") + "\n").unwrap();
-    };
-    // Replace field `f` of line `i` (0 = header).
-    let set = |l: &mut Vec<String>, i: usize, f: usize, v: &str| {
-        let mut fields: Vec<String> = l[i].split(',').map(String::from).collect();
-        fields[f] = v.to_string();
-        l[i] = fields.join(",");
-    };
-    write("semicolon.csv", &level.replace(',', ";"));
-    write("tabs.csv", &level.replace(',', "\t"));
-    write("empty.csv", "");
-    write("header_only.csv", &format!("{}\n", lines[0]));
-    edited("repeated_time.csv", &|l| l[7] = l[6].clone());
-    edited("backwards_time.csv", &|l| l.swap(20, 21));
-    edited("gap_in_time.csv", &|l| {
-        l.remove(50);
-    });
-    edited("nan.csv", &|l| set(l, 33, 1, "NaN"));
-    edited("inf.csv", &|l| set(l, 34, 3, "inf"));
-    edited("word.csv", &|l| set(l, 35, 2, "abc"));
-    edited("blank_field.csv", &|l| set(l, 36, 2, ""));
-    edited("short_row.csv", &|l| {
-        let cut = l[40].rfind(',').unwrap();
-        l[40].truncate(cut);
-    });
-    edited("decimal_comma.csv", &|l| {
-        for row in l.iter_mut().skip(1) {
-            *row = row.replace('.', ",");
-        }
-    });
-    edited("quoted_comma.csv", &|l| set(l, 12, 1, "\"0,25\""));
-    edited("no_u.csv", &|l| {
-        for row in l.iter_mut() {
-            let cut = row.rfind(',').unwrap();
-            row.truncate(cut);
-        }
-    });
-    edited("duplicate_column.csv", &|l| set(l, 0, 2, "m.x"));
-    edited("no_time.csv", &|l| {
-        for row in l.iter_mut() {
-            *row = row.split_once(',').unwrap().1.to_string();
-        }
-    });
-    edited("outlier.csv", &|l| set(l, 500, 1, "1e20"));
-    edited("huge.csv", &|l| {
-        for row in l.iter_mut().skip(1) {
-            let f: Vec<String> = row.split(',').map(String::from).collect();
-            let scaled: Vec<String> = f[1..]
-                .iter()
-                .map(|v| format!("{:e}", v.parse::<f64>().unwrap() * 1e300))
-                .collect();
-            *row = format!("{},{}", f[0], scaled.join(","));
-        }
-    });
-    edited("at_rest.csv", &|l| {
-        for row in l.iter_mut().skip(1) {
-            let t = row.split(',').next().unwrap().to_string();
-            *row = format!("{t},0,0,0");
-        }
-    });
-    edited("too_few.csv", &|l| l.truncate(40));
-    edited("too_short.csv", &|l| l.truncate(130));
-    let mut binary: Vec<u8> = (0..4000u32)
-        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
-        .collect();
-    binary[0] = 0xff;
-    std::fs::write(dir.join("binary.csv"), binary).unwrap();
-
-    // Binary data files with one defect each (level 1 written as MAT, HDF5, Parquet).
-    binary_files(dir);
+    std::fs::create_dir(dir.join("bin")).unwrap();
+    for f in CASES.iter().filter_map(|c| c.file.as_ref()) {
+        std::fs::write(dir.join(f.name), (f.make)(&inputs)).unwrap();
+    }
 }
 
 const DATA: &str = "{dir}/data/level_1.csv";
@@ -206,12 +161,16 @@ const CASES: &[Case] = &[
         "a syntax error",
         &["compile", "{dir}/syntax.dyn"],
         "dyn::syntax",
-    ),
+    )
+    .with_file("syntax.dyn", |_| {
+        text("model m {\n    body m = 1.0\n    spring k (ground, m) ~\n}\n")
+    }),
     case(
         "an empty model file",
         &["compile", "{dir}/empty.dyn"],
         "dyn::syntax",
-    ),
+    )
+    .with_file("empty.dyn", |_| Vec::new()),
     case(
         "a model file that does not exist",
         &["compile", "{dir}/missing.dyn"],
@@ -227,32 +186,55 @@ const CASES: &[Case] = &[
         args: &["compile", "{dir}/latin1.dyn"],
         code: "dyn::io",
         also: &["line 1, column 5"],
-    },
+        ..CASE
+    }
+    .with_file("latin1.dyn", |_| {
+        [
+            &b"// d\xe9placement\n"[..],
+            sdof_with("damper d (ground, m) ~ 0.4").as_bytes(),
+        ]
+        .concat()
+    }),
     case(
         "an element on an undeclared body",
         &["compile", "{dir}/undefined.dyn"],
         "dyn::undefined_name",
-    ),
+    )
+    .with_file("undefined.dyn", |_| {
+        sdof_with("damper d (ground, q) ~ 0.4").into()
+    }),
     case(
         "a name declared twice",
         &["compile", "{dir}/duplicate.dyn"],
         "dyn::duplicate_name",
-    ),
+    )
+    .with_file("duplicate.dyn", |_| {
+        sdof_with("damper k (ground, m) ~ 0.4").into()
+    }),
     case(
         "an unknown function",
         &["compile", "{dir}/bad_call.dyn"],
         "dyn::invalid_call",
-    ),
+    )
+    .with_file("bad_call.dyn", |_| {
+        sdof_with("force f (ground, m) = c ~ 1.0 * frob(s)").into()
+    }),
     case(
         "a reserved word as a name",
         &["compile", "{dir}/reserved.dyn"],
         "dyn::reserved_name",
-    ),
+    )
+    .with_file("reserved.dyn", |_| {
+        sdof_with("damper ground (ground, m) ~ 0.4").into()
+    }),
     case(
         "a model with nothing to identify",
         &["identify", "{dir}/nothing_unknown.dyn", DATA],
         "dyn::nothing_to_identify",
-    ),
+    )
+    .with_file("nothing_unknown.dyn", |_| {
+        text("model m {\n    body m = 1.0\n    input u on m\n    spring k (ground, m) = 4.0\n}\n")
+    }),
     case(
         "a model whose signals are not in the data",
         &["identify", "{two_mass}", DATA],
@@ -267,13 +249,22 @@ const CASES: &[Case] = &[
         ],
         code: "dynid::identify::non_finite_term",
         also: &["((m.x^64)^64)^64", "sample"],
-    },
+        ..CASE
+    }
+    .with_file("power_tower.dyn", |_| {
+        sdof_with("damper d (ground, m) ~ 0.4\n    force p (ground, m) = c ~ 0.0 * ((s^64)^64)^64")
+            .into()
+    }),
     Case {
         name: "`sqrt(s)` on data where s < 0",
         args: &["identify", "{dir}/sqrt_negative.dyn", DATA],
         code: "dynid::identify::non_finite_term",
         also: &["sqrt(m.x)", "NaN", "sample 2"],
-    },
+        ..CASE
+    }
+    .with_file("sqrt_negative.dyn", |_| {
+        sdof_with("damper d (ground, m) ~ 0.4\n    force p (ground, m) = c ~ 0.0 * sqrt(s)").into()
+    }),
     Case {
         name: "`exp(1000 s)` overflowing on the data",
         args: &[
@@ -283,27 +274,42 @@ const CASES: &[Case] = &[
         ],
         code: "dynid::identify::non_finite_term",
         also: &["inf"],
-    },
+        ..CASE
+    }
+    .with_file("exp_overflow.dyn", |_| {
+        sdof_with("damper d (ground, m) ~ 0.4\n    force p (ground, m) = c ~ 0.0 * exp(1000 * s)")
+            .into()
+    }),
     case(
         "a JSON model that is not JSON",
         &["identify", "{dir}/garbage.json", DATA],
         "dynid::model::json",
-    ),
+    )
+    .with_file("garbage.json", |_| text("{\"bodies\": [")),
     case(
         "a JSON model with a parameter index out of range",
         &["simulate", "{dir}/param_index.json", "--out", "{dir}/out"],
         "dynid::model::json",
-    ),
+    )
+    .with_file("param_index.json", |i| {
+        i.defect(|v| v["equations"][0]["terms"][1]["coef"]["param"] = 99.into())
+    }),
     case(
         "a JSON model with an expression index out of range",
         &["identify", "{dir}/expr_index.json", DATA],
         "dynid::model::json",
-    ),
+    )
+    .with_file("expr_index.json", |i| {
+        i.defect(|v| v["elements"][0]["terms"][0]["basis"] = 999.into())
+    }),
     case(
         "a JSON model with a negative known mass",
         &["simulate", "{dir}/negative_mass.json", "--out", "{dir}/out"],
         "dynid::model::json",
-    ),
+    )
+    .with_file("negative_mass.json", |i| {
+        i.defect(|v| v["bodies"][0]["mass"]["scale"] = (-1.0).into())
+    }),
     // ---- Data ----
     case(
         "a level file that does not exist",
@@ -319,128 +325,250 @@ const CASES: &[Case] = &[
         "an empty level file",
         &["identify", "{model}", "{dir}/empty.csv"],
         "dynid::data::empty",
-    ),
+    )
+    .with_file("empty.csv", |_| Vec::new()),
     case(
         "a header without samples",
         &["identify", "{model}", "{dir}/header_only.csv"],
         "dynid::data::header_only",
-    ),
+    )
+    .with_file("header_only.csv", |i| i.edited(|l| l.truncate(1))),
     case(
         "a binary file as a level",
         &["identify", "{model}", "{dir}/binary.csv"],
         "dynid::data::binary",
-    ),
+    )
+    .with_file("binary.csv", |_| {
+        let mut b: Vec<u8> = (0..4000u32)
+            .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+            .collect();
+        b[0] = 0xff;
+        b
+    }),
     // ---- Binary data files ----
     Case {
         name: "a truncated MAT v5 file",
         args: &["identify", "{model}", "{dir}/bin/truncated.mat"],
         code: "dynid::data::format",
         also: &["truncated.mat", "MAT v5", "truncated"],
-    },
+        ..CASE
+    }
+    .with_file("bin/truncated.mat", |i| {
+        let v5 = mat5_vectors(&i.names, &i.cols, false);
+        v5[..v5.len() / 2].to_vec()
+    }),
     Case {
         name: "a truncated compressed MAT v7 file",
         args: &["identify", "{model}", "{dir}/bin/truncated_v7.mat"],
         code: "dynid::data::format",
         also: &["truncated"],
-    },
+        ..CASE
+    }
+    .with_file("bin/truncated_v7.mat", |i| {
+        let v7 = mat5_vectors(&i.names, &i.cols, true);
+        v7[..v7.len() - 100].to_vec()
+    }),
     Case {
         name: "a MAT file cut inside its header",
         args: &["identify", "{model}", "{dir}/bin/header_cut.mat"],
         code: "dynid::data::format",
         also: &["128-byte header"],
-    },
+        ..CASE
+    }
+    .with_file("bin/header_cut.mat", |i| {
+        mat5_vectors(&i.names, &i.cols, false)[..60].to_vec()
+    }),
     Case {
         name: "a MAT file with no variables",
         args: &["identify", "{model}", "{dir}/bin/header_only.mat"],
         code: "dynid::data::missing_column",
         also: &["no variables"],
-    },
+        ..CASE
+    }
+    .with_file("bin/header_only.mat", |i| {
+        mat5_vectors(&i.names, &i.cols, false)[..128].to_vec()
+    }),
     Case {
         name: "a MAT file whose signal is text",
         args: &["identify", "{model}", "{dir}/bin/wrong_type.mat"],
         code: "dynid::data::missing_column",
         also: &["`m.x`", "m.x (char 1×5)"],
-    },
+        ..CASE
+    }
+    .with_file("bin/wrong_type.mat", |i| {
+        // `m.x` as text.
+        let els: Vec<Vec<u8>> = i
+            .names
+            .iter()
+            .zip(&i.cols)
+            .map(|(n, c)| match n.as_str() {
+                "m.x" => matrix(
+                    4,
+                    &[1, 5],
+                    "m.x",
+                    &element(4, &[b'h', 0, b'e', 0, b'l', 0, b'l', 0, b'o', 0]),
+                ),
+                _ => matrix(6, &[c.len(), 1], n, &doubles(c)),
+            })
+            .collect();
+        mat5_file(&els, true)
+    }),
     Case {
         name: "a MAT file without a signal",
         args: &["identify", "{model}", "{dir}/bin/missing_u.mat"],
         code: "dynid::data::missing_column",
         also: &["`u`", "the file holds: t (double", "--map NAME=u"],
-    },
+        ..CASE
+    }
+    .with_file("bin/missing_u.mat", |i| {
+        let (n, c): (Vec<String>, Vec<Vec<f64>>) = i
+            .names
+            .iter()
+            .cloned()
+            .zip(i.cols.iter().cloned())
+            .filter(|(n, _)| n != "u")
+            .unzip();
+        mat5_vectors(&n, &c, true)
+    }),
     Case {
         name: "a NaN in a MAT v5 file",
         args: &["identify", "{model}", "{dir}/bin/nan.mat"],
         code: "dynid::data::non_finite",
         also: &["sample 50", "`m.x`", "NaN"],
-    },
+        ..CASE
+    }
+    .with_file("bin/nan.mat", |i| {
+        mat5_vectors(&i.names, &i.with_nan(), false)
+    }),
     Case {
         name: "a NaN in a MAT v7.3 file",
         args: &["identify", "{model}", "{dir}/bin/nan_v73.mat"],
         code: "dynid::data::non_finite",
         also: &["sample 50"],
-    },
+        ..CASE
+    }
+    .with_file("bin/nan_v73.mat", |i| mat73_matrix(&i.names, &i.with_nan())),
     Case {
         name: "a NaN in an HDF5 file",
         args: &["identify", "{model}", "{dir}/bin/nan.h5"],
         code: "dynid::data::non_finite",
         also: &["sample 50"],
-    },
+        ..CASE
+    }
+    .with_file("bin/nan.h5", |i| h5_vectors(&i.names, &i.with_nan())),
     Case {
         name: "a names variable that does not fit the matrix",
         args: &["identify", "{model}", "{dir}/bin/names_short.mat"],
         code: "dynid::data::format",
         also: &["`names` holds 3 names"],
-    },
+        ..CASE
+    }
+    .with_file("bin/names_short.mat", |i| {
+        // A `names` cell with one name fewer than the matrix has columns.
+        mat5_matrix(&i.names[..i.names.len() - 1], &i.cols)
+    }),
     Case {
         name: "a MAT v7.3 names cell holding a number",
         args: &["identify", "{model}", "{dir}/bin/names_cell_number_v73.mat"],
         code: "dynid::data::format",
         also: &["of `names` holds double, not a char vector"],
-    },
+        ..CASE
+    }
+    .with_file("bin/names_cell_number_v73.mat", |i| {
+        // A v7.3 `names` cell whose last cell is a number, not a char vector.
+        let (names, cols) = (&i.names, &i.cols);
+        let mut b = hdf5_pure::mat::MatBuilder::new(Default::default());
+        let flat: Vec<f64> = cols.iter().flatten().copied().collect();
+        b.write_f64("data", &[cols[0].len(), cols.len()], &flat)
+            .unwrap();
+        b.cell("names", &[1, names.len()], |c| {
+            for n in &names[..names.len() - 1] {
+                c.push_char(n)?;
+            }
+            c.push_scalar_f64(3.0)?;
+            Ok(())
+        })
+        .unwrap();
+        b.finish().unwrap()
+    }),
     case(
         "a truncated HDF5 file",
         &["identify", "{model}", "{dir}/bin/truncated.h5"],
         "dynid::data::format",
-    ),
+    )
+    .with_file("bin/truncated.h5", |i| {
+        let h5 = h5_vectors(&i.names, &i.cols);
+        h5[..h5.len() / 2].to_vec()
+    }),
     case(
         "a truncated MAT v7.3 file",
         &["identify", "{model}", "{dir}/bin/truncated_v73.mat"],
         "dynid::data::format",
-    ),
+    )
+    .with_file("bin/truncated_v73.mat", |i| {
+        let m = mat73_matrix(&i.names, &i.cols);
+        m[..m.len() * 2 / 3].to_vec()
+    }),
     case(
         "a truncated Parquet file",
         &["identify", "{model}", "{dir}/bin/truncated.parquet"],
         "dynid::data::format",
-    ),
+    )
+    .with_file("bin/truncated.parquet", |i| {
+        let pq = i.parquet();
+        pq[..pq.len() - 40].to_vec()
+    }),
     case(
         "a Parquet file with damaged metadata",
         &["identify", "{model}", "{dir}/bin/corrupt.parquet"],
         "dynid::data::format",
-    ),
+    )
+    .with_file("bin/corrupt.parquet", |i| {
+        // The footer's metadata damaged (its length and the closing `PAR1` kept).
+        let mut pq = i.parquet();
+        let end = pq.len() - 8;
+        pq[end - 40..end].iter_mut().for_each(|b| *b ^= 0x5a);
+        pq
+    }),
     Case {
         name: "a null in a Parquet column",
         args: &["identify", "{model}", "{dir}/bin/null.parquet"],
         code: "dynid::data::format",
         also: &["`m.x`", "sample 78"],
-    },
+        ..CASE
+    }
+    .with_file("bin/null.parquet", |i| {
+        written(|p| {
+            let x = i.names.iter().position(|n| n == "m.x").unwrap();
+            parquet_with_null(&i.names, &i.cols, x, 77, p)
+        })
+    }),
     Case {
         name: "text named .mat",
         args: &["identify", "{model}", "{dir}/bin/text.mat"],
         code: "dynid::data::format",
         also: &["the name says MAT-file"],
-    },
+        ..CASE
+    }
+    .with_file("bin/text.mat", |_| b"t,m.x\n0,1\n".to_vec()),
     Case {
         name: "an empty .h5 file",
         args: &["identify", "{model}", "{dir}/bin/empty.h5"],
         code: "dynid::data::format",
         also: &["is empty"],
-    },
+        ..CASE
+    }
+    .with_file("bin/empty.h5", |_| Vec::new()),
     Case {
         name: "a TDMS file",
         args: &["identify", "{model}", "{dir}/bin/run.tdms"],
         code: "dynid::data::unknown_format",
         also: &["NI TDMS", "MATLAB .mat", "HDF5", "Parquet"],
-    },
+        ..CASE
+    }
+    .with_file("bin/run.tdms", |_| {
+        b"TDSm\x00\x00\x00\x00 some acquisition".to_vec()
+    }),
     case(
         "a semicolon-separated level",
         &[
@@ -450,7 +578,8 @@ const CASES: &[Case] = &[
             "{dir}/data/level_2.csv",
         ],
         "dynid::data::separator",
-    ),
+    )
+    .with_file("semicolon.csv", |i| i.level.replace(',', ";").into()),
     case(
         "a tab-separated level",
         &[
@@ -460,63 +589,108 @@ const CASES: &[Case] = &[
             "{dir}/data/level_2.csv",
         ],
         "dynid::data::separator",
-    ),
+    )
+    .with_file("tabs.csv", |i| i.level.replace(',', "\t").into()),
     Case {
         name: "numbers with a decimal comma",
         args: &["identify", "{model}", "{dir}/decimal_comma.csv"],
         code: "dynid::data::ragged",
         also: &["decimal comma"],
-    },
+        ..CASE
+    }
+    .with_file("decimal_comma.csv", |i| {
+        i.edited(|l| {
+            for row in l.iter_mut().skip(1) {
+                *row = row.replace('.', ",");
+            }
+        })
+    }),
     Case {
         name: "a quoted number with a decimal comma",
         args: &["identify", "{model}", "{dir}/quoted_comma.csv"],
         code: "dynid::data::not_a_number",
         also: &["decimal comma", "line 13"],
-    },
+        ..CASE
+    }
+    .with_file("quoted_comma.csv", |i| {
+        i.edited(|l| set(l, 12, 1, "\"0,25\""))
+    }),
     Case {
         name: "a row with a field missing",
         args: &["identify", "{model}", "{dir}/short_row.csv"],
         code: "dynid::data::ragged",
         also: &["line 41"],
-    },
+        ..CASE
+    }
+    .with_file("short_row.csv", |i| {
+        i.edited(|l| {
+            let cut = l[40].rfind(',').unwrap();
+            l[40].truncate(cut);
+        })
+    }),
     Case {
         name: "a NaN sample",
         args: &["identify", "{model}", "{dir}/nan.csv"],
         code: "dynid::data::non_finite",
         also: &["line 34", "`m.x`"],
-    },
+        ..CASE
+    }
+    .with_file("nan.csv", |i| i.edited(|l| set(l, 33, 1, "NaN"))),
     Case {
         name: "an infinite input sample",
         args: &["identify", "{model}", "{dir}/inf.csv"],
         code: "dynid::data::non_finite",
         also: &["line 35", "`u`"],
-    },
+        ..CASE
+    }
+    .with_file("inf.csv", |i| i.edited(|l| set(l, 34, 3, "inf"))),
     Case {
         name: "a word where a number belongs",
         args: &["identify", "{model}", "{dir}/word.csv"],
         code: "dynid::data::not_a_number",
         also: &["line 36", "`abc`"],
-    },
+        ..CASE
+    }
+    .with_file("word.csv", |i| i.edited(|l| set(l, 35, 2, "abc"))),
     case(
         "an empty field",
         &["identify", "{model}", "{dir}/blank_field.csv"],
         "dynid::data::not_a_number",
-    ),
+    )
+    .with_file("blank_field.csv", |i| i.edited(|l| set(l, 36, 2, ""))),
     case(
         "a measured input column missing",
         &["identify", "{model}", "{dir}/no_u.csv"],
         "dynid::data::missing_column",
-    ),
+    )
+    .with_file("no_u.csv", |i| {
+        i.edited(|l| {
+            for row in l.iter_mut() {
+                let cut = row.rfind(',').unwrap();
+                row.truncate(cut);
+            }
+        })
+    }),
     case(
         "a column named twice",
         &["identify", "{model}", "{dir}/duplicate_column.csv"],
         "dynid::data::duplicate_column",
-    ),
+    )
+    .with_file("duplicate_column.csv", |i| {
+        i.edited(|l| set(l, 0, 2, "m.x"))
+    }),
     case(
         "no time column and no --sample",
         &["identify", "{model}", "{dir}/no_time.csv"],
         "dynid::data::no_sample_interval",
-    ),
+    )
+    .with_file("no_time.csv", |i| {
+        i.edited(|l| {
+            for row in l.iter_mut() {
+                *row = row.split_once(',').unwrap().1.to_string();
+            }
+        })
+    }),
     case(
         "no time column and --sample 0",
         &["identify", "{model}", "{dir}/no_time.csv", "--sample", "0"],
@@ -527,29 +701,37 @@ const CASES: &[Case] = &[
         args: &["identify", "{model}", "{dir}/repeated_time.csv"],
         code: "dynid::data::non_uniform_time",
         also: &["does not increase", "line 8"],
-    },
+        ..CASE
+    }
+    .with_file("repeated_time.csv", |i| i.edited(|l| l[7] = l[6].clone())),
     Case {
         name: "time stamps out of order",
         args: &["identify", "{model}", "{dir}/backwards_time.csv"],
         code: "dynid::data::non_uniform_time",
         also: &["line 21", "time step"],
-    },
+        ..CASE
+    }
+    .with_file("backwards_time.csv", |i| i.edited(|l| l.swap(20, 21))),
     Case {
         name: "a missing sample (a gap in time)",
         args: &["identify", "{model}", "{dir}/gap_in_time.csv"],
         code: "dynid::data::non_uniform_time",
         also: &["line 51"],
-    },
+        ..CASE
+    }
+    .with_file("gap_in_time.csv", |i| i.edited(|l| drop(l.remove(50)))),
     case(
         "too few samples",
         &["identify", "{model}", "{dir}/too_few.csv"],
         "dynid::data::too_few_samples",
-    ),
+    )
+    .with_file("too_few.csv", |i| i.edited(|l| l.truncate(40))),
     case(
         "a record too short for the slowest filter",
         &["identify", "{model}", "{dir}/too_short.csv"],
         "dynid::identify::too_short",
-    ),
+    )
+    .with_file("too_short.csv", |i| i.edited(|l| l.truncate(130))),
     Case {
         name: "one sample of 1e20 (a recording glitch)",
         args: &[
@@ -560,13 +742,28 @@ const CASES: &[Case] = &[
         ],
         code: "dynid::data::outlier",
         also: &["`m.x`", "sample 500"],
-    },
+        ..CASE
+    }
+    .with_file("outlier.csv", |i| i.edited(|l| set(l, 500, 1, "1e20"))),
     Case {
         name: "values of 1e300 (moments overflow)",
         args: &["identify", "{model}", "{dir}/huge.csv"],
         code: "dynid::identify::overflow",
         also: &["rescale"],
-    },
+        ..CASE
+    }
+    .with_file("huge.csv", |i| {
+        i.edited(|l| {
+            for row in l.iter_mut().skip(1) {
+                let f: Vec<String> = row.split(',').map(String::from).collect();
+                let scaled: Vec<String> = f[1..]
+                    .iter()
+                    .map(|v| format!("{:e}", v.parse::<f64>().unwrap() * 1e300))
+                    .collect();
+                *row = format!("{},{}", f[0], scaled.join(","));
+            }
+        })
+    }),
     case(
         "a level at rest (every signal zero)",
         &[
@@ -576,7 +773,15 @@ const CASES: &[Case] = &[
             "{dir}/data/level_2.csv",
         ],
         "dynid::data::no_excitation",
-    ),
+    )
+    .with_file("at_rest.csv", |i| {
+        i.edited(|l| {
+            for row in l.iter_mut().skip(1) {
+                let t = row.split(',').next().unwrap().to_string();
+                *row = format!("{t},0,0,0");
+            }
+        })
+    }),
     case(
         "a level at rest in a diagnosis with a report",
         &[
@@ -632,6 +837,7 @@ const CASES: &[Case] = &[
         ],
         code: "dynid::sim::config",
         also: &["duration -5"],
+        ..CASE
     },
     case(
         "a duration of NaN",
@@ -744,7 +950,13 @@ const CASES: &[Case] = &[
         ],
         code: "dynid::sim::diverged",
         also: &["level 2"],
-    },
+        ..CASE
+    }
+    .with_file("softening.dyn", |_| {
+        sdof_with("damper d (ground, m) ~ 0.4\n    force nl (ground, m) = k3 ~ -2.0 * s^3")
+            .replace("levels [6, 15, 40]", "levels [0.5, 500]")
+            .into()
+    }),
     case(
         "--out naming an existing file",
         &["simulate", "{model}", "--out", "{dir}/existing_file"],
@@ -861,6 +1073,7 @@ const CASES: &[Case] = &[
             "time constant 3e300 s",
             "more samples than any record holds",
         ],
+        ..CASE
     },
     Case {
         name: "--segments 18446744073709551615",
@@ -873,6 +1086,7 @@ const CASES: &[Case] = &[
         ],
         code: "dynid::split::too_short",
         also: &["too short for 18446744073709551615 segments"],
+        ..CASE
     },
     Case {
         name: "--refine --substeps 18446744073709551615",
@@ -886,6 +1100,7 @@ const CASES: &[Case] = &[
         ],
         code: "dynid::sim::too_long",
         also: &["RK4 sub-steps", "--allow-long"],
+        ..CASE
     },
     Case {
         name: "--duration 1e300 at --sample 1e-300",
@@ -901,6 +1116,7 @@ const CASES: &[Case] = &[
         ],
         code: "dynid::sim::config",
         also: &["inf samples per level"],
+        ..CASE
     },
     Case {
         name: "simulate --substeps 18446744073709551615",
@@ -914,6 +1130,7 @@ const CASES: &[Case] = &[
         ],
         code: "dynid::sim::too_long",
         also: &["--allow-long"],
+        ..CASE
     },
     // ---- Outputs ----
     case(
@@ -953,84 +1170,6 @@ const CASES: &[Case] = &[
 ];
 
 /// Binary level files with one defect each, in `dir/bin`.
-fn binary_files(dir: &Path) {
-    use formats_common::*;
-    let bin = dir.join("bin");
-    std::fs::create_dir(&bin).unwrap();
-    let put = |name: &str, bytes: &[u8]| std::fs::write(bin.join(name), bytes).unwrap();
-    let (names, cols) = read_csv(&dir.join("data/level_1.csv"));
-    let v5 = mat5_vectors(&names, &cols, false);
-    put("truncated.mat", &v5[..v5.len() / 2]);
-    let v7 = mat5_vectors(&names, &cols, true);
-    put("truncated_v7.mat", &v7[..v7.len() - 100]);
-    put("header_cut.mat", &v5[..60]);
-    put("header_only.mat", &v5[..128]);
-    // `m.x` as text, and `u` missing.
-    let mut els: Vec<Vec<u8>> = Vec::new();
-    for (n, c) in names.iter().zip(&cols) {
-        match n.as_str() {
-            "m.x" => els.push(matrix(
-                4,
-                &[1, 5],
-                "m.x",
-                &element(4, &[b'h', 0, b'e', 0, b'l', 0, b'l', 0, b'o', 0]),
-            )),
-            _ => els.push(matrix(6, &[c.len(), 1], n, &doubles(c))),
-        }
-    }
-    put("wrong_type.mat", &mat5_file(&els, true));
-    let without_u: Vec<(String, Vec<f64>)> = names
-        .iter()
-        .cloned()
-        .zip(cols.iter().cloned())
-        .filter(|(n, _)| n != "u")
-        .collect();
-    let (n2, c2): (Vec<String>, Vec<Vec<f64>>) = without_u.into_iter().unzip();
-    put("missing_u.mat", &mat5_vectors(&n2, &c2, true));
-    let mut nan = cols.clone();
-    let x = names.iter().position(|n| n == "m.x").unwrap();
-    nan[x][49] = f64::NAN;
-    put("nan.mat", &mat5_vectors(&names, &nan, false));
-    put("nan_v73.mat", &mat73_matrix(&names, &nan));
-    put("nan.h5", &h5_vectors(&names, &nan));
-    // A `names` cell with one name fewer than the matrix has columns.
-    put(
-        "names_short.mat",
-        &mat5_matrix(&names[..names.len() - 1], &cols),
-    );
-    // A v7.3 `names` cell whose last cell is a number, not a char vector.
-    let mut b = hdf5_pure::mat::MatBuilder::new(Default::default());
-    let flat: Vec<f64> = cols.iter().flatten().copied().collect();
-    b.write_f64("data", &[cols[0].len(), cols.len()], &flat)
-        .unwrap();
-    b.cell("names", &[1, names.len()], |c| {
-        for n in &names[..names.len() - 1] {
-            c.push_char(n)?;
-        }
-        c.push_scalar_f64(3.0)?;
-        Ok(())
-    })
-    .unwrap();
-    put("names_cell_number_v73.mat", &b.finish().unwrap());
-    let h5 = h5_vectors(&names, &cols);
-    put("truncated.h5", &h5[..h5.len() / 2]);
-    let m73 = mat73_matrix(&names, &cols);
-    put("truncated_v73.mat", &m73[..m73.len() * 2 / 3]);
-    parquet_file(&names, &cols, &bin.join("good.parquet"));
-    let pq = std::fs::read(bin.join("good.parquet")).unwrap();
-    std::fs::remove_file(bin.join("good.parquet")).unwrap();
-    put("truncated.parquet", &pq[..pq.len() - 40]);
-    // The footer's metadata damaged (its length and the closing `PAR1` kept).
-    let mut corrupt = pq.clone();
-    let end = corrupt.len() - 8;
-    corrupt[end - 40..end].iter_mut().for_each(|b| *b ^= 0x5a);
-    put("corrupt.parquet", &corrupt);
-    parquet_with_null(&names, &cols, x, 77, &bin.join("null.parquet"));
-    put("text.mat", b"t,m.x\n0,1\n");
-    put("empty.h5", b"");
-    put("run.tdms", b"TDSm\x00\x00\x00\x00 some acquisition");
-}
-
 /// Every file below `dir` with its content.
 fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
     let mut out = Vec::new();

@@ -1,5 +1,6 @@
 use super::driven::read_input_csv;
 use super::*;
+use dynid_runtime::data::DataError;
 
 /// The diagnostic code of a failed run (empty without one).
 fn code(e: &miette::Report) -> String {
@@ -39,13 +40,29 @@ fn input_csv_errors_name_line_and_column() {
         "line 3",
     );
     // A step of two intervals: a dropped sample, named as such (the same code as an
-    // uneven step, told apart by the message).
-    let (code, e) = err("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n");
-    assert_eq!(code, "dynid::data::non_uniform_time", "{e}");
-    assert!(e.contains("line 4: a sample is missing"), "{e}");
-    let (code, e) = err("t,u\n0,1\n0.1,2\n0.25,2\n0.35,1\n");
-    assert_eq!(code, "dynid::data::non_uniform_time", "{e}");
-    assert!(e.contains("line 4: the time step"), "{e}");
+    // uneven step, told apart by the variant).
+    let variant = |text: &str| {
+        let e = read_input_csv(&write(dir.path(), "a.csv", text), false).unwrap_err();
+        assert_eq!(code(&e), "dynid::data::non_uniform_time", "{e:?}");
+        e.downcast::<DataError>().expect("a data error")
+    };
+    let e = variant("t,u\n0,1\n0.1,2\n0.3,2\n0.35,1\n");
+    assert!(
+        matches!(
+            e,
+            DataError::MissingSamples {
+                line: 4,
+                missing: 1,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let e = variant("t,u\n0,1\n0.1,2\n0.25,2\n0.35,1\n");
+    assert!(
+        matches!(e, DataError::NonUniformTime { line: 4, .. }),
+        "{e:?}"
+    );
     let r = read_input_csv(
         &write(dir.path(), "b.csv", "t,u\n1,1\n1.5,2\n2,3\n\n"),
         false,
