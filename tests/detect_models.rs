@@ -62,11 +62,12 @@ fn rel(a: f64, b: f64) -> f64 {
     (a - b) / b
 }
 
-/// The doc whose table of measured verdicts these tests produce (seed 7).
+/// The doc whose table of measured verdicts these tests produce (seed 7), and the figure of
+/// the default part of the detection matrix.
 const DOC: &str = "docs/detection.md";
 
-/// Check the figure marked `name` in docs/detection.md's table of measured verdicts, which
-/// quotes seed 7: only when the tests run on their own seeds.
+/// Check the figure marked `name` in docs/detection.md, which quotes the tests' own seeds:
+/// only when they run on those.
 fn doc_figure(name: &str, measured: f64) {
     if common::seeds_as_documented() {
         figures::check(DOC, name, measured);
@@ -629,6 +630,7 @@ fn matrix_hardening_spring() {
         "an extra effect on more than 1 of 10"
     );
     assert_eq!(count(|o| o.missed), 0, "missed");
+    doc_figure("detect.matrix.hardening_exact", count(|o| o.exact) as f64);
     assert!(
         rows.iter().flat_map(|r| &r.outcomes).all(|o| !o.neighbour),
         "another element (or a linear control) flagged"

@@ -303,6 +303,15 @@ fn detect_reports_a_mean_the_linear_model_cannot_explain() {
         let doc = "docs/detection.md";
         figures::check(doc, "detect.offset.f0", c.value);
         figures::check(doc, "detect.offset.f0_stderr", c.stderr);
+        assert_eq!(c.per_level.len(), 3);
+        for ((value, stderr), (f, f_se)) in c.per_level.iter().zip([
+            ("detect.offset.level1", "detect.offset.level1_stderr"),
+            ("detect.offset.level2", "detect.offset.level2_stderr"),
+            ("detect.offset.level3", "detect.offset.level3_stderr"),
+        ]) {
+            figures::check(doc, f, *value);
+            figures::check(doc, f_se, *stderr);
+        }
     }
     assert!((c.value - OFFSET).abs() < 0.02, "{text}");
     assert!(
@@ -575,6 +584,12 @@ fn planned_axis_workflow_names_a_withheld_offset_friction_or_both() {
                 (OFFSET, 0.5)
             };
             assert!((value - truth).abs() < tol, "{name}: {found:?}");
+        }
+        if name == "no_friction" {
+            // README ("Planned moves from start to finish") quotes the friction found.
+            let (_, r, se) = &found[0];
+            figures::check("README.md", "servo.planned.no_friction.r", *r);
+            figures::check("README.md", "servo.planned.no_friction.r_stderr", *se);
         }
     }
     // One record, cut at its cycles: the constant force again (−3.2138 ± 0.0082 N measured).
