@@ -315,8 +315,20 @@ fn planned_moves_leave_the_rests_out() {
     let seeds = 1..=12u64;
     let n = seeds.clone().count() as f64;
     let mut acc = [(0.0, 0.0, 0.0); 4];
+    // Mean squared errors with the rests kept (`--keep-rests`), for docs/method.md.
+    let mut kept = [0.0; 4];
+    let keep = IdentifyOptions {
+        keep_rests: true,
+        ..Default::default()
+    };
     for seed in seeds {
         let (ir, rec) = planned_record(seed);
+        for (k, (e, _)) in errors(&servo_common::identify_record(&ir, &rec, &keep))
+            .iter()
+            .enumerate()
+        {
+            kept[k] += e * e / n;
+        }
         let id = identify_record(&ir, &rec);
         let rests = id.levels[0].rests.clone().expect("rests looked for");
         assert_eq!(rests.intervals, 25, "seed {seed}: {rests:?}");
@@ -351,6 +363,33 @@ fn planned_moves_leave_the_rests_out() {
         assert!(rms < bound, "`{name}`: RMS error {:.3} %", 100.0 * rms);
         assert!(*name == "m" || c >= 10.0 / 12.0, "`{name}`: coverage {c}");
     }
+    // docs/method.md §7 quotes these (fixed seeds): RMS errors, mean standard errors, the
+    // coverage of d, r, f0 in seeds of 12, and the RMS errors with the rests kept.
+    let doc = "docs/method.md";
+    for (k, (rms, se, with_rests)) in [
+        ("rests.m.rms", "rests.m.se", "rests.m.kept"),
+        ("rests.d.rms", "rests.d.se", "rests.d.kept"),
+        ("rests.r.rms", "rests.r.se", "rests.r.kept"),
+        ("rests.f0.rms", "rests.f0.se", "rests.f0.kept"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        figures::check(doc, rms, 100.0 * acc[k].0.sqrt());
+        figures::check(doc, se, 100.0 * acc[k].1);
+        figures::check(doc, with_rests, 100.0 * kept[k].sqrt());
+    }
+    let cover: Vec<f64> = acc[1..].iter().map(|a| 12.0 * a.2).collect();
+    figures::check(
+        doc,
+        "rests.cover.lo",
+        cover.iter().copied().fold(12.0, f64::min),
+    );
+    figures::check(
+        doc,
+        "rests.cover.hi",
+        cover.iter().copied().fold(0.0, f64::max),
+    );
 }
 
 /// One planned record cut into its four cycles (6.18 s each), seeds 1–4: every cycle's
