@@ -128,6 +128,10 @@ fn diagnose_names_a_withheld_constant_force_with_its_size() {
     );
     assert!(s >= 0.8, "{:.2} of the attainable shrink\n{text}", s);
     assert!((f.value - OFFSET).abs() < 0.2, "{} N\n{text}", f.value);
+    // README.md (a constant force the model leaves out) quotes this seed's figure.
+    if common::seeds_as_documented() {
+        figures::check("README.md", "servo.offset.diagnose", f.value);
+    }
     // The text names the force with its unit; the prestress that mimics it is not chosen.
     assert!(
         text.contains("constant force at (ground, m): -3."),
@@ -264,6 +268,20 @@ fn identify_warns_of_a_withheld_constant_force() {
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| panic!("no size in: {}", w.message));
     println!("identify: constant force {size} N (truth {OFFSET})");
+    // README.md and docs/method.md (§7, the guard's probe) quote this seed's figure.
+    if common::seeds_as_documented() {
+        figures::check("README.md", "servo.offset.identify_probe", size);
+        figures::check("docs/method.md", "servo.offset.identify_probe", size);
+        let se: f64 = w
+            .message
+            .split("identified: ")
+            .nth(1)
+            .and_then(|t| t.split("± ").nth(1))
+            .and_then(|t| t.split(' ').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no standard error in: {}", w.message));
+        figures::check("docs/method.md", "servo.offset.identify_probe_stderr", se);
+    }
     assert!((size - OFFSET).abs() < 0.15, "{}", w.message);
     assert!(
         w.message
