@@ -9,6 +9,7 @@
 
 mod common;
 mod detect_common;
+mod figures;
 
 use dynid::dsl_parser::{compile_str, ir::ModelIr};
 use dynid::runtime::detect::{Detection, LevelFits, Verdict};
@@ -61,14 +62,27 @@ fn rel(a: f64, b: f64) -> f64 {
     (a - b) / b
 }
 
+/// The doc whose table of measured verdicts these tests produce (seed 7), and the figure of
+/// the default part of the detection matrix.
+const DOC: &str = "docs/detection.md";
+
+/// Check the figure marked `name` in docs/detection.md, which quotes the tests' own seeds:
+/// only when they run on those.
+fn doc_figure(name: &str, measured: f64) {
+    if common::seeds_as_documented() {
+        figures::check(DOC, name, measured);
+    }
+}
+
 /// Simulate `truth`, detect on `linear`, check the verdict at `element` and the implied
-/// parameters against the truth within `tol` (relative).
+/// parameters against the truth within `tol` (relative); `expect` holds each parameter's
+/// truth and the name of its figure in docs/detection.md.
 fn check(
     truth: &str,
     linear: &str,
     element: &str,
     template: &str,
-    expect: &[(&str, f64)],
+    expect: &[(&str, f64, &str)],
     tol: f64,
 ) {
     let recs = sim(truth, DURATION, 7);
@@ -76,7 +90,7 @@ fn check(
     println!("{truth}:\n{}", d.render_table());
     let (name, est) = best(&d, element);
     assert_eq!(name, template, "{truth}\n{}", d.render_table());
-    for (p, t) in expect {
+    for (p, t, figure) in expect {
         let e = rel(implied(&est, p), *t);
         println!(
             "{truth}: {p} = {:.4} (truth {t}, {:+.1} %)",
@@ -84,6 +98,7 @@ fn check(
             100.0 * e
         );
         assert!(e.abs() < tol, "{truth}: {p} off by {:.1} %", 100.0 * e);
+        doc_figure(figure, implied(&est, p));
     }
 }
 
@@ -99,7 +114,7 @@ fn duffing_is_cubic_at_the_spring() {
         "sdof_linear",
         "k/d (ground, m)",
         "cubic stiffness",
-        &[("k3", 2.0)],
+        &[("k3", 2.0, "detect.models.duffing.k3")],
         // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): k3 +4.3, −6.8, −0.4, −1.1, −1.0 %.
         0.10,
     );
@@ -112,7 +127,7 @@ fn coulomb_is_friction_at_the_damper() {
         "sdof_linear",
         "k/d (ground, m)",
         "Coulomb friction",
-        &[("r", 0.3)],
+        &[("r", 0.3, "detect.models.coulomb.r")],
         // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): r +2.2, −1.5, −0.1, +2.9, +0.9 %.
         0.06,
     );
@@ -125,7 +140,7 @@ fn quadratic_damping_is_found() {
         "quadratic_damping_linear",
         "k/d (ground, m)",
         "quadratic damping",
-        &[("c", 0.2)],
+        &[("c", 0.2, "detect.models.quadratic_damping.c")],
         // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): c −0.2, −4.4, −4.3, −2.2, −6.2 %.
         0.12,
     );
@@ -138,7 +153,7 @@ fn prestress_is_found() {
         "prestress_linear",
         "d/k (ground, m)",
         "prestress",
-        &[("f0", 0.5)],
+        &[("f0", 0.5, "detect.models.prestress.f0")],
         // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): f0 −0.9, −0.2, −2.3, −3.4, −1.1 %.
         0.07,
     );
@@ -159,7 +174,20 @@ fn backlash_is_found() {
     let (name, _) = best(&d, "k/d (ground, m)");
     assert_eq!(name, "backlash", "{}", d.render_table());
     let top = &finding(&d, "k/d (ground, m)").ranking[0];
-    for (p, t) in [("kb", 4.0), ("g", 0.1)] {
+    for (p, t, figure, figure_se) in [
+        (
+            "kb",
+            4.0,
+            "detect.models.backlash.kb",
+            "detect.models.backlash.kb_stderr",
+        ),
+        (
+            "g",
+            0.1,
+            "detect.models.backlash.g",
+            "detect.models.backlash.g_stderr",
+        ),
+    ] {
         let e = top
             .effect_estimates()
             .iter()
@@ -171,6 +199,8 @@ fn backlash_is_found() {
             100.0 * rel(e.value, t)
         );
         assert!(z.abs() < 3.0, "backlash: {e}, truth {t}");
+        doc_figure(figure, e.value);
+        doc_figure(figure_se, e.stderr);
     }
 }
 
@@ -188,6 +218,7 @@ fn cubic_and_coulomb_in_one_element() {
     println!("k3 = {:.4} (truth 2.0)", implied(&est, "k3"));
     // Seeds 7 and 9, where this verdict holds (`DYNID_SEED_OFFSET=0, 2`): k3 +2.4, −1.8 %.
     assert!(rel(implied(&est, "k3"), 2.0).abs() < 0.06, "{est:?}");
+    doc_figure("detect.models.cubic_coulomb.k3", implied(&est, "k3"));
     let f = finding(&d, "k/d (ground, m)");
     let sus = f.suspected.as_ref().expect("the friction is suspected");
     assert_eq!(sus.effect, "Coulomb friction");
@@ -206,6 +237,15 @@ fn cubic_and_coulomb_in_one_element() {
     println!("pair: r = {r:.3} (truth 0.3)");
     // The friction shows in the pair fit, low (seeds 7, 9: r −29, −22 %).
     assert!(rel(r, 0.3).abs() < 0.6, "r = {r}");
+    doc_figure("detect.models.cubic_coulomb.pair_r", r);
+    doc_figure(
+        "detect.models.cubic_coulomb.pair_rank",
+        sus.pair_rank as f64,
+    );
+    doc_figure(
+        "detect.models.cubic_coulomb.pair_delta_aicc",
+        sus.pair_delta_aicc,
+    );
 }
 
 /// With four levels over the same range the pair is the verdict (seeds 7, 8, 9 all, and
@@ -228,6 +268,8 @@ fn cubic_and_coulomb_separate_at_four_levels() {
     assert!(rel(implied(&est, "k3"), 2.0).abs() < 0.1, "{est:?}");
     let r = rel(implied(&est, "r"), 0.3);
     assert!(r > -0.45 && r < 0.1, "{est:?}");
+    doc_figure("detect.models.four_levels.k3", implied(&est, "k3"));
+    doc_figure("detect.models.four_levels.r", implied(&est, "r"));
 }
 
 /// two_mass hides cubic stiffness and Coulomb friction in the coupling: at three levels
@@ -247,12 +289,24 @@ fn two_mass_nonlinear_coupling_linear_ground() {
     );
     // Seeds 7–10 (`DYNID_SEED_OFFSET=0…3`): k3 −1.6, +0.3, +0.1, −0.4 %.
     assert!(rel(implied(&est, "k3"), 1.5).abs() < 0.04, "{est:?}");
+    doc_figure("detect.models.two_mass.k3", implied(&est, "k3"));
     let f = finding(&d, "k2/d2 (m1, m2)");
-    assert_eq!(
-        f.suspected.as_ref().map(|s| s.effect.as_str()),
-        Some("Coulomb friction")
-    );
+    let sus = f.suspected.as_ref().expect("the friction is suspected");
+    assert_eq!(sus.effect, "Coulomb friction");
     assert_eq!(f.ranking[1].name, "cubic stiffness + Coulomb friction");
+    let r = f.ranking[1]
+        .effect_estimates()
+        .iter()
+        .find(|e| e.name == "r")
+        .expect("the pair's friction")
+        .value;
+    println!("pair: r = {r:.3} (truth 0.2)");
+    doc_figure("detect.models.two_mass.pair_r", r);
+    doc_figure("detect.models.two_mass.pair_rank", sus.pair_rank as f64);
+    doc_figure(
+        "detect.models.two_mass.pair_delta_aicc",
+        sus.pair_delta_aicc,
+    );
 }
 
 /// models/two_mass_friction.dyn (the demo's true system): Coulomb friction in the coupling.
@@ -263,7 +317,7 @@ fn two_mass_friction_in_the_coupling() {
         "two_mass_linear",
         "k2/d2 (m1, m2)",
         "Coulomb friction",
-        &[("r", 0.3)],
+        &[("r", 0.3, "detect.models.two_mass_friction.r")],
         // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): r +0.1, +4.2, +3.7, +0.5, +5.4 %.
         0.10,
     );
@@ -352,6 +406,7 @@ fn two_mass_friction_at_ground_only() {
     );
     // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): r −0.9, +0.9, −4.4, +9.2, −1.2 % (sd 5 %).
     assert!(rel(r, 0.3).abs() < 0.15, "r = {r}");
+    doc_figure("detect.models.friction_at_ground.r", r);
 }
 
 fn linear_detections(seeds: std::ops::Range<u64>) -> (usize, usize) {
@@ -575,6 +630,7 @@ fn matrix_hardening_spring() {
         "an extra effect on more than 1 of 10"
     );
     assert_eq!(count(|o| o.missed), 0, "missed");
+    doc_figure("detect.matrix.hardening_exact", count(|o| o.exact) as f64);
     assert!(
         rows.iter().flat_map(|r| &r.outcomes).all(|o| !o.neighbour),
         "another element (or a linear control) flagged"

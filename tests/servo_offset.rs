@@ -128,6 +128,10 @@ fn diagnose_names_a_withheld_constant_force_with_its_size() {
     );
     assert!(s >= 0.8, "{:.2} of the attainable shrink\n{text}", s);
     assert!((f.value - OFFSET).abs() < 0.2, "{} N\n{text}", f.value);
+    // README.md (a constant force the model leaves out) quotes this seed's figure.
+    if common::seeds_as_documented() {
+        figures::check("README.md", "servo.offset.diagnose", f.value);
+    }
     // The text names the force with its unit; the prestress that mimics it is not chosen.
     assert!(
         text.contains("constant force at (ground, m): -3."),
@@ -264,6 +268,20 @@ fn identify_warns_of_a_withheld_constant_force() {
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| panic!("no size in: {}", w.message));
     println!("identify: constant force {size} N (truth {OFFSET})");
+    // README.md and docs/method.md (§7, the guard's probe) quote this seed's figure.
+    if common::seeds_as_documented() {
+        figures::check("README.md", "servo.offset.identify_probe", size);
+        figures::check("docs/method.md", "servo.offset.identify_probe", size);
+        let se: f64 = w
+            .message
+            .split("identified: ")
+            .nth(1)
+            .and_then(|t| t.split("± ").nth(1))
+            .and_then(|t| t.split(' ').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no standard error in: {}", w.message));
+        figures::check("docs/method.md", "servo.offset.identify_probe_stderr", se);
+    }
     assert!((size - OFFSET).abs() < 0.15, "{}", w.message);
     assert!(
         w.message
@@ -303,6 +321,15 @@ fn detect_reports_a_mean_the_linear_model_cannot_explain() {
         let doc = "docs/detection.md";
         figures::check(doc, "detect.offset.f0", c.value);
         figures::check(doc, "detect.offset.f0_stderr", c.stderr);
+        assert_eq!(c.per_level.len(), 3);
+        for ((value, stderr), (f, f_se)) in c.per_level.iter().zip([
+            ("detect.offset.level1", "detect.offset.level1_stderr"),
+            ("detect.offset.level2", "detect.offset.level2_stderr"),
+            ("detect.offset.level3", "detect.offset.level3_stderr"),
+        ]) {
+            figures::check(doc, f, *value);
+            figures::check(doc, f_se, *stderr);
+        }
     }
     assert!((c.value - OFFSET).abs() < 0.02, "{text}");
     assert!(
@@ -575,6 +602,12 @@ fn planned_axis_workflow_names_a_withheld_offset_friction_or_both() {
                 (OFFSET, 0.5)
             };
             assert!((value - truth).abs() < tol, "{name}: {found:?}");
+        }
+        if name == "no_friction" {
+            // README ("Planned moves from start to finish") quotes the friction found.
+            let (_, r, se) = &found[0];
+            figures::check("README.md", "servo.planned.no_friction.r", *r);
+            figures::check("README.md", "servo.planned.no_friction.r_stderr", *se);
         }
     }
     // One record, cut at its cycles: the constant force again (−3.2138 ± 0.0082 N measured).

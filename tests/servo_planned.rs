@@ -95,6 +95,12 @@ fn planned_errors_cover_damping_friction_offset() {
                     _ => "planned.f0_z",
                 };
                 figures::check("docs/method.md", marker, z);
+                let cover_marker = match *name {
+                    "d" => "planned.d_cover",
+                    "r" => "planned.r_cover",
+                    _ => "planned.f0_cover",
+                };
+                figures::check("docs/method.md", cover_marker, 12.0 * cover);
             }
         }
         if *name == "m" {
@@ -282,8 +288,24 @@ fn planned_cycles_agree_within_their_errors() {
         }
         dof += (cycles.len() - 1) as f64;
     }
+    // docs/method.md §6 quotes the range of χ²/dof over the parameters, on seeds 1–4 (the
+    // suite) and 1–8 (`DYNID_PLANNED_SEEDS=8`).
+    let chi_dof: Vec<f64> = chi.iter().map(|c| c / dof).collect();
+    let lo = chi_dof.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = chi_dof.iter().copied().fold(0.0, f64::max);
+    match *seeds(4).end() {
+        4 => {
+            figures::check("docs/method.md", "planned.cycles.chi2_lo", lo);
+            figures::check("docs/method.md", "planned.cycles.chi2_hi", hi);
+        }
+        8 => {
+            figures::check("docs/method.md", "planned.cycles.chi2_lo_8", lo);
+            figures::check("docs/method.md", "planned.cycles.chi2_hi_8", hi);
+        }
+        _ => {}
+    }
     for (k, (name, _)) in TRUTH.iter().enumerate() {
-        let c = chi[k] / dof;
+        let c = chi_dof[k];
         println!(
             "{name}: χ²/dof {c:.2}, largest cycle SE / whole SE {:.2}",
             ratio[k]

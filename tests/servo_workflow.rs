@@ -12,6 +12,7 @@
 //! `tests/servo_offset.rs`; the cycles and the gaps in units are `tests/cycles_cli.rs`.
 
 mod common;
+mod figures;
 
 use common::{dynid, model_path, stderr};
 use std::path::{Path, PathBuf};
@@ -267,14 +268,42 @@ fn the_plant_of_a_closed_loop_record_refines_in_sub_records() {
     let params = v["refined"]["refinement"]["params"]
         .as_array()
         .expect("params");
-    for (name, truth, tol) in [
-        ("m", 50.0, 0.1),
-        ("d", 120.0, 1.0),
-        ("r", 15.0, 0.1),
-        ("f0", -3.2, 0.03),
+    // README ("Planned moves from start to finish") quotes both sets of figures.
+    for (name, truth, tol, refined, covariance) in [
+        (
+            "m",
+            50.0,
+            0.1,
+            "servo.plant.refined.m",
+            "servo.plant.covariance.m",
+        ),
+        (
+            "d",
+            120.0,
+            1.0,
+            "servo.plant.refined.d",
+            "servo.plant.covariance.d",
+        ),
+        (
+            "r",
+            15.0,
+            0.1,
+            "servo.plant.refined.r",
+            "servo.plant.covariance.r",
+        ),
+        (
+            "f0",
+            -3.2,
+            0.03,
+            "servo.plant.refined.f0",
+            "servo.plant.covariance.f0",
+        ),
     ] {
         let p = params.iter().find(|p| p["name"] == name).expect("param");
         let value = p["value"].as_f64().unwrap();
         assert!((value - truth).abs() < tol, "{name} = {value}");
+        figures::check("README.md", refined, value);
+        let start = v["parameters"][name]["value"].as_f64().expect("estimate");
+        figures::check("README.md", covariance, start);
     }
 }

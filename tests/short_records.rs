@@ -31,14 +31,20 @@ fn simulate(ir: &ModelIr, duration: f64, noise: f64, seed: u64) -> Vec<Record> {
 }
 
 /// Every unknown within `tol` of its nominal value; prints the errors and the corners.
-fn check(case: &str, ir: &ModelIr, id: &Identification, tol: f64) {
-    if let Err(e) = within(case, ir, id, tol) {
-        panic!("{e}");
-    }
+fn check(case: &str, ir: &ModelIr, id: &Identification, tol: f64) -> f64 {
+    within(case, ir, id, tol).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// [`check`], telling instead of failing.
-fn within(case: &str, ir: &ModelIr, id: &Identification, tol: f64) -> Result<(), String> {
+/// The largest relative residual of `id` over its equations and levels.
+fn largest_residual(id: &Identification) -> f64 {
+    id.residual
+        .iter()
+        .flat_map(|r| r.per_level.iter().copied())
+        .fold(0.0, f64::max)
+}
+
+/// [`check`], telling instead of failing; `Ok` holds the largest relative error (signed).
+fn within(case: &str, ir: &ModelIr, id: &Identification, tol: f64) -> Result<f64, String> {
     let mut row = Vec::new();
     let mut worst = (String::new(), 0.0f64);
     for (name, e) in common::relative_errors(case, ir, id) {
@@ -59,7 +65,7 @@ fn within(case: &str, ir: &ModelIr, id: &Identification, tol: f64) -> Result<(),
         corners.join(", ")
     );
     if worst.1.abs() < tol {
-        Ok(())
+        Ok(worst.1)
     } else {
         Err(format!(
             "{case}: `{}` off by {:+.2}% (bound {}%)",
@@ -74,14 +80,25 @@ fn within(case: &str, ir: &ModelIr, id: &Identification, tol: f64) -> Result<(),
 fn cubic_coulomb_25_s_at_1_khz_within_five_percent() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/sdof_cubic_coulomb.dyn");
     let ir = dsl_parser::compile_file(&path).unwrap();
-    let recs = simulate(&ir, 25.0, 0.0, 31);
-    assert_eq!(recs[0].len(), 25_000);
-    let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
-        .expect("25 s records identify");
-    // Seeds 31–35 (`DYNID_SEED_OFFSET=0…4`): largest error r +0.08 %. The bound is the one
-    // docs/method.md states.
+    // The bound is the one docs/method.md states; the doc also quotes the largest error
+    // measured here over seeds 31–35 (`simulate` shifts them by `DYNID_SEED_OFFSET`).
     figures::check("docs/method.md", "short_records.cubic_coulomb", 0.2);
-    check("sdof_cubic_coulomb, 3 × 25 s at 1 kHz", &ir, &id, 0.002);
+    let mut largest = 0.0f64;
+    for seed in 31..36 {
+        let recs = simulate(&ir, 25.0, 0.0, seed);
+        assert_eq!(recs[0].len(), 25_000);
+        let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
+            .expect("25 s records identify");
+        let case = format!("sdof_cubic_coulomb, 3 × 25 s at 1 kHz, seed {seed}");
+        largest = largest.max(check(&case, &ir, &id, 0.002).abs());
+    }
+    if common::seeds_as_documented() {
+        figures::check(
+            "docs/method.md",
+            "short_records.cubic_coulomb.measured",
+            100.0 * largest,
+        );
+    }
 }
 
 /// A rig in SI units: 50 kg, 120 N s/m, a 20 kN/m spring and 30 N of dry friction, position
@@ -108,18 +125,35 @@ fn si_rig_25_s_at_1_khz_within_five_percent() {
     // `simulate` shifts each seed by `DYNID_SEED_OFFSET`.
     let n = common::seed_count(5);
     let mut pass = 0;
+    // The largest error of the seeds that hold, and the smallest of those that fail.
+    let (mut held, mut failed) = (0.0f64, f64::INFINITY);
     for seed in (32..).take(n) {
         let recs = simulate(&ir, 25.0, 0.0, seed);
         let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
             .expect("25 s records identify");
         let case = format!("SI rig, 3 × 25 s at 1 kHz, seed {}", common::seed(seed));
         match within(&case, &ir, &id, 0.02) {
-            Ok(()) => pass += 1,
-            Err(e) => println!("FAILS: {e}"),
+            Ok(e) => {
+                pass += 1;
+                held = held.max(e.abs());
+            }
+            Err(e) => {
+                println!("FAILS: {e}");
+                let worst = common::relative_errors(&case, &ir, &id)
+                    .iter()
+                    .fold(0.0f64, |a, (_, e)| a.max(e.abs()));
+                failed = failed.min(worst);
+            }
         }
     }
     println!("SI rig: within 2 % on {pass} of {n} seeds");
     assert!(5 * pass >= 4 * n, "{pass} of {n} seeds");
+    if common::seeds_as_documented() && n == 5 {
+        let doc = "docs/method.md";
+        figures::check(doc, "short_records.si_rig.held", 100.0 * held);
+        figures::check(doc, "short_records.si_rig.pass", pass as f64);
+        figures::check(doc, "short_records.si_rig.failed", 100.0 * failed);
+    }
 }
 
 #[test]
@@ -141,10 +175,13 @@ fn free_mass_25_s_at_1_khz_within_five_percent() {
     .unwrap();
     let values = sim::parameter_values(&ir).unwrap();
     let mut errs: Vec<Vec<f64>> = vec![Vec::new(); 2];
+    let mut residual = 0.0f64;
     for seed in [33, 34, 35] {
         let recs = simulate(&ir, 25.0, 0.0, seed);
         let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
             .expect("25 s records identify");
+        println!("seed {seed}: largest residual {:.3}", largest_residual(&id));
+        residual = residual.max(largest_residual(&id));
         check(
             &format!("free mass, 3 × 25 s at 1 kHz, seed {}", common::seed(seed)),
             &ir,
@@ -169,6 +206,11 @@ fn free_mass_25_s_at_1_khz_within_five_percent() {
         // Seeds 33–39 (`DYNID_SEED_OFFSET=0…4`): m −5.4, −0.8, +0.2, −1.8, +0.3, −1.5, −0.3 %
         // (d alike); the median of each three consecutive seeds at most 1.5 %.
         assert!(e[1] < 0.04, "median error {:.2}%", 100.0 * e[1]);
+    }
+    // A record that holds little information leaves a large residual at one level without
+    // any defect of the model (docs/method.md quotes the largest, section 7).
+    if common::seeds_as_documented() {
+        figures::check("docs/method.md", "short_records.largest_residual", residual);
     }
 }
 

@@ -8,6 +8,7 @@
 //! diagnosis are refused; a record that rests and then moves is accepted.
 
 mod common;
+mod figures;
 
 use common::{assert_refused, dynid, model_path, stderr};
 use dynid::dsl_parser::compile_file;
@@ -64,18 +65,26 @@ fn causes(id: &Identification) -> Vec<(FitCheck, LikelyCause)> {
 
 /// Print the smallest and largest relative residual over the levels and equations (the
 /// figures of docs/method.md, section 7: `cargo test --test silent_nonsense --
-/// --nocapture`).
-fn print_residuals(case: &str, id: &Identification) {
+/// --nocapture`), and return them.
+fn print_residuals(case: &str, id: &Identification) -> (f64, f64) {
     let all: Vec<f64> = id
         .residual
         .iter()
         .flat_map(|r| r.per_level.iter().copied())
         .collect();
     let lo = all.iter().copied().fold(f64::INFINITY, f64::min);
-    println!(
-        "{case}: relative residual {lo:.3}–{:.3}",
-        largest_residual(id)
-    );
+    let hi = largest_residual(id);
+    println!("{case}: relative residual {lo:.3}–{hi:.3}");
+    (lo, hi)
+}
+
+/// Check the range `lo`–`hi` of relative residuals against the figures `names` of
+/// docs/method.md (section 7), which quote the tests' own seeds.
+fn doc_range(names: [&str; 2], (lo, hi): (f64, f64)) {
+    if common::seeds_as_documented() {
+        figures::check("docs/method.md", names[0], lo);
+        figures::check("docs/method.md", names[1], hi);
+    }
 }
 
 fn largest_residual(id: &Identification) -> f64 {
@@ -90,6 +99,7 @@ fn largest_residual(id: &Identification) -> f64 {
 /// guard_is_quiet` (and `DYNID_SEED_OFFSET=k` for other seeds).
 #[test]
 fn guard_is_quiet_on_clean_and_noisy_records() {
+    let mut largest = 0.0f64;
     for name in ["sdof_linear.dyn", "sdof_cubic_coulomb.dyn", "two_mass.dyn"] {
         let ir = model(name);
         for (seed, noise) in [(1, 0.0), (2, 0.0), (3, 0.05), (4, 0.05)] {
@@ -99,12 +109,16 @@ fn guard_is_quiet_on_clean_and_noisy_records() {
                 "{name} seed {seed} noise {noise}: largest residual {:.4}",
                 largest_residual(&id)
             );
+            largest = largest.max(largest_residual(&id));
             assert!(
                 id.fit_warnings.is_empty(),
                 "{name} seed {seed} noise {noise}: {:#?}",
                 id.fit_warnings
             );
         }
+    }
+    if common::seeds_as_documented() {
+        figures::check("docs/method.md", "guard.holds.largest", largest);
     }
 }
 
@@ -113,10 +127,12 @@ fn guard_is_quiet_on_clean_and_noisy_records() {
 #[test]
 fn a_sensor_offset_is_named() {
     let ir = model("sdof_linear.dyn");
+    let mut range = (f64::INFINITY, 0.0f64);
     for seed in [1, 2] {
         let recs = shifted(&common::simulate(&ir, 300.0, 0.0, seed), "m.x", 1.0);
         let id = common::identify_records(&ir, &recs);
-        print_residuals(&format!("sensor offset, seed {seed}"), &id);
+        let (lo, hi) = print_residuals(&format!("sensor offset, seed {seed}"), &id);
+        range = (range.0.min(lo), range.1.max(hi));
         assert!(
             causes(&id).contains(&(FitCheck::LargeResidual, LikelyCause::SensorOffset)),
             "seed {seed}: {:#?}",
@@ -129,6 +145,7 @@ fn a_sensor_offset_is_named() {
             w.message
         );
     }
+    doc_range(["guard.offset.lo", "guard.offset.hi"], range);
 }
 
 /// The one-mass model on records of two masses (`m1` measured as `m`): k came out 2.43 ±
@@ -141,12 +158,13 @@ fn a_missing_body_is_named() {
         &[("m1.x", "m.x"), ("m1.v", "m.v"), ("u", "u")],
     );
     let id = common::identify_records(&model("sdof_linear.dyn"), &recs);
-    print_residuals("missing body", &id);
+    let range = print_residuals("missing body", &id);
     assert!(
         causes(&id).contains(&(FitCheck::LargeResidual, LikelyCause::MissingBody)),
         "{:#?}",
         id.fit_warnings
     );
+    doc_range(["guard.missing_body.lo", "guard.missing_body.hi"], range);
 }
 
 /// Records of a mass of 2 identified with the mass fixed at 1.
@@ -156,13 +174,14 @@ fn a_wrong_fixed_mass_is_named() {
     let heavy = model_text(&src.replace("body m = 1.0", "body m = 2.0"));
     let recs = common::simulate(&heavy, 300.0, 0.0, 1);
     let id = common::identify_records(&model("sdof_linear.dyn"), &recs);
-    print_residuals("mass fixed at half its value", &id);
+    let range = print_residuals("mass fixed at half its value", &id);
     assert!(
         causes(&id).contains(&(FitCheck::LargeResidual, LikelyCause::WrongMass)),
         "{:#?}",
         id.fit_warnings
     );
     assert!(id.fit_warnings[0].message.contains("`m`"));
+    doc_range(["guard.wrong_mass.lo", "guard.wrong_mass.hi"], range);
 }
 
 /// The same record as two levels counts twice (standard errors ÷ √2): a warning names it.

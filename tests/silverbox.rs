@@ -131,6 +131,11 @@ fn silverbox_segments_and_free_run_errors() {
         rq.params
     );
     figures::check(DOC, "silverbox.quadratic.arrow", rq.arrow_rms_mv);
+    figures::check(
+        DOC,
+        "silverbox.quadratic.multisine",
+        rq.multisine_test_rms_mv,
+    );
     // Without band-limited interpolation the same model is an order of magnitude worse:
     // the inter-sample model matters at 9 samples per period.
     let r1 = silverbox::run(
@@ -144,6 +149,11 @@ fn silverbox_segments_and_free_run_errors() {
     )
     .expect("procedure runs");
     figures::check(DOC, "silverbox.upsample1.arrow", r1.arrow_rms_mv);
+    figures::check(
+        DOC,
+        "silverbox.upsample1.multisine",
+        r1.multisine_test_rms_mv,
+    );
 }
 
 #[test]
@@ -207,32 +217,39 @@ fn silverbox_diagnose_names_the_cubic_spring() {
         (f.location.a.as_str(), f.location.b.as_str()),
         ("ground", "y")
     );
-    const DIAG: &str = "docs/diagnosis.md";
-    figures::check(DIAG, "diagnose.silverbox.k3", f.value);
-    figures::check(DIAG, "diagnose.silverbox.k3_stderr", f.stderr);
-    figures::check(DIAG, "diagnose.silverbox.gap_before", d.gap_before);
-    figures::check(
-        DIAG,
-        "diagnose.silverbox.gap_reidentified",
-        d.gap_reidentified,
-    );
-    figures::check(DIAG, "diagnose.silverbox.gap_after", d.gap_after);
+    // The figures are in docs/diagnosis.md and in the table of docs/silverbox.md.
     let pct = |x: Option<f64>| 100.0 * x.expect("finite gaps");
-    figures::check(DIAG, "diagnose.silverbox.shrink", pct(d.shrink));
+    for doc in ["docs/diagnosis.md", DOC] {
+        figures::check(doc, "diagnose.silverbox.k3", f.value);
+        figures::check(doc, "diagnose.silverbox.k3_stderr", f.stderr);
+        figures::check(doc, "diagnose.silverbox.gap_before", d.gap_before);
+        figures::check(
+            doc,
+            "diagnose.silverbox.gap_reidentified",
+            d.gap_reidentified,
+        );
+        figures::check(doc, "diagnose.silverbox.gap_after", d.gap_after);
+        figures::check(doc, "diagnose.silverbox.shrink", pct(d.shrink));
+        figures::check(
+            doc,
+            "diagnose.silverbox.effect_shrink",
+            pct(d.effect_shrink),
+        );
+        figures::check(
+            doc,
+            "diagnose.silverbox.pathwise_before",
+            d.pathwise_gap_before,
+        );
+        figures::check(
+            doc,
+            "diagnose.silverbox.pathwise_after",
+            d.pathwise_gap_after,
+        );
+    }
     figures::check(
-        DIAG,
-        "diagnose.silverbox.effect_shrink",
-        pct(d.effect_shrink),
-    );
-    figures::check(
-        DIAG,
-        "diagnose.silverbox.pathwise_before",
-        d.pathwise_gap_before,
-    );
-    figures::check(
-        DIAG,
-        "diagnose.silverbox.pathwise_after",
-        d.pathwise_gap_after,
+        DOC,
+        "diagnose.silverbox.pathwise_reidentified",
+        d.pathwise_gap_reidentified,
     );
     assert!(
         d.residual_ranking

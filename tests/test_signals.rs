@@ -30,8 +30,10 @@
 //! `two_mass` noise-free, the limitation stated in docs/method.md.
 
 mod common;
+mod figures;
 
 use dynid::dsl_parser::ir::ModelIr;
+use dynid::runtime::ident::Identification;
 use dynid::runtime::record::Record;
 use dynid::runtime::sim::{self, Grid, Phases, SweepLaw, TestSignal};
 
@@ -97,8 +99,40 @@ fn records(ir: &ModelIr, data: Data, noise: f64, seed: u64) -> Vec<Record> {
     out.expect("simulation").records
 }
 
-/// Identify `ir` from `data` and check every unknown within `tol` (relative, by name).
-fn check(name: &str, data: Data, noise: f64, seed: u64, tol: &[(&str, f64)]) {
+/// The doc that quotes these tests' figures (seed 1), checked only on the tests' own seeds.
+fn doc_figure(name: &str, measured: f64) {
+    if common::seeds_as_documented() {
+        figures::check("docs/method.md", name, measured);
+    }
+}
+
+/// The relative error of `name` in `errs`, in %.
+fn pct(errs: &[(String, f64)], name: &str) -> f64 {
+    100.0 * errs.iter().find(|(n, _)| n == name).expect("estimated").1
+}
+
+/// The largest |relative error| in `errs` over the names not in `except`, in %.
+fn largest_pct(errs: &[(String, f64)], except: &[&str]) -> f64 {
+    errs.iter()
+        .filter(|(n, _)| !except.contains(&n.as_str()))
+        .fold(0.0f64, |a, (_, e)| a.max(100.0 * e.abs()))
+}
+
+/// The standard error of `name` relative to its value, in %.
+fn se_pct(id: &Identification, name: &str) -> f64 {
+    let p = id.param(name).expect("estimated");
+    100.0 * p.stderr / p.value.abs()
+}
+
+/// Identify `ir` from `data` and check every unknown within `tol` (relative, by name);
+/// returns the identification and the relative errors.
+fn check(
+    name: &str,
+    data: Data,
+    noise: f64,
+    seed: u64,
+    tol: &[(&str, f64)],
+) -> (Identification, Vec<(String, f64)>) {
     let ir = model(name);
     let recs = records(&ir, data, noise, seed);
     let id = common::identify_records(&ir, &recs);
@@ -116,6 +150,7 @@ fn check(name: &str, data: Data, noise: f64, seed: u64, tol: &[(&str, f64)]) {
             100.0 * t
         );
     }
+    (id, errs)
 }
 
 /// 3x the largest error over five seeds of random data (module doc).
@@ -140,16 +175,34 @@ const TWO_MASS_LINEAR_TOL: [(&str, f64); 5] = [
 
 #[test]
 fn sdof_duffing_from_multisine_and_sweep_within_the_random_tolerances() {
-    for data in [Data::Random, Data::Multisine, Data::Sweep] {
-        check("sdof_duffing.dyn", data, 0.05, 1, &SDOF_TOL);
-    }
+    let (random, _) = check("sdof_duffing.dyn", Data::Random, 0.05, 1, &SDOF_TOL);
+    let (_, e) = check("sdof_duffing.dyn", Data::Multisine, 0.05, 1, &SDOF_TOL);
+    doc_figure("signals.multisine.sdof.d", pct(&e, "d"));
+    doc_figure("signals.multisine.sdof.k", pct(&e, "k"));
+    doc_figure("signals.multisine.sdof.k3", pct(&e, "k3"));
+    // A sweep's batch-means standard errors hold the spread between its windows, which
+    // see different bands: larger than random data's, and they cover the sweep's errors.
+    let (sweep, e) = check("sdof_duffing.dyn", Data::Sweep, 0.05, 1, &SDOF_TOL);
+    doc_figure("signals.sweep.sdof.d_se", se_pct(&sweep, "d"));
+    doc_figure("signals.random.sdof.d_se", se_pct(&random, "d"));
+    let z = e
+        .iter()
+        .map(|(n, e)| 100.0 * e.abs() / se_pct(&sweep, n))
+        .fold(0.0f64, f64::max);
+    println!("sweep: largest error {z:.2} standard errors");
+    doc_figure("signals.sweep.sdof.z", z);
 }
 
 #[test]
 fn two_mass_from_multisine_within_the_random_tolerances() {
-    for data in [Data::Random, Data::Multisine] {
-        check("two_mass.dyn", data, 0.05, 1, &TWO_MASS_TOL);
-    }
+    check("two_mass.dyn", Data::Random, 0.05, 1, &TWO_MASS_TOL);
+    let (_, e) = check("two_mass.dyn", Data::Multisine, 0.05, 1, &TWO_MASS_TOL);
+    doc_figure("signals.multisine.two_mass.d2", pct(&e, "d2"));
+    doc_figure("signals.multisine.two_mass.r", pct(&e, "r"));
+    doc_figure(
+        "signals.multisine.two_mass.rest",
+        largest_pct(&e, &["d2", "r"]),
+    );
 }
 
 #[test]
@@ -162,9 +215,39 @@ fn two_mass_from_sweeps_within_the_random_tolerances() {
         1,
         &TWO_MASS_LINEAR_TOL,
     );
-    // The friction joint, noise-free, from a linear sweep 0.05–1.6 Hz (measured: d2
-    // −0.5 %, r +0.5 %, the rest within 0.01 %).
-    check("two_mass.dyn", Data::LinearSweep, 0.0, 1, &TWO_MASS_TOL);
+    // The friction joint, noise-free, from a linear sweep 0.05–1.6 Hz (seed 1: d2 −0.09 %,
+    // r +0.08 %, the rest within 0.05 %; docs/method.md quotes d2 and r).
+    let (_, e) = check("two_mass.dyn", Data::LinearSweep, 0.0, 1, &TWO_MASS_TOL);
+    doc_figure("signals.linear_sweep.two_mass.d2", pct(&e, "d2"));
+    doc_figure("signals.linear_sweep.two_mass.r", pct(&e, "r"));
+}
+
+/// The limitation docs/method.md states, measured on seed 1: with 5 % noise a log sweep
+/// from 0.02 Hz biases `two_mass`'s stiffnesses and mass low (seeds 1–5 by the long
+/// form: k1, k2, m2 about −2 % and k3 −3.4 % on every seed), and noise-free the slow start
+/// costs the friction joint d2 and r tens of percent.
+#[test]
+fn two_mass_from_a_log_sweep_is_biased() {
+    let ir = model("two_mass.dyn");
+    let id = common::identify_records(&ir, &records(&ir, Data::Sweep, 0.05, 1));
+    let e = common::error_row("two_mass.dyn Sweep seed 1", &ir, &id);
+    // A bias, not spread: each of k1, k2, m2, k3 at least 1 % low (seed 1: −2.0, −2.4,
+    // −3.2, −3.4 % against standard errors of 0.4–1.0 %).
+    for n in ["k1", "k2", "m2", "k3"] {
+        assert!(pct(&e, n) < -1.0, "{n}: {:+.2} %", pct(&e, n));
+    }
+    for (n, figure) in [
+        ("k1", "signals.log_sweep.two_mass.k1"),
+        ("k2", "signals.log_sweep.two_mass.k2"),
+        ("m2", "signals.log_sweep.two_mass.m2"),
+        ("k3", "signals.log_sweep.two_mass.k3"),
+    ] {
+        doc_figure(figure, pct(&e, n));
+    }
+    let id = common::identify_records(&ir, &records(&ir, Data::Sweep, 0.0, 1));
+    let e = common::error_row("two_mass.dyn Sweep noise-free seed 1", &ir, &id);
+    doc_figure("signals.log_sweep.noise_free.two_mass.d2", pct(&e, "d2"));
+    doc_figure("signals.log_sweep.noise_free.two_mass.r", pct(&e, "r"));
 }
 
 /// The long form: every case over seeds 1–5, printed (the table of the module doc).
