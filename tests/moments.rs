@@ -220,3 +220,79 @@ fn damaged_files_are_refused_with_their_reason() {
         assert!(MomentStats::from_bytes(&bytes[..cut], "p").is_err());
     }
 }
+
+/// `dynid moments` per file with the design of all files, then `identify --from`: the same
+/// text and JSON as `identify` of the files (without the corner check, which re-reads the
+/// data); the size of a piece for docs/distributed.md.
+#[test]
+fn cli_identify_from_pieces_prints_what_identify_of_the_files_prints() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = common::two_mass_levels(dir.path());
+    let model = common::model_path("two_mass.dyn");
+    let run = |args: &[&std::ffi::OsStr]| {
+        let out = common::dynid().args(args).output().unwrap();
+        assert!(out.status.success(), "{}", common::stderr(&out));
+        out
+    };
+    let os = |p: &std::path::Path| p.as_os_str().to_owned();
+    let design = dir.path().join("design.json");
+    let mut args = vec![os("moments".as_ref()), os(&model)];
+    args.extend(files.iter().map(|f| os(f)));
+    args.extend([
+        os("--design-only".as_ref()),
+        os("--out".as_ref()),
+        os(&design),
+    ]);
+    run(&args.iter().map(|a| a.as_os_str()).collect::<Vec<_>>());
+
+    let mut parts = Vec::new();
+    for (i, f) in files.iter().enumerate() {
+        let part = dir.path().join(format!("p{i}.dynm"));
+        let args = [
+            os("moments".as_ref()),
+            os(&model),
+            os(f),
+            os("--design".as_ref()),
+            os(&design),
+            os("--out".as_ref()),
+            os(&part),
+        ];
+        run(&args.iter().map(|a| a.as_os_str()).collect::<Vec<_>>());
+        parts.push(part);
+    }
+    let size = std::fs::metadata(&parts[0]).unwrap().len();
+    println!("two_mass, 200 s at 100 Hz: {size} bytes per .dynm piece");
+
+    let whole_json = dir.path().join("whole.json");
+    let mut args = vec![os("identify".as_ref()), os(&model)];
+    args.extend(files.iter().map(|f| os(f)));
+    args.extend([
+        os("--no-corner-check".as_ref()),
+        os("--json".as_ref()),
+        os(&whole_json),
+    ]);
+    let whole = run(&args.iter().map(|a| a.as_os_str()).collect::<Vec<_>>());
+
+    let from_json = dir.path().join("from.json");
+    let mut args = vec![os("identify".as_ref()), os(&model), os("--from".as_ref())];
+    args.extend(parts.iter().map(|p| os(p)));
+    args.extend([os("--json".as_ref()), os(&from_json)]);
+    let from = run(&args.iter().map(|a| a.as_os_str()).collect::<Vec<_>>());
+
+    assert_eq!(
+        String::from_utf8_lossy(&from.stdout),
+        String::from_utf8_lossy(&whole.stdout)
+    );
+    assert_eq!(
+        String::from_utf8_lossy(&from.stderr),
+        String::from_utf8_lossy(&whole.stderr)
+    );
+    let read = |p: &std::path::Path| {
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+        // Where the time went differs from run to run.
+        v.as_object_mut().unwrap().remove("times");
+        v
+    };
+    assert_eq!(read(&from_json), read(&whole_json));
+}

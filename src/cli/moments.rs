@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 const LONG_HELP: &str = "\
 Measures the records DATA (one level of the pooled problem each) as identification does —
 the first pass, then every sample once through the filters — and writes what it accumulates,
-the moment statistics, to a binary file (.dynm: about 300 kB per record of two_mass, whatever
-its length, every number exact). Statistics of the same design merge exactly:
+the moment statistics, to a binary file (.dynm, every number exact: 0.3 to 0.8 MB per
+record of two_mass, bounded by the at most 80 time blocks whatever the record's length). Statistics of the same design merge exactly:
 `dynid identify MODEL --from a.dynm b.dynm ...` solves them into the identification of all
 their records given together, so a data set too large for one machine is reduced piece by
 piece (on any batch system or shell pipeline) and solved on one.
