@@ -8,6 +8,7 @@
 //! merge from the whole (estimates and standard errors) and the bytes of a piece.
 
 mod common;
+mod figures;
 mod servo_common;
 
 use common::{simulate, sources};
@@ -21,6 +22,9 @@ use dynid::runtime::{identify, IdentifyOptions};
 /// another order sums the levels' terms in another order (rounding, measured at most
 /// 4.4e-13 by this test with `--nocapture`).
 const TOL: f64 = 1e-10;
+
+/// Where the sizes of a piece are written.
+const DOC: &str = "docs/distributed.md";
 
 fn model(name: &str) -> ModelIr {
     let src = std::fs::read_to_string(common::model_path(name)).unwrap();
@@ -95,6 +99,7 @@ fn two_mass_pieces_merged_equal_the_whole() {
     let recs = simulate(&ir, 60.0, 0.01, 3);
     let (worst, bytes) = merge_equals_whole(&ir, &recs, &IdentifyOptions::default());
     println!("two_mass: merged vs whole max rel. diff {worst:.2e}; {bytes} bytes per piece");
+    figures::check(DOC, "moments.kb.two_mass_60s", bytes as f64 / 1000.0);
     assert!(worst <= TOL, "merged differs from whole by {worst:e}");
 }
 
@@ -105,6 +110,7 @@ fn servo_pieces_merged_equal_the_whole() {
     let (_, b) = servo_common::planned_record(2);
     let (worst, bytes) = merge_equals_whole(&ir, &[a, b], &IdentifyOptions::default());
     println!("servo_axis: merged vs whole max rel. diff {worst:.2e}; {bytes} bytes per piece");
+    figures::check(DOC, "moments.kb.servo", bytes as f64 / 1000.0);
     assert!(worst <= TOL, "merged differs from whole by {worst:e}");
 }
 
@@ -262,6 +268,7 @@ fn cli_identify_from_pieces_prints_what_identify_of_the_files_prints() {
     }
     let size = std::fs::metadata(&parts[0]).unwrap().len();
     println!("two_mass, 200 s at 100 Hz: {size} bytes per .dynm piece");
+    figures::check(DOC, "moments.kb.two_mass_200s", size as f64 / 1000.0);
 
     let whole_json = dir.path().join("whole.json");
     let mut args = vec![os("identify".as_ref()), os(&model)];

@@ -21,7 +21,9 @@ piece (on any batch system or shell pipeline) and solved on one.
 Everything identification decides from all levels at once is fixed before: the filter
 corners (the model's `filter` block, --filter-corners, or designed from the data), the time
 blocks per level (from the shortest record) and the noise corrections. Make that design once
-from a sample of the data and give it to every piece:
+from a sample of the data and give it to every piece.
+
+Example:
 
   dynid moments models/two_mass.dyn data/level_1.csv --design-only --out design.json
   dynid moments models/two_mass.dyn data/level_1.csv --design design.json --out p1.dynm
