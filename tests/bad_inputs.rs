@@ -151,6 +151,7 @@ fn setup(dir: &Path) {
     for f in CASES.iter().filter_map(|c| c.file.as_ref()) {
         std::fs::write(dir.join(f.name), (f.make)(&inputs)).unwrap();
     }
+    moment_files(dir);
 }
 
 const DATA: &str = "{dir}/data/level_1.csv";
@@ -1132,6 +1133,63 @@ const CASES: &[Case] = &[
         also: &["--allow-long"],
         ..CASE
     },
+    // ---- Moment statistics ----
+    case(
+        "identify --from a CSV file",
+        &["identify", "{model}", "--from", DATA],
+        "dynid::moments::not_moments",
+    ),
+    case(
+        "identify --from a .dynm cut short",
+        &["identify", "{model}", "--from", "{dir}/truncated.dynm"],
+        "dynid::moments::truncated",
+    ),
+    case(
+        "identify --from a .dynm of another format version",
+        &["identify", "{model}", "--from", "{dir}/version.dynm"],
+        "dynid::moments::version",
+    ),
+    case(
+        "identify --from the statistics of another model",
+        &[
+            "identify",
+            "{dir}/other_model.dyn",
+            "--from",
+            "{dir}/part1.dynm",
+        ],
+        "dynid::moments::other_model",
+    ),
+    Case {
+        name: "identify --from pieces of two designs",
+        args: &[
+            "identify",
+            "{model}",
+            "--from",
+            "{dir}/part1.dynm",
+            "{dir}/corners.dynm",
+        ],
+        code: "dynid::moments::other_design",
+        also: &["corners.dynm against the files before it"],
+    },
+    case(
+        "moments --out onto its data file",
+        &["moments", "{model}", DATA, "--out", DATA],
+        "dynid::output::is_input",
+    ),
+    case(
+        "moments --design that is not a design",
+        &[
+            "moments",
+            "{model}",
+            DATA,
+            "--design",
+            "{dir}/not_a_design.json",
+            "--out",
+            "{dir}/p.dynm",
+        ],
+        "dynid::moments::design",
+    )
+    .with_file("not_a_design.json", |_| text("{\"corners\": [")),
     // ---- Outputs ----
     case(
         "a plot named .jpg (only SVG and PNG are drawn)",
@@ -1169,7 +1227,40 @@ const CASES: &[Case] = &[
     ),
 ];
 
-/// Binary level files with one defect each, in `dir/bin`.
+/// Moment statistics of level 1 and 2 (`part1.dynm`, `part2.dynm`), of level 2 with other
+/// corners, cut short, of another format version; a model that differs in one nominal.
+fn moment_files(dir: &Path) {
+    let part = |level: &str, out: &str, extra: &[&str]| {
+        let st = dynid()
+            .arg("moments")
+            .arg(model("sdof_linear.dyn"))
+            .arg(dir.join("data").join(level))
+            .args(extra)
+            .arg("--out")
+            .arg(dir.join(out))
+            .output()
+            .unwrap();
+        assert!(st.status.success(), "{}", common::stderr(&st));
+    };
+    part("level_1.csv", "part1.dynm", &[]);
+    part("level_2.csv", "part2.dynm", &[]);
+    part(
+        "level_2.csv",
+        "corners.dynm",
+        &["--filter-corners", "2,4,8"],
+    );
+    let bytes = std::fs::read(dir.join("part1.dynm")).unwrap();
+    std::fs::write(dir.join("truncated.dynm"), &bytes[..bytes.len() / 2]).unwrap();
+    let mut version = bytes.clone();
+    version[8] = 9;
+    std::fs::write(dir.join("version.dynm"), version).unwrap();
+    std::fs::write(
+        dir.join("other_model.dyn"),
+        sdof_with("damper d (ground, m) ~ 0.5"),
+    )
+    .unwrap();
+}
+
 /// Every file below `dir` with its content.
 fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
     let mut out = Vec::new();

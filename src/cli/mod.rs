@@ -11,6 +11,7 @@ pub mod duplicates;
 pub mod excitation;
 pub mod frf;
 pub mod identify;
+pub mod moments;
 pub mod silverbox;
 pub mod simulate;
 
@@ -31,6 +32,8 @@ pub enum Command {
     Simulate(simulate::Args),
     /// Identify the unknown parameters from measured data, one CSV per excitation level.
     Identify(identify::Args),
+    /// Moment statistics of some records, to merge and solve with `identify --from`.
+    Moments(moments::Args),
     /// Detect which elements of a linear model are nonlinear, from one CSV per level.
     Detect(detect::Args),
     /// The Silverbox benchmark on the real measurement (identify, free-run RMS, arrow levels).
@@ -46,6 +49,7 @@ pub fn run(cli: Cli) -> miette::Result<()> {
         Command::Compile(a) => compile::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(a) => identify::run(a),
+        Command::Moments(a) => moments::run(a),
         Command::Detect(a) => detect::run(a),
         Command::Silverbox(a) => silverbox::run(a),
         Command::Diagnose(a) => diagnose::run(a),

@@ -93,7 +93,7 @@ pub fn fit_corners(
 }
 
 /// What set the lowest corner.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum LowerBy {
     /// Half the lowest dominant frequency of the drivers (the spectral design).
@@ -103,7 +103,7 @@ pub enum LowerBy {
 }
 
 /// What set the highest corner.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum UpperBy {
     /// Eight times the highest dominant frequency (or the lowest corner), the spectral

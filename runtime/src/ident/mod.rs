@@ -54,6 +54,7 @@
 //! | filter bank: reference chain, portable kernel, x86 vector paths | [`filter`] |
 //! | accumulation of the moments, streamed | `accumulate` (`task`, `end_velocity`) |
 //! | moment views: whole record, hat windows | `moments` |
+//! | moment statistics as a value: design, pieces, merge, `.dynm` files | `pieces` ([`MomentStats`], [`MomentDesign`]) |
 //! | noise: correction types, decision, de-biasing | [`noise`] (`fix`, `decide`, `correct`) |
 //! | rows and solve | `plan`, `instruments`, `columns`, [`Measurement`], `restrict`, `solve` |
 //! | statistics: standard errors, warnings | `stats` |
@@ -76,6 +77,7 @@ mod measurement;
 pub mod memory;
 mod moments;
 pub mod noise;
+mod pieces;
 mod plan;
 pub mod print;
 mod restrict;
@@ -94,6 +96,9 @@ pub use measurement::Measurement;
 pub use memory::MemoryEstimate;
 pub use moments::PhaseTimes;
 pub use noise::NoiseSummary;
+pub use pieces::{
+    model_hash, DesignOptions, MomentDesign, MomentStats, MomentsError, FORMAT_VERSION, MAGIC,
+};
 pub use rests::RestSummary;
 pub use types::*;
 pub use velocity::VelocityEstimate;

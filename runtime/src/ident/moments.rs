@@ -71,7 +71,7 @@ impl std::ops::AddAssign for PhaseTimes {
 }
 
 /// Raw moments of one level, per time block.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct LevelMoments {
     pub n_row_signals: usize,
     pub n_col_signals: usize,

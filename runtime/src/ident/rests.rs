@@ -39,7 +39,7 @@ pub const MIN_REST_SHARE: f64 = 0.05;
 pub(crate) type Intervals = Vec<(usize, usize)>;
 
 /// The rests left out of one level's moments.
-#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize, PartialEq)]
 pub struct RestSummary {
     /// Rest intervals left out.
     pub intervals: usize,

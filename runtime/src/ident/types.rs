@@ -262,7 +262,7 @@ pub struct EquationResidual {
 }
 
 /// What was seen of one level.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
 pub struct LevelInfo {
     pub origin: String,
     pub samples: usize,
@@ -282,7 +282,7 @@ pub struct LevelInfo {
 }
 
 /// How the filter corners were chosen.
-#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize, PartialEq)]
 pub struct CornerSource {
     /// Given by the caller (option or the model's filter block): nothing below applies
     /// to them but the information bandwidth, which is reported all the same.

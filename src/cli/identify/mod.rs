@@ -40,6 +40,9 @@ Example:
     ...
     condition 8.917e0, 108 rows, filter corners 0.5000, ... 16.00 rad/s
 
+Data too large for one machine: `dynid moments MODEL DATA... --out PART.dynm` on each piece,
+then `dynid identify MODEL --from PART.dynm...` (see `dynid moments --help`).
+
 Standard errors come from a batch-means sandwich over time blocks. A value within two
 standard errors of zero is kept in the fit and marked `(n.s.)`: the data do not show
 that term. A parameter the data cannot resolve (never excited, or collinear with partners)
@@ -66,8 +69,18 @@ pub struct Args {
     pub model: PathBuf,
     /// One data file per excitation level: CSV (header with `t` and the measured signals),
     /// MATLAB .mat, HDF5 or Parquet (variables or columns named by the signals).
-    #[arg(required = true)]
+    #[arg(required_unless_present = "from")]
     pub data: Vec<PathBuf>,
+    /// Solve merged moment statistics (`dynid moments MODEL DATA... --out PART.dynm`)
+    /// instead of reading data: the same result as identifying their records together
+    /// (without the corner check and the closed-loop hint, which read the data).
+    #[arg(
+        long = "from",
+        value_name = "PART.dynm",
+        num_args = 1..,
+        conflicts_with_all = ["data", "refine", "filter_corners", "balance", "no_balance", "no_noise_correction", "column_chains", "keep_rests"]
+    )]
+    pub from: Vec<PathBuf>,
     /// Write the result as JSON to this file.
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -164,6 +177,9 @@ pub fn run(args: Args) -> miette::Result<()> {
              together, and a cut would only add filter start-up transients at every seam"
         ));
     }
+    if !args.from.is_empty() {
+        return identify_from(&args);
+    }
     check_outputs(
         [(args.json.as_deref(), "the JSON output")],
         inputs(&args.model, &args.data).chain(args.test.iter().map(PathBuf::as_path)),
@@ -201,6 +217,30 @@ pub fn run(args: Args) -> miette::Result<()> {
         // The hint only where there is one: otherwise the document is that of the Python
         // package's `to_dict()`.
         let text = json::document(&id, refined.as_ref(), hint.as_deref())?;
+        write_atomically(out, text.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// `identify MODEL --from PART.dynm...`: merge the statistics, solve, and report as for the
+/// records they were made from.
+fn identify_from(args: &Args) -> miette::Result<()> {
+    check_outputs(
+        [(args.json.as_deref(), "the JSON output")],
+        inputs(&args.model, &args.from),
+    )?;
+    let ir = super::common::load_model(&args.model)?;
+    let merged = super::moments::read_merged(&args.from)?;
+    let id = merged.identify(&ir)?;
+    print!("{}", render(&ir, &id));
+    for w in &id.warnings {
+        eprintln!("warning: {w}");
+    }
+    for w in &id.fit_warnings {
+        eprintln!("warning: {w}");
+    }
+    if let Some(out) = &args.json {
+        let text = json::document(&id, None, None)?;
         write_atomically(out, text.as_bytes())?;
     }
     Ok(())

@@ -44,6 +44,7 @@ fn identifies_from_csv_files_and_writes_json() {
     let args = Args {
         model: "sdof.dyn".into(),
         data,
+        from: Vec::new(),
         json: Some(out.clone()),
         csv: CsvArgs {
             map: vec!["disp=m1.x".into()],
@@ -102,6 +103,7 @@ fn bad_data_is_an_error_naming_the_file() {
     let args = Args {
         model: "sdof.dyn".into(),
         data: vec![p.clone()],
+        from: Vec::new(),
         json: None,
         csv: CsvArgs::default(),
         filter_corners: None,

@@ -14,7 +14,7 @@ pub struct ChainDisc {
 }
 
 /// How the input is assumed to behave between samples.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Hold {
     /// Piecewise linear: exact for smooth signals up to `O(Tₛ²)` interpolation error.
     FirstOrder,

@@ -20,6 +20,7 @@ use screen::ColumnScreen;
 use signal::SignalPass;
 
 /// First-pass statistics of a level: length, spread, dominant frequencies.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct LevelStats {
     pub n: usize,
     pub ts: f64,

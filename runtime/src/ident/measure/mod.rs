@@ -16,10 +16,13 @@ use crate::ident::columns::ColumnStore;
 use crate::ident::design::{self, Designed};
 use crate::ident::first_pass::{self, LevelSpan, LevelStats};
 use crate::ident::measurement::Measurement;
+use crate::ident::moments::PhaseTimes;
+use crate::ident::pieces::{LevelPiece, MomentDesign};
 use crate::ident::plan::{build_structure, Plan};
 use crate::ident::rests;
 use crate::ident::types::{CornerSource, IdentifyError, IdentifyOptions};
 use crate::ident::velocity::{self, EstimatedVelocity, VelocityEstimate};
+use crate::ident::NoiseSummary;
 use crate::ident::{memory, noise};
 use checks::{check_corners, check_lengths, check_rows};
 use dynid_ir::ir::ModelIr;
@@ -28,29 +31,116 @@ use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
 
-/// Stream every level once through the filters and accumulate the moments.
+/// Stream every level once through the filters and accumulate the moments: the design is
+/// made from the first pass over all levels (see [`design_levels`]), the levels measured
+/// with it into pieces (see [`measure_pieces`]), and the pieces read as one problem
+/// ([`measurement_of`]) — the path of merged moment statistics, taken by every
+/// identification.
 pub fn measure<'m>(
     ir: &'m ModelIr,
     eval: &dyn BasisEval,
     levels: &[&dyn LevelSource],
     opts: &IdentifyOptions,
 ) -> Result<Measurement<'m>, IdentifyError> {
+    let first = first_pass_all(ir, levels, opts)?;
+    let design = design_levels(ir, opts, &first, levels)?;
+    let (pieces, times) = measure_pieces(ir, eval, levels, opts, &design, first)?;
+    measurement_of(ir, &design, pieces, times)
+}
+
+/// The structure and first pass of a request: the bank, the plan of the problem before its
+/// design, and every level's first-pass statistics (with the time they took).
+pub(crate) struct FirstPass {
+    pub(crate) bank: BankChoice,
+    pub(crate) plan: Plan,
+    pub(crate) stats: Vec<LevelStats>,
+    pub(crate) time: std::time::Duration,
+}
+
+/// Check the request, choose the bank and the structure, and take the first pass over
+/// every level (statistics, noise floors, screens).
+pub(crate) fn first_pass_all(
+    ir: &ModelIr,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+) -> Result<FirstPass, IdentifyError> {
     check_request(ir, levels, opts)?;
     // Before any sample is read: a model too large for memory is refused with the estimate.
     memory::check(ir, levels.len(), opts, 0.0, "identification")?;
     let bank = choose_bank(ir, opts)?;
-    let mut plan = build_structure(ir, opts.balance, &bank)?;
-
+    let plan = build_structure(ir, opts.balance, &bank)?;
     let t0 = Instant::now();
     let stats = first_pass::all_levels(ir, &plan, levels, opts.chunk_len)?;
-    let stats_time = t0.elapsed();
-    let (noise_var, noise) = noise::decide(ir, &mut plan, &stats, opts.noise_correction);
+    Ok(FirstPass {
+        bank,
+        plan,
+        stats,
+        time: t0.elapsed(),
+    })
+}
 
-    let n_blocks = set_filters(ir, opts, &bank, &mut plan, &stats, levels)?;
+/// The design of the levels of `first` taken together: the noise corrections, the corners
+/// (given or designed from every level) and the time blocks (from the shortest level), each
+/// level checked against them.
+pub(crate) fn design_levels(
+    ir: &ModelIr,
+    opts: &IdentifyOptions,
+    first: &FirstPass,
+    levels: &[&dyn LevelSource],
+) -> Result<MomentDesign, IdentifyError> {
+    let fixes = noise::needs_fixes(&first.plan, &first.stats, opts.noise_correction);
+    let mut plan = first.plan.clone();
+    let n_blocks = set_filters(ir, opts, &first.bank, &mut plan, &first.stats, levels)?;
     check_rows(&plan, levels.len())?;
+    Ok(MomentDesign::new(
+        ir,
+        opts,
+        first.bank.order,
+        plan.corners.clone(),
+        plan.corner_source.clone(),
+        n_blocks,
+        fixes,
+    ))
+}
+
+/// Give the structure `plan` the design's noise corrections and corners; per level of
+/// `stats` the noise variances its moments are de-biased for, and the noise summary of
+/// those levels.
+pub(crate) fn apply_design(
+    ir: &ModelIr,
+    design: &MomentDesign,
+    plan: &mut Plan,
+    stats: &[LevelStats],
+) -> (Vec<Vec<f64>>, NoiseSummary) {
+    let opts = &design.options;
+    let (var, summary) =
+        noise::decide_designed(ir, plan, stats, opts.noise_correction, design.noise_fixes);
+    plan.corner_source = design.corners_from.clone();
+    plan.corners = vec![0.0; design.corners.len()];
+    plan.set_corners(ir, &design.corners);
+    (var, summary)
+}
+
+/// Measure every level of `first` with the design: one piece per level (its moments and
+/// what the report and the solve read of it), and the time the pass took.
+pub(crate) fn measure_pieces(
+    ir: &ModelIr,
+    eval: &dyn BasisEval,
+    levels: &[&dyn LevelSource],
+    opts: &IdentifyOptions,
+    design: &MomentDesign,
+    first: FirstPass,
+) -> Result<(Vec<LevelPiece>, PhaseTimes), IdentifyError> {
+    let FirstPass {
+        mut plan,
+        stats,
+        time: stats_time,
+        ..
+    } = first;
+    let (noise_var, _) = apply_design(ir, design, &mut plan, &stats);
+    let n_blocks = design.n_blocks;
 
     let estimators = velocity_estimators(&plan, levels, opts.chunk_len)?;
-    let estimated = velocity_estimates(ir, &plan, &estimators);
     let sources: Vec<&dyn LevelSource> = if estimators.is_empty() {
         levels.to_vec()
     } else {
@@ -85,6 +175,73 @@ pub fn measure<'m>(
     times.pass += t_pass.elapsed();
     let infos = level_infos(ir, &plan, &stats, levels, &moments, &rests);
     let centred = centred_levels(&plan, &stats);
+    let pieces = moments
+        .into_iter()
+        .zip(stats)
+        .zip(infos)
+        .zip(centred)
+        .enumerate()
+        .map(|(level, (((moments, stats), info), centred))| LevelPiece {
+            moments,
+            stats,
+            info,
+            centred,
+            velocity: estimators
+                .get(level)
+                .map(|e| e.designs().iter().map(|d| (d.1, d.2)).collect())
+                .unwrap_or_default(),
+        })
+        .collect();
+    Ok((pieces, times))
+}
+
+/// The measured problem of the pieces of one design (levels in their order): the plan
+/// rebuilt from the model and the design, the noise summary over all pieces, and the
+/// report of the estimated velocities per piece.
+pub(crate) fn measurement_of<'m>(
+    ir: &'m ModelIr,
+    design: &MomentDesign,
+    pieces: Vec<LevelPiece>,
+    times: PhaseTimes,
+) -> Result<Measurement<'m>, IdentifyError> {
+    if pieces.is_empty() {
+        return Err(IdentifyError::NoLevels);
+    }
+    let opts = design.identify_options();
+    let bank = choose_bank(ir, &opts)?;
+    let mut plan = build_structure(ir, opts.balance, &bank)?;
+    let mut stats = Vec::with_capacity(pieces.len());
+    let mut moments = Vec::with_capacity(pieces.len());
+    let mut infos = Vec::with_capacity(pieces.len());
+    let mut centred = Vec::with_capacity(pieces.len());
+    let mut velocity = Vec::with_capacity(pieces.len());
+    for p in pieces {
+        stats.push(p.stats);
+        moments.push(p.moments);
+        infos.push(p.info);
+        centred.push(p.centred);
+        velocity.push(p.velocity);
+    }
+    let (_, noise) = apply_design(ir, design, &mut plan, &stats);
+    check_rows(&plan, moments.len())?;
+    let estimated = plan
+        .estimated
+        .iter()
+        .enumerate()
+        .map(|(k, (v, x))| VelocityEstimate {
+            signal: ir.signal(*v).name.clone(),
+            from: ir.signal(*x).name.clone(),
+            method: velocity::METHOD.into(),
+            cutoff: velocity
+                .iter()
+                .map(|l| l.get(k).map_or(0.0, |d| d.0))
+                .collect(),
+            half_width: velocity
+                .iter()
+                .map(|l| l.get(k).map_or(0, |d| d.1))
+                .collect(),
+        })
+        .collect();
     Ok(Measurement {
         ir,
         store: Arc::new(ColumnStore::new(plan.clone(), moments)),
@@ -256,25 +413,6 @@ fn velocity_estimators<'a>(
     }))?)
 }
 
-/// The report of each estimated velocity: from which position, with which filter per level.
-fn velocity_estimates(
-    ir: &ModelIr,
-    plan: &Plan,
-    estimators: &[EstimatedVelocity<'_>],
-) -> Vec<VelocityEstimate> {
-    plan.estimated
-        .iter()
-        .enumerate()
-        .map(|(k, (v, x))| VelocityEstimate {
-            signal: ir.signal(*v).name.clone(),
-            from: ir.signal(*x).name.clone(),
-            method: velocity::METHOD.into(),
-            cutoff: estimators.iter().map(|e| e.designs()[k].1).collect(),
-            half_width: estimators.iter().map(|e| e.designs()[k].2).collect(),
-        })
-        .collect()
-}
-
 /// Positions and velocities of acceleration-only bodies that roots read: streamed as zeros
 /// (none where the plan has no such body).
 fn zero_fill<'a>(plan: &Plan, sources: &[&'a dyn LevelSource]) -> Vec<ZeroFill<'a>> {
@@ -286,4 +424,25 @@ fn zero_fill<'a>(plan: &Plan, sources: &[&'a dyn LevelSource]) -> Vec<ZeroFill<'
         .iter()
         .map(|s| ZeroFill::new(*s, slots.clone()))
         .collect()
+}
+
+/// Check the levels of `first` against a design made before them (from a sample of the
+/// data): its corners below every level's Nyquist frequency, every level long enough for
+/// its filters and blocks.
+pub(crate) fn check_against(
+    design: &MomentDesign,
+    first: &FirstPass,
+    levels: &[&dyn LevelSource],
+) -> Result<(), IdentifyError> {
+    let span = LevelSpan::of(&first.stats);
+    check_corners(&design.corners, true, &first.stats, &span, levels)?;
+    check_lengths(
+        &first.stats,
+        levels,
+        &design.corners,
+        design.order,
+        design.n_blocks,
+        None,
+        &span,
+    )
 }

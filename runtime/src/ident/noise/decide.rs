@@ -8,19 +8,30 @@ use crate::ident::first_pass::LevelStats;
 use crate::ident::plan::Plan;
 use dynid_ir::ir::{ModelIr, SignalId};
 
+/// Whether the noise corrections are attached to the plan: the correction is on and a
+/// measured signal carries significant noise at some level (a decision over all levels,
+/// which a moment design carries, see [`crate::ident::MomentDesign`]).
+pub(crate) fn needs_fixes(plan: &Plan, stats: &[LevelStats], enabled: bool) -> bool {
+    enabled && (0..plan.y.len()).any(|k| stats.iter().any(|st| significant(st, k)))
+}
+
+/// Whether the noise of measured signal `k` at a level is significant.
+fn significant(st: &LevelStats, k: usize) -> bool {
+    st.noise_flat[k] && st.std[k] > 0.0 && st.noise_var[k].sqrt() >= SIGNIFICANT * st.std[k]
+}
+
 /// Decide the noise corrections from the first-pass statistics: attach them to the plan
-/// where a signal in a nonlinear term carries significant noise, and return per level the
+/// where `fixes` (see [`needs_fixes`]: a signal in a nonlinear term carries significant
+/// noise at some level of the design's data), and return per level the
 /// noise variance of each measured signal to correct for (zero where it is not
 /// significant or the correction is off), with the summary for the report.
-pub(crate) fn decide(
+pub(crate) fn decide_designed(
     ir: &ModelIr,
     plan: &mut Plan,
     stats: &[LevelStats],
     enabled: bool,
+    fixes: bool,
 ) -> (Vec<Vec<f64>>, NoiseSummary) {
-    let significant = |st: &LevelStats, k: usize| {
-        st.noise_flat[k] && st.std[k] > 0.0 && st.noise_var[k].sqrt() >= SIGNIFICANT * st.std[k]
-    };
     let noisy: Vec<SignalId> = (0..plan.y.len())
         .filter(|&k| stats.iter().any(|st| significant(st, k)))
         .map(|k| plan.y[k])
@@ -51,7 +62,7 @@ pub(crate) fn decide(
             .collect(),
         ..Default::default()
     };
-    if enabled && !noisy.is_empty() {
+    if fixes {
         attach(plan, ir);
     }
     summary.uncorrected = uncorrected(plan, ir, &noisy);

@@ -50,7 +50,7 @@ mod decide;
 pub(crate) mod fix;
 
 pub(crate) use correct::{attach, debias, extra_widths};
-pub(crate) use decide::decide;
+pub(crate) use decide::{decide_designed, needs_fixes};
 
 use serde::Serialize;
 use std::collections::BTreeMap;
