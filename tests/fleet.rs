@@ -69,9 +69,9 @@ fn normals(seed: u64, n: usize) -> Vec<f64> {
 /// The parameters of machine `i`: scattered around the nominal, with its fault.
 fn truth(i: usize) -> [f64; 3] {
     let g = normals(common::seed(1000 + i as u64), 3);
-    let mut p = [0.0; 3];
-    for j in 0..3 {
-        p[j] = NOMINAL[j] * (1.0 + SCATTER * g[j]);
+    let mut p = NOMINAL;
+    for (p, g) in p.iter_mut().zip(&g) {
+        *p *= 1.0 + SCATTER * g;
     }
     if let Some(&(_, name, factor)) = FAULTS.iter().find(|f| f.0 == i) {
         p[["k", "fv", "fc"].iter().position(|n| *n == name).unwrap()] *= factor;

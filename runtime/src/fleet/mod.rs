@@ -19,7 +19,7 @@
 //!    is held when every `|p_ij − median_j| ≤ z* · s_j` (`z*` below);
 //! 2. on the held machines, `p̄` their mean, `S` their sample covariance and `W` the mean of
 //!    their `C_i`; `Σ = (S − W)₊`, the positive part (eigenvalues of the difference below
-//!    zero set to zero, in the coordinates scaled by `√S_jj`: a direction in which the
+//!    zero set to zero, in the coordinates scaled by `√(S_jj + W_jj)`: a direction in which the
 //!    machines scatter less than their own errors has no between-machine spread);
 //! 3. every machine is tested against (`p̄`, `Σ`); the machines not flagged are the new held
 //!    set, and 2–3 repeat until the set stays the same.
@@ -72,8 +72,9 @@ pub struct FleetOptions {
     /// Family-wise level: the chance that any machine consistent with its fleet is flagged.
     pub alpha: f64,
     /// Estimate the between-machine covariance `Σ` (default). Off: every machine is tested
-    /// against the pooled value with its own covariance alone — for comparison only; on a
-    /// real fleet it flags machines that are merely different parts.
+    /// against the pooled value (the mean of the machines held by the median screen, one
+    /// round) with its own covariance alone — for comparison only; on a real fleet it flags
+    /// machines that are merely different parts.
     pub between: bool,
 }
 
@@ -310,8 +311,10 @@ pub fn assess(machines: &[Machine], opts: &FleetOptions) -> Result<FleetView, Fl
             .map(|o| consistency::test(o, &model))
             .collect();
         let next: Vec<bool> = tests.iter().map(|t| t.p_value >= level).collect();
-        // The held set can only cycle between a few sets; a bound keeps it finite.
-        if next == held || rounds >= 50 {
+        // The held set can only cycle between a few sets; a bound keeps it finite. Without
+        // the between-machine spread the machines that are merely different parts would be
+        // rejected round after round: one round from the screened set is the comparison.
+        if next == held || rounds >= 50 || !opts.between {
             break (model, tests);
         }
         held = next;

@@ -74,7 +74,7 @@ pub(super) fn fit(machines: &[Ordered], held: &[bool], between: bool) -> FleetMo
     let centre_se = (0..k).map(|j| (s[(j, j)] / n).max(0.0).sqrt()).collect();
     let within = (0..k).map(|j| w[(j, j)].max(0.0).sqrt()).collect();
     let (between, clipped) = if between {
-        positive_part(&(&s - &w), &s)
+        positive_part(&s, &w)
     } else {
         (DMatrix::zeros(k, k), 0)
     };
@@ -87,14 +87,17 @@ pub(super) fn fit(machines: &[Ordered], held: &[bool], between: bool) -> FleetMo
     }
 }
 
-/// The positive part of the symmetric `d` (its eigenvalues below zero set to zero), taken
-/// in the coordinates scaled by `√s_jj` (so that parameters of any unit count alike); and
-/// the number of eigenvalues set to zero.
-fn positive_part(d: &DMatrix<f64>, s: &DMatrix<f64>) -> (DMatrix<f64>, usize) {
-    let k = d.nrows();
+/// The positive part of `s − w` (its eigenvalues below zero set to zero), taken in the
+/// coordinates scaled by `√(s_jj + w_jj)` (so that parameters of any unit count alike, and
+/// every scaled entry is at most 1 in size: a parameter on which all machines agree to
+/// the last digit, `s_jj ≈ 0`, must not blow its `−w_jj` up beyond the others' precision);
+/// and the number of eigenvalues set to zero.
+fn positive_part(s: &DMatrix<f64>, w: &DMatrix<f64>) -> (DMatrix<f64>, usize) {
+    let k = s.nrows();
+    let d = s - w;
     let scale: Vec<f64> = (0..k)
         .map(|j| {
-            let v = s[(j, j)].sqrt();
+            let v = (s[(j, j)] + w[(j, j)]).sqrt();
             if v > 0.0 && v.is_finite() {
                 v
             } else {

@@ -38,8 +38,8 @@ const NOMINAL: [f64; 3] = [4.0, 0.4, 0.3];
 fn machine(name: &str, values: [f64; 3], rel: f64) -> Machine {
     let se: Vec<f64> = values.iter().map(|v| rel * v.abs()).collect();
     let mut covariance = vec![0.0; 9];
-    for i in 0..3 {
-        covariance[i * 3 + i] = se[i] * se[i];
+    for (i, se) in se.iter().enumerate() {
+        covariance[i * 3 + i] = se * se;
     }
     covariance[5] = -0.5 * se[1] * se[2];
     covariance[7] = covariance[5];
