@@ -13,7 +13,8 @@
 //! [`record::Record`]s), [`basis::BasisEval`] (the evaluator plug-in shared by the tape
 //! interpreter and macro-generated code), [`sim`] (simulation), [`detect`] (nonlinearity
 //! detection from per-level linear fits), [`diagnose`] (the sim-to-real gap and the
-//! unmodelled effect behind it), [`silverbox`] (the Silverbox benchmark on real data),
+//! unmodelled effect behind it), [`fleet`] (machines of one model, identified one by one,
+//! tested against their fleet), [`silverbox`] (the Silverbox benchmark on real data),
 //! [`describe`] (mean and standard deviation of a column), [`baseline`] (two classical
 //! regressions, IDIM-LS and SVF-LS: references for benches and tests, not the method).
 
@@ -24,6 +25,7 @@ pub mod describe;
 pub mod detect;
 pub mod diagnose;
 mod fft;
+pub mod fleet;
 pub mod frf;
 #[doc(hidden)]
 pub mod fuzz;

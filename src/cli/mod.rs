@@ -9,6 +9,7 @@ pub mod detect;
 pub mod diagnose;
 pub mod duplicates;
 pub mod excitation;
+pub mod fleet;
 pub mod frf;
 pub mod identify;
 pub mod moments;
@@ -42,6 +43,8 @@ pub enum Command {
     Diagnose(diagnose::Args),
     /// Simulate a system with friction and diagnose the friction-free model against it.
     Demo(demo::Args),
+    /// Test machines of one model, each identified on its own, against their fleet.
+    Fleet(fleet::Args),
 }
 
 pub fn run(cli: Cli) -> miette::Result<()> {
@@ -54,5 +57,6 @@ pub fn run(cli: Cli) -> miette::Result<()> {
         Command::Silverbox(a) => silverbox::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Fleet(a) => fleet::run(a),
     }
 }

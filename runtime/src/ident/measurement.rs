@@ -209,7 +209,7 @@ impl<'m> Measurement<'m> {
         weights: &[f64],
         columns: &[Arc<Column>],
         which: &[usize],
-    ) -> Option<(super::solve::LsSolution, Vec<f64>)> {
+    ) -> Option<(super::solve::LsSolution, stats::Spread)> {
         let nr = self.plan.rows.len();
         let na = active.len();
         let levels = &self.store.levels;
@@ -281,7 +281,7 @@ impl<'m> Measurement<'m> {
                 levels,
             )
         };
-        let finite = sol.x.iter().chain(&se).all(|v| v.is_finite());
+        let finite = sol.x.iter().chain(&se.se).all(|v| v.is_finite());
         finite.then_some((sol, se))
     }
 
@@ -440,11 +440,11 @@ impl<'m> Measurement<'m> {
                             "{why}: check the data for values far outside the physical range"
                         ),
                     }));
-                    break (super::solve::LsSolution::empty(), vec![]);
+                    break (super::solve::LsSolution::empty(), stats::Spread::none());
                 }
             };
             if active.is_empty() {
-                break (sol, vec![]);
+                break (sol, stats::Spread::none());
             }
             if let Some((j, reason)) = self.rank_loss(&sol, &active, &names, &meanless) {
                 unident.push(Unidentifiable {
@@ -466,7 +466,7 @@ impl<'m> Measurement<'m> {
                 &self.store.levels,
             );
             let se = stats::sandwich_stderr(&sol, nr, &windows);
-            if let Some((j, reason)) = self.unusable(&sol, &se) {
+            if let Some((j, reason)) = self.unusable(&sol, &se.se) {
                 unident.push(Unidentifiable {
                     name: names[active[j]].clone(),
                     reason,
@@ -504,8 +504,8 @@ impl<'m> Measurement<'m> {
             .map(|(k, &j)| ParamEstimate {
                 name: names[j].clone(),
                 value: sol.x[k],
-                stderr: se[k],
-                significant: sol.x[k].abs() > SIGNIFICANCE_T * se[k],
+                stderr: se.se[k],
+                significant: sol.x[k].abs() > SIGNIFICANCE_T * se.se[k],
             })
             .collect::<Vec<_>>();
         // Residuals per equation and level, on the weighted rows.
@@ -519,6 +519,7 @@ impl<'m> Measurement<'m> {
             warnings: stats::physical_warnings(self.ir, &params),
             fit_warnings: Vec::new(),
             params,
+            covariance: se.cov,
             unidentifiable: unident,
             condition: sol.condition(),
             residual,

@@ -25,7 +25,7 @@
 
 use super::measure::measure;
 use super::types::Identification;
-use super::types::{IdentifyError, IdentifyOptions, ShapeEstimate, SIGNIFICANCE_T};
+use super::types::{IdentifyError, IdentifyOptions, ShapeEstimate};
 use crate::data::LevelSource;
 use crate::tape::Tape;
 use dynid_ir::ir::ModelIr;
@@ -81,14 +81,9 @@ pub fn profile(
             let before = sh.stderr.unwrap_or(0.0);
             if jack.is_finite() && jack > before {
                 // Carry the larger error into the linear estimates as well.
-                for (p, d) in id.params.iter_mut().zip(&sh.slopes) {
-                    if d.is_finite() {
-                        p.stderr =
-                            (p.stderr.powi(2) + d * d * (jack * jack - before * before)).sqrt();
-                        p.significant = p.value.abs() > SIGNIFICANCE_T * p.stderr;
-                    }
-                }
                 sh.stderr = Some(jack);
+                let slopes = sh.slopes.clone();
+                id.widen(&slopes, jack * jack - before * before);
             }
         }
     }
@@ -249,18 +244,13 @@ pub fn profile_with<E>(
         .collect();
     // The linear estimates' errors include the shape's (delta method along the profile):
     // the solve's own standard error is conditional on the shape value.
-    for (j, p) in id.params.iter_mut().enumerate() {
-        let extra: f64 = id
-            .shapes
-            .iter()
-            .zip(&slopes)
-            .map(|(sh, sl)| match (sh.stderr, sl[j]) {
-                (Some(e), d) if d.is_finite() => (d * e).powi(2),
-                _ => 0.0,
-            })
-            .sum();
-        p.stderr = (p.stderr * p.stderr + extra).sqrt();
-        p.significant = p.value.abs() > SIGNIFICANCE_T * p.stderr;
+    let spreads: Vec<f64> = id
+        .shapes
+        .iter()
+        .map(|sh| sh.stderr.unwrap_or(0.0))
+        .collect();
+    for (e, sl) in spreads.iter().zip(&slopes) {
+        id.widen(sl, e * e);
     }
     Ok((at, id))
 }

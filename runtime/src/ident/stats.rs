@@ -178,23 +178,59 @@ pub(crate) fn centred_windows(
     }
 }
 
-/// Standard errors of the active columns of `sol` from the window contributions of its
-/// residual rows (see the module doc and [`level_windows`]; `nr` rows per level).
-pub(crate) fn sandwich_stderr(sol: &LsSolution, nr: usize, windows: &[LevelWindows]) -> Vec<f64> {
-    let na = sol.x.len();
-    // shape: `cov` is `na × na` and `bartlett` has `na` entries (`sandwich_cov`), so `k < na`
-    // indexes both.
-    let (cov, bartlett) = sandwich_cov(&sol.pinv, na, nr, windows);
-    (0..na)
-        .map(|k| {
-            let v = cov[(k, k)];
-            if v > 0.0 {
-                v.sqrt()
-            } else {
-                bartlett[k].max(0.0).sqrt()
-            }
-        })
-        .collect()
+/// The standard errors of an estimate and its covariance as reported.
+pub(crate) struct Spread {
+    pub se: Vec<f64>,
+    /// Row-major `na × na`: the sandwich covariance with `se²` on its diagonal (where a
+    /// variance fell back to the Bartlett weight, its row keeps the sandwich's covariances).
+    pub cov: Vec<f64>,
+}
+
+impl Spread {
+    /// The spread of an estimate of no parameters.
+    pub fn none() -> Spread {
+        Spread {
+            se: Vec::new(),
+            cov: Vec::new(),
+        }
+    }
+
+    /// The spread of the sandwich `cov` (`na × na`) with the Bartlett variances `bartlett`
+    /// standing in for variances that are not positive.
+    fn new(cov: &Mat<f64>, bartlett: &[f64]) -> Spread {
+        let na = bartlett.len();
+        // shape: `cov` is `na × na` and `bartlett` has `na` entries (`sandwich_cov`), so
+        // `k, l < na` index both.
+        let se: Vec<f64> = (0..na)
+            .map(|k| {
+                let v = cov[(k, k)];
+                if v > 0.0 {
+                    v.sqrt()
+                } else {
+                    bartlett[k].max(0.0).sqrt()
+                }
+            })
+            .collect();
+        let cov = (0..na * na)
+            .map(|i| {
+                let (k, l) = (i / na, i % na);
+                if k == l {
+                    se[k] * se[k]
+                } else {
+                    0.5 * (cov[(k, l)] + cov[(l, k)])
+                }
+            })
+            .collect();
+        Spread { se, cov }
+    }
+}
+
+/// Standard errors and covariance of the active columns of `sol` from the window
+/// contributions of its residual rows (see the module doc and [`level_windows`]; `nr` rows
+/// per level).
+pub(crate) fn sandwich_stderr(sol: &LsSolution, nr: usize, windows: &[LevelWindows]) -> Spread {
+    let (cov, bartlett) = sandwich_cov(&sol.pinv, sol.x.len(), nr, windows);
+    Spread::new(&cov, &bartlett)
 }
 
 /// The sandwich covariance `Σ_l B/(B−1) Σ_j (u_j u_jᵀ + u_j u_{j+1}ᵀ + u_{j+1} u_jᵀ)` of an
@@ -358,7 +394,7 @@ pub(crate) fn efficient_stderr(
     columns: &[Arc<Column>],
     which: &[usize],
     levels: &[LevelMoments],
-) -> Vec<f64> {
+) -> Spread {
     let na = second.x.len();
     let rows = which.len() * nr;
     // T[q, k] = Σ_l (A_lᵀ W_l ∂S_l/∂p_k W_l r_l)_q
@@ -445,16 +481,7 @@ pub(crate) fn efficient_stderr(
         1.0,
         Par::Seq,
     );
-    (0..na)
-        .map(|k| {
-            let x = v[(k, k)];
-            if x > 0.0 {
-                x.sqrt()
-            } else {
-                b2[k].max(0.0).sqrt()
-            }
-        })
-        .collect()
+    Spread::new(&v, &b2)
 }
 
 /// The physical kind of parameter `name` and the scale it enters with, from the IR.

@@ -354,6 +354,11 @@ pub struct FilterSummary {
 #[derive(Clone, Debug, Serialize)]
 pub struct Identification {
     pub params: Vec<ParamEstimate>,
+    /// The covariance of the estimates `params` (row-major, `params.len()²` entries; the
+    /// batch-means sandwich with `stderr²` on its diagonal, see [`super::stats`]); read it
+    /// by [`Identification::covariance`].
+    #[serde(skip)]
+    pub covariance: Vec<f64>,
     pub unidentifiable: Vec<Unidentifiable>,
     /// Estimates that are unphysical for their kind of term (negative mass, damping,
     /// friction coefficient or stiffness).
@@ -408,6 +413,34 @@ pub struct ShapeEstimate {
 impl Identification {
     pub fn param(&self, name: &str) -> Option<&ParamEstimate> {
         self.params.iter().find(|p| p.name == name)
+    }
+
+    /// The covariance of the estimates of `params[i]` and `params[j]`.
+    pub fn covariance(&self, i: usize, j: usize) -> f64 {
+        self.covariance[i * self.params.len() + j]
+    }
+
+    /// Add the spread `var · d dᵀ` of a profiled shape parameter to the estimates' (delta
+    /// method: `d` the estimates' slopes along the profile, in `params` order, non-finite
+    /// ones counting as zero), standard errors and covariance alike.
+    pub(crate) fn widen(&mut self, slopes: &[f64], var: f64) {
+        let n = self.params.len();
+        let d = |j: usize| {
+            slopes
+                .get(j)
+                .copied()
+                .filter(|d| d.is_finite())
+                .unwrap_or(0.0)
+        };
+        if self.covariance.len() == n * n {
+            for i in 0..n * n {
+                self.covariance[i] += d(i / n) * d(i % n) * var;
+            }
+        }
+        for (j, p) in self.params.iter_mut().enumerate() {
+            p.stderr = (p.stderr * p.stderr + d(j) * d(j) * var).sqrt();
+            p.significant = p.value.abs() > SIGNIFICANCE_T * p.stderr;
+        }
     }
 }
 

@@ -16,6 +16,8 @@ pub struct IdentifyDoc<'a, R: Serialize = NoRefinement> {
     pub schema_version: u32,
     #[serde(serialize_with = "parameters")]
     pub parameters: &'a [ParamEstimate],
+    /// `{p: {q: cov(p, q)}}` over the identified parameters (added in version 2).
+    pub covariance: Covariance<'a>,
     pub condition: f64,
     pub rows: usize,
     #[serde(serialize_with = "residual")]
@@ -41,6 +43,7 @@ impl<'a> IdentifyDoc<'a, NoRefinement> {
         IdentifyDoc {
             schema_version: SCHEMA_VERSION,
             parameters: &id.params,
+            covariance: Covariance(id),
             condition: id.condition,
             rows: id.rows,
             residual: &id.residual,
@@ -63,6 +66,7 @@ impl<'a, R: Serialize> IdentifyDoc<'a, R> {
         IdentifyDoc {
             schema_version: self.schema_version,
             parameters: self.parameters,
+            covariance: self.covariance,
             condition: self.condition,
             rows: self.rows,
             residual: self.residual,
@@ -108,4 +112,33 @@ fn residual<S: Serializer>(rs: &&[EquationResidual], s: S) -> Result<S::Ok, S::E
         m.serialize_entry(&r.equation, &r.per_level)?;
     }
     m.end()
+}
+
+/// The covariance of an identification's estimates, serialised as `{p: {q: cov(p, q)}}`
+/// (keyed by name, like `parameters`).
+#[derive(Clone, Copy, Debug)]
+pub struct Covariance<'a>(pub &'a Identification);
+
+impl Serialize for Covariance<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        struct Row<'a>(&'a Identification, usize);
+        impl Serialize for Row<'_> {
+            fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                let ps = &self.0.params;
+                let mut m = s.serialize_map(Some(ps.len()))?;
+                for (j, q) in ps.iter().enumerate() {
+                    m.serialize_entry(&q.name, &self.0.covariance(self.1, j))?;
+                }
+                m.end()
+            }
+        }
+        let id = self.0;
+        let full = id.covariance.len() == id.params.len() * id.params.len();
+        let n = if full { id.params.len() } else { 0 };
+        let mut m = s.serialize_map(Some(n))?;
+        for (i, p) in id.params.iter().enumerate().take(n) {
+            m.serialize_entry(&p.name, &Row(id, i))?;
+        }
+        m.end()
+    }
 }

@@ -4,7 +4,8 @@
 //!
 //! - [`IdentifyDoc`]: `dynid identify --json`, `Identification.to_dict()`;
 //! - [`DetectDoc`]: `dynid detect --json`, `Detection.to_dict()`;
-//! - [`DiagnoseDoc`]: `dynid diagnose --json`, `Diagnosis.to_dict()`.
+//! - [`DiagnoseDoc`]: `dynid diagnose --json`, `Diagnosis.to_dict()`;
+//! - [`FleetDoc`]: `dynid fleet --json`.
 //!
 //! Every document carries `schema_version` ([`SCHEMA_VERSION`]): it grows when a key is
 //! renamed or removed or its meaning changes; added keys leave it as it is. A renamed key
@@ -15,11 +16,13 @@
 
 mod detect;
 mod diagnose;
+mod fleet;
 mod identify;
 
 pub use detect::{detection_warnings, DetectDoc};
 pub use diagnose::DiagnoseDoc;
-pub use identify::IdentifyDoc;
+pub use fleet::{Between, FleetDoc};
+pub use identify::{Covariance, IdentifyDoc};
 
 /// The version of the JSON documents (key `schema_version`).
 pub const SCHEMA_VERSION: u32 = 2;

@@ -47,6 +47,7 @@ fn identify_document_keys_parameters_by_name_in_the_models_order() {
         keys(&v),
         [
             "condition",
+            "covariance",
             "estimated",
             "filter",
             "fit_warnings",
@@ -72,6 +73,20 @@ fn identify_document_keys_parameters_by_name_in_the_models_order() {
     }
     for r in &id.residual {
         assert_eq!(v["residual"][&r.equation], serde_json::json!(r.per_level));
+    }
+    // The covariance by name: symmetric, its diagonal the squared standard errors, and a
+    // correlation inside [-1, 1].
+    for (i, p) in id.params.iter().enumerate() {
+        assert_eq!(v["covariance"][&p.name][&p.name], p.stderr * p.stderr);
+        for (j, q) in id.params.iter().enumerate() {
+            let c = v["covariance"][&p.name][&q.name].as_f64().unwrap();
+            assert_eq!(c, id.covariance(i, j));
+            assert_eq!(c, id.covariance(j, i));
+            assert!(
+                c.abs() <= p.stderr * q.stderr * (1.0 + 1e-12),
+                "{p:?} {q:?} {c}"
+            );
+        }
     }
     // A refinement and a hint appear only where given.
     let with = IdentifyDoc::new(&id).with_refined(Some(&7));
