@@ -1170,6 +1170,7 @@ const CASES: &[Case] = &[
         ],
         code: "dynid::moments::other_design",
         also: &["corners.dynm against the files before it"],
+        ..CASE
     },
     case(
         "moments --out onto its data file",

@@ -48,6 +48,12 @@ __all__ = [
     "detect",
     "diagnose",
     "segments",
+    "MomentStats",
+    "moment_design",
+    "moments",
+    "merge",
+    "Fleet",
+    "fleet",
     "CompileError",
     "DataError",
     "DynidError",
@@ -1126,6 +1132,10 @@ class Model:
     def __init__(self, compiled: "_dynid.CompiledModel"):
         self._m = compiled
 
+    def __reduce__(self):
+        # Pickled as its source (a distributed engine ships models to its workers).
+        return (Model.from_source, (self._m.source(), self._m.name))
+
     @classmethod
     def from_file(cls, path) -> "Model":
         """Compile a ``.dyn`` file, or load ``dynid compile --emit json`` output.
@@ -1464,6 +1474,19 @@ class Model:
         )
         return Identification(_json.loads(js), eq, model=self, data=data)
 
+    def identify_moments(self, stats) -> Identification:
+        """Identify from moment statistics (:func:`moments`, :func:`merge`), as
+        ``dynid identify --from``: the same estimates and standard errors as identifying
+        their records together. Without data there is no corner check, closed-loop hint or
+        refinement.
+
+        Examples
+        --------
+        >>> result = model.identify_moments(dynid.merge(parts))   # doctest: +SKIP
+        """
+        js, eq = stats.identify(self._m)
+        return Identification(_json.loads(js), eq, model=self)
+
     def refine(self, data, **kw) -> Refinement:
         """Identify, then refine the estimate by output-error minimisation: the free-run
         error of all levels (Levenberg-Marquardt), as ``dynid identify --refine``.
@@ -1718,3 +1741,160 @@ def diagnose(model, data, sample: _t.Optional[float] = None, map=None, frf_perio
 for _f in (segments, detect, diagnose):
     _f.__doc__ = _f.__doc__.replace("    SPLIT_PARAMETERS", _SPLIT_DOC)
 del _f
+
+
+#: Moment statistics (``dynid.moments``): what identification accumulates per record, with
+#: the design they were made with. ``len(stats)`` records; ``stats.merge(other)``;
+#: ``stats.origins()``; ``stats.design()`` (JSON); ``stats.to_bytes()`` (a ``.dynm`` file).
+#: Picklable (as its ``.dynm`` bytes).
+MomentStats = _dynid.MomentStats
+
+
+def moment_design(model, data, sample: _t.Optional[float] = None, filter_corners: _t.Optional[_t.Sequence[float]] = None, noise_correction: bool = True, balance: bool = False, column_chains: bool = False, keep_rests: bool = False, allow_large: bool = False, map=None) -> str:
+    """The design moment statistics are made with, decided from a sample of the data before
+    any piece is measured, as ``dynid moments --design-only`` (docs/distributed.md).
+
+    Parameters
+    ----------
+    model : Model, str or os.PathLike
+        The model (or its file).
+    data : list of DataFrame, dict of arrays or data file path
+        A sample of the data set, one record each: its first pass decides the corners
+        (unless given), the time blocks per record (from the shortest) and the noise
+        corrections.
+    sample, filter_corners, noise_correction, balance, column_chains, keep_rests, allow_large, map
+        As :meth:`Model.identify`.
+
+    Returns
+    -------
+    str
+        The design as JSON (give it to :func:`moments` for every piece).
+
+    Examples
+    --------
+    >>> design = dynid.moment_design(model, ["day_001.parquet"])   # doctest: +SKIP
+    """
+    m = _model(model)
+    data, _ = _as_list(data)
+    levels = _levels(m._m, data, sample, map)
+    corners = None if filter_corners is None else [float(c) for c in filter_corners]
+    return _dynid.moment_design(m._m, levels, corners, bool(noise_correction), bool(balance), bool(column_chains), bool(keep_rests), bool(allow_large))
+
+
+def moments(model, data, design: str, sample: _t.Optional[float] = None, map=None, allow_large: bool = False) -> "MomentStats":
+    """The moment statistics of some records, measured with ``design``, as
+    ``dynid moments --design``: each record is one level of the pooled problem.
+
+    Parameters
+    ----------
+    model : Model, str or os.PathLike
+        The model the design was made for.
+    data : list of DataFrame, dict of arrays or data file path
+        The records of this piece (a partition of the data set).
+    design : str
+        The JSON of :func:`moment_design`.
+
+    Returns
+    -------
+    MomentStats
+        Picklable; merge with :func:`merge`, solve with :meth:`Model.identify_moments`.
+
+    Raises
+    ------
+    OptionError
+        ``design`` is not a design.
+    DynidError
+        A record too short for the design, or a design of another model
+        (``dynid::moments::*``).
+
+    Examples
+    --------
+    >>> part = dynid.moments(model, ["m017/day_001.parquet"], design)   # doctest: +SKIP
+    """
+    m = _model(model)
+    data, _ = _as_list(data)
+    levels = _levels(m._m, data, sample, map)
+    return _dynid.measure_moments(m._m, levels, str(design), bool(allow_large))
+
+
+def merge(parts) -> "MomentStats":
+    """Merge moment statistics of one design, in order (associative: any grouping gives
+    the same statistics).
+
+    Raises
+    ------
+    DynidError
+        Statistics of another design or model (``dynid::moments::other_design``), or none.
+    """
+    parts = list(parts)
+    if not parts:
+        raise _error(OptionError, "nothing to merge", "give at least one MomentStats", "dynid::moments::empty")
+    out = parts[0]
+    for p in parts[1:]:
+        out = out.merge(p)
+    return out
+
+
+class Fleet:
+    """The fleet's view, as ``dynid fleet``: the fleet's model (a robust centre and the
+    between-machine spread), and the machines inconsistent with it by a χ² test of each
+    machine's estimate against the fleet's (Bonferroni over the machines), with the
+    parameters that moved (docs/fleet.md).
+
+    Attributes
+    ----------
+    flagged : list of str
+        The machines inconsistent with their fleet.
+
+    ``str(fleet)`` is the report ``dynid fleet`` prints; ``to_dict()`` the object
+    ``dynid fleet --json`` writes.
+    """
+
+    def __init__(self, doc: _t.Dict[str, _t.Any], text: str):
+        self._d = doc
+        self._text = text
+
+    def to_dict(self) -> _t.Dict[str, _t.Any]:
+        """The view as ``dynid fleet --json`` writes it (docs/json.md)."""
+        return self._d
+
+    @property
+    def flagged(self) -> _t.List[str]:
+        return [m["name"] for m in self._d["machines"] if m.get("status") == "flagged"]
+
+    def __str__(self) -> str:
+        return self._text
+
+    def __repr__(self) -> str:
+        return f"<dynid.Fleet: {len(self._d['machines'])} machines, flagged {self.flagged}>"
+
+
+def fleet(machines: _t.Mapping[str, _t.Any], alpha: float = 0.01) -> Fleet:
+    """Test machines of one model, each identified on its own, against their fleet, as
+    ``dynid fleet``.
+
+    Parameters
+    ----------
+    machines : dict
+        Machine name → its :class:`Identification` (or the dict of its ``to_dict()``, or
+        the JSON text ``dynid identify --json`` wrote).
+    alpha : float, default 0.01
+        Family-wise level: the chance that any machine consistent with its fleet is
+        flagged.
+
+    Returns
+    -------
+    Fleet
+
+    Examples
+    --------
+    >>> view = dynid.fleet({name: model.identify(data[name]) for name in data})  # doctest: +SKIP
+    >>> view.flagged                                                             # doctest: +SKIP
+    """
+    docs = []
+    for name, m in machines.items():
+        if isinstance(m, Identification):
+            m = m.to_dict()
+        docs.append((str(name), m if isinstance(m, str) else _json.dumps(m)))
+    js, text = _dynid.fleet(docs, float(alpha))
+    return Fleet(_json.loads(js), text)

@@ -17,17 +17,23 @@
 //! the same that the command line's `--json` writes.
 //!
 //! Modules: [`model`] (`CompiledModel`: compilation, simulation, identification),
+//! [`moments`] (moment statistics: design, measure, merge, solve, pickle), [`fleet`] (the
+//! fleet's view of machines identified one by one),
 //! [`analyse`] (detection, splitting, diagnosis), [`levels`] (the levels handed over,
 //! bound to a model and checked), [`errors`] (runtime errors as Python exceptions).
 
 mod analyse;
 mod errors;
+mod fleet;
 mod levels;
 mod model;
+mod moments;
 
 use analyse::{detect, diagnose, split};
 use errors::guarded;
+use fleet::fleet_view;
 use model::{compile_file, compile_source, CompiledModel};
+use moments::{_moments_from_bytes, measure_moments, moment_design, PyMomentStats};
 use pyo3::prelude::*;
 
 /// Panic inside the boundary on purpose: the tests check with it that a panic reaches
@@ -47,8 +53,13 @@ fn _panic_inside_the_boundary(py: Python<'_>) -> PyResult<()> {
 #[pymodule]
 fn _dynid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<CompiledModel>()?;
+    m.add_class::<PyMomentStats>()?;
+    m.add_function(wrap_pyfunction!(moment_design, m)?)?;
+    m.add_function(wrap_pyfunction!(measure_moments, m)?)?;
+    m.add_function(wrap_pyfunction!(_moments_from_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(compile_source, m)?)?;
     m.add_function(wrap_pyfunction!(compile_file, m)?)?;
+    m.add_function(wrap_pyfunction!(fleet_view, m)?)?;
     m.add_function(wrap_pyfunction!(detect, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(split, m)?)?;

@@ -55,6 +55,7 @@ mod machine;
 mod spread;
 #[cfg(test)]
 mod tests;
+mod text;
 
 pub use consistency::{chi2_quantile, chi2_upper_tail, normal_quantile};
 pub use machine::{Machine, MachineEstimate};
