@@ -235,6 +235,10 @@ pub struct FleetView {
     pub between_clipped: usize,
     /// Rounds of the held set until it stayed the same.
     pub rounds: usize,
+    /// `Some(n)` when the held set never settled: it alternated between `n` sets (or
+    /// wandered for [`MAX_ROUNDS`] rounds over `n`), and the fleet's model rests on the
+    /// machines held in all of them. `None`: it settled.
+    pub alternated: Option<usize>,
     pub params: Vec<FleetParam>,
     /// The between-machine covariance `Σ` (row-major, `params.len()²`).
     #[serde(skip)]
@@ -298,28 +302,27 @@ pub fn assess(machines: &[Machine], opts: &FleetOptions) -> Result<FleetView, Fl
     let ordered: Vec<machine::Ordered> = ests.iter().map(|e| e.ordered(&names)).collect();
     let critical_z = normal_quantile(1.0 - opts.alpha / (2.0 * (n * k) as f64));
     let level = opts.alpha / n as f64;
-    let mut held = spread::screen(&ordered, critical_z);
-    let mut rounds = 0;
-    let (model, tests) = loop {
-        rounds += 1;
+    let fit_and_test = |held: &[bool]| -> Result<(spread::FleetModel, Vec<Test>), FleetError> {
         let count = held.iter().filter(|&&h| h).count();
         if count < need {
             return Err(too_few(count, " held consistent"));
         }
-        let model = spread::fit(&ordered, &held, opts.between);
-        let tests: Vec<Test> = ordered
+        let model = spread::fit(&ordered, held, opts.between);
+        let tests = ordered
             .iter()
             .map(|o| consistency::test(o, &model))
             .collect();
-        let next: Vec<bool> = tests.iter().map(|t| t.p_value >= level).collect();
-        // The held set can only cycle between a few sets; a bound keeps it finite. Without
-        // the between-machine spread the machines that are merely different parts would be
-        // rejected round after round: one round from the screened set is the comparison.
-        if next == held || rounds >= 50 || !opts.between {
-            break (model, tests);
-        }
-        held = next;
+        Ok((model, tests))
     };
+    // Without the between-machine spread the machines that are merely different parts
+    // would be rejected round after round: one round from the screened set is the
+    // comparison.
+    let max_rounds = if opts.between { MAX_ROUNDS } else { 1 };
+    let (held, settling) = settle(spread::screen(&ordered, critical_z), max_rounds, |held| {
+        let (_, tests) = fit_and_test(held)?;
+        Ok(tests.iter().map(|t| t.p_value >= level).collect())
+    })?;
+    let (model, tests) = fit_and_test(&held)?;
     let mut verdicts: Vec<MachineVerdict> = machines
         .iter()
         .map(|m| untested(m, &names, &model))
@@ -365,7 +368,8 @@ pub fn assess(machines: &[Machine], opts: &FleetOptions) -> Result<FleetView, Fl
         critical_z,
         between_estimated: opts.between,
         between_clipped: model.clipped,
-        rounds,
+        rounds: settling.rounds,
+        alternated: settling.alternated,
         params: names
             .iter()
             .enumerate()
@@ -380,6 +384,62 @@ pub fn assess(machines: &[Machine], opts: &FleetOptions) -> Result<FleetView, Fl
         between: (0..k * k).map(|i| model.between[(i / k, i % k)]).collect(),
         machines: verdicts,
     })
+}
+
+/// Rounds of the held set before it counts as not settling.
+pub const MAX_ROUNDS: usize = 50;
+
+/// How the held set ended ([`settle`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Settling {
+    rounds: usize,
+    alternated: Option<usize>,
+}
+
+/// Iterates `step` (the held set of the next round, given this round's) from `start` until
+/// the set repeats itself or `max_rounds` have run. It settles when a round gives back its
+/// own set (or at `max_rounds == 1`). Where it returns to an earlier set instead — a fit
+/// on A rejects what B holds and a fit on B what A holds — no set is the fleet, and the
+/// machines held in every set of the cycle are kept: the fleet's model rests only on what
+/// every round agreed on. The same holds for the sets visited when the bound ends the
+/// rounds.
+pub(crate) fn settle<E>(
+    start: Vec<bool>,
+    max_rounds: usize,
+    mut step: impl FnMut(&[bool]) -> Result<Vec<bool>, E>,
+) -> Result<(Vec<bool>, Settling), E> {
+    let mut seen: Vec<Vec<bool>> = Vec::new();
+    let mut held = start;
+    for rounds in 1..=max_rounds {
+        let next = step(&held)?;
+        if next == held || max_rounds == 1 {
+            let settled = Settling {
+                rounds,
+                alternated: None,
+            };
+            return Ok((held, settled));
+        }
+        seen.push(held);
+        if let Some(first) = seen.iter().position(|s| *s == next) {
+            let cycle = &seen[first..];
+            let kept = common(cycle);
+            let alternated = Some(cycle.len());
+            return Ok((kept, Settling { rounds, alternated }));
+        }
+        held = next;
+    }
+    seen.push(held);
+    let alternated = Some(seen.len());
+    let kept = common(&seen);
+    let rounds = max_rounds;
+    Ok((kept, Settling { rounds, alternated }))
+}
+
+/// The machines held in every one of `sets`.
+fn common(sets: &[Vec<bool>]) -> Vec<bool> {
+    (0..sets[0].len())
+        .map(|i| sets.iter().all(|s| s[i]))
+        .collect()
 }
 
 /// The verdict of a machine that is not tested (failed, or rank-deficient: its identified

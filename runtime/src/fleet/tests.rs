@@ -203,3 +203,57 @@ fn machines_of_other_models_and_bad_options_are_refused() {
     }
     assert!(err(&machines, &o).contains("its equations differ"));
 }
+
+#[test]
+fn a_held_set_that_alternates_keeps_the_machines_held_in_every_round() {
+    // Settles: the second round gives back its own set.
+    let step = |h: &[bool]| Ok::<_, ()>(vec![true, h[0], true]);
+    let (held, s) = settle(vec![true, false, false], MAX_ROUNDS, step).expect("no error");
+    assert_eq!(held, [true, true, true]);
+    assert_eq!(
+        s,
+        Settling {
+            rounds: 2,
+            alternated: None
+        }
+    );
+    // A fit on {0, 1} rejects 1 and holds 2, a fit on {0, 2} the other way round.
+    let flip = |h: &[bool]| Ok::<_, ()>(vec![true, h[2], h[1]]);
+    let (held, s) = settle(vec![true, true, false], MAX_ROUNDS, flip).expect("no error");
+    assert_eq!(held, [true, false, false]);
+    assert_eq!(
+        s,
+        Settling {
+            rounds: 2,
+            alternated: Some(2)
+        }
+    );
+    // One round only (no between-machine spread): whatever it gives, it stops.
+    let (held, s) = settle(vec![true, true, false], 1, flip).expect("no error");
+    assert_eq!(held, [true, true, false]);
+    assert_eq!(
+        s,
+        Settling {
+            rounds: 1,
+            alternated: None
+        }
+    );
+    // A walk that never repeats within the bound keeps what every round held.
+    let mut round = 0;
+    let walk = |_: &[bool]| {
+        round += 1;
+        let mut h = vec![true; 8];
+        h[round % 7 + 1] = false;
+        Ok::<_, ()>(h)
+    };
+    let (held, s) = settle(vec![true; 8], 4, walk).expect("no error");
+    // Sets seen: the start, then 2, 3, 4 and 5 left out in turn.
+    assert_eq!(
+        s,
+        Settling {
+            rounds: 4,
+            alternated: Some(5)
+        }
+    );
+    assert_eq!(held, [true, true, false, false, false, false, true, true]);
+}

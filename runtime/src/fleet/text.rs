@@ -62,6 +62,16 @@ impl FleetView {
             ),
         );
         }
+        if let Some(n) = v.alternated {
+            line(&mut out, String::new());
+            line(
+                &mut out,
+                format!(
+                    "  warning: the set of consistent machines did not settle in {} round(s): it alternated between {n} sets, and the fleet's model rests on the machines held in all of them — look at the machines near the limit",
+                    v.rounds
+                ),
+            );
+        }
         let flagged: Vec<_> = v.flagged().collect();
         if !flagged.is_empty() {
             line(&mut out, String::new());
