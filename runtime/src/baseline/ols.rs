@@ -51,9 +51,23 @@ const MAX_CONDITION: f64 = 1e10;
 /// Least squares of `y` on the columns of `x` (`rows × terms.len()`).
 pub(super) fn fit(
     terms: &[Term],
+    x: DMatrix<f64>,
+    y: DVector<f64>,
+    hac_lag: usize,
+) -> Result<Fit, BaselineError> {
+    fit_compensated(terms, x, y, hac_lag, None)
+}
+
+/// [`fit`], bias-compensated where `noise` is given: the expected part of `XᵀX` that noise
+/// in the columns adds (`p × p`, errors in the variables) is taken out, `θ = (XᵀX − D)⁻¹ Xᵀy`
+/// with `XᵀX = RᵀR` from the QR factor (never formed from `X`), and the scores
+/// `xₖ eₖ + D θ / n` (zero mean at the truth) enter the sandwich through `(XᵀX − D)⁻¹`.
+pub(super) fn fit_compensated(
+    terms: &[Term],
     mut x: DMatrix<f64>,
     y: DVector<f64>,
     hac_lag: usize,
+    noise: Option<&DMatrix<f64>>,
 ) -> Result<Fit, BaselineError> {
     let (n, p) = x.shape();
     if n <= p {
@@ -110,18 +124,51 @@ pub(super) fn fit(
     for (mut c, s) in v_sinv.column_iter_mut().zip(sv.iter()) {
         c /= *s;
     }
-    let rinv = &v_sinv * u.transpose();
-    let theta_s = &rinv * qty.rows(0, p);
+    let mut rinv = &v_sinv * u.transpose();
+    let mut theta_s = &rinv * qty.rows(0, p);
+    // Bias compensation: M = RᵀR − S D S; θₛ = M⁻¹ Rᵀ Qᵀ y. The sandwich below uses
+    // `rinv` as the whitening `R⁻¹` of `M = RᵀR`; with the compensation the same formulas
+    // hold with `R⁻¹ R⁻ᵀ` replaced by `M⁻¹`, i.e. `rinv` by `M⁻¹ Rᵀ`.
+    let mut shift: Option<DVector<f64>> = None;
+    // The sandwich `outer · Ω · outerᵀ` with scores whitened by `whiten`: `R⁻¹` and `R⁻ᵀ`
+    // without compensation, `M⁻¹` and `I` with it.
+    let mut outer: Option<DMatrix<f64>> = None;
+    if let Some(d) = noise {
+        let mut ds = d.clone();
+        for i in 0..p {
+            for j in 0..p {
+                ds[(i, j)] *= scale[i] * scale[j];
+            }
+        }
+        let m = r.transpose() * &r - &ds;
+        if let Some(minv) = m.clone().try_inverse() {
+            let b = r.transpose() * qty.rows(0, p);
+            theta_s = &minv * b;
+            rinv = &minv * r.transpose();
+            shift = Some(&ds * &theta_s / n as f64);
+            outer = Some(minv);
+        }
+    }
     let resid = &y - &xs * &theta_s;
     let ssr = resid.norm_squared();
     let dof = (n - p) as f64;
     let sigma2 = ssr / dof;
     let cov_ols = &rinv * rinv.transpose() * sigma2;
     // Scores whitened by R⁻ᵀ (one p-vector per row), then the Bartlett-weighted sum.
-    let rinv_t = rinv.transpose();
+    let rinv_t = match outer {
+        Some(_) => DMatrix::<f64>::identity(p, p),
+        None => rinv.transpose(),
+    };
     let mut g = &rinv_t * xs.transpose();
     for (mut c, e) in g.column_iter_mut().zip(resid.iter()) {
         c *= *e;
+    }
+    if let Some(sh) = &shift {
+        // The compensation's share of each row's score, whitened like the rest.
+        let add = &rinv_t * sh;
+        for mut c in g.column_iter_mut() {
+            c += &add;
+        }
     }
     let mut omega = &g * g.transpose();
     let lag = hac_lag.min(n - 1);
@@ -132,7 +179,8 @@ pub(super) fn fit(
         let gamma = a * b.transpose();
         omega += (&gamma + gamma.transpose()) * w;
     }
-    let cov_hac = &rinv * omega * rinv.transpose() * (n as f64 / dof);
+    let o = outer.as_ref().unwrap_or(&rinv);
+    let cov_hac = o * omega * o.transpose() * (n as f64 / dof);
     let se = |cov: &DMatrix<f64>| -> Vec<f64> {
         (0..p)
             .map(|j| cov[(j, j)].max(0.0).sqrt() * scale[j])

@@ -16,8 +16,16 @@
 //! the filter has forgotten its state at rest to 10⁻⁸ (four memories), and the last
 //! aligned delay, are left out. The Newey–West lag is twice the filter's memory: the
 //! filtered residual is correlated over the support of the autocorrelation of `L`'s
-//! impulse response. No row is dropped at rest: a row of the filtered equation mixes
-//! samples over the filter's memory.
+//! impulse response. By default no row is dropped at rest: a row of the filtered equation
+//! mixes samples over the filter's memory. [`SvfOptions::rest`] drops every row whose
+//! memory holds a sample where the aligned filtered velocity is below the threshold (the
+//! rests of a planned trajectory, and the zero crossings of a random one).
+//!
+//! [`SvfOptions::position_noise_var`] compensates errors in the variables: white position
+//! noise of variance `σ²` adds `rows · σ² · Σₖ hᵢ[k] hⱼ[k]` to the normal matrix of the
+//! columns `(L x)⁽ⁱ⁾` (`hᵢ` the impulse response of state `i`), which is taken out
+//! ([`super::ols`], bias-compensated least squares). Measured on the servo axis (bench
+//! `servo_precision`), the encoder's rounding is not what biases the mass there.
 
 use super::filter::StateVariableFilter;
 use super::idim::sign;
@@ -35,6 +43,12 @@ pub struct SvfOptions {
     pub align_sign: bool,
     /// The basis columns.
     pub terms: Vec<Term>,
+    /// Drop the rows whose aligned filtered velocity was below this speed (m/s) at any
+    /// sample of the filter's memory before them (0: keep every row).
+    pub rest: f64,
+    /// White noise variance of the position (m²): the part of the normal matrix that it
+    /// adds to the filtered position's columns is taken out (0: no compensation).
+    pub position_noise_var: f64,
 }
 
 impl SvfOptions {
@@ -44,6 +58,8 @@ impl SvfOptions {
             corner_hz,
             align_sign: true,
             terms: super::SERVO_TERMS.to_vec(),
+            rest: 0.0,
+            position_noise_var: 0.0,
         }
     }
 }
@@ -82,11 +98,23 @@ pub fn svf_ls(
     let memory = f.memory(ts).ceil() as usize;
     let first = 4 * memory;
     let last = n.saturating_sub(shift);
-    let rows = last.saturating_sub(first);
+    // Rows kept: none whose memory holds a sample at rest.
+    let mut since_rest = memory + 1;
+    let kept: Vec<usize> = (0..last)
+        .filter(|&k| {
+            if opts.rest > 0.0 && x1[(k + shift).min(n - 1)].abs() < opts.rest {
+                since_rest = 0;
+            } else {
+                since_rest += 1;
+            }
+            k >= first && since_rest > memory
+        })
+        .collect();
+    let rows = kept.len();
     let p = opts.terms.len();
     let mut a = DMatrix::<f64>::zeros(rows, p);
     let mut y = DVector::<f64>::zeros(rows);
-    for (r, k) in (first..last).enumerate() {
+    for (r, &k) in kept.iter().enumerate() {
         for (j, t) in opts.terms.iter().enumerate() {
             a[(r, j)] = match t {
                 Term::Acceleration => x2[k],
@@ -98,5 +126,33 @@ pub fn svf_ls(
         }
         y[r] = uf[k];
     }
-    ols::fit(&opts.terms, a, y, 2 * memory)
+    let noise = (opts.position_noise_var > 0.0).then(|| {
+        // Impulse responses of (L x), (L x)', (L x)'' to one sample of position noise;
+        // white noise adds rows · σ² · Σₖ hᵢ hⱼ to the normal matrix.
+        let len = 8 * memory + 8;
+        let mut imp = vec![0.0; len];
+        imp[1] = 1.0;
+        let (mut h0, mut h1, mut h2) = (Vec::new(), Vec::new(), Vec::new());
+        f.run(&imp, &mut [&mut h0, &mut h1, &mut h2]);
+        let h = |t: &Term| -> Option<&Vec<f64>> {
+            match t {
+                Term::Acceleration => Some(&h2),
+                Term::Velocity => Some(&h1),
+                Term::Position => Some(&h0),
+                _ => None,
+            }
+        };
+        let mut d = DMatrix::<f64>::zeros(p, p);
+        for (i, ti) in opts.terms.iter().enumerate() {
+            for (j, tj) in opts.terms.iter().enumerate() {
+                if let (Some(hi), Some(hj)) = (h(ti), h(tj)) {
+                    d[(i, j)] = rows as f64
+                        * opts.position_noise_var
+                        * hi.iter().zip(hj).map(|(a, b)| a * b).sum::<f64>();
+                }
+            }
+        }
+        d
+    });
+    ols::fit_compensated(&opts.terms, a, y, 2 * memory, noise.as_ref())
 }
