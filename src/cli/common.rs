@@ -69,6 +69,55 @@ pub fn at_least_one(s: &str) -> Result<usize, String> {
     }
 }
 
+/// The choices of the estimator that `identify` and `moments` share (a design made by
+/// `moments --design-only` must be the one `identify` would make with the same flags).
+#[derive(clap::Args, Debug, Default, Clone)]
+pub struct EstimatorArgs {
+    /// Identification filter corners in rad/s (default: the model's filter block, else
+    /// designed from the data).
+    #[arg(
+        long = "filter-corners",
+        value_delimiter = ',',
+        value_name = "A,B,C",
+        allow_hyphen_values = true
+    )]
+    pub filter_corners: Option<Vec<f64>>,
+    /// Add virial / power-balance rows where velocities are measured (off by default).
+    #[arg(long)]
+    pub balance: bool,
+    /// Leave the moments of nonlinear terms uncorrected for measurement noise (by default
+    /// they are de-biased where the estimated noise is significant).
+    #[arg(long = "no-noise-correction")]
+    pub no_noise_correction: bool,
+    /// Let the model's nonlinear columns (`sign(v)`, `s^3`, …) drive filter chains of their
+    /// own, besides the chains of measured positions and inputs: their states are
+    /// instruments that carry each column's own information (often smaller errors for
+    /// damping and friction, see docs/method.md §2)
+    #[arg(long = "column-chains")]
+    pub column_chains: bool,
+    /// Keep the rests in the moments: by default the intervals where a body with a
+    /// `sign` of its own velocity stands still (speed below 1 % of its RMS for at least 50 ms)
+    /// are left out, since its friction force is then anywhere in ±r and the model does
+    /// not hold there (docs/method.md §7)
+    #[arg(long = "keep-rests")]
+    pub keep_rests: bool,
+}
+
+impl EstimatorArgs {
+    /// The library's options for these flags.
+    pub fn options(&self, allow_large: bool) -> dynid_runtime::IdentifyOptions {
+        dynid_runtime::IdentifyOptions {
+            corners: self.filter_corners.clone(),
+            balance: self.balance,
+            noise_correction: !self.no_noise_correction,
+            column_chains: self.column_chains,
+            keep_rests: self.keep_rests,
+            allow_large,
+            ..Default::default()
+        }
+    }
+}
+
 /// How the data files' columns are read; shared by every command that reads level files
 /// (CSV or other delimited text, MATLAB .mat, HDF5, Parquet: see docs/formats.md).
 #[derive(clap::Args, Debug, Clone, Default)]

@@ -2,10 +2,9 @@
 //! piece of a larger data set), to be merged with others and solved by `dynid identify
 //! MODEL --from PART.dynm...`; `--design-only` writes the design the pieces share.
 
-use super::common::{check_outputs, inputs, load_model, write_atomically, CsvArgs};
+use super::common::{check_outputs, inputs, load_model, write_atomically, CsvArgs, EstimatorArgs};
 use dynid_runtime::data::{FileSource, LevelSource};
 use dynid_runtime::ident::{MomentDesign, MomentStats, MomentsError};
-use dynid_runtime::IdentifyOptions;
 use miette::miette;
 use std::path::{Path, PathBuf};
 
@@ -63,26 +62,8 @@ pub struct Args {
     pub design_only: bool,
     #[command(flatten)]
     pub csv: CsvArgs,
-    /// Identification filter corners in rad/s (default: the model's, else designed from DATA).
-    #[arg(
-        long = "filter-corners",
-        value_delimiter = ',',
-        value_name = "A,B,C",
-        allow_hyphen_values = true
-    )]
-    pub filter_corners: Option<Vec<f64>>,
-    /// Add virial / power-balance rows where velocities are measured.
-    #[arg(long)]
-    pub balance: bool,
-    /// Leave the moments of nonlinear terms uncorrected for measurement noise.
-    #[arg(long = "no-noise-correction")]
-    pub no_noise_correction: bool,
-    /// Let the model's nonlinear columns drive filter chains of their own (as `identify`).
-    #[arg(long = "column-chains")]
-    pub column_chains: bool,
-    /// Keep the rests in the moments (as `identify`).
-    #[arg(long = "keep-rests")]
-    pub keep_rests: bool,
+    #[command(flatten)]
+    pub estimator: EstimatorArgs,
     /// Run even when the estimated memory is above the safety limit (8 GB).
     #[arg(long)]
     pub allow_large: bool,
@@ -109,15 +90,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let design = match &args.design {
         Some(p) => read_design(p, &ir)?,
         None => {
-            let opts = IdentifyOptions {
-                corners: args.filter_corners.clone(),
-                balance: args.balance,
-                noise_correction: !args.no_noise_correction,
-                column_chains: args.column_chains,
-                keep_rests: args.keep_rests,
-                allow_large: args.allow_large,
-                ..Default::default()
-            };
+            let opts = args.estimator.options(args.allow_large);
             MomentDesign::from_data(&ir, &levels, &opts)?
         }
     };

@@ -5,15 +5,15 @@
 //! corner check, closed-loop hint, refinement); [`text`] writes the report on the terminal,
 //! [`json`] the document of `--json` (the runtime's schema).
 
-use super::common::{check_outputs, inputs, write_atomically, CsvArgs};
+use super::common::{check_outputs, inputs, write_atomically, CsvArgs, EstimatorArgs};
 use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::read_record_within;
 use dynid_runtime::data::{FileSource, LevelSource};
 use dynid_runtime::ident::{check_corners, Identification};
+use dynid_runtime::identify;
 use dynid_runtime::record::Record;
 use dynid_runtime::refine::{self, RefineOptions};
 use dynid_runtime::sim::DEFAULT_SUBSTEPS;
-use dynid_runtime::{identify, IdentifyOptions};
 use miette::miette;
 use std::path::PathBuf;
 
@@ -86,37 +86,12 @@ pub struct Args {
     pub json: Option<PathBuf>,
     #[command(flatten)]
     pub csv: CsvArgs,
-    /// Identification filter corners in rad/s (default: designed from the data).
-    #[arg(
-        long = "filter-corners",
-        value_delimiter = ',',
-        value_name = "A,B,C",
-        allow_hyphen_values = true
-    )]
-    pub filter_corners: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub estimator: EstimatorArgs,
     /// Leave out the virial / power-balance rows. They are left out unless `--balance` is
     /// given; this flag only makes that explicit in a script.
     #[arg(long = "no-balance", conflicts_with = "balance")]
     pub no_balance: bool,
-    /// Add virial / power-balance rows where velocities are measured (off by default).
-    #[arg(long)]
-    pub balance: bool,
-    /// Leave the moments of nonlinear terms uncorrected for measurement noise (by default
-    /// they are de-biased where the estimated noise is significant).
-    #[arg(long = "no-noise-correction")]
-    pub no_noise_correction: bool,
-    /// Let the model's nonlinear columns (`sign(v)`, `s^3`, …) drive filter chains of their
-    /// own, besides the chains of measured positions and inputs: their states are
-    /// instruments that carry each column's own information (often smaller errors for
-    /// damping and friction, see docs/method.md §2)
-    #[arg(long = "column-chains")]
-    pub column_chains: bool,
-    /// Keep the rests in the moments: by default the intervals where a body with a
-    /// `sign` of its own velocity stands still (speed below 1 % of its RMS for at least 50 ms)
-    /// are left out, since its friction force is then anywhere in ±r and the model does
-    /// not hold there (docs/method.md §7)
-    #[arg(long = "keep-rests")]
-    pub keep_rests: bool,
     /// Skip the corner check: by default the fit is repeated with the highest filter corner
     /// a factor 4 lower and higher (two more passes over the data), and an estimate that
     /// moves by more than its standard error gets a warning naming the range
@@ -458,15 +433,7 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
         .map(|p| FileSource::open(p, ir, &csv))
         .collect::<Result<Vec<_>, _>>()?;
     let levels: Vec<&dyn LevelSource> = sources.iter().map(|s| s as &dyn LevelSource).collect();
-    let opts = IdentifyOptions {
-        corners: args.filter_corners.clone(),
-        balance: args.balance && !args.no_balance,
-        noise_correction: !args.no_noise_correction,
-        column_chains: args.column_chains,
-        keep_rests: args.keep_rests,
-        allow_large: args.allow_large,
-        ..Default::default()
-    };
+    let opts = args.estimator.options(args.allow_large);
     let mut id = identify(ir, &levels, &opts)?;
     // Estimates that move with the corners: two further identifications.
     if !args.no_corner_check {
