@@ -1,9 +1,9 @@
 //! The machines of a fleet: one estimate each, from an identification in memory or from the
-//! document `dynid identify --json` wrote.
+//! document `dynid identify --json` wrote (read back by `crate::schema`, where the
+//! documents live).
 
 use super::FleetError;
 use crate::ident::Identification;
-use crate::schema::SCHEMA_VERSION;
 use std::collections::{BTreeMap, BTreeSet};
 
 /// One machine's identified parameters with their covariance.
@@ -42,93 +42,6 @@ impl MachineEstimate {
                 .collect(),
             equations: id.residual.iter().map(|r| r.equation.clone()).collect(),
         }
-    }
-
-    /// The estimate in the identification document `text` (`dynid identify --json`;
-    /// docs/json.md) read from `origin`.
-    pub fn from_document(text: &str, origin: &str) -> Result<MachineEstimate, FleetError> {
-        let bad = |detail: String| FleetError::Document {
-            origin: origin.into(),
-            detail,
-        };
-        let v: serde_json::Value = serde_json::from_str(text).map_err(|e| {
-            bad(format!(
-                "not JSON (line {}, column {}): {e}",
-                e.line(),
-                e.column()
-            ))
-        })?;
-        let doc = v
-            .as_object()
-            .ok_or_else(|| bad("not an identification document (not a JSON object)".into()))?;
-        let version = doc
-            .get("schema_version")
-            .and_then(|v| v.as_u64())
-            .ok_or_else(|| bad("not an identification document (no `schema_version`)".into()))?;
-        if version != u64::from(SCHEMA_VERSION) {
-            return Err(FleetError::SchemaVersion {
-                origin: origin.into(),
-                found: version,
-                expected: SCHEMA_VERSION,
-            });
-        }
-        let params = doc
-            .get("parameters")
-            .and_then(|p| p.as_object())
-            .ok_or_else(|| {
-                bad(
-                    "not an identification document (no `parameters`: a detection or diagnosis?)"
-                        .into(),
-                )
-            })?;
-        let number = |v: Option<&serde_json::Value>, what: String| {
-            v.and_then(|v| v.as_f64())
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| bad(format!("{what} is not a finite number")))
-        };
-        let names: Vec<String> = params.keys().cloned().collect();
-        let values = names
-            .iter()
-            .map(|n| number(params[n].get("value"), format!("`parameters.{n}.value`")))
-            .collect::<Result<Vec<f64>, _>>()?;
-        let cov = doc
-            .get("covariance")
-            .and_then(|c| c.as_object())
-            .ok_or_else(|| FleetError::NoCovariance {
-                origin: origin.into(),
-            })?;
-        let mut covariance = Vec::with_capacity(names.len() * names.len());
-        for p in &names {
-            for q in &names {
-                let at = cov.get(p).and_then(|row| row.get(q));
-                covariance.push(number(at, format!("`covariance.{p}.{q}`"))?);
-            }
-        }
-        let unidentifiable = doc
-            .get("unidentifiable")
-            .and_then(|u| u.as_array())
-            .map(|u| {
-                u.iter()
-                    .map(|e| {
-                        let s =
-                            |k: &str| e.get(k).and_then(|v| v.as_str()).unwrap_or("").to_string();
-                        (s("name"), s("reason"))
-                    })
-                    .collect()
-            })
-            .unwrap_or_default();
-        let equations = doc
-            .get("residual")
-            .and_then(|r| r.as_object())
-            .map(|r| r.keys().cloned().collect())
-            .unwrap_or_default();
-        Ok(MachineEstimate {
-            names,
-            values,
-            covariance,
-            unidentifiable,
-            equations,
-        })
     }
 
     /// Every parameter of the model: identified or not, sorted by name.
