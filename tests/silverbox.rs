@@ -110,6 +110,27 @@ fn silverbox_segments_and_free_run_errors() {
     figures::check(DOC, "silverbox.cubic.b_stderr", pb.stderr);
     let a = r.params.iter().find(|p| p.name == "a").unwrap().value;
     figures::check(DOC, "silverbox.cubic.a", a);
+    let m = r.params.iter().find(|p| p.name == "y").unwrap().value;
+    figures::check(DOC, "silverbox.cubic.m", m);
+    let d = r.params.iter().find(|p| p.name == "d").unwrap().value;
+    figures::check(DOC, "silverbox.cubic.d", d);
+    // The resonance and damping ratio quoted beside them, and the output RMS for scale.
+    figures::check(
+        DOC,
+        "silverbox.cubic.resonance_hz",
+        (a / m).sqrt() / (2.0 * std::f64::consts::PI),
+    );
+    figures::check(
+        DOC,
+        "silverbox.cubic.damping_ratio_pct",
+        100.0 * d / (2.0 * (a * m).sqrt()),
+    );
+    figures::check(DOC, "silverbox.arrow_output_rms", r.arrow_output_rms_mv);
+    figures::check(
+        DOC,
+        "silverbox.multisine_output_rms",
+        r.multisine_test_output_rms_mv,
+    );
     for (name, figure) in [
         ("y", "silverbox.cubic.y_stderr_pct"),
         ("a", "silverbox.cubic.a_stderr_pct"),
@@ -154,7 +175,213 @@ fn silverbox_segments_and_free_run_errors() {
         "silverbox.upsample1.multisine",
         r1.multisine_test_rms_mv,
     );
+    option_row(
+        &r1,
+        [
+            "silverbox.upsample1.arrow",
+            "silverbox.upsample1.multisine",
+            "silverbox.upsample1.b",
+            "silverbox.upsample1.b_stderr",
+        ],
+    );
 }
+
+/// The row of the ingredients table of docs/silverbox.md for the run `r`: the free-run
+/// errors on the arrow and the multisine test, and `b` with its standard error as
+/// identified (left out or not), under the figures' names in that order.
+fn option_row(r: &silverbox::SilverboxReport, names: [&str; 4]) {
+    let (b, se) = estimate_of(r, "b");
+    for (name, value) in names
+        .iter()
+        .zip([r.arrow_rms_mv, r.multisine_test_rms_mv, b, se])
+    {
+        figures::check(DOC, name, value);
+    }
+}
+
+/// The estimate and standard error of `name` in `r`: identified, or left out as not
+/// significant (whose reason carries both, the standard error to two digits).
+fn estimate_of(r: &silverbox::SilverboxReport, name: &str) -> (f64, f64) {
+    if let Some(p) = r.params.iter().find(|p| p.name == name) {
+        return (p.value, p.stderr);
+    }
+    let u = r
+        .unidentifiable
+        .iter()
+        .find(|u| u.name == name)
+        .unwrap_or_else(|| panic!("{name} neither identified nor left out"));
+    // "… the estimate 1.234e0 is within 2 standard errors (2.0e0) of zero"
+    let number = |after: &str, end: char| -> f64 {
+        let at = u.reason.find(after).expect("the reason names the estimate") + after.len();
+        let rest = &u.reason[at..];
+        rest[..rest.find(end).expect("the number ends")]
+            .trim()
+            .parse()
+            .expect("a number")
+    };
+    (
+        number("the estimate ", ' '),
+        number("standard errors (", ')'),
+    )
+}
+
+/// The other rows of the ingredients table: the cubic model with another upsampling or
+/// other filter corners, and with `b` 8 % off its estimate (the rest unchanged).
+#[test]
+fn silverbox_ingredients() {
+    let Some(dir) = data_dir() else { return };
+    let data = silverbox::load(&dir).expect("data loads");
+    let cubic = model("silverbox_cubic.dyn");
+    let opts = RunOptions {
+        identify: silverbox::default_options(&cubic),
+        substeps: 4,
+        upsample: 4,
+        refine: None,
+    };
+    for (upsample, names) in [
+        (
+            8,
+            [
+                "silverbox.upsample8.arrow",
+                "silverbox.upsample8.multisine",
+                "silverbox.upsample8.b",
+                "silverbox.upsample8.b_stderr",
+            ],
+        ),
+        (
+            2,
+            [
+                "silverbox.upsample2.arrow",
+                "silverbox.upsample2.multisine",
+                "silverbox.upsample2.b",
+                "silverbox.upsample2.b_stderr",
+            ],
+        ),
+    ] {
+        let r = silverbox::run(
+            &cubic,
+            &data,
+            &RunOptions {
+                upsample,
+                ..opts.clone()
+            },
+        )
+        .expect("procedure runs");
+        option_row(&r, names);
+    }
+    for (corners, names) in [
+        (
+            [300.0, 400.0, 500.0, 700.0, 1000.0, 1200.0],
+            [
+                "silverbox.corners_high.arrow",
+                "silverbox.corners_high.multisine",
+                "silverbox.corners_high.b",
+                "silverbox.corners_high.b_stderr",
+            ],
+        ),
+        (
+            [150.0, 200.0, 300.0, 400.0, 500.0, 800.0],
+            [
+                "silverbox.corners_low.arrow",
+                "silverbox.corners_low.multisine",
+                "silverbox.corners_low.b",
+                "silverbox.corners_low.b_stderr",
+            ],
+        ),
+    ] {
+        let mut identify = opts.identify.clone();
+        identify.corners = Some(corners.to_vec());
+        let r = silverbox::run(
+            &cubic,
+            &data,
+            &RunOptions {
+                identify,
+                ..opts.clone()
+            },
+        )
+        .expect("procedure runs");
+        option_row(&r, names);
+    }
+    // The sensitivity to `b`: the estimate of the default run, `b` scaled, the free run
+    // on the arrow.
+    let r = silverbox::run(&cubic, &data, &opts).expect("procedure runs");
+    let split = silverbox::split(&data).expect("ten realisations");
+    // The smaller of the two factors on the arrow error.
+    let mut least = f64::INFINITY;
+    for (factor, [b_name, arrow_name]) in [
+        (0.92, ["silverbox.b_low.b", "silverbox.b_low.arrow"]),
+        (1.08, ["silverbox.b_high.b", "silverbox.b_high.arrow"]),
+    ] {
+        let values: Vec<(String, f64)> = r
+            .simulated
+            .iter()
+            .map(|(n, v)| (n.clone(), if n == "b" { factor * v } else { *v }))
+            .collect();
+        let b = values.iter().find(|(n, _)| n == "b").unwrap().1;
+        figures::check(DOC, b_name, b);
+        let (rms, _) = silverbox::free_run_rms(
+            &silverbox::with_estimates(&cubic, &values),
+            &data,
+            split.arrow,
+            split.arrow,
+            opts.substeps,
+            opts.upsample,
+        )
+        .expect("free run");
+        figures::check(DOC, arrow_name, 1e3 * rms);
+        least = least.min(1e3 * rms / r.arrow_rms_mv);
+    }
+    figures::check(DOC, "silverbox.b_sensitivity", least);
+}
+
+/// The figures of the per-level table of docs/silverbox.md, level by level: u std, y std
+/// (mV), m, its standard error, a, its, d, its, a/m.
+const LEVEL_FIGURES: [[&str; 9]; 4] = [
+    [
+        "silverbox.level1.u_std",
+        "silverbox.level1.y_std",
+        "silverbox.level1.m",
+        "silverbox.level1.m_se",
+        "silverbox.level1.a",
+        "silverbox.level1.a_se",
+        "silverbox.level1.d",
+        "silverbox.level1.d_se",
+        "silverbox.level1.a_over_m",
+    ],
+    [
+        "silverbox.level2.u_std",
+        "silverbox.level2.y_std",
+        "silverbox.level2.m",
+        "silverbox.level2.m_se",
+        "silverbox.level2.a",
+        "silverbox.level2.a_se",
+        "silverbox.level2.d",
+        "silverbox.level2.d_se",
+        "silverbox.level2.a_over_m",
+    ],
+    [
+        "silverbox.level3.u_std",
+        "silverbox.level3.y_std",
+        "silverbox.level3.m",
+        "silverbox.level3.m_se",
+        "silverbox.level3.a",
+        "silverbox.level3.a_se",
+        "silverbox.level3.d",
+        "silverbox.level3.d_se",
+        "silverbox.level3.a_over_m",
+    ],
+    [
+        "silverbox.level4.u_std",
+        "silverbox.level4.y_std",
+        "silverbox.level4.m",
+        "silverbox.level4.m_se",
+        "silverbox.level4.a",
+        "silverbox.level4.a_se",
+        "silverbox.level4.d",
+        "silverbox.level4.d_se",
+        "silverbox.level4.a_over_m",
+    ],
+];
 
 #[test]
 fn silverbox_arrow_levels_stiffen() {
@@ -167,7 +394,7 @@ fn silverbox_arrow_levels_stiffen() {
     assert_eq!(records.len(), 4);
     assert_eq!(records[0].names, vec!["y.x".to_string(), "u".to_string()]);
     // The equivalent linear resonance a/m rises with the amplitude (hardening spring):
-    // measured 182 300 → 187 600 → 189 700 → 197 500 (rad/s)².
+    // by 7.5 % from the first level to the last (docs/silverbox.md, checked below).
     let w2: Vec<f64> = levels
         .iter()
         .map(|l| {
@@ -177,6 +404,36 @@ fn silverbox_arrow_levels_stiffen() {
         .collect();
     assert!(w2[3] > 1.03 * w2[0], "{w2:?}");
     assert!(levels[3].u_std_mv > 4.0 * levels[0].u_std_mv);
+    // The per-level table of docs/silverbox.md, figure by figure.
+    for (l, names) in levels.iter().zip(LEVEL_FIGURES) {
+        let p = |n: &str| l.params.iter().find(|p| p.name == n).unwrap();
+        let (m, a, d) = (p("y"), p("a"), p("d"));
+        let values = [
+            l.u_std_mv,
+            l.y_std_mv,
+            m.value,
+            m.stderr,
+            a.value,
+            a.stderr,
+            d.value,
+            d.stderr,
+            a.value / m.value,
+        ];
+        for (name, value) in names.iter().zip(values) {
+            figures::check(DOC, name, value);
+        }
+    }
+    figures::check(
+        DOC,
+        "silverbox.levels.a_over_m_rise",
+        100.0 * (w2[3] / w2[0] - 1.0),
+    );
+    let d = |l: &silverbox::ArrowLevel| l.params.iter().find(|p| p.name == "d").unwrap().value;
+    figures::check(
+        DOC,
+        "silverbox.levels.d_rise",
+        100.0 * (d(&levels[3]) / d(&levels[0]) - 1.0),
+    );
 }
 
 #[test]
@@ -421,6 +678,9 @@ fn silverbox_refinement_improves_the_free_run() {
     // so the figures are the doc's to its last digit.
     figures::check(DOC, "silverbox.cubic.refined.arrow", r_arrow);
     figures::check(DOC, "silverbox.cubic.refined.multisine", r_multisine);
+    // docs/method.md (section 9) quotes the arrow error before and after.
+    figures::check("docs/method.md", "silverbox.method.arrow", arrow);
+    figures::check("docs/method.md", "silverbox.method.refined.arrow", r_arrow);
     assert!(r_arrow < arrow && r_multisine < multisine);
 }
 
