@@ -151,6 +151,16 @@ fn silverbox_segments_and_free_run_errors() {
         "{:?}",
         rq.params
     );
+    option_row(
+        &rq,
+        "c",
+        [
+            "silverbox.ext.quadratic.arrow",
+            "silverbox.ext.quadratic.multisine",
+            "silverbox.ext.quadratic.e",
+            "silverbox.ext.quadratic.e_stderr",
+        ],
+    );
     figures::check(DOC, "silverbox.quadratic.arrow", rq.arrow_rms_mv);
     figures::check(
         DOC,
@@ -177,6 +187,7 @@ fn silverbox_segments_and_free_run_errors() {
     );
     option_row(
         &r1,
+        "b",
         [
             "silverbox.upsample1.arrow",
             "silverbox.upsample1.multisine",
@@ -186,11 +197,11 @@ fn silverbox_segments_and_free_run_errors() {
     );
 }
 
-/// The row of the ingredients table of docs/silverbox.md for the run `r`: the free-run
-/// errors on the arrow and the multisine test, and `b` with its standard error as
-/// identified (left out or not), under the figures' names in that order.
-fn option_row(r: &silverbox::SilverboxReport, names: [&str; 4]) {
-    let (b, se) = estimate_of(r, "b");
+/// A row of the ingredients or the extensions table of docs/silverbox.md for the run `r`:
+/// the free-run errors on the arrow and the multisine test, and `param` with its standard
+/// error as identified (left out or not), under the figures' names in that order.
+fn option_row(r: &silverbox::SilverboxReport, param: &str, names: [&str; 4]) {
+    let (b, se) = estimate_of(r, param);
     for (name, value) in names
         .iter()
         .zip([r.arrow_rms_mv, r.multisine_test_rms_mv, b, se])
@@ -267,7 +278,7 @@ fn silverbox_ingredients() {
             },
         )
         .expect("procedure runs");
-        option_row(&r, names);
+        option_row(&r, "b", names);
     }
     for (corners, names) in [
         (
@@ -300,8 +311,73 @@ fn silverbox_ingredients() {
             },
         )
         .expect("procedure runs");
-        option_row(&r, names);
+        option_row(&r, "b", names);
     }
+    // The extensions table: one more force term on the cubic model, each not significant
+    // and left out (so the free runs are the cubic model's).
+    let src = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/silverbox_cubic.dyn"),
+    )
+    .expect("model source");
+    for (term, names) in [
+        (
+            "s^5",
+            [
+                "silverbox.ext.y5.arrow",
+                "silverbox.ext.y5.multisine",
+                "silverbox.ext.y5.e",
+                "silverbox.ext.y5.e_stderr",
+            ],
+        ),
+        (
+            "u * s",
+            [
+                "silverbox.ext.uy.arrow",
+                "silverbox.ext.uy.multisine",
+                "silverbox.ext.uy.e",
+                "silverbox.ext.uy.e_stderr",
+            ],
+        ),
+        (
+            "u * s^2",
+            [
+                "silverbox.ext.uy2.arrow",
+                "silverbox.ext.uy2.multisine",
+                "silverbox.ext.uy2.e",
+                "silverbox.ext.uy2.e_stderr",
+            ],
+        ),
+        (
+            "u^3",
+            [
+                "silverbox.ext.u3.arrow",
+                "silverbox.ext.u3.multisine",
+                "silverbox.ext.u3.e",
+                "silverbox.ext.u3.e_stderr",
+            ],
+        ),
+        (
+            "abs(s) * s",
+            [
+                "silverbox.ext.abs.arrow",
+                "silverbox.ext.abs.multisine",
+                "silverbox.ext.abs.e",
+                "silverbox.ext.abs.e_stderr",
+            ],
+        ),
+    ] {
+        let extended = src.replacen(
+            "    filter corners",
+            &format!("    force extra (ground, y) = e ~ 0.01 * {term}\n    filter corners"),
+            1,
+        );
+        let ir = dsl_parser::compile_str("silverbox_extended.dyn", &extended)
+            .expect("extended model compiles");
+        let r = silverbox::run(&ir, &data, &opts).expect("procedure runs");
+        println!("+ e {term}: {:?} {:?}", r.params, r.unidentifiable);
+        option_row(&r, "e", names);
+    }
+
     // The sensitivity to `b`: the estimate of the default run, `b` scaled, the free run
     // on the arrow.
     let r = silverbox::run(&cubic, &data, &opts).expect("procedure runs");
@@ -599,6 +675,7 @@ fn silverbox_spring_is_cubic() {
     let k3 = implied_k3(&det);
     println!("measured linearisation: k3 = {k3:.3}");
     figures::check(DOC, "silverbox.detect.k3_template", k3);
+    figures::check("docs/detection.md", "detect.silverbox.k3_template", k3);
     let (k3, se) = estimator_k3(&det);
     println!("through the estimator: k3 = {k3:.3} ± {se:.3}");
     figures::check(DOC, "silverbox.detect.k3", k3);
@@ -617,6 +694,7 @@ fn silverbox_gaussian_linearisation() {
     let k3 = implied_k3(&det);
     println!("Gaussian linearisation: k3 = {k3:.3}");
     figures::check(DOC, "silverbox.detect.k3_gaussian", k3);
+    figures::check("docs/detection.md", "detect.silverbox.k3_gaussian", k3);
 }
 
 /// With the mass fitted freely at each level, mass and stiffness trade off and the drift
