@@ -89,14 +89,16 @@ pub fn check_within(doc: &str, name: &str, measured: f64, tol: f64) {
 pub fn check_order(doc: &str, name: &str, measured: f64) {
     let f = figure(doc, name);
     eprintln!(
-        "figure {name} ({doc}): written {}, measured {measured}",
-        f.value
+        "figure {name} ({doc}): written {}, measured {}",
+        shown(f.value),
+        shown(measured)
     );
     assert!(
         measured.is_finite() && f.value > 0.0 && (measured / f.value).log10().abs() <= 1.0,
-        "{doc} says {} for `{name}`, the test measures {measured} (allowed: a factor 10): \
+        "{doc} says {} for `{name}`, the test measures {} (allowed: a factor 10): \
          update the doc or find what changed",
-        f.value
+        shown(f.value),
+        shown(measured)
     );
 }
 
@@ -105,16 +107,28 @@ pub fn check_text(doc: &str, text: &str, name: &str, measured: f64, tol: Option<
     let f = figure_in(doc, text, name);
     let tol = tol.unwrap_or(f.rounding());
     eprintln!(
-        "figure {name} ({doc}): written {}, measured {measured}",
-        f.value
+        "figure {name} ({doc}): written {}, measured {}",
+        shown(f.value),
+        shown(measured)
     );
     assert!(
         measured.is_finite()
             && (measured - f.value).abs() <= tol * (1.0 + 1e-9) + 1e-12 * f.value.abs(),
-        "{doc} says {} for `{name}`, the test measures {measured} (allowed ± {tol}): \
+        "{doc} says {} for `{name}`, the test measures {} (allowed ± {}): \
          update the doc or find what changed",
-        f.value
+        shown(f.value),
+        shown(measured),
+        shown(tol)
     );
+}
+
+/// A value as a message shows it: in scientific notation when very small or large.
+fn shown(v: f64) -> String {
+    if v != 0.0 && !(1e-3..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// Every marker name in `text`, in order.
@@ -143,7 +157,12 @@ fn number_before(before: &str) -> Option<Figure> {
     if let Some((e_at, exponent)) = exponent_suffix(t) {
         let m = plain_number_before(&t[..e_at])?;
         return Some(Figure {
-            value: m.value * 10f64.powi(exponent),
+            // One rounding: a division by an exact power of ten for a negative exponent.
+            value: if exponent < 0 {
+                m.value / 10f64.powi(-exponent)
+            } else {
+                m.value * 10f64.powi(exponent)
+            },
             decimals: m.decimals - exponent,
         });
     }
