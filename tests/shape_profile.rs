@@ -77,7 +77,7 @@ fn the_backlash_gap_is_profiled_from_a_start_a_factor_two_off() {
         return;
     }
     let pct = |x: f64, truth: f64| 100.0 * (x / truth - 1.0);
-    let (_, (g, se, kb)) = runs.iter().find(|r| r.0 == 2).expect("seed 2 runs").clone();
+    let (_, (g, se, kb)) = *runs.iter().find(|r| r.0 == 2).expect("seed 2 runs");
     figures::check(DOC, "shape.seed2.g", g);
     figures::check(DOC, "shape.seed2.g_stderr", se);
     figures::check(DOC, "shape.seed2.kb", kb);
