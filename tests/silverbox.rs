@@ -718,7 +718,7 @@ fn silverbox_free_mass_hides_the_drift() {
 /// `dynid silverbox --refine --model models/<name>` on the real record: the covariance
 /// figures and the refined ones (arrow, multisine test, mV), printed; `None` without data.
 /// Checks that the refinement converged.
-fn refined_figures(name: &str) -> Option<[f64; 4]> {
+fn refined_figures(name: &str) -> Option<([f64; 4], dynid_runtime::refine::Refinement)> {
     let dir = data_dir()?;
     let data = silverbox::load(&dir).expect("data loads");
     let ir = model(name);
@@ -741,17 +741,23 @@ fn refined_figures(name: &str) -> Option<[f64; 4]> {
         "{name}: covariance {:.3} / {:.3} mV, refined {:.3} / {:.3} mV",
         figures[0], figures[1], figures[2], figures[3]
     );
-    Some(figures)
+    Some((figures, f.refinement.clone()))
 }
 
 /// The output-error refinement from the covariance estimate on the real record: the free
 /// run improves on both the arrow and the multisine test, neither of which it fitted.
 #[test]
 fn silverbox_refinement_improves_the_free_run() {
-    let Some([arrow, multisine, r_arrow, r_multisine]) = refined_figures("silverbox_cubic.dyn")
+    let Some(([arrow, multisine, r_arrow, r_multisine], refinement)) =
+        refined_figures("silverbox_cubic.dyn")
     else {
         return;
     };
+    figures::check(
+        DOC,
+        "silverbox.cubic.refined.iterations",
+        refinement.iterations as f64,
+    );
     // `dynid silverbox --refine --model models/silverbox_cubic.dyn`; the data are fixed,
     // so the figures are the doc's to its last digit.
     figures::check(DOC, "silverbox.cubic.refined.arrow", r_arrow);
@@ -768,10 +774,37 @@ fn silverbox_refinement_improves_the_free_run() {
 #[test]
 fn silverbox_damping_model_reaches_0_35_mv() {
     assert_eq!(model("silverbox_damping.dyn").unknowns().len(), 8);
-    let Some([arrow, multisine, r_arrow, r_multisine]) = refined_figures("silverbox_damping.dyn")
+    let Some(([arrow, multisine, r_arrow, r_multisine], refinement)) =
+        refined_figures("silverbox_damping.dyn")
     else {
         return;
     };
+    // The added terms as docs/silverbox.md quotes them: e and q, and the four terms'
+    // standard errors from the final Jacobian relative to their values.
+    let p = |n: &str| {
+        refinement
+            .params
+            .iter()
+            .find(|p| p.name == n)
+            .unwrap_or_else(|| panic!("{n} refined: {refinement:?}"))
+    };
+    figures::check(DOC, "silverbox.damping.e", p("e").value);
+    figures::check(DOC, "silverbox.damping.q", p("q").value);
+    let rel: Vec<f64> = ["c", "f0", "e", "q"]
+        .iter()
+        .map(|n| 100.0 * p(n).stderr / p(n).value.abs())
+        .collect();
+    println!("added terms' standard errors: {rel:.2?} %");
+    figures::check(
+        DOC,
+        "silverbox.damping.added_stderr.lo",
+        rel.iter().copied().fold(f64::INFINITY, f64::min),
+    );
+    figures::check(
+        DOC,
+        "silverbox.damping.added_stderr.hi",
+        rel.iter().copied().fold(0.0, f64::max),
+    );
     // `dynid silverbox --refine --model models/silverbox_damping.dyn`; fixed data, so the
     // figures are the doc's to its last digit.
     figures::check(DOC, "silverbox.damping.arrow", arrow);
