@@ -471,11 +471,33 @@ fn sigma_v_from_zero_crossings() {
         for e in &errs {
             assert!(e.abs() < tol, "{truth}: {errs:?}");
         }
+        // docs/detection.md ("Intensities") quotes this seed's errors, in %.
+        let pct: Vec<f64> = errs.iter().map(|e| 100.0 * e).collect();
+        match truth {
+            "sdof_linear" => doc_figure(
+                "detect.sigma_v.linear_worst",
+                pct.iter().fold(0.0, |w: f64, e| w.max(e.abs())),
+            ),
+            "sdof_coulomb" => doc_figure("detect.sigma_v.coulomb_quietest", pct[0]),
+            _ => {
+                for (name, e) in [
+                    "detect.sigma_v.duffing_1",
+                    "detect.sigma_v.duffing_2",
+                    "detect.sigma_v.duffing_3",
+                ]
+                .iter()
+                .zip(&pct)
+                {
+                    doc_figure(name, *e);
+                }
+            }
+        }
         if truth == "sdof_coulomb" {
             let (name, est) = best(&d, "k/d (ground, m)");
             assert_eq!(name, "Coulomb friction");
             let r = implied(&est, "r");
             println!("positions only: r = {r:.4} (truth 0.3)");
+            doc_figure("detect.sigma_v.positions_only_r", r);
             // Seeds 7–11 (`DYNID_SEED_OFFSET=0…4`): r −2.4, −4.1, −8.5, −3.8, −5.3 %.
             assert!(rel(r, 0.3).abs() < 0.17, "positions only: r = {r}");
         }
@@ -516,12 +538,118 @@ fn matrix() {
         .unwrap_or(300.0);
     let rows = matrix_rows(&Structure::ALL, &Effect::ALL, &[0.0, 0.05], 1..6, seconds);
     print_matrix(&rows, seconds);
+    // The "now" columns of the hit-rate table in docs/detection.md are this matrix at
+    // 300 s per level: every cell, the controls and the totals.
+    if seconds == 300.0 {
+        let doc = std::fs::read_to_string(figures::root().join(DOC)).unwrap();
+        let mut controls = [0usize; 2];
+        let mut total = [0usize; 4];
+        for r in &rows {
+            let c = counts(r);
+            let col = noise_column(r.noise);
+            match r.effect {
+                Some(_) => {
+                    assert_eq!(
+                        table_now(&doc, &doc_case(r), col).map(Option::unwrap),
+                        c,
+                        "{DOC}: the hit-rate row `{}` ({} % noise) is stale: the matrix counts \
+                         exact, extra, missed, neighbour = {c:?}",
+                        doc_case(r),
+                        100.0 * r.noise
+                    );
+                    for (t, c) in total.iter_mut().zip(c) {
+                        *t += c;
+                    }
+                }
+                None => controls[col] += c[3],
+            }
+        }
+        for (col, flagged) in controls.into_iter().enumerate() {
+            assert_eq!(
+                table_now(&doc, "linear controls (3 structures)", col)[3],
+                Some(flagged),
+                "{DOC}: the controls' row is stale"
+            );
+        }
+        let names = [
+            "detect.matrix.all.exact",
+            "detect.matrix.all.extra",
+            "detect.matrix.all.missed",
+            "detect.matrix.all.neighbour",
+        ];
+        for (name, n) in names.iter().zip(total) {
+            figures::check(DOC, name, n as f64);
+        }
+    }
+}
+
+/// The case of `r` as the first column of the hit-rate table in docs/detection.md names it.
+fn doc_case(r: &MatrixRow) -> String {
+    let structure = match r.structure {
+        Structure::Sdof => "single mass",
+        Structure::TwoMass => "two masses",
+        Structure::Chain4 => "chain",
+    };
+    match r.effect {
+        Some(e) => format!("{structure}, {}", e.name()),
+        None => "linear controls (3 structures)".into(),
+    }
+}
+
+/// The table's column of a noise level (cells are written `0 % / 5 %`).
+fn noise_column(noise: f64) -> usize {
+    if noise == 0.0 {
+        0
+    } else {
+        assert_eq!(noise, 0.05, "the table has columns for 0 and 5 % noise");
+        1
+    }
+}
+
+/// A row's counts: exact, extra effect, missed, neighbour flagged.
+fn counts(r: &MatrixRow) -> [usize; 4] {
+    let n = |f: fn(&Outcome) -> bool| r.outcomes.iter().filter(|o| f(o)).count();
+    [
+        n(|o| o.exact),
+        n(|o| o.extra),
+        n(|o| o.missed),
+        n(|o| o.neighbour),
+    ]
+}
+
+/// The "now" cells (exact, extra, missed, neighbour) of the hit-rate table's row `case` in
+/// `doc`, at noise column `col`; `None` for a cell written `—`.
+fn table_now(doc: &str, case: &str, col: usize) -> [Option<usize>; 4] {
+    let line = doc
+        .lines()
+        .find(|l| l.starts_with(&format!("| {case} |")))
+        .unwrap_or_else(|| panic!("{DOC}: no row `{case}` in the hit-rate table"));
+    let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+    assert!(
+        cells.len() >= 10,
+        "{DOC}: the row `{case}` has too few cells"
+    );
+    std::array::from_fn(|k| {
+        let cell = cells[6 + k];
+        if cell == "—" {
+            return None;
+        }
+        let cell = cell.split(" of ").next().unwrap_or(cell);
+        let v = cell.split('/').map(str::trim).nth(col);
+        Some(
+            v.and_then(|v| v.parse().ok())
+                .unwrap_or_else(|| panic!("{DOC}: the cell `{cell}` of `{case}` is not `N / N`")),
+        )
+    })
 }
 
 use detect_common::{classify, detect_case, Effect, Outcome, Structure};
 
 struct MatrixRow {
     case: String,
+    structure: Structure,
+    effect: Option<Effect>,
+    noise: f64,
     outcomes: Vec<Outcome>,
 }
 
@@ -556,6 +684,9 @@ fn matrix_rows(
                 e.map_or("linear", Effect::name),
                 100.0 * n
             ),
+            structure: s,
+            effect: e,
+            noise: n,
             outcomes,
         }
     };
@@ -631,6 +762,18 @@ fn matrix_hardening_spring() {
     );
     assert_eq!(count(|o| o.missed), 0, "missed");
     doc_figure("detect.matrix.hardening_exact", count(|o| o.exact) as f64);
+    // Its two rows stand in the hit-rate table of docs/detection.md, which the long form
+    // (`matrix`) checks whole.
+    let doc = std::fs::read_to_string(figures::root().join(DOC)).unwrap();
+    for r in rows.iter().filter(|r| r.effect.is_some()) {
+        assert_eq!(
+            table_now(&doc, &doc_case(r), noise_column(r.noise)).map(Option::unwrap),
+            counts(r),
+            "{DOC}: the hit-rate row `{}` ({} % noise) is stale",
+            doc_case(r),
+            100.0 * r.noise
+        );
+    }
     assert!(
         rows.iter().flat_map(|r| &r.outcomes).all(|o| !o.neighbour),
         "another element (or a linear control) flagged"

@@ -8,6 +8,7 @@
 //! the seed.
 
 mod common;
+mod figures;
 
 use dynid::runtime::diagnose::{
     diagnose, fmt_opt_gap, DiagnoseOptions, Diagnosis, FoundEffect, Verdict,
@@ -314,6 +315,18 @@ fn backlash_in_the_chain() {
     // The gap profiled, not gridded: DYNID_SEED_OFFSET=0..3 gave the gap −0.4 … +0.8 % and
     // kb −0.7 … +0.3 % off (the grid value alone: gap 0.09–0.107, kb −5.5 … +9.4 %).
     assert_backlash(&d, 0.02, 0.02);
+    // docs/detection.md quotes the profiled gap of this case at the table's seed.
+    if common::seeds_as_documented() {
+        let gap = d.found.iter().find_map(|f| match f.effect {
+            dynid::runtime::diagnose::Effect::Backlash { gap } => Some(gap),
+            _ => None,
+        });
+        figures::check(
+            "docs/detection.md",
+            "diagnose.chain4.backlash_gap",
+            gap.expect("a backlash found"),
+        );
+    }
 }
 
 /// The found backlash's profiled gap and stiffness within `tol_gap` and `tol_kb` (relative)

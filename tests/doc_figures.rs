@@ -46,6 +46,37 @@ fn the_reader_takes_the_number_before_the_marker() {
 }
 
 #[test]
+fn the_reader_takes_scientific_notation() {
+    let text = "| `m` | 5.383e-6<!-- figure: m --> | 8.7e-14<!-- figure: r --> (a), \
+                −2.5e−3<!-- figure: n -->, 4e2<!-- figure: k --> and 1e<!-- figure: x -->";
+    let f = |n| figure_in("text", text, n);
+    let m = f("m");
+    assert!(
+        (m.value - 5.383e-6).abs() < 1e-18 && m.decimals == 9,
+        "{m:?}"
+    );
+    let r = f("r");
+    assert!(
+        (r.value - 8.7e-14).abs() < 1e-26 && r.decimals == 15,
+        "{r:?}"
+    );
+    let n = f("n");
+    assert!((n.value + 2.5e-3).abs() < 1e-15 && n.decimals == 4, "{n:?}");
+    assert_eq!(f("k").value, 400.0);
+    assert_eq!(f("k").rounding(), 50.0);
+    // `1e` has no exponent: the number is the 1.
+    assert_eq!(f("x").value, 1.0);
+    // Rounded as written: 5.3834e-6 is 5.383e-6, 5.3836e-6 is not.
+    figures::check_text("x.md", text, "m", 5.3834e-6, None);
+}
+
+#[test]
+#[should_panic(expected = "x.md says")]
+fn a_stale_figure_in_scientific_notation_fails() {
+    figures::check_text("x.md", "5.383e-6<!-- figure: m -->", "m", 5.3836e-6, None);
+}
+
+#[test]
 #[should_panic(expected = "no marker")]
 fn a_removed_figure_fails() {
     figure_in("text", "0.488 mV", "a");

@@ -8,12 +8,16 @@
 //! documents, whose report docs/fleet.md shows (`cargo test --test fleet -- --nocapture`
 //! prints it).
 mod common;
+mod figures;
 
 use common::{dynid, stderr};
 use dynid::dsl_parser::ir::ModelIr;
 use dynid::runtime::fleet::{assess, FleetOptions, Machine, MachineEstimate};
 use dynid::runtime::ident::Identification;
 use dynid::runtime::schema::IdentifyDoc;
+
+/// The doc that shows this fleet's report and quotes its figures.
+const DOC: &str = "docs/fleet.md";
 
 const MACHINES: usize = 200;
 /// Seconds per level: the shortest record whose slowest filter it fits with room
@@ -164,6 +168,24 @@ fn the_fleet_view_flags_exactly_the_five_faulty_machines_and_names_what_moved() 
         "against the pooled value with each machine's own covariance alone: {naive_count} of {MACHINES} flagged"
     );
     assert!(naive_count > 50, "{naive_count}");
+    // The figures docs/fleet.md quotes: the thresholds for this fleet, the range over the
+    // parameters of the machines' own standard errors (the report's `within`, relative),
+    // and the count of the test without `Σ` (on the seeds the doc was written for).
+    figures::check(DOC, "fleet.critical_d2", view.critical_d2);
+    figures::check(DOC, "fleet.critical_z", view.critical_z);
+    if common::seeds_as_documented() {
+        let within: Vec<f64> = view
+            .params
+            .iter()
+            .map(|p| 100.0 * p.within / p.value.abs())
+            .collect();
+        let lo = within.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = within.iter().copied().fold(0.0, f64::max);
+        println!("machines' own standard errors (rms over the held machines): {lo:.3} … {hi:.3} %");
+        figures::check(DOC, "fleet.machine_stderr.lo", lo);
+        figures::check(DOC, "fleet.machine_stderr.hi", hi);
+        figures::check(DOC, "fleet.naive_flagged", naive_count as f64);
+    }
 
     // The same through the command line, from the machines' identification documents.
     let dir = tempfile::tempdir().unwrap();
@@ -191,6 +213,9 @@ fn the_fleet_view_flags_exactly_the_five_faulty_machines_and_names_what_moved() 
     for f in &faulty {
         assert!(text.contains(&format!("  {f} ")), "{text}");
     }
+    if common::seeds_as_documented() {
+        report_as_shown(&text);
+    }
     let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
     assert_eq!(doc["schema_version"], 2);
     let cli_flagged: Vec<&str> = doc["machines"]
@@ -216,6 +241,39 @@ fn the_fleet_view_flags_exactly_the_five_faulty_machines_and_names_what_moved() 
     for p in &view.params {
         assert!(doc["between"][&p.name][&p.name].as_f64().unwrap() > 0.0);
     }
+}
+
+/// The report of `dynid fleet` printed `text` as docs/fleet.md shows it: its code block
+/// that starts with `Fleet of 200`, line for line (trailing blanks aside).
+fn report_as_shown(text: &str) {
+    let doc = std::fs::read_to_string(figures::root().join(DOC)).unwrap();
+    let start = doc
+        .find("```\nFleet of ")
+        .unwrap_or_else(|| panic!("{DOC}: no code block starting with `Fleet of `"));
+    let block = &doc[start + 4..];
+    let block = &block[..block.find("```").expect("the code block is closed")];
+    let lines = |t: &str| -> Vec<String> {
+        let mut v: Vec<String> = t.lines().map(|l| l.trim_end().to_string()).collect();
+        while v.last().is_some_and(String::is_empty) {
+            v.pop();
+        }
+        v
+    };
+    let (shown, printed) = (lines(block), lines(text));
+    for (i, (a, b)) in shown.iter().zip(&printed).enumerate() {
+        assert_eq!(
+            a,
+            b,
+            "{DOC}: line {} of the fleet's report differs from what `dynid fleet` prints \
+             (update the doc or find what changed); printed:\n{text}",
+            i + 1
+        );
+    }
+    assert_eq!(
+        shown.len(),
+        printed.len(),
+        "{DOC}: the fleet's report has another number of lines than `dynid fleet` prints:\n{text}"
+    );
 }
 
 /// A hand-written identification document of the one-mass axis (`fc` left out where

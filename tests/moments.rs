@@ -100,6 +100,7 @@ fn two_mass_pieces_merged_equal_the_whole() {
     let (worst, bytes) = merge_equals_whole(&ir, &recs, &IdentifyOptions::default());
     println!("two_mass: merged vs whole max rel. diff {worst:.2e}; {bytes} bytes per piece");
     figures::check(DOC, "moments.kb.two_mass_60s", bytes as f64 / 1000.0);
+    figures::check_order(DOC, "moments.rounding.two_mass", worst);
     assert!(worst <= TOL, "merged differs from whole by {worst:e}");
 }
 
@@ -111,6 +112,7 @@ fn servo_pieces_merged_equal_the_whole() {
     let (worst, bytes) = merge_equals_whole(&ir, &[a, b], &IdentifyOptions::default());
     println!("servo_axis: merged vs whole max rel. diff {worst:.2e}; {bytes} bytes per piece");
     figures::check(DOC, "moments.kb.servo", bytes as f64 / 1000.0);
+    figures::check_order(DOC, "moments.rounding.servo", worst);
     assert!(worst <= TOL, "merged differs from whole by {worst:e}");
 }
 

@@ -110,6 +110,27 @@ fn silverbox_segments_and_free_run_errors() {
     figures::check(DOC, "silverbox.cubic.b_stderr", pb.stderr);
     let a = r.params.iter().find(|p| p.name == "a").unwrap().value;
     figures::check(DOC, "silverbox.cubic.a", a);
+    let m = r.params.iter().find(|p| p.name == "y").unwrap().value;
+    figures::check(DOC, "silverbox.cubic.m", m);
+    let d = r.params.iter().find(|p| p.name == "d").unwrap().value;
+    figures::check(DOC, "silverbox.cubic.d", d);
+    // The resonance and damping ratio quoted beside them, and the output RMS for scale.
+    figures::check(
+        DOC,
+        "silverbox.cubic.resonance_hz",
+        (a / m).sqrt() / (2.0 * std::f64::consts::PI),
+    );
+    figures::check(
+        DOC,
+        "silverbox.cubic.damping_ratio_pct",
+        100.0 * d / (2.0 * (a * m).sqrt()),
+    );
+    figures::check(DOC, "silverbox.arrow_output_rms", r.arrow_output_rms_mv);
+    figures::check(
+        DOC,
+        "silverbox.multisine_output_rms",
+        r.multisine_test_output_rms_mv,
+    );
     for (name, figure) in [
         ("y", "silverbox.cubic.y_stderr_pct"),
         ("a", "silverbox.cubic.a_stderr_pct"),
@@ -129,6 +150,16 @@ fn silverbox_segments_and_free_run_errors() {
         rq.unidentifiable.iter().any(|u| u.name == "c"),
         "{:?}",
         rq.params
+    );
+    option_row(
+        &rq,
+        "c",
+        [
+            "silverbox.ext.quadratic.arrow",
+            "silverbox.ext.quadratic.multisine",
+            "silverbox.ext.quadratic.e",
+            "silverbox.ext.quadratic.e_stderr",
+        ],
     );
     figures::check(DOC, "silverbox.quadratic.arrow", rq.arrow_rms_mv);
     figures::check(
@@ -154,7 +185,279 @@ fn silverbox_segments_and_free_run_errors() {
         "silverbox.upsample1.multisine",
         r1.multisine_test_rms_mv,
     );
+    option_row(
+        &r1,
+        "b",
+        [
+            "silverbox.upsample1.arrow",
+            "silverbox.upsample1.multisine",
+            "silverbox.upsample1.b",
+            "silverbox.upsample1.b_stderr",
+        ],
+    );
 }
+
+/// A row of the ingredients or the extensions table of docs/silverbox.md for the run `r`:
+/// the free-run errors on the arrow and the multisine test, and `param` with its standard
+/// error as identified (left out or not), under the figures' names in that order.
+fn option_row(r: &silverbox::SilverboxReport, param: &str, names: [&str; 4]) {
+    let (b, se) = estimate_of(r, param);
+    for (name, value) in names
+        .iter()
+        .zip([r.arrow_rms_mv, r.multisine_test_rms_mv, b, se])
+    {
+        figures::check(DOC, name, value);
+    }
+}
+
+/// The estimate and standard error of `name` in `r`: identified, or left out as not
+/// significant (whose reason carries both, the standard error to two digits).
+fn estimate_of(r: &silverbox::SilverboxReport, name: &str) -> (f64, f64) {
+    if let Some(p) = r.params.iter().find(|p| p.name == name) {
+        return (p.value, p.stderr);
+    }
+    let u = r
+        .unidentifiable
+        .iter()
+        .find(|u| u.name == name)
+        .unwrap_or_else(|| panic!("{name} neither identified nor left out"));
+    // "… the estimate 1.234e0 is within 2 standard errors (2.0e0) of zero"
+    let number = |after: &str, end: char| -> f64 {
+        let at = u.reason.find(after).expect("the reason names the estimate") + after.len();
+        let rest = &u.reason[at..];
+        rest[..rest.find(end).expect("the number ends")]
+            .trim()
+            .parse()
+            .expect("a number")
+    };
+    (
+        number("the estimate ", ' '),
+        number("standard errors (", ')'),
+    )
+}
+
+/// The other rows of the ingredients table: the cubic model with another upsampling or
+/// other filter corners, and with `b` 8 % off its estimate (the rest unchanged).
+#[test]
+fn silverbox_ingredients() {
+    let Some(dir) = data_dir() else { return };
+    let data = silverbox::load(&dir).expect("data loads");
+    let cubic = model("silverbox_cubic.dyn");
+    let opts = RunOptions {
+        identify: silverbox::default_options(&cubic),
+        substeps: 4,
+        upsample: 4,
+        refine: None,
+    };
+    for (upsample, names) in [
+        (
+            8,
+            [
+                "silverbox.upsample8.arrow",
+                "silverbox.upsample8.multisine",
+                "silverbox.upsample8.b",
+                "silverbox.upsample8.b_stderr",
+            ],
+        ),
+        (
+            2,
+            [
+                "silverbox.upsample2.arrow",
+                "silverbox.upsample2.multisine",
+                "silverbox.upsample2.b",
+                "silverbox.upsample2.b_stderr",
+            ],
+        ),
+    ] {
+        let r = silverbox::run(
+            &cubic,
+            &data,
+            &RunOptions {
+                upsample,
+                ..opts.clone()
+            },
+        )
+        .expect("procedure runs");
+        option_row(&r, "b", names);
+    }
+    for (corners, names) in [
+        (
+            [300.0, 400.0, 500.0, 700.0, 1000.0, 1200.0],
+            [
+                "silverbox.corners_high.arrow",
+                "silverbox.corners_high.multisine",
+                "silverbox.corners_high.b",
+                "silverbox.corners_high.b_stderr",
+            ],
+        ),
+        (
+            [150.0, 200.0, 300.0, 400.0, 500.0, 800.0],
+            [
+                "silverbox.corners_low.arrow",
+                "silverbox.corners_low.multisine",
+                "silverbox.corners_low.b",
+                "silverbox.corners_low.b_stderr",
+            ],
+        ),
+    ] {
+        let mut identify = opts.identify.clone();
+        identify.corners = Some(corners.to_vec());
+        let r = silverbox::run(
+            &cubic,
+            &data,
+            &RunOptions {
+                identify,
+                ..opts.clone()
+            },
+        )
+        .expect("procedure runs");
+        option_row(&r, "b", names);
+    }
+    // The extensions table: one more force term on the cubic model, each not significant
+    // and left out (so the free runs are the cubic model's).
+    let src = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/silverbox_cubic.dyn"),
+    )
+    .expect("model source");
+    for (term, names) in [
+        (
+            "s^5",
+            [
+                "silverbox.ext.y5.arrow",
+                "silverbox.ext.y5.multisine",
+                "silverbox.ext.y5.e",
+                "silverbox.ext.y5.e_stderr",
+            ],
+        ),
+        (
+            "u * s",
+            [
+                "silverbox.ext.uy.arrow",
+                "silverbox.ext.uy.multisine",
+                "silverbox.ext.uy.e",
+                "silverbox.ext.uy.e_stderr",
+            ],
+        ),
+        (
+            "u * s^2",
+            [
+                "silverbox.ext.uy2.arrow",
+                "silverbox.ext.uy2.multisine",
+                "silverbox.ext.uy2.e",
+                "silverbox.ext.uy2.e_stderr",
+            ],
+        ),
+        (
+            "u^3",
+            [
+                "silverbox.ext.u3.arrow",
+                "silverbox.ext.u3.multisine",
+                "silverbox.ext.u3.e",
+                "silverbox.ext.u3.e_stderr",
+            ],
+        ),
+        (
+            "abs(s) * s",
+            [
+                "silverbox.ext.abs.arrow",
+                "silverbox.ext.abs.multisine",
+                "silverbox.ext.abs.e",
+                "silverbox.ext.abs.e_stderr",
+            ],
+        ),
+    ] {
+        let extended = src.replacen(
+            "    filter corners",
+            &format!("    force extra (ground, y) = e ~ 0.01 * {term}\n    filter corners"),
+            1,
+        );
+        let ir = dsl_parser::compile_str("silverbox_extended.dyn", &extended)
+            .expect("extended model compiles");
+        let r = silverbox::run(&ir, &data, &opts).expect("procedure runs");
+        println!("+ e {term}: {:?} {:?}", r.params, r.unidentifiable);
+        option_row(&r, "e", names);
+    }
+
+    // The sensitivity to `b`: the estimate of the default run, `b` scaled, the free run
+    // on the arrow.
+    let r = silverbox::run(&cubic, &data, &opts).expect("procedure runs");
+    let split = silverbox::split(&data).expect("ten realisations");
+    // The smaller of the two factors on the arrow error.
+    let mut least = f64::INFINITY;
+    for (factor, [b_name, arrow_name]) in [
+        (0.92, ["silverbox.b_low.b", "silverbox.b_low.arrow"]),
+        (1.08, ["silverbox.b_high.b", "silverbox.b_high.arrow"]),
+    ] {
+        let values: Vec<(String, f64)> = r
+            .simulated
+            .iter()
+            .map(|(n, v)| (n.clone(), if n == "b" { factor * v } else { *v }))
+            .collect();
+        let b = values.iter().find(|(n, _)| n == "b").unwrap().1;
+        figures::check(DOC, b_name, b);
+        let (rms, _) = silverbox::free_run_rms(
+            &silverbox::with_estimates(&cubic, &values),
+            &data,
+            split.arrow,
+            split.arrow,
+            opts.substeps,
+            opts.upsample,
+        )
+        .expect("free run");
+        figures::check(DOC, arrow_name, 1e3 * rms);
+        least = least.min(1e3 * rms / r.arrow_rms_mv);
+    }
+    figures::check(DOC, "silverbox.b_sensitivity", least);
+}
+
+/// The figures of the per-level table of docs/silverbox.md, level by level: u std, y std
+/// (mV), m, its standard error, a, its, d, its, a/m.
+const LEVEL_FIGURES: [[&str; 9]; 4] = [
+    [
+        "silverbox.level1.u_std",
+        "silverbox.level1.y_std",
+        "silverbox.level1.m",
+        "silverbox.level1.m_se",
+        "silverbox.level1.a",
+        "silverbox.level1.a_se",
+        "silverbox.level1.d",
+        "silverbox.level1.d_se",
+        "silverbox.level1.a_over_m",
+    ],
+    [
+        "silverbox.level2.u_std",
+        "silverbox.level2.y_std",
+        "silverbox.level2.m",
+        "silverbox.level2.m_se",
+        "silverbox.level2.a",
+        "silverbox.level2.a_se",
+        "silverbox.level2.d",
+        "silverbox.level2.d_se",
+        "silverbox.level2.a_over_m",
+    ],
+    [
+        "silverbox.level3.u_std",
+        "silverbox.level3.y_std",
+        "silverbox.level3.m",
+        "silverbox.level3.m_se",
+        "silverbox.level3.a",
+        "silverbox.level3.a_se",
+        "silverbox.level3.d",
+        "silverbox.level3.d_se",
+        "silverbox.level3.a_over_m",
+    ],
+    [
+        "silverbox.level4.u_std",
+        "silverbox.level4.y_std",
+        "silverbox.level4.m",
+        "silverbox.level4.m_se",
+        "silverbox.level4.a",
+        "silverbox.level4.a_se",
+        "silverbox.level4.d",
+        "silverbox.level4.d_se",
+        "silverbox.level4.a_over_m",
+    ],
+];
 
 #[test]
 fn silverbox_arrow_levels_stiffen() {
@@ -167,7 +470,7 @@ fn silverbox_arrow_levels_stiffen() {
     assert_eq!(records.len(), 4);
     assert_eq!(records[0].names, vec!["y.x".to_string(), "u".to_string()]);
     // The equivalent linear resonance a/m rises with the amplitude (hardening spring):
-    // measured 182 300 → 187 600 → 189 700 → 197 500 (rad/s)².
+    // by 7.5 % from the first level to the last (docs/silverbox.md, checked below).
     let w2: Vec<f64> = levels
         .iter()
         .map(|l| {
@@ -177,6 +480,36 @@ fn silverbox_arrow_levels_stiffen() {
         .collect();
     assert!(w2[3] > 1.03 * w2[0], "{w2:?}");
     assert!(levels[3].u_std_mv > 4.0 * levels[0].u_std_mv);
+    // The per-level table of docs/silverbox.md, figure by figure.
+    for (l, names) in levels.iter().zip(LEVEL_FIGURES) {
+        let p = |n: &str| l.params.iter().find(|p| p.name == n).unwrap();
+        let (m, a, d) = (p("y"), p("a"), p("d"));
+        let values = [
+            l.u_std_mv,
+            l.y_std_mv,
+            m.value,
+            m.stderr,
+            a.value,
+            a.stderr,
+            d.value,
+            d.stderr,
+            a.value / m.value,
+        ];
+        for (name, value) in names.iter().zip(values) {
+            figures::check(DOC, name, value);
+        }
+    }
+    figures::check(
+        DOC,
+        "silverbox.levels.a_over_m_rise",
+        100.0 * (w2[3] / w2[0] - 1.0),
+    );
+    let d = |l: &silverbox::ArrowLevel| l.params.iter().find(|p| p.name == "d").unwrap().value;
+    figures::check(
+        DOC,
+        "silverbox.levels.d_rise",
+        100.0 * (d(&levels[3]) / d(&levels[0]) - 1.0),
+    );
 }
 
 #[test]
@@ -342,6 +675,7 @@ fn silverbox_spring_is_cubic() {
     let k3 = implied_k3(&det);
     println!("measured linearisation: k3 = {k3:.3}");
     figures::check(DOC, "silverbox.detect.k3_template", k3);
+    figures::check("docs/detection.md", "detect.silverbox.k3_template", k3);
     let (k3, se) = estimator_k3(&det);
     println!("through the estimator: k3 = {k3:.3} ± {se:.3}");
     figures::check(DOC, "silverbox.detect.k3", k3);
@@ -360,6 +694,7 @@ fn silverbox_gaussian_linearisation() {
     let k3 = implied_k3(&det);
     println!("Gaussian linearisation: k3 = {k3:.3}");
     figures::check(DOC, "silverbox.detect.k3_gaussian", k3);
+    figures::check("docs/detection.md", "detect.silverbox.k3_gaussian", k3);
 }
 
 /// With the mass fitted freely at each level, mass and stiffness trade off and the drift
@@ -383,7 +718,7 @@ fn silverbox_free_mass_hides_the_drift() {
 /// `dynid silverbox --refine --model models/<name>` on the real record: the covariance
 /// figures and the refined ones (arrow, multisine test, mV), printed; `None` without data.
 /// Checks that the refinement converged.
-fn refined_figures(name: &str) -> Option<[f64; 4]> {
+fn refined_figures(name: &str) -> Option<([f64; 4], dynid_runtime::refine::Refinement)> {
     let dir = data_dir()?;
     let data = silverbox::load(&dir).expect("data loads");
     let ir = model(name);
@@ -406,21 +741,30 @@ fn refined_figures(name: &str) -> Option<[f64; 4]> {
         "{name}: covariance {:.3} / {:.3} mV, refined {:.3} / {:.3} mV",
         figures[0], figures[1], figures[2], figures[3]
     );
-    Some(figures)
+    Some((figures, f.refinement.clone()))
 }
 
 /// The output-error refinement from the covariance estimate on the real record: the free
 /// run improves on both the arrow and the multisine test, neither of which it fitted.
 #[test]
 fn silverbox_refinement_improves_the_free_run() {
-    let Some([arrow, multisine, r_arrow, r_multisine]) = refined_figures("silverbox_cubic.dyn")
+    let Some(([arrow, multisine, r_arrow, r_multisine], refinement)) =
+        refined_figures("silverbox_cubic.dyn")
     else {
         return;
     };
+    figures::check(
+        DOC,
+        "silverbox.cubic.refined.iterations",
+        refinement.iterations as f64,
+    );
     // `dynid silverbox --refine --model models/silverbox_cubic.dyn`; the data are fixed,
     // so the figures are the doc's to its last digit.
     figures::check(DOC, "silverbox.cubic.refined.arrow", r_arrow);
     figures::check(DOC, "silverbox.cubic.refined.multisine", r_multisine);
+    // docs/method.md (section 9) quotes the arrow error before and after.
+    figures::check("docs/method.md", "silverbox.method.arrow", arrow);
+    figures::check("docs/method.md", "silverbox.method.refined.arrow", r_arrow);
     assert!(r_arrow < arrow && r_multisine < multisine);
 }
 
@@ -430,10 +774,37 @@ fn silverbox_refinement_improves_the_free_run() {
 #[test]
 fn silverbox_damping_model_reaches_0_35_mv() {
     assert_eq!(model("silverbox_damping.dyn").unknowns().len(), 8);
-    let Some([arrow, multisine, r_arrow, r_multisine]) = refined_figures("silverbox_damping.dyn")
+    let Some(([arrow, multisine, r_arrow, r_multisine], refinement)) =
+        refined_figures("silverbox_damping.dyn")
     else {
         return;
     };
+    // The added terms as docs/silverbox.md quotes them: e and q, and the four terms'
+    // standard errors from the final Jacobian relative to their values.
+    let p = |n: &str| {
+        refinement
+            .params
+            .iter()
+            .find(|p| p.name == n)
+            .unwrap_or_else(|| panic!("{n} refined: {refinement:?}"))
+    };
+    figures::check(DOC, "silverbox.damping.e", p("e").value);
+    figures::check(DOC, "silverbox.damping.q", p("q").value);
+    let rel: Vec<f64> = ["c", "f0", "e", "q"]
+        .iter()
+        .map(|n| 100.0 * p(n).stderr / p(n).value.abs())
+        .collect();
+    println!("added terms' standard errors: {rel:.2?} %");
+    figures::check(
+        DOC,
+        "silverbox.damping.added_stderr.lo",
+        rel.iter().copied().fold(f64::INFINITY, f64::min),
+    );
+    figures::check(
+        DOC,
+        "silverbox.damping.added_stderr.hi",
+        rel.iter().copied().fold(0.0, f64::max),
+    );
     // `dynid silverbox --refine --model models/silverbox_damping.dyn`; fixed data, so the
     // figures are the doc's to its last digit.
     figures::check(DOC, "silverbox.damping.arrow", arrow);
