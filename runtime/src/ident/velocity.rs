@@ -282,7 +282,7 @@ fn correct_reversals(x: &[f64], lo: usize, v: &[f64], from: usize, out: &mut [f6
         }
         for k in j.saturating_sub(1)..=j + 2 {
             let dk = k as f64 - j as f64;
-            if k < from || k >= from + out.len() || (dk - q).abs() > REVERSAL_SPAN {
+            if !(from..from + out.len()).contains(&k) || (dk - q).abs() > REVERSAL_SPAN {
                 continue;
             }
             let vf = reversal_velocity(t0, &p, dk);
@@ -749,7 +749,13 @@ mod tests {
     fn reversals_are_fitted_on_levels_with_rests() {
         let (n, ts) = (20_000usize, 0.001);
         let moving = |k: usize| (3.0 * k as f64 * ts).sin();
-        let resting = |k: usize| if (k / 2000) % 3 == 0 { 0.0 } else { moving(k) };
+        let resting = |k: usize| {
+            if (k / 2000).is_multiple_of(3) {
+                0.0
+            } else {
+                moving(k)
+            }
+        };
         for (name, f, want) in [
             ("sinusoid", &moving as &dyn Fn(usize) -> f64, false),
             ("with rests", &resting, true),
