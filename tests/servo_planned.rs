@@ -10,17 +10,20 @@
 //! check, and what they measured (`cargo test --test servo_planned -- --nocapture`; the
 //! long forms with `DYNID_PLANNED_SEEDS=N`):
 //!
-//! - coverage over seeds of d, r and f0 (`planned_errors_cover_damping_friction_offset`);
-//!   the mass carries a bias of about +0.09 % at 3–5 of its standard errors, which the
-//!   velocity estimated from the encoder brings: with the velocity measured it is gone
-//!   (`planned_mass_bias_comes_from_the_estimated_velocity`, docs/method.md §7);
+//! - coverage over seeds of every parameter (`planned_errors_cover_every_parameter`);
+//! - where the mass bias of +0.09 % at 3–5 of its standard errors, which the velocity
+//!   estimated from the encoder used to bring, came from: the estimate crossed zero late
+//!   at every reversal in motion, so `sign(v̂)` was wrong on the first sample after the
+//!   faster ones (`planned_mass_bias_came_from_late_reversals`, docs/method.md §7);
 //! - the record cut into its cycles, all identified with the same corners, gives cycle
 //!   estimates consistent within their errors (`planned_cycles_agree_within_their_errors`).
 
 mod figures;
 mod servo_common;
 
-use dynid::runtime::ident::Hold;
+use dynid::runtime::data::{LevelSource, RecordSource};
+use dynid::runtime::ident::velocity::{Differentiator, EstimatedVelocity};
+use dynid::runtime::record::Record;
 use dynid::runtime::IdentifyOptions;
 use servo_common::{
     errors, identify_record as ident, planned_axis, planned_record, planned_record_of, TRUTH,
@@ -43,32 +46,43 @@ fn row(errs: &[(f64, f64)]) -> String {
     servo_common::row(errs, 3)
 }
 
-/// Per parameter over the seeds: mean error, mean SE, coverage (|e| < 2 SE), RMS of e/SE.
-fn summary(all: &[Vec<(f64, f64)>]) -> Vec<(f64, f64, f64, f64)> {
+/// Per parameter over the seeds.
+struct Summary {
+    mean: f64,
+    rms: f64,
+    /// Mean standard error.
+    se: f64,
+    /// Share of the seeds with |error| < 2 SE.
+    cover: f64,
+    /// RMS of error / SE.
+    z: f64,
+}
+
+fn summary(all: &[Vec<(f64, f64)>]) -> Vec<Summary> {
     let n = all.len() as f64;
     (0..TRUTH.len())
-        .map(|k| {
-            let mean = all.iter().map(|e| e[k].0).sum::<f64>() / n;
-            let se = all.iter().map(|e| e[k].1).sum::<f64>() / n;
-            let cover = all.iter().filter(|e| e[k].0.abs() < 2.0 * e[k].1).count() as f64 / n;
-            let z = (all.iter().map(|e| (e[k].0 / e[k].1).powi(2)).sum::<f64>() / n).sqrt();
-            (mean, se, cover, z)
+        .map(|k| Summary {
+            mean: all.iter().map(|e| e[k].0).sum::<f64>() / n,
+            rms: (all.iter().map(|e| e[k].0.powi(2)).sum::<f64>() / n).sqrt(),
+            se: all.iter().map(|e| e[k].1).sum::<f64>() / n,
+            cover: all.iter().filter(|e| e[k].0.abs() < 2.0 * e[k].1).count() as f64 / n,
+            z: (all.iter().map(|e| (e[k].0 / e[k].1).powi(2)).sum::<f64>() / n).sqrt(),
         })
         .collect()
 }
 
 /// Coverage of the default identification on planned records, seeds 1–12. Measured
-/// (`cargo test --test servo_planned planned_errors -- --nocapture`, 2026-11-26): coverage
-/// (|error| < 2 SE) d 12, r 12, f0 11 of 12; RMS error/SE d 1.02, r 0.79, f0 1.09; mean
-/// errors −0.07 %, −0.01 %, −0.02 % against mean SE 0.146 %, 0.212 %, 0.257 %. The mass:
-/// mean error +0.092 %, mean SE 0.025 %, coverage 0 of 12 — the bias of
-/// `planned_mass_bias_comes_from_the_estimated_velocity`, asserted here only to stay below
-/// 0.2 %.
+/// (`cargo test --test servo_planned planned_errors -- --nocapture`): RMS errors m 0.027 %,
+/// d 0.129 %, r 0.210 %, f0 0.239 % at mean SE 0.038 %, 0.166 %, 0.242 %, 0.309 %;
+/// coverage (|error| < 2 SE) 12, 11, 11, 12 of 12; RMS error/SE 0.75, 0.85,
+/// 0.93, 0.83; mean errors +0.019 %, +0.068 %, −0.138 %, −0.073 %. (With the
+/// reversals crossed late, before `velocity::correct_reversals`: the mass +0.092 % at
+/// 0.025 % SE, covered on no seed; d 0.131 %, r 0.159 %, f0 0.228 % RMS.)
 /// Bounds: coverage at least 10 of 12 (≥ 0.83 for the long form) and RMS error/SE within
-/// 0.35 … 2 (the measured 0.79 … 1.09 over 2.3 either way): errors neither too small nor
-/// several times too large.
+/// 0.35 … 2, for every parameter; the mass's RMS error below 0.05 % (about twice the
+/// measured, half the bias it had).
 #[test]
-fn planned_errors_cover_damping_friction_offset() {
+fn planned_errors_cover_every_parameter() {
     let mut all = Vec::new();
     for seed in seeds(12) {
         let (ir, rec) = planned_record(seed);
@@ -76,59 +90,109 @@ fn planned_errors_cover_damping_friction_offset() {
         println!("seed {seed}: {}", row(&e));
         all.push(e);
     }
-    // docs/method.md §6 quotes the short form's figures (seeds 1–12).
-    let documented = all.len() == 12;
-    for ((name, _), (mean, se, cover, z)) in TRUTH.iter().zip(summary(&all)) {
+    let sum = summary(&all);
+    for ((name, _), s) in TRUTH.iter().zip(&sum) {
         println!(
-            "{name}: mean error {:+.3} %, mean SE {:.3} %, coverage {cover:.2}, RMS e/SE {z:.2}",
-            100.0 * mean,
-            100.0 * se
+            "{name}: mean error {:+.3} %, RMS error {:.3} %, mean SE {:.3} %, coverage {:.2}, RMS e/SE {:.2}",
+            100.0 * s.mean,
+            100.0 * s.rms,
+            100.0 * s.se,
+            s.cover,
+            s.z
         );
-        if documented {
-            if *name == "m" {
-                figures::check("docs/method.md", "planned.m_bias", 100.0 * mean);
-                figures::check("docs/method.md", "planned.m_se", 100.0 * se);
-            } else {
-                let marker = match *name {
-                    "d" => "planned.d_z",
-                    "r" => "planned.r_z",
-                    _ => "planned.f0_z",
-                };
-                figures::check("docs/method.md", marker, z);
-                let cover_marker = match *name {
-                    "d" => "planned.d_cover",
-                    "r" => "planned.r_cover",
-                    _ => "planned.f0_cover",
-                };
-                figures::check("docs/method.md", cover_marker, 12.0 * cover);
-            }
-        }
-        if *name == "m" {
-            assert!(mean.abs() < 0.002, "`m`: mean error {:+.3} %", 100.0 * mean);
-            continue;
-        }
-        assert!(cover >= 0.83, "`{name}`: coverage {cover:.2}");
-        assert!((0.35..2.0).contains(&z), "`{name}`: RMS e/SE {z:.2}");
     }
+    // docs/method.md §6 quotes the short form's figures (seeds 1–12).
+    if sum.len() == TRUTH.len() && all.len() == 12 {
+        let markers = [
+            ("planned.m_z", "planned.m_cover"),
+            ("planned.d_z", "planned.d_cover"),
+            ("planned.r_z", "planned.r_cover"),
+            ("planned.f0_z", "planned.f0_cover"),
+        ];
+        for ((z, cover), s) in markers.iter().zip(&sum) {
+            figures::check("docs/method.md", z, s.z);
+            figures::check("docs/method.md", cover, 12.0 * s.cover);
+        }
+        figures::check("docs/method.md", "planned.m_rms", 100.0 * sum[0].rms);
+        figures::check("docs/method.md", "planned.m_se", 100.0 * sum[0].se);
+    }
+    for ((name, _), s) in TRUTH.iter().zip(&sum) {
+        assert!(s.cover >= 0.83, "`{name}`: coverage {:.2}", s.cover);
+        assert!((0.35..2.0).contains(&s.z), "`{name}`: RMS e/SE {:.2}", s.z);
+    }
+    assert!(
+        sum[0].rms < 5e-4,
+        "`m`: RMS error {:.3} %",
+        100.0 * sum[0].rms
+    );
 }
 
-/// The mass bias on planned moves comes from the estimated velocity. The same planned
-/// records (seeds 1–4), identified with the same corners (those designed with the velocity
-/// estimated, 1.6 … 24 rad/s) and filter order (4), once with the simulated velocity
-/// recorded and given to the identification, once with the velocity estimated from the
-/// encoder as by default. Measured (`cargo test --test servo_planned planned_mass --
-/// --nocapture`): mean mass error with the velocity measured +0.004 % at 0.031 % SE
-/// (coverage 4 of 4), estimated +0.100 % at 0.023 % SE (0 of 4); seeds 1–12
-/// (`DYNID_PLANNED_SEEDS=12`): −0.003 % at 0.032 % (12 of 12) against +0.092 % at 0.025 %;
-/// d, r, f0 are covered either way. What does not remove it (seeds 1–4, mean mass error,
-/// docs/method.md §7): the input between samples (controller updated 40 instead of 10
-/// times per sample +0.081 %, zero-order hold +0.098 %), the encoder (1 nm: +0.090 %),
-/// the lowest one or two corners left out (+0.119 %, +0.179 %; `planned_mass_variants`). Asserted: with the velocity measured the mean
-/// mass error lies within twice the mean SE and at least 3 of 4 seeds are covered; with
-/// it estimated the mean error exceeds twice the mean SE (the bias the estimate carries).
+/// The velocity of the planned record `rec` as the identification estimates it, and as the
+/// plain smoothing differentiator of the same cutoff gives it (interior samples; `NaN`
+/// within a window of the record's ends).
+fn estimates(ir: &dynid::dsl_parser::ir::ModelIr, rec: &Record) -> (Vec<f64>, Vec<f64>) {
+    let src = RecordSource::new(rec, ir, "planned").expect("record");
+    // Body 0 owns signals 0 (`m.x`) and 1 (`m.v`).
+    let est = EstimatedVelocity::design(&src, &[(1, 0)], 4096).expect("design");
+    let mut fitted = Vec::with_capacity(rec.len());
+    est.stream(4096, &mut |cols, len| {
+        fitted.extend_from_slice(&cols[1][..len])
+    })
+    .expect("stream");
+    let (_, cutoff, _) = est.designs()[0];
+    let d = Differentiator::new(cutoff * rec.ts, rec.len() / 2);
+    let x = rec.column("m.x").expect("positions");
+    let h = d.half;
+    let plain = (0..x.len())
+        .map(|k| {
+            if k < h || k + h >= x.len() {
+                return f64::NAN;
+            }
+            let v: f64 = x[k - h..=k + h]
+                .iter()
+                .zip(&d.weights)
+                .map(|(x, w)| x * w)
+                .sum();
+            v / rec.ts
+        })
+        .collect();
+    (fitted, plain)
+}
+
+/// The reversals in motion of a true velocity `v`: indices `k` where it changes sign between
+/// `k − 1` and `k`, with a speed above 5 mm/s 20 samples before and after (the overshoots at
+/// the end of the faster moves; the chatter of the simulated body at rest is not one).
+fn reversals(v: &[f64]) -> Vec<usize> {
+    (20..v.len() - 20)
+        .filter(|&k| v[k - 1] * v[k] < 0.0 && v[k - 20].abs() > 5e-3 && v[k + 20].abs() > 5e-3)
+        .collect()
+}
+
+/// Where the mass bias of the planned records came from: the velocity estimate crossed
+/// zero late at every reversal in motion. The planned records (seeds 1–4) with the
+/// simulated velocity recorded (`m.v`): at the reversals in motion (24 per record, the
+/// overshoots at the ends of the moves) the plain smoothing differentiator, of the cutoff
+/// the identification designs, crosses zero late (it sees the jump of the acceleration as
+/// Coulomb friction flips as a kink, which it rounds), so `sign(v̂)` is wrong on the first
+/// sample after the crossing wherever that lies within the lag — 8 samples per
+/// record, never one before a crossing; the estimate the identification uses (the
+/// reversal fit of `runtime/src/ident/velocity.rs`) is right on every one. Identified with the same corners
+/// and filter order, once with the recorded velocity given as measured and once with it
+/// changed on exactly those samples to the late sign of the plain estimate, and by default
+/// (velocity estimated). Measured (`cargo test --test servo_planned planned_mass --
+/// --nocapture`): mean mass error +0.078 % at 0.021 % SE with the late sign (coverage
+/// 0 of 4), +0.004 % at 0.031 % with the recorded velocity (4 of 4),
+/// +0.027 % at 0.037 % by default (4 of 4): the late sign on 8 of 25 000
+/// samples brings most of the bias (seeds 1–12, `DYNID_PLANNED_SEEDS=12`: +0.070 % at
+/// 0.023 %, 1 of 12 covered; −0.003 % at 0.032 %, 12 of 12; +0.019 % at 0.038 %, 12 of
+/// 12). The plain estimate crosses zero 0.21 … 0.31 samples late. Asserted: the plain estimate is late on at least 4
+/// samples and never early, the fitted one wrong on none; with the late
+/// sign the mean mass error exceeds twice its mean SE, with the recorded velocity and by
+/// default it lies within it; every crossing of the plain estimate is late.
 #[test]
-fn planned_mass_bias_comes_from_the_estimated_velocity() {
-    let (mut est, mut meas) = (Vec::new(), Vec::new());
+fn planned_mass_bias_came_from_late_reversals() {
+    let (mut late, mut truth, mut default) = (Vec::new(), Vec::new(), Vec::new());
+    let mut lags = (f64::INFINITY, f64::NEG_INFINITY);
     for seed in seeds(4) {
         let (ir, rec) = planned_record(seed);
         let designed = ident(&ir, &rec, &IdentifyOptions::default());
@@ -137,91 +201,100 @@ fn planned_mass_bias_comes_from_the_estimated_velocity() {
             order: Some(4),
             ..Default::default()
         };
-        let estimated = ident(&ir, &rec, &opts);
-        // The same record with the simulated velocity recorded (`m.v`), given as measured.
         let axis = planned_axis();
-        let (mut truth, mut with_v) = (axis.true_model(), axis.model());
-        truth.signals[1].measured = true;
+        let (mut sim, mut with_v) = (axis.true_model(), axis.model());
+        sim.signals[1].measured = true;
         with_v.signals[1].measured = true;
-        let rec_v = planned_record_of(&axis, &truth, seed, 10);
+        let rec_v = planned_record_of(&axis, &sim, seed, 10);
         assert_eq!(rec_v.column("m.x"), rec.column("m.x"), "the same positions");
-        let measured = ident(&with_v, &rec_v, &opts);
-        println!("seed {seed}: estimated v {}", row(&errors(&estimated)));
-        println!("seed {seed}: measured v  {}", row(&errors(&measured)));
-        est.push(errors(&estimated));
-        meas.push(errors(&measured));
-    }
-    let (e, m) = (summary(&est)[0], summary(&meas)[0]);
-    println!(
-        "m: estimated velocity mean {:+.3} % (SE {:.3} %, coverage {:.2}), measured {:+.3} % (SE {:.3} %, coverage {:.2})",
-        100.0 * e.0,
-        100.0 * e.1,
-        e.2,
-        100.0 * m.0,
-        100.0 * m.1,
-        m.2
-    );
-    assert!(m.0.abs() < 2.0 * m.1, "measured velocity: mass {m:?}");
-    assert!(m.2 >= 0.74, "measured velocity: coverage {:.2}", m.2);
-    assert!(e.0 > 2.0 * e.1, "estimated velocity: mass {e:?}");
-}
-
-/// What does not remove the mass bias, printed for docs/method.md §7 (opt-in, a few
-/// seconds per variant: `DYNID_PLANNED_VARIANTS=1 cargo test --test servo_planned
-/// planned_mass_variants -- --nocapture`, seeds 1–4 unless `DYNID_PLANNED_SEEDS` says):
-/// mean mass error with the controller updated 40 instead of 10 times per sample, with a
-/// zero-order hold of the input, with a 1 nm encoder, without the lowest one or two
-/// designed corners, and with every corner doubled or four times higher. Measured
-/// (2026-11-26, seeds 1–4): designed +0.100 %, 40 updates +0.081 %, zero-order hold
-/// +0.098 %, 1 nm +0.090 %, lowest corner left out +0.119 %, lowest two +0.179 %, corners
-/// doubled +0.086 %, four times −0.035 % (at 0.054 % SE; damping −3.1 %, friction +4.6 %).
-/// Asserted only that every variant identifies.
-#[test]
-fn planned_mass_variants() {
-    if std::env::var("DYNID_PLANNED_VARIANTS").is_err() {
-        return;
-    }
-    type Variant = (&'static str, usize, f64, Option<Hold>, Option<(usize, f64)>);
-    // (name, updates per sample, encoder, hold, (corners left out, corner factor))
-    let variants: [Variant; 8] = [
-        ("designed", 10, 1e-6, None, None),
-        ("40 updates per sample", 40, 1e-6, None, None),
-        ("zero-order hold", 10, 1e-6, Some(Hold::ZeroOrder), None),
-        ("1 nm encoder", 10, 1e-9, None, None),
-        ("lowest corner left out", 10, 1e-6, None, Some((1, 1.0))),
-        ("lowest two left out", 10, 1e-6, None, Some((2, 1.0))),
-        ("corners doubled", 10, 1e-6, None, Some((0, 2.0))),
-        ("corners x4", 10, 1e-6, None, Some((0, 4.0))),
-    ];
-    for (name, updates, resolution, hold, corners) in variants {
-        let mut all = Vec::new();
-        for seed in seeds(4) {
-            let mut axis = planned_axis();
-            axis.resolution = resolution;
-            let rec = planned_record_of(&axis, &axis.true_model(), seed, updates);
-            let ir = axis.model();
-            let mut opts = IdentifyOptions::default();
-            if let Some(h) = hold {
-                opts.hold = h;
-            }
-            if let Some((drop, factor)) = corners {
-                let c = ident(&ir, &rec, &opts).filter.corners;
-                opts.corners = Some(c[drop..].iter().map(|c| factor * c).collect());
-            }
-            all.push(errors(&ident(&ir, &rec, &opts)));
+        let v = rec_v.column("m.v").expect("velocity").to_vec();
+        let (fitted, plain) = estimates(&ir, &rec);
+        let turns = reversals(&v);
+        assert_eq!(turns.len(), 24, "seed {seed}: reversals in motion");
+        // Samples on the wrong side: `k` (the first after the crossing) is wrong when the
+        // estimate still has the old sign (late); `k − 1` when it already has the new one
+        // (early).
+        // How late the plain estimate crosses zero, in samples, at every reversal.
+        for &k in &turns {
+            let truth = (k - 1) as f64 + v[k - 1] / (v[k - 1] - v[k]);
+            let j = (k - 3..k + 3)
+                .find(|&j| plain[j] * plain[j + 1] <= 0.0 && plain[j] != plain[j + 1])
+                .expect("the plain estimate crosses zero near the reversal");
+            let lag = j as f64 + plain[j] / (plain[j] - plain[j + 1]) - truth;
+            lags.0 = lags.0.min(lag);
+            lags.1 = lags.1.max(lag);
         }
-        let s = summary(&all);
+        let mut v_late = v.clone();
+        let (mut n_late, mut n_early, mut n_fitted) = (0, 0, 0);
+        for &k in &turns {
+            for j in k - 2..=k + 2 {
+                if plain[j].signum() != v[j].signum() {
+                    if j >= k {
+                        n_late += 1;
+                    } else {
+                        n_early += 1;
+                    }
+                    v_late[j] = plain[j];
+                }
+                if fitted[j].signum() != v[j].signum() {
+                    n_fitted += 1;
+                }
+            }
+        }
         println!(
-            "{name}: mean errors {}; mass SE {:.3} %",
-            TRUTH
-                .iter()
-                .zip(&s)
-                .map(|((n, _), x)| format!("{n} {:+.3} %", 100.0 * x.0))
-                .collect::<Vec<_>>()
-                .join(", "),
-            100.0 * s[0].1
+            "seed {seed}: {} reversals, plain estimate late on {n_late} samples, early on {n_early}, fitted wrong on {n_fitted}",
+            turns.len()
+        );
+        assert!(n_late >= 4, "seed {seed}: late on {n_late}");
+        assert_eq!(n_early, 0, "seed {seed}: early");
+        assert_eq!(n_fitted, 0, "seed {seed}: the fitted estimate");
+        let mut rec_late = rec_v.clone();
+        let col = rec_late.names.iter().position(|n| n == "m.v").expect("m.v");
+        rec_late.columns[col] = v_late;
+        let e_late = errors(&ident(&with_v, &rec_late, &opts));
+        let e_true = errors(&ident(&with_v, &rec_v, &opts));
+        let e_def = errors(&ident(&ir, &rec, &opts));
+        println!("seed {seed}: late sign  {}", row(&e_late));
+        println!("seed {seed}: recorded v {}", row(&e_true));
+        println!("seed {seed}: default    {}", row(&e_def));
+        late.push(e_late);
+        truth.push(e_true);
+        default.push(e_def);
+    }
+    let (l, t, d) = (
+        &summary(&late)[0],
+        &summary(&truth)[0],
+        &summary(&default)[0],
+    );
+    for (name, s) in [("late sign", l), ("recorded velocity", t), ("default", d)] {
+        println!(
+            "m, {name}: mean error {:+.3} % (SE {:.3} %, coverage {:.2})",
+            100.0 * s.mean,
+            100.0 * s.se,
+            s.cover
         );
     }
+    println!(
+        "the plain estimate crosses zero {:.2} … {:.2} samples late",
+        lags.0, lags.1
+    );
+    if *seeds(4).end() == 4 {
+        figures::check("docs/method.md", "planned.late.lo", lags.0);
+        figures::check("docs/method.md", "planned.late.hi", lags.1);
+        figures::check("docs/method.md", "planned.late.m", 100.0 * l.mean);
+    }
+    assert!(
+        lags.0 > 0.0,
+        "the plain estimate crosses early ({:.2})",
+        lags.0
+    );
+    assert!(l.mean > 2.0 * l.se, "late sign: mass {:+.4}", l.mean);
+    assert!(
+        t.mean.abs() < 2.0 * t.se,
+        "recorded velocity: mass {:+.4}",
+        t.mean
+    );
+    assert!(d.mean.abs() < 2.0 * d.se, "default: mass {:+.4}", d.mean);
 }
 
 /// One planned record cut into its four cycles, every cycle and the whole record
@@ -230,17 +303,18 @@ fn planned_mass_variants() {
 /// agrees within `2·sqrt(SEa² + SEb²)`, and the cycles' χ² about their weighted mean is
 /// small. Measured (`cargo test --test servo_planned planned_cycles -- --nocapture`, seeds
 /// 1–4; `DYNID_PLANNED_SEEDS=8` for 1–8): largest pairwise |a − b| / sqrt(SEa² + SEb²)
-/// 0.81 (m), 0.65 (d), 0.63 (r), 0.42 (f0), the same over seeds 1–8; χ²/dof 0.11, 0.09,
-/// 0.08, 0.04 (seeds 1–8: 0.13, 0.11, 0.11, 0.05) — the cycles' errors are about three
-/// times their actual spread (the batch means count what repeats in every cycle as spread
-/// between windows, docs/method.md §6). A cycle's mean standard error is at most 4.1 (m),
-/// 1.8 (d, r), 2.1 (f0) times the whole record's at the same corners, where four
-/// independent cycles would give 2. Bounds: pairs within 2 (consistency), χ²/dof below 0.4
-/// (3 × the largest measured), the cycle/whole SE ratio below 8 (about 2 × 4.1).
+/// 0.39 (m), 0.34 (d), 0.34 (r), 0.37 (f0), over seeds 1–8 0.41, 0.36, 0.36, 0.37; χ²/dof
+/// 0.05, 0.03, 0.03, 0.04 (seeds 1–8: 0.05, 0.04, 0.04, 0.03) — the cycles' errors are
+/// several times their actual spread (the batch means count what repeats in every cycle
+/// as spread between windows, docs/method.md §6). A cycle's mean standard error is at
+/// most 6.3 (m), 2.4 (d), 2.5 (r), 2.2 (f0) times the whole record's at the same corners,
+/// where four independent cycles would give 2. Bounds: pairs within 2 (consistency),
+/// χ²/dof below 0.4, the cycle/whole SE ratio below 12 (about 2 × 6.3).
 #[test]
 fn planned_cycles_agree_within_their_errors() {
     let (mut chi, mut dof) = ([0.0; 4], 0.0);
     let mut ratio = [0.0f64; 4];
+    let mut pair = [0.0f64; 4];
     for seed in seeds(4) {
         let (ir, rec) = planned_record(seed);
         let cut = |c: usize| {
@@ -279,6 +353,7 @@ fn planned_cycles_agree_within_their_errors() {
                 for b in a + 1..cycles.len() {
                     let (x, y) = (cycles[a][k], cycles[b][k]);
                     let z = (x.0 - y.0) / (x.1.powi(2) + y.1.powi(2)).sqrt();
+                    pair[k] = pair[k].max(z.abs());
                     assert!(
                         z.abs() < 2.0,
                         "seed {seed}: `{name}` cycles {a} and {b} differ by {z:+.2} joint SE"
@@ -293,6 +368,12 @@ fn planned_cycles_agree_within_their_errors() {
     let chi_dof: Vec<f64> = chi.iter().map(|c| c / dof).collect();
     let lo = chi_dof.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = chi_dof.iter().copied().fold(0.0, f64::max);
+    for (k, (name, _)) in TRUTH.iter().enumerate() {
+        println!(
+            "{name}: χ²/dof {:.2}, largest pair |a − b| / sqrt(SEa² + SEb²) {:.2}, largest cycle SE / whole SE {:.2}",
+            chi_dof[k], pair[k], ratio[k]
+        );
+    }
     match *seeds(4).end() {
         4 => {
             figures::check("docs/method.md", "planned.cycles.chi2_lo", lo);
@@ -306,13 +387,9 @@ fn planned_cycles_agree_within_their_errors() {
     }
     for (k, (name, _)) in TRUTH.iter().enumerate() {
         let c = chi_dof[k];
-        println!(
-            "{name}: χ²/dof {c:.2}, largest cycle SE / whole SE {:.2}",
-            ratio[k]
-        );
         assert!(c < 0.4, "`{name}`: χ²/dof {c:.2}");
         assert!(
-            ratio[k] < 8.0,
+            ratio[k] < 12.0,
             "`{name}`: cycle SE / whole SE {:.2}",
             ratio[k]
         );

@@ -11,6 +11,7 @@
 
 mod common;
 mod figures;
+mod servo_common;
 
 use dynid::dsl_parser::{self, ir::ModelIr};
 use dynid::runtime::ident::Identification;
@@ -142,5 +143,29 @@ fn coulomb_from_noisy_positions_bias_is_bounded() {
         let recs = simulate(&full, noise, 23);
         let case = format!("Coulomb, x, v and u with {} % noise", 100.0 * noise);
         errors(&case, &full, &common::identify_records(&full, &recs));
+    }
+}
+
+/// On a level that rests (the planned servo record of `tests/servo_planned.rs`) the
+/// estimate fits its reversals (`runtime/src/ident/velocity.rs`), which holds back more of
+/// the stream: the estimate is the same however the record is chunked.
+#[test]
+fn fitted_reversals_ignore_chunking() {
+    use dynid::runtime::data::{LevelSource, RecordSource};
+    use dynid::runtime::ident::velocity::EstimatedVelocity;
+    let (ir, rec) = servo_common::planned_record(1);
+    let src = RecordSource::new(&rec, &ir, "planned").expect("record");
+    // Body 0 owns signals 0 (`m.x`) and 1 (`m.v`).
+    let est = EstimatedVelocity::design(&src, &[(1, 0)], 4096).expect("design");
+    let collect = |chunk: usize| {
+        let mut v = Vec::with_capacity(rec.len());
+        est.stream(chunk, &mut |cols, len| v.extend_from_slice(&cols[1][..len]))
+            .expect("stream");
+        v
+    };
+    let whole = collect(rec.len());
+    assert_eq!(whole.len(), rec.len());
+    for chunk in [7, 997, 8192] {
+        assert_eq!(collect(chunk), whole, "chunks of {chunk}");
     }
 }

@@ -31,8 +31,10 @@ pub const MIN_REST: f64 = 0.05;
 /// Rests are left out only where they hold at least this share of a level's samples. Rare
 /// slow passages of a randomly excited record are mostly velocity reversals, which
 /// `sign(v)` describes, and on quantised positions a reversal reads as a short rest
-/// (`tests/velocity_estimate.rs`: with this share set to 0, `d` moved by +1.6 %); a planned
-/// trajectory with dwells rests for 19–40 % of its samples.
+/// (leaving such passages out of the quantised records of `tests/velocity_estimate.rs`
+/// moved `d` beyond its bound there); a planned trajectory with dwells rests for 19–40 %
+/// of its samples. The velocity estimate fits its reversals on the same levels
+/// ([`super::velocity`]).
 pub const MIN_REST_SHARE: f64 = 0.05;
 
 /// Rest intervals of a level: half-open sample ranges `[a, b)`, in order.
