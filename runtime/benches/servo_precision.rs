@@ -19,186 +19,184 @@
 //! Run: `cargo bench -p dynid-runtime --bench servo_precision` (`-- --json` prints one JSON
 //! object instead of the table; `DYNID_BENCH_SEEDS=12` sets the number of seeds, 1…N).
 //!
-//! Measured (2026-11-26, third run of the day, with the three SVF-LS variants below; 2 cores
-//! shared with other builds; seeds 1–12;
+//! Measured (2026-11-26, fourth run of the day, after the velocity estimate learnt to fit
+//! the reversals of levels that rest; 2 cores shared with other builds; seeds 1–12;
 //! `DYNID_BENCH_SEEDS=12 cargo bench --profile test -p dynid-runtime --bench servo_precision`
 //! — the test profile, opt-level 2 with debug assertions, so `ms/rec` is several times the
 //! release build's and, on a loaded machine, only roughly comparable within the table; RMS
 //! error and mean SE in % of the truth, `cover` the fraction of seeds with |error| < 2 SE,
 //! `e/SE` the RMS of error / SE; the planned records carry white noise of 1 % of the force's
 //! spread on the force, drawn from the seed — without it every seed would give the same
-//! record). The rows of dynid and of IDIM-LS and SVF-LS at 10 and 80 Hz are those of the
-//! previous runs to the last digit but for `ms/rec`:
+//! //! record). The random-reference rows and every baseline row are those of the previous runs
+//! to the last digit but for `ms/rec`; dynid's planned rows changed with the reversal fit:
 //!
 //! ```text
 //! servo axis, seeds 1–12: RMS error, mean SE (both % of the truth), coverage |e| < 2 SE, RMS e/SE
 //!
 //! random reference
 //! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.014%    0.022%    100%    0.68      17.2
-//! dynid (defaults)            d    0.472%    0.510%    100%    0.83      17.2
-//! dynid (defaults)            r    1.359%    1.388%    100%    0.81      17.2
-//! dynid (defaults)           f0    1.465%    0.982%    100%    1.00      17.2
-//! dynid --column-chains       m    0.042%    0.031%    100%    1.16      20.7
-//! dynid --column-chains       d    0.256%    0.228%     92%    0.96      20.7
-//! dynid --column-chains       r    0.702%    0.582%     92%    1.18      20.7
-//! dynid --column-chains      f0    0.864%    1.003%     92%    0.80      20.7
-//! dynid chains, 2-step        m    0.013%    0.010%     83%    2.06      20.8
-//! dynid chains, 2-step        d    0.200%    0.109%     67%    3.65      20.8
-//! dynid chains, 2-step        r    0.545%    0.301%     50%    2.92      20.8
-//! dynid chains, 2-step       f0    1.179%    0.649%     67%    2.11      20.8
-//! dynid to noise floor        m    0.180%    0.143%    100%    0.84      14.0
-//! dynid to noise floor        d    1.863%    1.775%    100%    0.69      14.0
-//! dynid to noise floor        r    5.029%    4.843%    100%    0.74      14.0
-//! dynid to noise floor       f0    2.051%    2.426%     92%    1.10      14.0
-//! dynid chains 2-step nf      m    0.012%    0.013%     83%    1.46      20.2
-//! dynid chains 2-step nf      d    0.194%    0.207%    100%    1.06      20.2
-//! dynid chains 2-step nf      r    0.599%    0.603%     92%    1.15      20.2
-//! dynid chains 2-step nf     f0    0.890%    1.134%     92%    1.14      20.2
-//! dynid --keep-rests          m    0.014%    0.022%    100%    0.68      13.8
-//! dynid --keep-rests          d    0.472%    0.510%    100%    0.83      13.8
-//! dynid --keep-rests          r    1.359%    1.388%    100%    0.81      13.8
-//! dynid --keep-rests         f0    1.465%    0.982%    100%    1.00      13.8
-//! IDIM-LS, OLS errors         m    0.029%    0.016%     75%    1.79       4.7
-//! IDIM-LS, OLS errors         d    0.163%    0.088%     58%    1.77       4.7
-//! IDIM-LS, OLS errors         r    0.785%    0.197%      0%    3.96       4.7
-//! IDIM-LS, OLS errors        f0    0.639%    0.872%     92%    0.73       4.7
-//! IDIM-LS, HAC errors         m    0.029%    0.014%     67%    2.08       4.7
-//! IDIM-LS, HAC errors         d    0.163%    0.064%     50%    2.41       4.7
-//! IDIM-LS, HAC errors         r    0.785%    0.169%      0%    4.61       4.7
-//! IDIM-LS, HAC errors        f0    0.639%    0.587%     92%    1.03       4.7
-//! SVF-LS 10 Hz, HAC           m    0.102%    0.022%      0%    4.63     514.1
-//! SVF-LS 10 Hz, HAC           d    0.169%    0.102%     83%    1.70     514.1
-//! SVF-LS 10 Hz, HAC           r    0.681%    0.275%     50%    1.99     514.1
-//! SVF-LS 10 Hz, HAC          f0    1.210%    1.556%    100%    0.74     514.1
-//! SVF-LS 80 Hz, HAC           m    0.027%    0.006%      0%    4.45      65.3
-//! SVF-LS 80 Hz, HAC           d    0.096%    0.037%     33%    3.41      65.3
-//! SVF-LS 80 Hz, HAC           r    0.149%    0.094%     92%    1.48      65.3
-//! SVF-LS 80 Hz, HAC          f0    0.313%    0.417%    100%    0.62      65.3
-//! SVF-LS 80 Hz, EIV comp.      m    0.034%    0.006%      0%    5.58      64.2
-//! SVF-LS 80 Hz, EIV comp.      d    0.096%    0.037%     33%    3.40      64.2
-//! SVF-LS 80 Hz, EIV comp.      r    0.149%    0.094%     92%    1.47      64.2
-//! SVF-LS 80 Hz, EIV comp.     f0    0.314%    0.416%    100%    0.62      64.2
-//! SVF-LS 80 Hz, rests out      m    0.007%    0.005%     83%    1.54      61.6
-//! SVF-LS 80 Hz, rests out      d    0.149%    0.025%      0%    5.95      61.6
-//! SVF-LS 80 Hz, rests out      r    0.076%    0.059%     92%    1.30      61.6
-//! SVF-LS 80 Hz, rests out     f0    0.097%    0.256%    100%    0.39      61.6
-//! SVF-LS 80, rests+EIV        m    0.014%    0.005%      8%    2.95      64.1
-//! SVF-LS 80, rests+EIV        d    0.151%    0.025%      0%    5.99      64.1
-//! SVF-LS 80, rests+EIV        r    0.079%    0.059%     92%    1.34      64.1
-//! SVF-LS 80, rests+EIV       f0    0.096%    0.255%    100%    0.38      64.1
+//! dynid (defaults)            m    0.014%    0.022%    100%    0.68      12.6
+//! dynid (defaults)            d    0.472%    0.510%    100%    0.83      12.6
+//! dynid (defaults)            r    1.359%    1.388%    100%    0.81      12.6
+//! dynid (defaults)           f0    1.465%    0.982%    100%    1.00      12.6
+//! dynid --column-chains       m    0.042%    0.031%    100%    1.16      13.7
+//! dynid --column-chains       d    0.256%    0.228%     92%    0.96      13.7
+//! dynid --column-chains       r    0.702%    0.582%     92%    1.18      13.7
+//! dynid --column-chains      f0    0.864%    1.003%     92%    0.80      13.7
+//! dynid chains, 2-step        m    0.013%    0.010%     83%    2.06      14.8
+//! dynid chains, 2-step        d    0.200%    0.109%     67%    3.65      14.8
+//! dynid chains, 2-step        r    0.545%    0.301%     50%    2.92      14.8
+//! dynid chains, 2-step       f0    1.179%    0.649%     67%    2.11      14.8
+//! dynid to noise floor        m    0.180%    0.143%    100%    0.84      10.3
+//! dynid to noise floor        d    1.863%    1.775%    100%    0.69      10.3
+//! dynid to noise floor        r    5.029%    4.843%    100%    0.74      10.3
+//! dynid to noise floor       f0    2.051%    2.426%     92%    1.10      10.3
+//! dynid chains 2-step nf      m    0.012%    0.013%     83%    1.46      13.5
+//! dynid chains 2-step nf      d    0.194%    0.207%    100%    1.06      13.5
+//! dynid chains 2-step nf      r    0.599%    0.603%     92%    1.15      13.5
+//! dynid chains 2-step nf     f0    0.890%    1.134%     92%    1.14      13.5
+//! dynid --keep-rests          m    0.014%    0.022%    100%    0.68      10.0
+//! dynid --keep-rests          d    0.472%    0.510%    100%    0.83      10.0
+//! dynid --keep-rests          r    1.359%    1.388%    100%    0.81      10.0
+//! dynid --keep-rests         f0    1.465%    0.982%    100%    1.00      10.0
+//! IDIM-LS, OLS errors         m    0.029%    0.016%     75%    1.79       5.0
+//! IDIM-LS, OLS errors         d    0.163%    0.088%     58%    1.77       5.0
+//! IDIM-LS, OLS errors         r    0.785%    0.197%      0%    3.96       5.0
+//! IDIM-LS, OLS errors        f0    0.639%    0.872%     92%    0.73       5.0
+//! IDIM-LS, HAC errors         m    0.029%    0.014%     67%    2.08       5.0
+//! IDIM-LS, HAC errors         d    0.163%    0.064%     50%    2.41       5.0
+//! IDIM-LS, HAC errors         r    0.785%    0.169%      0%    4.61       5.0
+//! IDIM-LS, HAC errors        f0    0.639%    0.587%     92%    1.03       5.0
+//! SVF-LS 10 Hz, HAC           m    0.102%    0.022%      0%    4.63     347.3
+//! SVF-LS 10 Hz, HAC           d    0.169%    0.102%     83%    1.70     347.3
+//! SVF-LS 10 Hz, HAC           r    0.681%    0.275%     50%    1.99     347.3
+//! SVF-LS 10 Hz, HAC          f0    1.210%    1.556%    100%    0.74     347.3
+//! SVF-LS 80 Hz, HAC           m    0.027%    0.006%      0%    4.45      50.8
+//! SVF-LS 80 Hz, HAC           d    0.096%    0.037%     33%    3.41      50.8
+//! SVF-LS 80 Hz, HAC           r    0.149%    0.094%     92%    1.48      50.8
+//! SVF-LS 80 Hz, HAC          f0    0.313%    0.417%    100%    0.62      50.8
+//! SVF-LS 80 Hz, EIV comp.      m    0.034%    0.006%      0%    5.58      50.6
+//! SVF-LS 80 Hz, EIV comp.      d    0.096%    0.037%     33%    3.40      50.6
+//! SVF-LS 80 Hz, EIV comp.      r    0.149%    0.094%     92%    1.47      50.6
+//! SVF-LS 80 Hz, EIV comp.     f0    0.314%    0.416%    100%    0.62      50.6
+//! SVF-LS 80 Hz, rests out      m    0.007%    0.005%     83%    1.54      45.5
+//! SVF-LS 80 Hz, rests out      d    0.149%    0.025%      0%    5.95      45.5
+//! SVF-LS 80 Hz, rests out      r    0.076%    0.059%     92%    1.30      45.5
+//! SVF-LS 80 Hz, rests out     f0    0.097%    0.256%    100%    0.39      45.5
+//! SVF-LS 80, rests+EIV        m    0.014%    0.005%      8%    2.95      48.3
+//! SVF-LS 80, rests+EIV        d    0.151%    0.025%      0%    5.99      48.3
+//! SVF-LS 80, rests+EIV        r    0.079%    0.059%     92%    1.34      48.3
+//! SVF-LS 80, rests+EIV       f0    0.096%    0.255%    100%    0.38      48.3
 //!
 //! planned moves
 //! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.094%    0.025%      0%    4.28      21.0
-//! dynid (defaults)            d    0.131%    0.146%    100%    1.02      21.0
-//! dynid (defaults)            r    0.159%    0.212%    100%    0.79      21.0
-//! dynid (defaults)           f0    0.228%    0.257%     92%    1.09      21.0
-//! dynid --column-chains       m    0.102%    0.029%      8%    4.03      26.9
-//! dynid --column-chains       d    0.179%    0.173%     92%    1.05      26.9
-//! dynid --column-chains       r    0.270%    0.244%     83%    1.12      26.9
-//! dynid --column-chains      f0    0.218%    0.286%    100%    0.80      26.9
-//! dynid chains, 2-step        m    0.080%    0.019%      0%    4.57      37.1
-//! dynid chains, 2-step        d    0.163%    0.112%     75%    1.86      37.1
-//! dynid chains, 2-step        r    0.194%    0.161%     83%    1.34      37.1
-//! dynid chains, 2-step       f0    0.223%    0.250%     92%    1.06      37.1
-//! dynid to noise floor        m    0.018%    0.021%    100%    0.86      20.9
-//! dynid to noise floor        d    0.427%    0.144%      8%    3.06      20.9
-//! dynid to noise floor        r    0.421%    0.197%     50%    2.21      20.9
-//! dynid to noise floor       f0    0.232%    0.314%    100%    0.84      20.9
-//! dynid chains 2-step nf      m    0.032%    0.045%    100%    0.68      25.1
-//! dynid chains 2-step nf      d    0.476%    0.630%    100%    1.00      25.1
-//! dynid chains 2-step nf      r    0.517%    0.858%    100%    0.80      25.1
-//! dynid chains 2-step nf     f0    0.490%    4.366%    100%    0.12      25.1
-//! dynid --keep-rests          m   23.425%    2.846%      0%    8.23      20.7
-//! dynid --keep-rests          d   67.193%    6.925%      0%   33.89      20.7
-//! dynid --keep-rests          r   67.149%   11.074%      0%    6.06      20.7
-//! dynid --keep-rests         f0    6.890%   20.880%    100%    0.33      20.7
-//! IDIM-LS, OLS errors         m    0.025%    0.025%    100%    1.00       8.9
-//! IDIM-LS, OLS errors         d    0.076%    0.147%    100%    0.52       8.9
-//! IDIM-LS, OLS errors         r    0.368%    0.199%     67%    1.84       8.9
-//! IDIM-LS, OLS errors        f0    0.234%    0.914%    100%    0.26       8.9
-//! IDIM-LS, HAC errors         m    0.025%    0.015%     83%    1.64       8.9
-//! IDIM-LS, HAC errors         d    0.076%    0.099%    100%    0.77       8.9
-//! IDIM-LS, HAC errors         r    0.368%    0.157%     17%    2.35       8.9
-//! IDIM-LS, HAC errors        f0    0.234%    0.524%    100%    0.45       8.9
-//! SVF-LS 10 Hz, HAC           m    0.282%    0.098%      0%    2.89     597.1
-//! SVF-LS 10 Hz, HAC           d   15.825%    2.439%      0%    6.49     597.1
-//! SVF-LS 10 Hz, HAC           r   26.551%    2.925%      0%    9.08     597.1
-//! SVF-LS 10 Hz, HAC          f0    2.726%   27.672%    100%    0.10     597.1
-//! SVF-LS 80 Hz, HAC           m    0.014%    0.225%    100%    0.06      88.0
-//! SVF-LS 80 Hz, HAC           d   27.561%    2.601%      0%   10.59      88.0
-//! SVF-LS 80 Hz, HAC           r   47.352%    3.753%      0%   12.62      88.0
-//! SVF-LS 80 Hz, HAC          f0    9.814%   17.156%    100%    0.57      88.0
-//! SVF-LS 80 Hz, EIV comp.      m    0.035%    0.225%    100%    0.16      87.3
-//! SVF-LS 80 Hz, EIV comp.      d   27.561%    2.601%      0%   10.59      87.3
-//! SVF-LS 80 Hz, EIV comp.      r   47.352%    3.753%      0%   12.62      87.3
-//! SVF-LS 80 Hz, EIV comp.     f0    9.814%   17.155%    100%    0.57      87.3
-//! SVF-LS 80 Hz, rests out      m    0.007%    0.011%    100%    0.62      63.3
-//! SVF-LS 80 Hz, rests out      d    0.212%    0.056%      0%    3.81      63.3
-//! SVF-LS 80 Hz, rests out      r    0.110%    0.078%     83%    1.41      63.3
-//! SVF-LS 80 Hz, rests out     f0    0.288%    0.341%    100%    0.84      63.3
-//! SVF-LS 80, rests+EIV        m    0.013%    0.011%    100%    1.21      58.5
-//! SVF-LS 80, rests+EIV        d    0.214%    0.056%      0%    3.82      58.5
-//! SVF-LS 80, rests+EIV        r    0.114%    0.077%     83%    1.47      58.5
-//! SVF-LS 80, rests+EIV       f0    0.288%    0.341%    100%    0.84      58.5
+//! dynid (defaults)            m    0.027%    0.038%    100%    0.75      49.8
+//! dynid (defaults)            d    0.129%    0.166%     92%    0.85      49.8
+//! dynid (defaults)            r    0.210%    0.242%     92%    0.93      49.8
+//! dynid (defaults)           f0    0.239%    0.309%    100%    0.83      49.8
+//! dynid --column-chains       m    0.071%    0.047%     83%    1.52      51.5
+//! dynid --column-chains       d    0.477%    0.208%     42%    2.21      51.5
+//! dynid --column-chains       r    0.689%    0.293%     42%    2.28      51.5
+//! dynid --column-chains      f0    0.219%    0.427%     92%    0.71      51.5
+//! dynid chains, 2-step        m    0.070%    0.028%     42%    2.60      55.8
+//! dynid chains, 2-step        d    0.205%    0.144%     83%    1.63      55.8
+//! dynid chains, 2-step        r    0.290%    0.205%     92%    1.50      55.8
+//! dynid chains, 2-step       f0    0.231%    0.352%    100%    0.71      55.8
+//! dynid to noise floor        m    0.053%    0.014%      8%    5.49      49.1
+//! dynid to noise floor        d    0.359%    0.158%     33%    2.29      49.1
+//! dynid to noise floor        r    0.395%    0.233%     75%    1.66      49.1
+//! dynid to noise floor       f0    0.236%    0.421%    100%    0.61      49.1
+//! dynid chains 2-step nf      m    0.034%    0.098%     92%    0.86      52.7
+//! dynid chains 2-step nf      d    0.414%    0.845%    100%    0.55      52.7
+//! dynid chains 2-step nf      r    0.501%    0.907%    100%    0.70      52.7
+//! dynid chains 2-step nf     f0    0.342%    3.824%    100%    0.11      52.7
+//! dynid --keep-rests          m   23.417%    2.846%      0%    8.23      46.9
+//! dynid --keep-rests          d   67.303%    6.899%      0%   36.85      46.9
+//! dynid --keep-rests          r   67.263%   11.077%      0%    6.07      46.9
+//! dynid --keep-rests         f0    6.922%   20.803%    100%    0.33      46.9
+//! IDIM-LS, OLS errors         m    0.025%    0.025%    100%    1.00       3.6
+//! IDIM-LS, OLS errors         d    0.076%    0.147%    100%    0.52       3.6
+//! IDIM-LS, OLS errors         r    0.368%    0.199%     67%    1.84       3.6
+//! IDIM-LS, OLS errors        f0    0.234%    0.914%    100%    0.26       3.6
+//! IDIM-LS, HAC errors         m    0.025%    0.015%     83%    1.64       3.6
+//! IDIM-LS, HAC errors         d    0.076%    0.099%    100%    0.77       3.6
+//! IDIM-LS, HAC errors         r    0.368%    0.157%     17%    2.35       3.6
+//! IDIM-LS, HAC errors        f0    0.234%    0.524%    100%    0.45       3.6
+//! SVF-LS 10 Hz, HAC           m    0.282%    0.098%      0%    2.89     344.5
+//! SVF-LS 10 Hz, HAC           d   15.825%    2.439%      0%    6.49     344.5
+//! SVF-LS 10 Hz, HAC           r   26.551%    2.925%      0%    9.08     344.5
+//! SVF-LS 10 Hz, HAC          f0    2.726%   27.672%    100%    0.10     344.5
+//! SVF-LS 80 Hz, HAC           m    0.014%    0.225%    100%    0.06      49.7
+//! SVF-LS 80 Hz, HAC           d   27.561%    2.601%      0%   10.59      49.7
+//! SVF-LS 80 Hz, HAC           r   47.352%    3.753%      0%   12.62      49.7
+//! SVF-LS 80 Hz, HAC          f0    9.814%   17.156%    100%    0.57      49.7
+//! SVF-LS 80 Hz, EIV comp.      m    0.035%    0.225%    100%    0.16      49.9
+//! SVF-LS 80 Hz, EIV comp.      d   27.561%    2.601%      0%   10.59      49.9
+//! SVF-LS 80 Hz, EIV comp.      r   47.352%    3.753%      0%   12.62      49.9
+//! SVF-LS 80 Hz, EIV comp.     f0    9.814%   17.155%    100%    0.57      49.9
+//! SVF-LS 80 Hz, rests out      m    0.007%    0.011%    100%    0.62      35.5
+//! SVF-LS 80 Hz, rests out      d    0.212%    0.056%      0%    3.81      35.5
+//! SVF-LS 80 Hz, rests out      r    0.110%    0.078%     83%    1.41      35.5
+//! SVF-LS 80 Hz, rests out     f0    0.288%    0.341%    100%    0.84      35.5
+//! SVF-LS 80, rests+EIV        m    0.013%    0.011%    100%    1.21      34.3
+//! SVF-LS 80, rests+EIV        d    0.214%    0.056%      0%    3.82      34.3
+//! SVF-LS 80, rests+EIV        r    0.114%    0.077%     83%    1.47      34.3
+//! SVF-LS 80, rests+EIV       f0    0.288%    0.341%    100%    0.84      34.3
 //!
 //! planned moves, Stribeck friction not in the model
 //! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    2.192%    0.152%      0%   14.46      19.4
-//! dynid (defaults)            d    4.546%    1.354%      0%    3.36      19.4
-//! dynid (defaults)            r    5.476%    2.613%      0%    2.10      19.4
-//! dynid (defaults)           f0    0.232%    3.154%    100%    0.07      19.4
-//! dynid --column-chains       m    2.110%    0.200%      0%   10.59      24.2
-//! dynid --column-chains       d    4.067%    1.236%      0%    3.29      24.2
-//! dynid --column-chains       r    5.013%    2.074%      0%    2.42      24.2
-//! dynid --column-chains      f0    0.248%    2.861%    100%    0.09      24.2
-//! dynid chains, 2-step        m    2.331%    0.140%      0%   16.66      30.3
-//! dynid chains, 2-step        d    6.787%    1.465%      0%    4.63      30.3
-//! dynid chains, 2-step        r    8.509%    1.108%      0%    7.72      30.3
-//! dynid chains, 2-step       f0    3.739%    3.845%    100%    0.97      30.3
-//! dynid to noise floor        m    1.208%    0.120%      0%   10.10      20.6
-//! dynid to noise floor        d    2.263%    0.651%      0%    3.49      20.6
-//! dynid to noise floor        r    3.169%    1.422%      0%    2.23      20.6
-//! dynid to noise floor       f0    0.772%    2.025%    100%    0.38      20.6
-//! dynid chains 2-step nf      m    2.222%    0.132%      0%   16.78      26.4
-//! dynid chains 2-step nf      d    4.293%    0.864%      0%    4.97      26.4
-//! dynid chains 2-step nf      r    5.100%    1.214%      0%    4.20      26.4
-//! dynid chains 2-step nf     f0    2.874%    2.358%    100%    1.22      26.4
-//! dynid --keep-rests          m   33.643%    3.260%      0%   10.32      15.6
-//! dynid --keep-rests          d   95.084%    8.418%      0%   11.30      15.6
-//! dynid --keep-rests          r   98.969%   13.265%      0%    7.46      15.6
-//! dynid --keep-rests         f0    4.114%   12.826%    100%    0.32      15.6
-//! IDIM-LS, OLS errors         m    0.047%    0.032%    100%    1.44       5.6
-//! IDIM-LS, OLS errors         d    3.369%    0.191%      0%   17.65       5.6
-//! IDIM-LS, OLS errors         r    5.596%    0.259%      0%   21.59       5.6
-//! IDIM-LS, OLS errors        f0    0.241%    1.181%    100%    0.20       5.6
-//! IDIM-LS, HAC errors         m    0.047%    0.027%     92%    1.73       5.6
-//! IDIM-LS, HAC errors         d    3.369%    0.405%      0%    8.32       5.6
-//! IDIM-LS, HAC errors         r    5.596%    0.627%      0%    8.93       5.6
-//! IDIM-LS, HAC errors        f0    0.241%    2.024%    100%    0.12       5.6
-//! SVF-LS 10 Hz, HAC           m    0.315%    0.092%      0%    3.44     533.2
-//! SVF-LS 10 Hz, HAC           d   13.450%    2.384%      0%    5.64     533.2
-//! SVF-LS 10 Hz, HAC           r   22.585%    3.043%      0%    7.42     533.2
-//! SVF-LS 10 Hz, HAC          f0    4.661%   37.101%    100%    0.13     533.2
-//! SVF-LS 80 Hz, HAC           m    0.032%    0.176%    100%    0.18      75.9
-//! SVF-LS 80 Hz, HAC           d   20.549%    2.280%      0%    9.01      75.9
-//! SVF-LS 80 Hz, HAC           r   35.287%    3.465%      0%   10.18      75.9
-//! SVF-LS 80 Hz, HAC          f0   19.365%   18.474%    100%    1.05      75.9
-//! SVF-LS 80 Hz, EIV comp.      m    0.053%    0.176%    100%    0.30      74.7
-//! SVF-LS 80 Hz, EIV comp.      d   20.549%    2.280%      0%    9.01      74.7
-//! SVF-LS 80 Hz, EIV comp.      r   35.287%    3.465%      0%   10.18      74.7
-//! SVF-LS 80 Hz, EIV comp.     f0   19.365%   18.473%    100%    1.05      74.7
-//! SVF-LS 80 Hz, rests out      m    0.027%    0.021%    100%    1.28      53.2
-//! SVF-LS 80 Hz, rests out      d    2.495%    0.341%      0%    7.32      53.2
-//! SVF-LS 80 Hz, rests out      r    4.083%    0.533%      0%    7.66      53.2
-//! SVF-LS 80 Hz, rests out     f0    0.257%    1.508%    100%    0.17      53.2
-//! SVF-LS 80, rests+EIV        m    0.012%    0.021%    100%    0.59      54.4
-//! SVF-LS 80, rests+EIV        d    2.498%    0.341%      0%    7.34      54.4
-//! SVF-LS 80, rests+EIV        r    4.088%    0.533%      0%    7.67      54.4
-//! SVF-LS 80, rests+EIV       f0    0.257%    1.504%    100%    0.17      54.4
-//!
-//! row for docs/performance.md:
+//! dynid (defaults)            m    2.044%    0.150%      0%   13.60      64.9
+//! dynid (defaults)            d    4.446%    1.273%      0%    3.49      64.9
+//! dynid (defaults)            r    5.283%    2.470%      0%    2.14      64.9
+//! dynid (defaults)           f0    0.232%    3.047%    100%    0.08      64.9
+//! dynid --column-chains       m    1.979%    0.193%      0%   10.27      66.1
+//! dynid --column-chains       d    4.090%    1.185%      0%    3.45      66.1
+//! dynid --column-chains       r    4.971%    2.008%      0%    2.47      66.1
+//! dynid --column-chains      f0    0.243%    2.826%    100%    0.09      66.1
+//! dynid chains, 2-step        m    2.147%    0.138%      0%   15.58      71.8
+//! dynid chains, 2-step        d    6.534%    1.391%      0%    4.70      71.8
+//! dynid chains, 2-step        r    8.070%    0.966%      0%    8.40      71.8
+//! dynid chains, 2-step       f0    3.251%    3.758%    100%    0.87      71.8
+//! dynid to noise floor        m    1.092%    0.117%      0%    9.34      61.3
+//! dynid to noise floor        d    2.268%    0.613%      0%    3.72      61.3
+//! dynid to noise floor        r    3.093%    1.346%      0%    2.30      61.3
+//! dynid to noise floor       f0    0.748%    1.966%    100%    0.38      61.3
+//! dynid chains 2-step nf      m    2.064%    0.126%      0%   16.44      69.1
+//! dynid chains 2-step nf      d    3.948%    0.781%      0%    5.05      69.1
+//! dynid chains 2-step nf      r    4.467%    1.101%      0%    4.06      69.1
+//! dynid chains 2-step nf     f0    2.567%    2.224%    100%    1.16      69.1
+//! dynid --keep-rests          m   33.784%    3.272%      0%   10.33      59.4
+//! dynid --keep-rests          d   96.495%    8.970%      0%   10.76      59.4
+//! dynid --keep-rests          r  100.948%   14.321%      0%    7.05      59.4
+//! dynid --keep-rests         f0    3.311%   12.592%    100%    0.26      59.4
+//! IDIM-LS, OLS errors         m    0.047%    0.032%    100%    1.44       3.0
+//! IDIM-LS, OLS errors         d    3.369%    0.191%      0%   17.65       3.0
+//! IDIM-LS, OLS errors         r    5.596%    0.259%      0%   21.59       3.0
+//! IDIM-LS, OLS errors        f0    0.241%    1.181%    100%    0.20       3.0
+//! IDIM-LS, HAC errors         m    0.047%    0.027%     92%    1.73       3.0
+//! IDIM-LS, HAC errors         d    3.369%    0.405%      0%    8.32       3.0
+//! IDIM-LS, HAC errors         r    5.596%    0.627%      0%    8.93       3.0
+//! IDIM-LS, HAC errors        f0    0.241%    2.024%    100%    0.12       3.0
+//! SVF-LS 10 Hz, HAC           m    0.315%    0.092%      0%    3.44     346.6
+//! SVF-LS 10 Hz, HAC           d   13.450%    2.384%      0%    5.64     346.6
+//! SVF-LS 10 Hz, HAC           r   22.585%    3.043%      0%    7.42     346.6
+//! SVF-LS 10 Hz, HAC          f0    4.661%   37.101%    100%    0.13     346.6
+//! SVF-LS 80 Hz, HAC           m    0.032%    0.176%    100%    0.18      49.7
+//! SVF-LS 80 Hz, HAC           d   20.549%    2.280%      0%    9.01      49.7
+//! SVF-LS 80 Hz, HAC           r   35.287%    3.465%      0%   10.18      49.7
+//! SVF-LS 80 Hz, HAC          f0   19.365%   18.474%    100%    1.05      49.7
+//! SVF-LS 80 Hz, EIV comp.      m    0.053%    0.176%    100%    0.30      47.4
+//! SVF-LS 80 Hz, EIV comp.      d   20.549%    2.280%      0%    9.01      47.4
+//! SVF-LS 80 Hz, EIV comp.      r   35.287%    3.465%      0%   10.18      47.4
+//! SVF-LS 80 Hz, EIV comp.     f0   19.365%   18.473%    100%    1.05      47.4
+//! SVF-LS 80 Hz, rests out      m    0.027%    0.021%    100%    1.28      34.3
+//! SVF-LS 80 Hz, rests out      d    2.495%    0.341%      0%    7.32      34.3
+//! SVF-LS 80 Hz, rests out      r    4.083%    0.533%      0%    7.66      34.3
+//! SVF-LS 80 Hz, rests out     f0    0.257%    1.508%    100%    0.17      34.3
+//! SVF-LS 80, rests+EIV        m    0.012%    0.021%    100%    0.59      32.9
+//! SVF-LS 80, rests+EIV        d    2.498%    0.341%      0%    7.34      32.9
+//! SVF-LS 80, rests+EIV        r    4.088%    0.533%      0%    7.67      32.9
+//! SVF-LS 80, rests+EIV       f0    0.257%    1.504%    100%    0.17      32.9
 //! ```
 //!
 //! **SVF-LS variants** (`SvfOptions`, 80 Hz): `EIV comp.` takes the encoder's rounding
@@ -214,7 +212,7 @@
 //! method here — but d 0.149 % with a standard error 6× too small (coverage 0 %); on
 //! planned moves it removes SVF-LS's failure at the rests (d 27.6 → 0.21 %, r 47 → 0.11 %,
 //! m 0.007 %, f0 0.29 %), d again with errors 3.8× too small; with the Stribeck term d and
-//! r move by 2.5 and 4.1 % (IDIM-LS 3.4, 5.6 %; dynid 4.5, 5.5 %). So an estimator at the
+//! r move by 2.5 and 4.1 % (IDIM-LS 3.4, 5.6 %; dynid 4.4, 5.3 %). So an estimator at the
 //! precision of the filtered-equation regression needs, besides its rows, standard errors
 //! that cover the damping (the Newey–West lag of twice the filter memory does not).
 //!
@@ -239,25 +237,29 @@
 //! On random set points the raised corner makes every error larger (d 0.47 → 1.86 %, r
 //! 1.36 → 5.03 %), with honest errors; with chains and two steps the errors come out nearly
 //! honest (coverage 83–100 %, e/SE 1.06–1.46; m 0.012, d 0.194, r 0.599, f0 0.890 %), still
-//! above SVF-LS 80 Hz's d and r. On planned moves the raised corner removes the mass bias
-//! (m 0.018 %, coverage 100 %) but doubles d and r with errors that do not cover them; with the
-//! Stribeck term the model lacks it moves every estimate less than the defaults (m 1.2, d 2.3,
-//! r 3.2 % against 2.2, 4.5, 5.5 %; IDIM-LS d 3.4, r 5.6 %). No one corner rule wins on all
+//! above SVF-LS 80 Hz's d and r. On planned moves the raised corner makes m, d and r worse
+//! than the defaults (0.053, 0.36, 0.40 % against 0.027, 0.13, 0.21 %) with errors that do
+//! not cover them; with the Stribeck term the model lacks it moves every estimate less than
+//! the defaults (m 1.1, d 2.3, r 3.1 % against 2.0, 4.4, 5.3 %; IDIM-LS d 3.4, r 5.6 %). No one corner rule wins on all
 //! three suites: the defaults stay.
 //!
 //! **Planned moves** (a third of every cycle at rest). dynid leaves the rests out of its
-//! moments (docs/method.md §7): RMS errors m 0.094 %, d 0.131 %, r 0.159 %, f0 0.228 %,
-//! with honest errors for d, r and f0 — below IDIM-LS's for r (0.368 %) and level for f0
-//! (0.234 %), 1.7× IDIM-LS's for d (0.076 %) and 3.8× for the mass (0.025 %), whose bias
-//! of about +0.1 % dynid's standard error does not cover (it comes from the estimated
-//! velocity: with the velocity recorded it vanishes, `tests/servo_planned.rs`; nor does the two-step
-//! weighting's: mass 0.080 %, coverage 0 %). With the rests kept
+//! moments (docs/method.md §7): RMS errors m 0.027 %, d 0.129 %, r 0.210 %, f0 0.239 %,
+//! with honest errors for all four (coverage 92–100 %, e/SE 0.75–0.93) — below IDIM-LS's
+//! for r (0.368 %), level with it for m (0.025 %) and f0 (0.234 %), 1.7× IDIM-LS's for d
+//! (0.076 %). Before the velocity estimate fitted the reversals (the overshoots at the
+//! ends of moves, where the Coulomb force flips and the smoothing differentiator crossed
+//! zero a quarter of a sample late; `runtime/src/ident/velocity.rs`, docs/method.md §7), the
+//! mass carried a bias of +0.09 % (RMS 0.094 %, coverage 0 %). SVF-LS at 80 Hz with its rows
+//! near rest dropped (`rests out`) is the better baseline here for m (0.007 %) and r (0.110
+//! %), its damping errors 4× too small (coverage 0 %). The two-step
+//! //! weighting gives m 0.070 % (coverage 42 %). With the rests kept
 //! (`--keep-rests`) the mass is off by 23 %, damping and friction by 67 %: at rest the
 //! Coulomb force lies anywhere in ±fc while the model says `r·sign(v̂)`. SVF-LS, which
 //! keeps the rows at rest, fails the same way (d 16–28 %, r 27–47 %). With a Stribeck term
-//! the model lacks, dynid's friction split moves by 4.5–5.5 % (IDIM-LS 3.4–5.6 %), its
-//! mass by 2.2 % (IDIM-LS 0.05 %), all at several of their standard errors; the two-step
-//! weighting moves the friction split further (d 6.8 %, r 8.5 %).
+//! the model lacks, dynid's friction split moves by 4.4–5.3 % (IDIM-LS 3.4–5.6 %), its
+//! mass by 2.0 % (IDIM-LS 0.05 %), all at several of their standard errors; the two-step
+//! weighting moves the friction split further (d 6.5 %, r 8.1 %).
 //!
 //! IDIM-LS's Newey–West errors come out below its classical ones (the decimated residuals
 //! are negatively correlated at short lags). `ms/rec` is the wall time per record with the
