@@ -225,3 +225,49 @@ fn friction_between_two_accelerometers_random() {
         assert_within("two_mass_friction positions", &e_p, &pos);
     }
 }
+
+/// Detection from accelerometers alone: the two-mass structure with friction at its
+/// coupling, measured by `m1.a`, `m2.a` and the force (5 % noise, three levels of 300 s,
+/// seed 3), checked against the linear model: the coupling is named Coulomb friction, the
+/// ground element linear. Long (about 2 minutes in a debug build, through the estimator's
+/// simulations): runs with `DYNID_ACCEL_DETECT=1 cargo test --test accel_nonlinear detect`.
+#[test]
+fn detect_names_the_friction_between_two_accelerometers() {
+    if std::env::var("DYNID_ACCEL_DETECT").is_err() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let st = common::dynid()
+        .arg("simulate")
+        .arg(common::model_path("two_mass_friction_accel.dyn"))
+        .args([
+            "--duration",
+            "300",
+            "--noise",
+            "0.05",
+            "--seed",
+            "3",
+            "--out",
+        ])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{}", common::stderr(&st));
+    let out = common::dynid()
+        .arg("detect")
+        .arg(common::model_path("two_mass_linear_accel.dyn"))
+        .args((1..=3).map(|i| data.join(format!("level_{i}.csv"))))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("Element k2/d2 (m1, m2): nonlinear: Coulomb friction"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("Element k1/d1 (ground, m1): linear"),
+        "{stdout}"
+    );
+}

@@ -1329,33 +1329,3 @@ fn every_bad_input_is_refused_with_its_code_and_changes_nothing() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
-
-/// Models measured by accelerometers alone, where they cannot be used yet: detection,
-/// which needs element displacements. It exits 1 with its code and writes nothing.
-#[test]
-fn acceleration_only_models_are_refused_where_they_cannot_be_used() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let st = dynid()
-        .arg("simulate")
-        .arg(model("sdof_linear_accel.dyn"))
-        .args(["--duration", "60", "--seed", "2", "--out"])
-        .arg(d.join("data"))
-        .output()
-        .unwrap();
-    assert!(st.status.success(), "{}", common::stderr(&st));
-    let levels: Vec<PathBuf> = (1..=3)
-        .map(|i| d.join(format!("data/level_{i}.csv")))
-        .collect();
-    let before = snapshot(d);
-    let out = dynid()
-        .arg("detect")
-        .arg(model("sdof_linear_accel.dyn"))
-        .args(&levels)
-        .arg("--json")
-        .arg(d.join("detect.json"))
-        .output()
-        .unwrap();
-    common::assert_refused(&out, "dynid::detect::acceleration_only", &["m.x"]);
-    assert!(snapshot(d) == before, "files changed");
-}
