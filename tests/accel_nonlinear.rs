@@ -168,8 +168,8 @@ fn duffing_from_accelerations_multisine() {
             ("measure m.a, u", "measure m.x, u"),
         );
         assert_reported(&id, &[("m.x", "m.a")], Data::Multisine, 0.0);
-        // Seeds 71–75, largest errors: accelerations k +0.40 %, d +3.0 %, k3 −0.51 %;
-        // positions k −0.15 %, d −0.74 %, k3 −0.50 %.
+        // Seeds 71–75, largest errors: accelerations k +0.42 %, d +3.0 %, k3 −0.63 %;
+        // positions k +0.17 %, d −0.74 %, k3 −0.50 %.
         assert_within(
             "duffing accelerations, multisine",
             &e_a,
