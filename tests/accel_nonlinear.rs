@@ -115,6 +115,9 @@ fn assert_reported(id: &Identification, signals: &[(&str, &str)], data: Data, be
     }
 }
 
+/// Relative errors by parameter.
+type Errors = Vec<(String, f64)>;
+
 /// Identify the case from accelerations and from positions on the same seed; the rows
 /// printed, the errors returned (accelerations, positions).
 fn case(
@@ -122,7 +125,7 @@ fn case(
     data: Data,
     seed: u64,
     measure: (&str, &str),
-) -> (Identification, Vec<(String, f64)>, Vec<(String, f64)>) {
+) -> (Identification, Errors, Errors) {
     let (acc, src) = model(name);
     let pos = by_positions(&src, measure.0, measure.1);
     let id_a = common::identify_records(&acc, &records(&acc, data, seed));
@@ -231,14 +234,8 @@ fn friction_between_two_accelerometers_random() {
 /// seed 3), checked against the linear model: the coupling is named Coulomb friction, the
 /// ground element linear; diagnosis names the friction at (m1, m2) as the most likely
 /// missing effect (on these records r_fix = 0.303 ± 0.004, the withheld gap 98 % smaller).
-/// Long (about 3 minutes of CPU in a debug build, through the simulations of the estimator
-/// and the free runs): runs with `DYNID_ACCEL_DETECT=1 cargo test --test accel_nonlinear
-/// detect`.
 #[test]
 fn detect_and_diagnose_name_the_friction_between_two_accelerometers() {
-    if std::env::var("DYNID_ACCEL_DETECT").is_err() {
-        return;
-    }
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
     let st = common::dynid()
