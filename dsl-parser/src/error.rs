@@ -115,7 +115,6 @@ error_kinds! {
     /// A term that needs a signal the data does not contain.
     UnmeasuredSignal => "dyn::unmeasured_signal",
     /// A nonlinear term in the motion of a body measured only by its acceleration.
-    AccelerationNonlinear => "dyn::acceleration_nonlinear",
     /// No unknown parameter: nothing to identify.
     NothingToIdentify => "dyn::nothing_to_identify",
     /// Every coefficient is unknown, so the overall scale cannot be identified.

@@ -1,7 +1,5 @@
 """A shaker test: accelerations and the force only (``measure m.a, u``)."""
 
-import pytest
-
 import dynid
 
 # (true value, relative tolerance): about 2.5x the largest relative error over seeds 1..4
@@ -25,21 +23,19 @@ def test_accelerations_are_columns_and_identify_the_linear_terms(models):
     result = model.identify(data)
     for name, (true, tol) in TRUTH.items():
         assert abs(result[name] / true - 1) < tol, (name, result[name])
-    # Detection draws its curves over element displacements, which accelerations alone
-    # do not give: refused with its code, not answered wrongly.
-    with pytest.raises(dynid.DynidError) as e:
-        dynid.detect(model, data)
-    assert e.value.code == "dynid::detect::acceleration_only"
-    assert "m.x" in str(e.value)
 
 
-def test_nonlinear_term_of_an_acceleration_only_body_is_a_compile_error():
+def test_nonlinear_term_of_an_acceleration_only_body_reads_the_integrated_displacement():
+    # The cubic spring reads the displacement integrated from `m.a`. Seeds 1..4 at 300 s,
+    # 5 % noise (`dynid simulate` of this model `--duration 300 --noise 0.05 --seed S`,
+    # then `dynid identify`): k3 within 10.7 %, k within 13.8 % (no damper: k is poorly
+    # conditioned); bounds about 2.3 times those.
     src = (
         "model m {\n body m = 1.0\n input u on m\n spring k (ground, m) ~ 4.0\n"
         " force nl (ground, m) = k3 ~ 1.0 * s^3\n measure m.a, u\n"
         " excite u: lowpass(corner = 10) levels [6, 15]\n}\n"
     )
-    with pytest.raises(dynid.CompileError) as e:
-        dynid.Model.from_source(src)
-    assert e.value.code == "dyn::acceleration_nonlinear"
-    assert e.value.line == 5
+    model = dynid.Model.from_source(src)
+    result = model.identify(model.simulate(duration=300, seed=SEED, noise=0.05))
+    assert abs(result["k3"] / 1.0 - 1) < 0.25, result["k3"]
+    assert abs(result["k"] / 4.0 - 1) < 0.3, result["k"]

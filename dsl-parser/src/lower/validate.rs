@@ -22,36 +22,8 @@ impl Lowerer<'_> {
                     .copied()
                     .unwrap_or(ir.spans.elements[ei]);
                 // Motion of a body measured only by its acceleration: linear terms are
-                // formed from the acceleration, nonlinear ones are refused.
-                let acc_only: Vec<BodyId> = ir
-                    .expr_signals(t.basis)
-                    .into_iter()
-                    .filter_map(|s| match ir.signal(s).kind {
-                        SignalKind::Position(b) | SignalKind::Velocity(b)
-                            if ir.acceleration_only(b) =>
-                        {
-                            Some(b)
-                        }
-                        _ => None,
-                    })
-                    .collect();
-                if let Some(&b) = acc_only.first() {
-                    if ir.linear_form(t.basis).is_none() {
-                        let term = crate::print::render_expr(ir, t.basis);
-                        let body = &ir.bodies[b.index()].name;
-                        self.err(
-                            ErrorKind::AccelerationNonlinear,
-                            format!(
-                                "term `{term}` of `{}` is nonlinear in the motion of `{body}`, which is measured only by its acceleration",
-                                e.name
-                            ),
-                            span,
-                            "nonlinear in an unmeasured displacement or velocity",
-                            format!("add `{body}.x` (or `{body}.v`) to `measure`: from `{body}.a` alone only terms linear in the body's position and velocity are formed"),
-                        );
-                        continue;
-                    }
-                }
+                // formed from the acceleration, nonlinear ones read integrals of it (both at
+                // identification), so the motion counts as available below.
                 // An unmeasured velocity of a body whose position is measured is estimated
                 // from the position at identification.
                 let missing: Vec<SignalId> = ir

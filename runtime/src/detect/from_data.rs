@@ -35,6 +35,7 @@ use super::fit::weighted_mean;
 use super::types::{DetectError, DetectionInput, ElementIntensity, FromDataError, HeldParam};
 use super::types::{ParamCurve, Role};
 use crate::data::LevelSource;
+use crate::ident::integrate::{IntegratedMotion, Target};
 use crate::ident::{measure, Identification, IdentifyOptions, Measurement};
 use crate::tape::{Tape, TapeScratch};
 
@@ -350,6 +351,57 @@ fn held_constant_forces(ir: &ModelIr, moments: &Measurement) -> Vec<HeldParam> {
         .collect()
 }
 
+/// Whether `s` is the position or velocity of a body measured only by its acceleration.
+fn accel_only(ir: &ModelIr, s: dynid_ir::ir::SignalId) -> bool {
+    match ir.signal(s).kind {
+        dynid_ir::ir::SignalKind::Position(b) | dynid_ir::ir::SignalKind::Velocity(b) => {
+            ir.acceleration_only(b)
+        }
+        _ => false,
+    }
+}
+
+/// The levels with the positions and velocities of acceleration-only bodies integrated
+/// from their accelerations ([`crate::ident::integrate`]); none where the model has no
+/// such body.
+fn integrated_levels<'a>(
+    ir: &ModelIr,
+    levels: &[&'a dyn LevelSource],
+    chunk: usize,
+) -> Result<Vec<IntegratedMotion<'a>>, FromDataError> {
+    let mut targets = Vec::new();
+    for b in 0..ir.bodies.len() {
+        let b = dynid_ir::ir::BodyId(b as u32);
+        if !ir.acceleration_only(b) {
+            continue;
+        }
+        let a = ir
+            .acceleration(b)
+            .expect("invariant: accelerometer")
+            .index();
+        targets.push(Target {
+            slot: ir.position(b).index(),
+            accel: a,
+            order: 2,
+        });
+        targets.push(Target {
+            slot: ir.velocity(b).index(),
+            accel: a,
+            order: 1,
+        });
+    }
+    if targets.is_empty() {
+        return Ok(Vec::new());
+    }
+    Ok(levels
+        .iter()
+        .map(|l| IntegratedMotion::design(*l, &targets, FALLBACK_CORNER, chunk))
+        .collect::<Result<_, _>>()?)
+}
+
+/// High-pass corner (rad/s) of the integration for a level too short for its spectrum.
+const FALLBACK_CORNER: f64 = 0.1;
+
 /// Identify the linear model `ir` at each level separately and collect the curves and the
 /// element intensities. Each source is one level; at least two are needed.
 ///
@@ -366,19 +418,15 @@ pub fn level_fits(
         return Err(DetectError::TooFewLevels(levels.len()).into());
     }
     let groups = groups(ir);
-    for g in &groups {
-        let e = &ir.elements[g.members[0]];
-        let only = [e.nodes.0, e.nodes.1].into_iter().find_map(|n| match n {
-            dynid_ir::ir::Node::Body(b) if ir.acceleration_only(b) => Some(b),
-            _ => None,
-        });
-        if let Some(b) = only {
-            return Err(FromDataError::AccelerationOnly {
-                element: g.name.clone(),
-                body: ir.bodies[b.index()].name.clone(),
-            });
-        }
-    }
+    // Bodies measured only by their acceleration: the curves are drawn over displacements
+    // and velocities integrated from the accelerations (zero mean: a static offset is
+    // invisible to an accelerometer).
+    let integrated = integrated_levels(ir, levels, opts.chunk_len)?;
+    let motion: Vec<&dyn LevelSource> = if integrated.is_empty() {
+        levels.to_vec()
+    } else {
+        integrated.iter().map(|m| m as &dyn LevelSource).collect()
+    };
     let tape = Tape::compile(ir, &ir.eval_roots());
     let moments = measure(ir, &tape, levels, opts)?;
     // Inertia is not a force element: statistical linearisation turns a nonlinear force
@@ -410,10 +458,12 @@ pub fn level_fits(
         .iter()
         .map(|g| {
             let e = &ir.elements[g.members[0]];
-            ir.expr_signals(e.v).iter().all(|s| ir.signal(*s).measured)
+            ir.expr_signals(e.v)
+                .iter()
+                .all(|s| ir.signal(*s).measured || accel_only(ir, *s))
         })
         .collect();
-    let per_level: Vec<Vec<Intensity>> = levels
+    let per_level: Vec<Vec<Intensity>> = motion
         .iter()
         .map(|src| intensities(ir, &groups, &v_measured, *src, opts.chunk_len))
         .collect::<Result<_, _>>()?;

@@ -8,7 +8,7 @@ use super::effects::{constant_force_sites, locations, Effect, Location};
 use super::levels::Data;
 use super::metrics;
 use super::types::{CandidateScore, FoundEffect};
-use dynid_ir::ir::{BodyId, ModelIr, SignalKind};
+use dynid_ir::ir::{ModelIr, SignalKind};
 use dynid_ir::num;
 
 /// Every effect at every location on top of `ir`, except the kinds already `found` at a
@@ -21,23 +21,17 @@ pub(super) fn candidates(
     notes: &mut Vec<String>,
 ) -> Vec<(Effect, Location)> {
     // A velocity term needs each velocity measured or estimable from a measured position
-    // (identification then differentiates the position, see `ident::velocity`).
+    // (identification then differentiates the position, see `ident::velocity`) or
+    // acceleration (integrated, see `ident::integrate`).
     let vel_measured = ir.signals.iter().all(|s| match s.kind {
-        SignalKind::Velocity(b) => s.measured || ir.signal(ir.position(b)).measured,
+        SignalKind::Velocity(b) => {
+            s.measured || ir.signal(ir.position(b)).measured || ir.acceleration_only(b)
+        }
         _ => true,
     });
     let locs = locations(ir);
     let mut cands: Vec<(Effect, Location)> = Vec::new();
     let mut skipped_velocity = false;
-    // A nonlinear force in the motion of a body measured only by its acceleration cannot
-    // be formed yet (identification refuses it): such sites are not searched, and said so.
-    let accel_only = |node: &str| {
-        ir.bodies
-            .iter()
-            .position(|b| b.name == node)
-            .is_some_and(|b| ir.acceleration_only(BodyId(b as u32)))
-    };
-    let mut skipped_accel: Vec<String> = Vec::new();
     let already = |kind: &str, loc: &Location| {
         found
             .iter()
@@ -45,10 +39,6 @@ pub(super) fn candidates(
     };
     let big = largest_level(data);
     for loc in &locs {
-        if accel_only(&loc.a) || accel_only(&loc.b) {
-            skipped_accel.push(loc.label());
-            continue;
-        }
         for eff in [
             Effect::Cubic,
             Effect::QuadraticStiffness,
@@ -85,21 +75,13 @@ pub(super) fn candidates(
             cands.push((Effect::ConstantForce, loc));
         }
     }
-    note_skipped(&skipped_accel, skipped_velocity, notes);
+    note_skipped(skipped_velocity, notes);
     cands
 }
 
-/// Say once what the search leaves out: sites at bodies measured by accelerations alone,
-/// and the velocity terms when no velocity is measured or estimable.
-fn note_skipped(skipped_accel: &[String], skipped_velocity: bool, notes: &mut Vec<String>) {
-    if !skipped_accel.is_empty() && !notes.iter().any(|s| s.contains("accelerations alone")) {
-        notes.push(format!(
-            "no nonlinear effect was searched at {}: a body there is measured by accelerations \
-             alone, whose displacement and velocity the nonlinear terms need (measure its \
-             position to search there)",
-            skipped_accel.join(", ")
-        ));
-    }
+/// Say once what the search leaves out: the velocity terms when no velocity is measured
+/// or estimable.
+fn note_skipped(skipped_velocity: bool, notes: &mut Vec<String>) {
     if skipped_velocity && !notes.iter().any(|s| s.contains("velocities")) {
         notes.push(
             "velocities are neither measured nor estimable from positions: Coulomb friction and \

@@ -3,7 +3,9 @@
 //! Those terms are formed from the acceleration by band-pass instruments
 //! ([`super::plan::BasisMoment::D0Acc`], [`super::plan::BasisMoment::D1Acc`]), never from
 //! the roots; the roots are still evaluated for every sample (the evaluator computes all
-//! of them), so [`ZeroFill`] streams zeros in place of the missing columns.
+//! of them), so [`ZeroFill`] streams zeros in place of the missing columns. Signals that a
+//! nonlinear term reads are then filled with their integrals of the acceleration
+//! ([`super::integrate::IntegratedMotion`]), which stream over the zeros.
 
 use crate::data::{DataError, LevelSource};
 

@@ -72,6 +72,7 @@ mod first_pass;
 pub mod guard;
 mod identify;
 mod instruments;
+pub mod integrate;
 mod measure;
 mod measurement;
 pub mod memory;

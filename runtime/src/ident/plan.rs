@@ -81,6 +81,10 @@ pub(crate) struct Plan {
     /// `(velocity, position)`: unmeasured velocities used in static terms, estimated from
     /// their measured positions.
     pub estimated: Vec<(SignalId, SignalId)>,
+    /// `(position or velocity, acceleration)`: motion of acceleration-only bodies read by
+    /// nonlinear static terms, estimated by integrating the acceleration
+    /// ([`super::integrate`]).
+    pub integrated: Vec<(SignalId, SignalId)>,
     pub unknowns: Vec<usize>,
     pub equations: Vec<Vec<PlanTerm>>,
     pub instruments: Vec<Instrument>,
@@ -179,6 +183,7 @@ pub(crate) fn build_structure(
     let n_g = roots.len();
     let mut vhat_bodies = Vec::new();
     let mut estimated = Vec::new();
+    let mut integrated = Vec::new();
     let mut absent: Vec<SignalId> = Vec::new();
     let mut equations = Vec::new();
     for (l, eq) in ir.equations.iter().enumerate() {
@@ -196,10 +201,11 @@ pub(crate) fn build_structure(
             };
             let basis = match t.basis {
                 Basis::Expr(e)
-                    if ir
-                        .expr_signals(e)
-                        .iter()
-                        .any(|&s| accel_only_signal(ir, s).is_some()) =>
+                    if linear_form(ir, e).is_some()
+                        && ir
+                            .expr_signals(e)
+                            .iter()
+                            .any(|&s| accel_only_signal(ir, s).is_some()) =>
                 {
                     // Linear in the motion of bodies measured only by accelerations: one
                     // term per signal, each formed from the acceleration by the band-pass
@@ -249,6 +255,15 @@ pub(crate) fn build_structure(
                 Basis::Expr(e) => {
                     for s in ir.expr_signals(e) {
                         if y_of[s.index()].is_some() {
+                            continue;
+                        }
+                        // Nonlinear in the motion of a body measured only by its
+                        // acceleration: read on integrals of the acceleration.
+                        if let Some(b) = accel_only_signal(ir, s) {
+                            let a = ir.acceleration(b).expect("invariant: accelerometer");
+                            if !integrated.contains(&(s, a)) {
+                                integrated.push((s, a));
+                            }
                             continue;
                         }
                         // An unmeasured velocity of a body whose position is measured is
@@ -393,6 +408,7 @@ pub(crate) fn build_structure(
         corners: vec![0.0; bank.n_corners],
         vhat_bodies,
         estimated,
+        integrated,
         unknowns: unknowns.iter().map(|p| p.index()).collect(),
         equations,
         instruments: Vec::new(),

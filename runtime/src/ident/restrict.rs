@@ -98,7 +98,23 @@ impl<'m> Measurement<'m> {
                     .any(|&r| self.ir.expr_signals(r).contains(v))
             })
             .collect();
+        let kept_integrated: Vec<bool> = plan
+            .integrated
+            .iter()
+            .map(|(s, _)| {
+                used_roots
+                    .iter()
+                    .any(|&r| self.ir.expr_signals(r).contains(s))
+            })
+            .collect();
         let mut sub = plan.clone();
+        sub.integrated = plan
+            .integrated
+            .iter()
+            .zip(&kept_integrated)
+            .filter(|(_, k)| **k)
+            .map(|(e, _)| *e)
+            .collect();
         sub.estimated = plan
             .estimated
             .iter()
@@ -130,11 +146,11 @@ impl<'m> Measurement<'m> {
             cols: Some(cols),
             infos: self.infos.clone(),
             centred: self.centred.clone(),
-            // Aligned with `plan.estimated` (one report per estimated velocity).
+            // Aligned with `plan.estimated` then `plan.integrated` (one report each).
             estimated: self
                 .estimated
                 .iter()
-                .zip(&kept_estimates)
+                .zip(kept_estimates.iter().chain(&kept_integrated))
                 .filter(|(_, k)| **k)
                 .map(|(e, _)| e.clone())
                 .collect(),

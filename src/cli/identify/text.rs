@@ -139,6 +139,28 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
         s.push_str(&format!("residual {}: {}\n", r.equation, lv.join(" / ")));
     }
     for e in &id.estimated {
+        if e.method != dynid_runtime::ident::velocity::METHOD {
+            // Integrated from an acceleration: the high-pass corner, or exact over periods.
+            let cut: Vec<String> = e
+                .cutoff
+                .iter()
+                .map(|&c| {
+                    if c > 0.0 {
+                        print::fmt_num(c)
+                    } else {
+                        "exact".into()
+                    }
+                })
+                .collect();
+            s.push_str(&format!(
+                "{} integrated from {} ({}; corner {} rad/s per level)\n",
+                e.signal,
+                e.from,
+                e.method,
+                cut.join(" / ")
+            ));
+            continue;
+        }
         let cut: Vec<String> = e.cutoff.iter().map(|c| print::fmt_num(*c)).collect();
         s.push_str(&format!(
             "velocity {} estimated from {} (zero-phase differentiator, cutoff {} rad/s per level)\n",

@@ -95,6 +95,7 @@ pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
             // Terms of bodies measured only by accelerations: formed from `b.a` by the
             // band-pass instruments (`ẍ` is the acceleration itself).
             let mut integrated: Vec<String> = Vec::new();
+            let mut nonlinear_acc: Vec<String> = Vec::new();
             for t in &terms {
                 let b = match (terms.len(), t.basis, t.coef.scale) {
                     // A lone positive term needs no parentheses.
@@ -128,7 +129,13 @@ pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
                     Basis::Deriv { body, .. } => accel_only(body).into_iter().collect(),
                 };
                 if !from_acc.is_empty() {
-                    integrated.extend(from_acc);
+                    // Nonlinear: evaluated on motion integrated from the acceleration.
+                    match t.basis {
+                        Basis::Expr(e) if ir.linear_form(e).is_none() => {
+                            nonlinear_acc.extend(from_acc)
+                        }
+                        _ => integrated.extend(from_acc),
+                    }
                     continue;
                 }
                 match t.basis {
@@ -162,6 +169,14 @@ pub fn column_rows(ir: &ModelIr) -> Vec<ColumnRow> {
                 kinds.push(format!(
                     "from {} (integrals moved onto band-pass filters)",
                     integrated.join(", ")
+                ));
+            }
+            if !nonlinear_acc.is_empty() {
+                nonlinear_acc.sort();
+                nonlinear_acc.dedup();
+                kinds.push(format!(
+                    "static, on motion integrated from {}",
+                    nonlinear_acc.join(", ")
                 ));
             }
             rows.push(ColumnRow {

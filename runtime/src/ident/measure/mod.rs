@@ -15,6 +15,7 @@ use crate::ident::bank::{choose_bank, BankChoice};
 use crate::ident::columns::ColumnStore;
 use crate::ident::design::{self, Designed};
 use crate::ident::first_pass::{self, LevelSpan, LevelStats};
+use crate::ident::integrate::{self, IntegratedMotion, Integration};
 use crate::ident::measurement::Measurement;
 use crate::ident::moments::PhaseTimes;
 use crate::ident::pieces::{LevelPiece, MomentDesign};
@@ -152,6 +153,12 @@ pub(crate) fn measure_pieces(
     } else {
         zero_filled.iter().map(|z| z as &dyn LevelSource).collect()
     };
+    let integrated = integrators(ir, &plan, &sources, opts.chunk_len)?;
+    let sources: Vec<&dyn LevelSource> = if integrated.is_empty() {
+        sources
+    } else {
+        integrated.iter().map(|z| z as &dyn LevelSource).collect()
+    };
     let samples: Vec<usize> = stats.iter().map(|s| s.n).collect();
     let rests = rests::find_levels(
         ir,
@@ -186,10 +193,21 @@ pub(crate) fn measure_pieces(
             stats,
             info,
             centred,
+            // Per estimated velocity (cutoff, half-width), then per integrated signal
+            // (high-pass corner, 0) or (0, whole periods).
             velocity: estimators
                 .get(level)
-                .map(|e| e.designs().iter().map(|d| (d.1, d.2)).collect())
-                .unwrap_or_default(),
+                .map(|e| e.designs().iter().map(|d| (d.1, d.2)).collect::<Vec<_>>())
+                .unwrap_or_default()
+                .into_iter()
+                .chain(integrated.get(level).into_iter().flat_map(|m| {
+                    let d = match m.how() {
+                        Integration::Band { corner } => (corner, 0),
+                        Integration::Periodic { periods } => (0.0, periods),
+                    };
+                    plan.integrated.iter().map(move |_| d)
+                }))
+                .collect(),
         })
         .collect();
     Ok((pieces, times))
@@ -241,6 +259,7 @@ pub(crate) fn measurement_of<'m>(
                 .map(|l| l.get(k).map_or(0, |d| d.1))
                 .collect(),
         })
+        .chain(integration_reports(ir, &plan, &velocity))
         .collect();
     Ok(Measurement {
         ir,
@@ -411,6 +430,68 @@ fn velocity_estimators<'a>(
     Ok(crate::first_error_in_order(levels.par_iter().map(|src| {
         EstimatedVelocity::design(*src, &targets, chunk)
     }))?)
+}
+
+/// Positions and velocities of acceleration-only bodies in nonlinear terms: integrated from
+/// their accelerations, per level (none where the plan integrates none), with the
+/// high-pass corner a quarter of the lowest filter corner (see [`integrate`]).
+fn integrators<'a>(
+    ir: &ModelIr,
+    plan: &Plan,
+    levels: &[&'a dyn LevelSource],
+    chunk: usize,
+) -> Result<Vec<IntegratedMotion<'a>>, IdentifyError> {
+    let targets: Vec<integrate::Target> = plan
+        .integrated
+        .iter()
+        .map(|(s, a)| integrate::Target {
+            slot: s.index(),
+            accel: a.index(),
+            order: match ir.signal(*s).kind {
+                dynid_ir::ir::SignalKind::Position(_) => 2,
+                _ => 1,
+            },
+        })
+        .collect();
+    if targets.is_empty() {
+        return Ok(Vec::new());
+    }
+    let corner = plan.corners.iter().copied().fold(f64::INFINITY, f64::min) / 4.0;
+    Ok(crate::first_error_in_order(levels.par_iter().map(|src| {
+        IntegratedMotion::design(*src, &targets, corner, chunk)
+    }))?)
+}
+
+/// The report of the integrated signals: per level, the high-pass corner (rad/s; 0 where
+/// the level held whole periods and was integrated exactly, as the method says), no window.
+fn integration_reports<'a>(
+    ir: &'a ModelIr,
+    plan: &'a Plan,
+    velocity: &'a [Vec<(f64, usize)>],
+) -> impl Iterator<Item = VelocityEstimate> + 'a {
+    let skip = plan.estimated.len();
+    plan.integrated.iter().enumerate().map(move |(k, (s, a))| {
+        let per = |l: &Vec<(f64, usize)>| l.get(skip + k).copied().unwrap_or((0.0, 0));
+        let periods = velocity.iter().map(|l| per(l).1).find(|&p| p > 0);
+        let band = velocity.iter().any(|l| per(l).1 == 0);
+        let exact = |p| format!("{} ({p} periods)", integrate::METHOD_PERIODIC);
+        let method = match (band, periods) {
+            (true, Some(p)) => format!(
+                "{}; levels of whole periods: {}",
+                integrate::METHOD_BAND,
+                exact(p)
+            ),
+            (false, Some(p)) => exact(p),
+            _ => integrate::METHOD_BAND.to_string(),
+        };
+        VelocityEstimate {
+            signal: ir.signal(*s).name.clone(),
+            from: ir.signal(*a).name.clone(),
+            method,
+            cutoff: velocity.iter().map(|l| per(l).0).collect(),
+            half_width: vec![0; velocity.len()],
+        }
+    })
 }
 
 /// Positions and velocities of acceleration-only bodies that roots read: streamed as zeros

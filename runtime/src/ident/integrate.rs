@@ -1,0 +1,442 @@
+//! Displacement and velocity estimates from measured accelerations, for terms nonlinear in
+//! the motion of a body measured only by its acceleration (a cubic spring `k3·s³`, Coulomb
+//! friction `r·sign(v)`).
+//!
+//! Terms linear in such a body's motion never need these estimates: they are formed from
+//! the acceleration by band-pass instruments ([`super::plan::BasisMoment::D0Acc`]). A
+//! nonlinear term is evaluated sample by sample, so it reads `x̂` or `v̂`, integrals of the
+//! measured acceleration `a`, computed on the whole record with one real FFT:
+//!
+//! ```text
+//! X̂(ω) = H(ω) A(ω) / (jω)²,   V̂(ω) = H(ω) A(ω) / (jω),   H(ω) = ω⁴ / (ω⁴ + ω_h⁴)
+//! ```
+//!
+//! **Band-limited integration** (any record). `H` is the squared magnitude of a
+//! second-order Butterworth high-pass (the forward–backward filter): real, so the estimate
+//! is zero-phase — the zero crossings of `v̂` that `sign(v)` sees are not delayed — and
+//! `H/(jω)²` is bounded at `ω → 0`, so neither integral drifts. `x̂` and `v̂` are integrals
+//! of the same high-passed acceleration: `v̂` is exactly the derivative of `x̂`. The record
+//! (its mean removed) is padded with zeros by eight time constants `1/ω_h` before the
+//! transform, so the transform's wrap-around does not join its two ends; within a few
+//! `1/ω_h` of either end the estimate is less accurate (the acceleration before and after
+//! the record is taken as zero).
+//!
+//! **The corner `ω_h`** is a quarter of the lowest mode, read from the data: the peak of
+//! the displacement spectrum `S_a(ω)/ω⁴` (Welch over Hann segments of the acceleration),
+//! searched from the lowest frequency at which the acceleration stands out of its noise
+//! floor (four times the median over the top quarter of the band) up to the peak of the
+//! acceleration spectrum. Below a lightly damped mode the displacement spectrum is flat
+//! (the static compliance) and it peaks at the mode, so the search finds the lowest mode
+//! that dominates the displacement; `H = 0.996` there and `H ≥ 0.94` from half of it up.
+//! A lower corner lets through more integrated noise (its variance in `x̂` grows as `ω_h⁻³`
+//! for white noise on `a`), a higher one removes displacement the springs carry. Where
+//! the spectrum has no peak (a record shorter than two segments) the corner is a quarter
+//! of the lowest filter corner.
+//!
+//! **Whole periods** (a multisine's steady state recorded over an integer number of
+//! periods, `dynid simulate --signal multisine --periods N`): the record is periodic, its
+//! DFT lies on the lines of `p` whole periods (every `p`-th bin), and dividing the DFT by
+//! `(jω)ᵏ` with the mean dropped is exact — no high-pass, no padding, no end effects. The
+//! bins between the lines hold only noise and are dropped, and so are the lines whose
+//! power is below twenty times the mean noise power of those bins (lines below the excited
+//! band hold only noise, which `1/ω²` would amplify most): the estimate is the integral of
+//! the average period over the lines the acceleration carries.
+//! Periodicity is read from the data: the largest divisor `p` of the record length (at
+//! least 2, with periods of at least 16 samples) for which the bins on that grid hold at
+//! least 99 % of the acceleration's energy (white noise puts only `1/p` of its energy
+//! there; 5 % noise leaves over 99.7 % on the grid).
+//!
+//! **What accelerations cannot see.** The mean of `x̂` and `v̂` is zero by construction: a
+//! static offset of position (a deflection under gravity, a preload) is invisible in an
+//! acceleration. A nonlinearity about a static deflection needs that deflection given in
+//! the model (`s - x0` with `x0` known); one about the dynamic zero is identified as is.
+//!
+//! **Relative motion.** An element between two bodies reads the difference of their
+//! estimates; the integration is linear, so that is the integral of the difference of
+//! their accelerations.
+//!
+//! **Memory.** The estimates are held for the whole record (one `f64` per sample and
+//! estimated signal): the integration is not causal, and a zero-phase estimate needs the
+//! whole record before its first sample.
+//!
+//! **Bias.** Noise on `a` reaches `x̂` concentrated just above `ω_h` (integrated twice), and
+//! a nonlinear column of a noisy signal is biased (`E{(x+e)³} ≠ E{x³}`); displacement below
+//! `ω_h` is missing. The figures, against the same records measured by positions, are in
+//! `tests/accel_nonlinear.rs`.
+
+use crate::data::{DataError, LevelSource};
+use realfft::num_complex::Complex;
+use realfft::RealFftPlanner;
+
+/// Name of the methods, for reports.
+pub const METHOD_BAND: &str =
+    "zero-phase band-limited integration (FFT, high-pass H = w^4/(w^4+wh^4), wh a quarter \
+     of the lowest mode of the displacement spectrum)";
+pub const METHOD_PERIODIC: &str =
+    "exact frequency-domain integration over whole periods (DFT / (jw)^k on the lines of the \
+     period, mean dropped)";
+
+/// Energy fraction on the grid of `p` periods above which a record counts as periodic.
+const PERIODIC_FRACTION: f64 = 0.99;
+/// Fewest samples per period for the periodic test.
+const MIN_PERIOD: usize = 16;
+/// A periodic record's line is kept where its power is this many times the noise's.
+const LINE_OVER_NOISE: f64 = 20.0;
+/// Zero padding, in time constants `1/ω_h`.
+const PAD_TIME_CONSTANTS: f64 = 8.0;
+
+/// How the estimates of one level were made.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Integration {
+    /// Band-limited, with the high-pass corner `ω_h` in rad/s.
+    Band { corner: f64 },
+    /// Exact over `periods` whole periods.
+    Periodic { periods: usize },
+}
+
+/// One signal to estimate: its slot, the slot of the acceleration it integrates, and the
+/// order of integration (1: velocity, 2: position).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Target {
+    pub slot: usize,
+    pub accel: usize,
+    pub order: u8,
+}
+
+/// A level source whose position/velocity columns of acceleration-only bodies are filled
+/// with integrals of the accelerations.
+pub struct IntegratedMotion<'a> {
+    inner: &'a dyn LevelSource,
+    slots: Vec<usize>,
+    values: Vec<Vec<f64>>,
+    how: Integration,
+}
+
+/// The largest number of whole periods the record `a` holds (see the module docs), from its
+/// spectrum `spec` (`|A_k|²`, `k = 0 … n/2`).
+fn whole_periods(n: usize, spec: &[f64]) -> Option<usize> {
+    let total: f64 = spec.iter().skip(1).sum();
+    if total <= 0.0 || !total.is_finite() {
+        return None;
+    }
+    (2..=n / MIN_PERIOD)
+        .rev()
+        .filter(|p| n.is_multiple_of(*p))
+        .find(|&p| {
+            // The grid of `p` periods: bins p, 2p, ….
+            let grid: f64 = spec.iter().skip(p).step_by(p).sum();
+            grid >= PERIODIC_FRACTION * total
+        })
+}
+
+/// The high-pass corner (rad/s) for the acceleration `a` (see the module docs), `None`
+/// where the record is too short for its spectrum.
+fn corner_from_spectrum(a: &[f64], ts: f64) -> Option<f64> {
+    let n = a.len();
+    let seg = super::velocity::Welch::segment_for(n);
+    if n < 2 * seg {
+        return None;
+    }
+    let mut power = crate::fft::SegmentPower::new(seg);
+    let mut psd = vec![0.0; seg / 2 + 1];
+    let window: Vec<f64> = (0..seg)
+        .map(|k| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * k as f64 / seg as f64).cos())
+        .collect();
+    let mut start = 0;
+    while start + seg <= n {
+        let x = &a[start..start + seg];
+        let mean = x.iter().sum::<f64>() / seg as f64;
+        for ((i, v), w) in power.input_mut().iter_mut().zip(x).zip(&window) {
+            *i = (v - mean) * w;
+        }
+        power.add_power(&mut psd, |_| 1.0);
+        start += seg / 2;
+    }
+    let nb = psd.len();
+    let mut top: Vec<f64> = psd[(3 * nb) / 4..].to_vec();
+    top.sort_by(f64::total_cmp);
+    let floor = top[top.len() / 2];
+    // Bins 0 and 1 hold the window's leakage of the segment's mean: searched from bin 2.
+    let peak = (2..nb).max_by(|&x, &y| psd[x].total_cmp(&psd[y]))?;
+    // Down from the peak while the acceleration stands out of its noise floor.
+    let mut lo = peak;
+    while lo > 2 && psd[lo - 1] > 4.0 * floor {
+        lo -= 1;
+    }
+    let bin = 2.0 * std::f64::consts::PI / (seg as f64 * ts);
+    let mode = (lo..=peak).max_by(|&x, &y| {
+        let d = |k: usize| psd[k] / (k as f64).powi(4);
+        d(x).total_cmp(&d(y))
+    })?;
+    Some(mode as f64 * bin / 4.0)
+}
+
+/// The number of whole periods the record `a` holds, if it is periodic.
+fn periods_of(a: &[f64]) -> Option<usize> {
+    let n = a.len();
+    let fwd = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+    let mut buf = a.to_vec();
+    let mut spec = fwd.make_output_vec();
+    fwd.process(&mut buf, &mut spec)
+        .expect("invariant: buffers made by the plan");
+    let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
+    whole_periods(n, &power)
+}
+
+/// How the accelerations `accels` of one level are integrated: exactly where all hold the
+/// same whole periods, else band-limited with the lowest of their corners (`fallback`
+/// where no spectrum gives one).
+fn choose(accels: &[Vec<f64>], ts: f64, fallback: f64) -> Integration {
+    let periods: Vec<Option<usize>> = accels.iter().map(|a| periods_of(a)).collect();
+    match periods.first() {
+        Some(&Some(p)) if periods.iter().all(|q| *q == Some(p)) => {
+            Integration::Periodic { periods: p }
+        }
+        _ => Integration::Band {
+            corner: accels
+                .iter()
+                .filter_map(|a| corner_from_spectrum(a, ts))
+                .reduce(f64::min)
+                .unwrap_or(fallback),
+        },
+    }
+}
+
+/// Integrate `a` (sample interval `ts`) as `how` says into the estimates `out[k]` of
+/// orders `orders[k]`.
+fn integrate(a: &[f64], ts: f64, how: Integration, orders: &[u8], out: &mut [Vec<f64>]) {
+    let n = a.len();
+    let mut planner = RealFftPlanner::<f64>::new();
+    let len = match how {
+        Integration::Periodic { .. } => n,
+        Integration::Band { corner } => {
+            let pad = (PAD_TIME_CONSTANTS / (corner * ts)).ceil() as usize;
+            (n + pad).next_multiple_of(2)
+        }
+    };
+    let fwd = planner.plan_fft_forward(len);
+    let mean = a.iter().sum::<f64>() / n as f64;
+    let mut buf = vec![0.0; len];
+    for (b, v) in buf.iter_mut().zip(a) {
+        *b = v - mean;
+    }
+    let mut spec = fwd.make_output_vec();
+    fwd.process(&mut buf, &mut spec)
+        .expect("invariant: buffers made by the plan");
+    // Periodic: the noise power per bin, from the bins between the lines; a line is kept
+    // where it stands out of it (white noise passes 20 times its mean with probability
+    // e⁻²⁰), so that lines below the band, noise only, are not amplified by 1/ω².
+    let noise = match how {
+        Integration::Periodic { periods } => {
+            let off = spec
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| *k > 0 && !k.is_multiple_of(periods));
+            let (sum, count) = off.fold((0.0, 0usize), |(s, c), (_, v)| (s + v.norm_sqr(), c + 1));
+            LINE_OVER_NOISE * sum / count.max(1) as f64
+        }
+        Integration::Band { .. } => 0.0,
+    };
+    let inv = planner.plan_fft_inverse(len);
+    let dw = 2.0 * std::f64::consts::PI / (len as f64 * ts);
+    let last = spec.len() - 1;
+    let mut work = vec![Complex::new(0.0, 0.0); spec.len()];
+    let mut time = vec![0.0; len];
+    for (o, est) in orders.iter().zip(out.iter_mut()) {
+        for (k, (w, s)) in work.iter_mut().zip(&spec).enumerate() {
+            let om = k as f64 * dw;
+            let h = match how {
+                Integration::Band { corner } => {
+                    let (o4, c4) = (om.powi(4), corner.powi(4));
+                    o4 / (o4 + c4)
+                }
+                Integration::Periodic { .. } => 1.0,
+            };
+            // Mean dropped; the Nyquist bin of an even length dropped too (a velocity's
+            // would be imaginary there, which a real inverse transform cannot hold).
+            // Periodic: only the lines of the period carry the signal, every other bin is
+            // noise (which 1/ω² would amplify most at the lowest bins): dropped.
+            let off_grid = matches!(how, Integration::Periodic { periods } if !k.is_multiple_of(periods))
+                || s.norm_sqr() < noise;
+            *w = if k == 0 || off_grid || (k == last && len.is_multiple_of(2)) {
+                Complex::new(0.0, 0.0)
+            } else {
+                let jw = Complex::new(0.0, om);
+                let d = if *o == 1 { jw } else { jw * jw };
+                *s * (h / len as f64) / d
+            };
+        }
+        inv.process(&mut work, &mut time)
+            .expect("invariant: buffers made by the plan");
+        est.clear();
+        est.extend_from_slice(&time[..n]);
+    }
+}
+
+impl<'a> IntegratedMotion<'a> {
+    /// Read the accelerations of `targets` from `inner` and integrate them; `corner` is
+    /// the band-limited integration's high-pass corner in rad/s where the record is too
+    /// short to read one from its spectrum.
+    pub fn design(
+        inner: &'a dyn LevelSource,
+        targets: &[Target],
+        corner: f64,
+        chunk: usize,
+    ) -> Result<Self, DataError> {
+        let mut accels: Vec<usize> = targets.iter().map(|t| t.accel).collect();
+        accels.sort_unstable();
+        accels.dedup();
+        let mut data: Vec<Vec<f64>> = vec![Vec::new(); accels.len()];
+        inner.stream(chunk, &mut |cols, len| {
+            for (d, &s) in data.iter_mut().zip(&accels) {
+                d.extend_from_slice(&cols[s][..len]);
+            }
+        })?;
+        let ts = inner.ts();
+        let mut values = vec![Vec::new(); targets.len()];
+        let short = data.iter().any(|d| d.len() < 4);
+        let how = if short {
+            Integration::Band { corner }
+        } else {
+            choose(&data, ts, corner)
+        };
+        for (k, t) in targets.iter().enumerate() {
+            let d = &data[accels
+                .iter()
+                .position(|&s| s == t.accel)
+                .expect("invariant: read")];
+            let mut out = [Vec::new()];
+            if short {
+                out[0] = vec![0.0; d.len()];
+            } else {
+                integrate(d, ts, how, &[t.order], &mut out);
+            }
+            let [o] = out;
+            values[k] = o;
+        }
+        Ok(IntegratedMotion {
+            inner,
+            slots: targets.iter().map(|t| t.slot).collect(),
+            values,
+            how,
+        })
+    }
+
+    /// How the estimates of the level were made (one way for all its accelerations, so that
+    /// the relative motion of two bodies is the integral of the relative acceleration).
+    pub fn how(&self) -> Integration {
+        self.how
+    }
+}
+
+impl LevelSource for IntegratedMotion<'_> {
+    fn origin(&self) -> String {
+        self.inner.origin()
+    }
+    fn ts(&self) -> f64 {
+        self.inner.ts()
+    }
+    fn locate(&self, k: usize) -> String {
+        self.inner.locate(k)
+    }
+    fn stream(
+        &self,
+        max_len: usize,
+        sink: &mut dyn FnMut(&[&[f64]], usize),
+    ) -> Result<(), DataError> {
+        let mut at = 0usize;
+        let top = self.slots.iter().copied().max().map_or(0, |s| s + 1);
+        self.inner.stream(max_len, &mut |inner, len| {
+            // One small vector of slices per chunk, none per sample.
+            let mut cols: Vec<&[f64]> = inner.to_vec();
+            if cols.len() < top {
+                cols.resize(top, &[]);
+            }
+            for (&s, v) in self.slots.iter().zip(&self.values) {
+                let end = (at + len).min(v.len());
+                cols[s] = &v[at.min(end)..end];
+            }
+            at += len;
+            sink(&cols, len);
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn whole_periods_of_a_multisine_integrate_exactly() {
+        // Three lines, 4 periods of 250 samples: x = Σ sin(ω t + φ), a = −Σ ω² sin(…).
+        let (n, ts) = (1000, 0.01);
+        let f0 = 2.0 * PI / (250.0 * ts);
+        let lines = [(3.0, 0.3), (7.0, 1.1), (20.0, 2.0)];
+        let x = |t: f64| {
+            lines
+                .iter()
+                .map(|(k, p)| (k * f0 * t + p).sin())
+                .sum::<f64>()
+        };
+        let v = |t: f64| {
+            lines
+                .iter()
+                .map(|(k, p)| k * f0 * (k * f0 * t + p).cos())
+                .sum::<f64>()
+        };
+        let a: Vec<f64> = (0..n)
+            .map(|i| {
+                let t = i as f64 * ts;
+                lines
+                    .iter()
+                    .map(|(k, p)| -(k * f0).powi(2) * (k * f0 * t + p).sin())
+                    .sum()
+            })
+            .collect();
+        let mut out = vec![Vec::new(), Vec::new()];
+        let how = choose(std::slice::from_ref(&a), ts, 0.1);
+        assert_eq!(how, Integration::Periodic { periods: 4 });
+        integrate(&a, ts, how, &[2, 1], &mut out);
+        for (i, (xe, ve)) in out[0].iter().zip(&out[1]).enumerate() {
+            let t = i as f64 * ts;
+            assert!((xe - x(t)).abs() < 1e-9, "x at {i}");
+            assert!((ve - v(t)).abs() < 1e-9, "v at {i}");
+        }
+    }
+
+    #[test]
+    fn band_limited_integration_recovers_a_sine_away_from_the_ends() {
+        // A sine of 2 rad/s over 600 s, not a whole number of periods; corner 0.1 rad/s:
+        // H(2) = 1 − 6e-6, and the estimate is zero-phase.
+        let (n, ts, w) = (60_000, 0.01, 2.0);
+        let a: Vec<f64> = (0..n)
+            .map(|i| -w * w * (w * i as f64 * ts + 0.4).sin())
+            .collect();
+        let mut out = vec![Vec::new(), Vec::new()];
+        assert_eq!(periods_of(&a), None);
+        integrate(&a, ts, Integration::Band { corner: 0.1 }, &[2, 1], &mut out);
+        // Away from the ends (the transient of the record's edges decays as e^(−ω_h t/√2):
+        // 25 time constants), within 1e-3 of the unit amplitude.
+        let middle = out[0].iter().zip(&out[1]).enumerate();
+        for (i, (xe, ve)) in middle.skip(25_000).take(n - 50_000) {
+            let t = i as f64 * ts;
+            assert!((xe - (w * t + 0.4).sin()).abs() < 1e-3, "x at {i}");
+            assert!((ve - w * (w * t + 0.4).cos()).abs() < 2e-3, "v at {i}");
+        }
+    }
+
+    #[test]
+    fn white_noise_is_not_periodic() {
+        let mut s = 1u64;
+        let a: Vec<f64> = (0..4096)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect();
+        assert_eq!(periods_of(&a), None);
+    }
+}
