@@ -368,6 +368,7 @@ fn integrated_levels<'a>(
     ir: &ModelIr,
     levels: &[&'a dyn LevelSource],
     chunk: usize,
+    allow_large: bool,
 ) -> Result<Vec<IntegratedMotion<'a>>, FromDataError> {
     let mut targets = Vec::new();
     for b in 0..ir.bodies.len() {
@@ -393,9 +394,11 @@ fn integrated_levels<'a>(
     if targets.is_empty() {
         return Ok(Vec::new());
     }
+    // The levels are integrated side by side: each gets its share of the memory limit.
+    let limit = (!allow_large).then(|| crate::limits::MAX_BYTES / levels.len().max(1) as f64);
     Ok(levels
         .iter()
-        .map(|l| IntegratedMotion::design(*l, &targets, FALLBACK_CORNER, chunk))
+        .map(|l| IntegratedMotion::design(*l, &targets, FALLBACK_CORNER, chunk, limit))
         .collect::<Result<_, _>>()?)
 }
 
@@ -421,7 +424,7 @@ pub fn level_fits(
     // Bodies measured only by their acceleration: the curves are drawn over displacements
     // and velocities integrated from the accelerations (zero mean: a static offset is
     // invisible to an accelerometer).
-    let integrated = integrated_levels(ir, levels, opts.chunk_len)?;
+    let integrated = integrated_levels(ir, levels, opts.chunk_len, opts.allow_large)?;
     let motion: Vec<&dyn LevelSource> = if integrated.is_empty() {
         levels.to_vec()
     } else {

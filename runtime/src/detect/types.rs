@@ -509,10 +509,4 @@ pub enum FromDataError {
         help("check that the element's signals are measured and the record is excited")
     )]
     NoMotion { origin: String, element: String },
-    #[error("element `{element}` moves with body `{body}`, which is measured only by its acceleration: detection needs the element's displacement")]
-    #[diagnostic(
-        code(dynid::detect::acceleration_only),
-        help("measure `{body}.x` (or `{body}.v`) as well: the parameter curves of detection and diagnosis are drawn over each element's displacement amplitude and its distribution, which accelerations alone do not give yet; `identify` forms the linear terms from `{body}.a` alone")
-    )]
-    AccelerationOnly { element: String, body: String },
 }

@@ -276,22 +276,48 @@ fn integrate(a: &[f64], ts: f64, how: Integration, orders: &[u8], out: &mut [Vec
 impl<'a> IntegratedMotion<'a> {
     /// Read the accelerations of `targets` from `inner` and integrate them; `corner` is
     /// the band-limited integration's high-pass corner in rad/s where the record is too
-    /// short to read one from its spectrum.
+    /// short to read one from its spectrum. The record's accelerations and estimates are
+    /// held whole (see the module doc): above `limit` bytes (`None`: no limit; callers
+    /// give each of the levels integrated side by side its share of
+    /// [`crate::limits::MAX_BYTES`] unless told to allow large work) it is refused
+    /// (`dynid::data::too_large`), having read the record but held none of it beyond the
+    /// limit.
     pub fn design(
         inner: &'a dyn LevelSource,
         targets: &[Target],
         corner: f64,
         chunk: usize,
+        limit: Option<f64>,
     ) -> Result<Self, DataError> {
+        use crate::limits::bytes_in_words;
+        let limit = limit.unwrap_or(f64::INFINITY);
         let mut accels: Vec<usize> = targets.iter().map(|t| t.accel).collect();
         accels.sort_unstable();
         accels.dedup();
+        // Per sample: each acceleration and each estimate, and the transform's padded real
+        // buffer and half-length complex spectrum (about three more words, padding aside).
+        let per_sample = 8.0 * (accels.len() + targets.len() + 3) as f64;
+        let mut samples = 0usize;
         let mut data: Vec<Vec<f64>> = vec![Vec::new(); accels.len()];
         inner.stream(chunk, &mut |cols, len| {
+            samples += len;
+            if samples as f64 * per_sample > limit {
+                return;
+            }
             for (d, &s) in data.iter_mut().zip(&accels) {
                 d.extend_from_slice(&cols[s][..len]);
             }
         })?;
+        let bytes = samples as f64 * per_sample;
+        if bytes > limit {
+            return Err(DataError::TooLarge {
+                path: inner.origin(),
+                estimate: bytes_in_words(bytes),
+                rows: format!("{:.1e}", samples as f64),
+                columns: accels.len() + targets.len(),
+                limit: bytes_in_words(limit),
+            });
+        }
         let ts = inner.ts();
         let mut values = vec![Vec::new(); targets.len()];
         let short = data.iter().any(|d| d.len() < 4);

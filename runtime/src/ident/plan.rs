@@ -210,17 +210,12 @@ pub(crate) fn build_structure(
                     // Linear in the motion of bodies measured only by accelerations: one
                     // term per signal, each formed from the acceleration by the band-pass
                     // instruments (measured signals of the form stay static columns).
-                    let body_of = ir
-                        .expr_signals(e)
-                        .into_iter()
-                        .find_map(|s| accel_only_signal(ir, s))
-                        .expect("invariant: an acceleration-only signal is present");
-                    let nonlinear = || IdentifyError::AccelerationNonlinear {
+                    let unmeasured = |s: SignalId| IdentifyError::UnmeasuredInTerm {
                         equation: ir.bodies[l].name.clone(),
                         term: dynid_ir::print::render_expr(ir, e),
-                        body: ir.bodies[body_of.index()].name.clone(),
+                        signal: ir.signal(s).name.clone(),
                     };
-                    let lin = linear_form(ir, e).ok_or_else(nonlinear)?;
+                    let lin = linear_form(ir, e).expect("invariant: checked by the guard");
                     for (s, c) in lin {
                         let part = match accel_only_signal(ir, s) {
                             Some(b) => {
@@ -233,7 +228,7 @@ pub(crate) fn build_structure(
                             }
                             None => match y_of[s.index()] {
                                 Some(k) => BasisMoment::Static(n_g + k),
-                                None => return Err(nonlinear()),
+                                None => return Err(unmeasured(s)),
                             },
                         };
                         for r in ir.expr_signals(e) {

@@ -109,16 +109,6 @@ pub enum IdentifyError {
         term: String,
         signal: String,
     },
-    #[error("term `{term}` of the equation of `{equation}` is nonlinear in the motion of `{body}`, which is measured only by its acceleration `{body}.a`")]
-    #[diagnostic(
-        code(dynid::identify::acceleration_nonlinear),
-        help("measure `{body}.x` (or `{body}.v`) as well: from an acceleration alone only terms linear in the body's position and velocity are formed (by filters with zeros at the origin); a nonlinear term needs the displacement or velocity itself")
-    )]
-    AccelerationNonlinear {
-        equation: String,
-        term: String,
-        body: String,
-    },
     #[error("the filter bank is driven by `{signal}`, which is not measured")]
     #[diagnostic(
         code(dynid::identify::driver),

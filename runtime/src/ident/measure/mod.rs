@@ -153,7 +153,7 @@ pub(crate) fn measure_pieces(
     } else {
         zero_filled.iter().map(|z| z as &dyn LevelSource).collect()
     };
-    let integrated = integrators(ir, &plan, &sources, opts.chunk_len)?;
+    let integrated = integrators(ir, &plan, &sources, opts.chunk_len, opts.allow_large)?;
     let sources: Vec<&dyn LevelSource> = if integrated.is_empty() {
         sources
     } else {
@@ -440,6 +440,7 @@ fn integrators<'a>(
     plan: &Plan,
     levels: &[&'a dyn LevelSource],
     chunk: usize,
+    allow_large: bool,
 ) -> Result<Vec<IntegratedMotion<'a>>, IdentifyError> {
     let targets: Vec<integrate::Target> = plan
         .integrated
@@ -457,8 +458,10 @@ fn integrators<'a>(
         return Ok(Vec::new());
     }
     let corner = plan.corners.iter().copied().fold(f64::INFINITY, f64::min) / 4.0;
+    // The levels are integrated side by side: each gets its share of the memory limit.
+    let limit = (!allow_large).then(|| crate::limits::MAX_BYTES / levels.len().max(1) as f64);
     Ok(crate::first_error_in_order(levels.par_iter().map(|src| {
-        IntegratedMotion::design(*src, &targets, corner, chunk)
+        IntegratedMotion::design(*src, &targets, corner, chunk, limit)
     }))?)
 }
 
