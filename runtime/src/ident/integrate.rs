@@ -465,4 +465,49 @@ mod tests {
             .collect();
         assert_eq!(periods_of(&a), None);
     }
+
+    /// One acceleration column `a`, streamed in chunks.
+    struct Accel(Vec<f64>);
+    impl LevelSource for Accel {
+        fn origin(&self) -> String {
+            "level 1".into()
+        }
+        fn ts(&self) -> f64 {
+            0.01
+        }
+        fn stream(
+            &self,
+            max_len: usize,
+            sink: &mut dyn FnMut(&[&[f64]], usize),
+        ) -> Result<(), DataError> {
+            for c in self.0.chunks(max_len.max(1)) {
+                sink(&[c, &[]], c.len());
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_record_above_its_share_of_memory_is_refused_before_it_is_held() {
+        let src = Accel((0..10_000).map(|i| (0.02 * i as f64).sin()).collect());
+        let target = [Target {
+            slot: 1,
+            accel: 0,
+            order: 2,
+        }];
+        // Five words per sample here (the acceleration, the estimate, the transform):
+        // 400 kB for 10 000 samples.
+        match IntegratedMotion::design(&src, &target, 0.1, 1000, Some(1e5)) {
+            Err(DataError::TooLarge { path, rows, .. }) => {
+                assert_eq!(path, "level 1");
+                assert_eq!(rows, "1.0e4");
+            }
+            Err(e) => panic!("another error: {e}"),
+            Ok(_) => panic!("held a record above its limit"),
+        }
+        let held = IntegratedMotion::design(&src, &target, 0.1, 1000, Some(1e6))
+            .expect("within the limit");
+        assert_eq!(held.values[0].len(), 10_000);
+        assert!(IntegratedMotion::design(&src, &target, 0.1, 1000, None).is_ok());
+    }
 }
