@@ -11,28 +11,10 @@
 
 mod common;
 
-use dynid::dsl_parser::{self, ir::ModelIr};
+use dynid::dsl_parser::ir::ModelIr;
 use dynid::runtime::ident::Identification;
 use dynid::runtime::record::Record;
 use dynid::runtime::sim::{self, Grid, Phases, TestSignal};
-
-fn model(name: &str) -> (ModelIr, String) {
-    let src = std::fs::read_to_string(common::model_path(&format!("{name}.dyn"))).unwrap();
-    let ir = dsl_parser::compile_str(&format!("{name}.dyn"), &src)
-        .unwrap_or_else(|e| panic!("{name}: {e:?}"));
-    (ir, src)
-}
-
-/// The same model measured by positions instead of accelerations.
-fn by_positions(src: &str, from: &str, to: &str) -> ModelIr {
-    let text = src.replace(from, to);
-    assert_ne!(text, src, "the measure line `{from}` is in the model");
-    dsl_parser::compile_str("positions.dyn", &text).unwrap_or_else(|e| panic!("{e:?}"))
-}
-
-fn seeds(first: u64) -> Vec<u64> {
-    (first..first + common::seed_count(1) as u64).collect()
-}
 
 /// Random data (the model's form filter and levels) or a multisine of the same input RMS
 /// (1.34 / 3.35 / 8.94) over 0.02–1.6 Hz, 4 periods of 250 s, random phases.
@@ -126,8 +108,8 @@ fn case(
     seed: u64,
     measure: (&str, &str),
 ) -> (Identification, Errors, Errors) {
-    let (acc, src) = model(name);
-    let pos = by_positions(&src, measure.0, measure.1);
+    let (acc, src) = common::model_and_source(name);
+    let pos = common::measured_otherwise(&src, measure.0, measure.1);
     let id_a = common::identify_records(&acc, &records(&acc, data, seed));
     let e_a = common::error_row(&format!("{name}, {data:?}, accelerations"), &acc, &id_a);
     let id_p = common::identify_records(&pos, &records(&pos, data, seed));
@@ -137,7 +119,7 @@ fn case(
 
 #[test]
 fn duffing_from_accelerations_random() {
-    for seed in seeds(61) {
+    for seed in common::seeds_from(61) {
         let (id, e_a, e_p) = case(
             "sdof_duffing_accel",
             Data::Random,
@@ -163,7 +145,7 @@ fn duffing_from_accelerations_random() {
 
 #[test]
 fn duffing_from_accelerations_multisine() {
-    for seed in seeds(71) {
+    for seed in common::seeds_from(71) {
         let (id, e_a, e_p) = case(
             "sdof_duffing_accel",
             Data::Multisine,
@@ -188,7 +170,7 @@ fn duffing_from_accelerations_multisine() {
 
 #[test]
 fn friction_between_two_accelerometers_random() {
-    for seed in seeds(81) {
+    for seed in common::seeds_from(81) {
         let (id, e_a, e_p) = case(
             "two_mass_friction_accel",
             Data::Random,

@@ -15,28 +15,6 @@ mod figures;
 use dynid::dsl_parser::{self, ir::ModelIr};
 use dynid::runtime::sim;
 use dynid::runtime::IdentifyOptions;
-use std::path::Path;
-
-fn model(name: &str) -> (ModelIr, String) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("models/{name}.dyn"));
-    let src = std::fs::read_to_string(&path).unwrap();
-    let ir = dsl_parser::compile_str(&format!("{name}.dyn"), &src)
-        .unwrap_or_else(|e| panic!("{name}: {e:?}"));
-    (ir, src)
-}
-
-/// The same model measured by positions instead of accelerations.
-fn by_positions(src: &str, from: &str, to: &str) -> ModelIr {
-    let text = src.replace(from, to);
-    assert_ne!(text, src, "the measure line `{from}` is in the model");
-    dsl_parser::compile_str("positions.dyn", &text).unwrap_or_else(|e| panic!("{e:?}"))
-}
-
-/// The seeds of a case: `first` in the suite, `first`… with `DYNID_SEEDS=N` (the long
-/// form; each shifted by `DYNID_SEED_OFFSET` in [`simulate`]).
-fn seeds(first: u64) -> Vec<u64> {
-    (first..first + common::seed_count(1) as u64).collect()
-}
 
 /// Check the figures `names` of docs/method.md against `errs` (relative errors, by
 /// parameter; the figures in %), where the tests run on the seeds the doc quotes.
@@ -96,11 +74,11 @@ fn simulate(
 
 #[test]
 fn sdof_from_accelerations_as_from_positions() {
-    let (acc, src) = model("sdof_linear_accel");
-    let pos = by_positions(&src, "measure m.a, u", "measure m.x, u");
+    let (acc, src) = common::model_and_source("sdof_linear_accel");
+    let pos = common::measured_otherwise(&src, "measure m.a, u", "measure m.x, u");
     // k's errors from accelerations, and the standard errors of k (relative).
     let (mut k_acc, mut se_acc, mut se_pos) = (Vec::new(), Vec::new(), Vec::new());
-    let seeds = seeds(31);
+    let seeds = common::seeds_from(31);
     for &seed in &seeds {
         let id_a = common::identify_records(&acc, &simulate(&acc, 1000.0, seed, 1));
         let e_a = common::error_row("sdof, accelerations, 5 % noise", &acc, &id_a);
@@ -148,9 +126,9 @@ fn sdof_from_accelerations_as_from_positions() {
 
 #[test]
 fn two_mass_from_accelerations_as_from_positions() {
-    let (acc, src) = model("two_mass_linear_accel");
-    let pos = by_positions(&src, "measure m1.a, m2.a, u", "measure m1.x, m2.x, u");
-    let seeds = seeds(41);
+    let (acc, src) = common::model_and_source("two_mass_linear_accel");
+    let pos = common::measured_otherwise(&src, "measure m1.a, m2.a, u", "measure m1.x, m2.x, u");
+    let seeds = common::seeds_from(41);
     for &seed in &seeds {
         let id_a = common::identify_records(&acc, &simulate(&acc, 1000.0, seed, 1));
         let e_a = common::error_row("two_mass, accelerations, 5 % noise", &acc, &id_a);
@@ -205,9 +183,9 @@ fn two_mass_from_accelerations_as_from_positions() {
 fn sdof_from_accelerations_with_input_content_between_samples() {
     // The force simulated ten times finer than the samples: the filters' first-order
     // hold no longer describes it exactly, as on a real shaker.
-    let (acc, src) = model("sdof_linear_accel");
-    let pos = by_positions(&src, "measure m.a, u", "measure m.x, u");
-    let seeds = seeds(51);
+    let (acc, src) = common::model_and_source("sdof_linear_accel");
+    let pos = common::measured_otherwise(&src, "measure m.a, u", "measure m.x, u");
+    let seeds = common::seeds_from(51);
     for &seed in &seeds {
         let id_a = common::identify_records(&acc, &simulate(&acc, 1000.0, seed, 10));
         let e_a = common::error_row("sdof, accelerations, input ×10", &acc, &id_a);
@@ -243,8 +221,8 @@ fn sdof_from_accelerations_with_input_content_between_samples() {
 #[test]
 fn simulated_acceleration_is_the_equation_of_motion_at_each_sample() {
     // Noise-free: m a = u − k x − d v at every sample, with x and v from the same run.
-    let (_, src) = model("sdof_linear_accel");
-    let both = by_positions(&src, "measure m.a, u", "measure m.x, m.v, m.a, u");
+    let (_, src) = common::model_and_source("sdof_linear_accel");
+    let both = common::measured_otherwise(&src, "measure m.a, u", "measure m.x, m.v, m.a, u");
     let cfg = sim::SimConfig {
         duration: 20.0,
         sample: 0.01,

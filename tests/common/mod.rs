@@ -90,6 +90,27 @@ pub fn model_path(name: &str) -> std::path::PathBuf {
         .join(name)
 }
 
+/// `models/NAME.dyn` compiled, with its source.
+pub fn model_and_source(name: &str) -> (ModelIr, String) {
+    let src = std::fs::read_to_string(model_path(&format!("{name}.dyn"))).unwrap();
+    let ir = dynid::dsl_parser::compile_str(&format!("{name}.dyn"), &src)
+        .unwrap_or_else(|e| panic!("{name}: {e:?}"));
+    (ir, src)
+}
+
+/// The model of `src` with its measure line `from` replaced by `to` (the same model
+/// measured by positions instead of accelerations, say).
+pub fn measured_otherwise(src: &str, from: &str, to: &str) -> ModelIr {
+    let text = src.replace(from, to);
+    assert_ne!(text, src, "the measure line `{from}` is in the model");
+    dynid::dsl_parser::compile_str("positions.dyn", &text).unwrap_or_else(|e| panic!("{e:?}"))
+}
+
+/// The seeds of a case: `first` in the suite, `first`… with `DYNID_SEEDS=N` (the long form).
+pub fn seeds_from(first: u64) -> Vec<u64> {
+    (first..first + seed_count(1) as u64).collect()
+}
+
 /// The `dynid` binary of this build.
 pub fn dynid() -> std::process::Command {
     std::process::Command::new(env!("CARGO_BIN_EXE_dynid"))
