@@ -51,22 +51,6 @@ fn records(ir: &ModelIr, data: Data, seed: u64) -> Vec<Record> {
     out.expect("simulation").records
 }
 
-fn assert_within(case: &str, errs: &[(String, f64)], tol: &[(&str, f64)]) {
-    for (n, e) in errs {
-        let bound = tol
-            .iter()
-            .find(|(p, _)| p == n)
-            .map(|&(_, b)| b)
-            .unwrap_or_else(|| panic!("{case}: no bound for `{n}`"));
-        assert!(
-            e.abs() < bound,
-            "{case}: `{n}` off by {:+.3}% (bound {}%)",
-            100.0 * e,
-            100.0 * bound
-        );
-    }
-}
-
 /// The report of the integrated signals: `signals` integrated from `from`, every level
 /// exactly over whole periods (multisine) or band-limited with a corner below `below`.
 fn assert_reported(id: &Identification, signals: &[(&str, &str)], data: Data, below: f64) {
@@ -130,12 +114,12 @@ fn duffing_from_accelerations_random() {
         assert_reported(&id, &[("m.x", "m.a")], Data::Random, 1.0);
         // Seeds 61–65, largest errors: accelerations k +1.07 %, d +0.71 %, k3 +3.6 % (k3
         // high on every seed, mean +2.1 %); positions k +1.36 %, d +1.84 %, k3 −2.4 %.
-        assert_within(
+        common::assert_within(
             "duffing accelerations, random",
             &e_a,
             &[("k", 0.025), ("d", 0.02), ("k3", 0.075)],
         );
-        assert_within(
+        common::assert_within(
             "duffing positions, random",
             &e_p,
             &[("k", 0.03), ("d", 0.04), ("k3", 0.05)],
@@ -155,12 +139,12 @@ fn duffing_from_accelerations_multisine() {
         assert_reported(&id, &[("m.x", "m.a")], Data::Multisine, 0.0);
         // Seeds 71–75, largest errors: accelerations k +0.42 %, d +3.0 %, k3 −0.63 %;
         // positions k +0.17 %, d −0.74 %, k3 −0.50 %.
-        assert_within(
+        common::assert_within(
             "duffing accelerations, multisine",
             &e_a,
             &[("k", 0.01), ("d", 0.06), ("k3", 0.015)],
         );
-        assert_within(
+        common::assert_within(
             "duffing positions, multisine",
             &e_p,
             &[("k", 0.005), ("d", 0.02), ("k3", 0.012)],
@@ -206,8 +190,8 @@ fn friction_between_two_accelerometers_random() {
             ("d2", 0.075),
             ("r", 0.065),
         ];
-        assert_within("two_mass_friction accelerations", &e_a, &acc);
-        assert_within("two_mass_friction positions", &e_p, &pos);
+        common::assert_within("two_mass_friction accelerations", &e_a, &acc);
+        common::assert_within("two_mass_friction positions", &e_p, &pos);
     }
 }
 

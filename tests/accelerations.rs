@@ -36,22 +36,6 @@ fn max_abs(errs: &[(String, f64)]) -> f64 {
     errs.iter().map(|(_, e)| e.abs()).fold(0.0, f64::max)
 }
 
-fn assert_within(case: &str, errs: &[(String, f64)], tol: &[(&str, f64)]) {
-    for (n, e) in errs {
-        let bound = tol
-            .iter()
-            .find(|(p, _)| p == n)
-            .map(|&(_, b)| b)
-            .unwrap_or_else(|| panic!("{case}: no bound for `{n}`"));
-        assert!(
-            e.abs() < bound,
-            "{case}: `{n}` off by {:+.3}% (bound {}%)",
-            100.0 * e,
-            100.0 * bound
-        );
-    }
-}
-
 /// Records of `ir` with the input simulated `oversample` times finer than the samples
 /// (1: linear between samples, as the filters assume).
 fn simulate(
@@ -89,8 +73,8 @@ fn sdof_from_accelerations_as_from_positions() {
         // −0.27 %, mean −0.15 %) against a standard error of ±0.06 %: a small bias of k
         // that its standard error does not cover (positions: k −0.22 … +0.17 %, standard
         // error ±0.16 %).
-        assert_within("sdof accelerations", &e_a, &[("k", 0.007), ("d", 0.025)]);
-        assert_within("sdof positions", &e_p, &[("k", 0.006), ("d", 0.04)]);
+        common::assert_within("sdof accelerations", &e_a, &[("k", 0.007), ("d", 0.025)]);
+        common::assert_within("sdof positions", &e_p, &[("k", 0.006), ("d", 0.04)]);
         if seeds.len() == 1 {
             doc_row(
                 &e_a,
@@ -152,8 +136,8 @@ fn two_mass_from_accelerations_as_from_positions() {
             ("k2", 0.02),
             ("d2", 0.15),
         ];
-        assert_within("two_mass accelerations", &e_a, &acc_bounds);
-        assert_within("two_mass positions", &e_p, &pos_bounds);
+        common::assert_within("two_mass accelerations", &e_a, &acc_bounds);
+        common::assert_within("two_mass positions", &e_p, &pos_bounds);
         if seeds.len() == 1 {
             doc_row(
                 &e_a,
@@ -193,12 +177,12 @@ fn sdof_from_accelerations_with_input_content_between_samples() {
         let e_p = common::error_row("sdof, positions, input ×10", &pos, &id_p);
         // Seeds 51–56, largest errors: accelerations k −0.22 %, d +0.57 %; positions k −0.45 %,
         // d −2.2 %.
-        assert_within(
+        common::assert_within(
             "sdof accelerations, input ×10",
             &e_a,
             &[("k", 0.006), ("d", 0.015)],
         );
-        assert_within(
+        common::assert_within(
             "sdof positions, input ×10",
             &e_p,
             &[("k", 0.012), ("d", 0.05)],

@@ -111,6 +111,24 @@ pub fn seeds_from(first: u64) -> Vec<u64> {
     (first..first + seed_count(1) as u64).collect()
 }
 
+/// Assert every relative error of `errs` below its parameter's bound in `tol` (a parameter
+/// without a bound fails: each test states all of its bounds).
+pub fn assert_within(case: &str, errs: &[(String, f64)], tol: &[(&str, f64)]) {
+    for (n, e) in errs {
+        let bound = tol
+            .iter()
+            .find(|(p, _)| p == n)
+            .map(|&(_, b)| b)
+            .unwrap_or_else(|| panic!("{case}: no bound for `{n}`"));
+        assert!(
+            e.abs() < bound,
+            "{case}: `{n}` off by {:+.3}% (bound {}%)",
+            100.0 * e,
+            100.0 * bound
+        );
+    }
+}
+
 /// The `dynid` binary of this build.
 pub fn dynid() -> std::process::Command {
     std::process::Command::new(env!("CARGO_BIN_EXE_dynid"))
