@@ -394,12 +394,13 @@ fn integrated_levels<'a>(
     if targets.is_empty() {
         return Ok(Vec::new());
     }
-    // The levels are integrated side by side: each gets its share of the memory limit.
-    let limit = (!allow_large).then(|| crate::limits::MAX_BYTES / levels.len().max(1) as f64);
-    Ok(levels
-        .iter()
-        .map(|l| IntegratedMotion::design(*l, &targets, FALLBACK_CORNER, chunk, limit))
-        .collect::<Result<_, _>>()?)
+    Ok(IntegratedMotion::design_all(
+        levels,
+        &targets,
+        FALLBACK_CORNER,
+        chunk,
+        allow_large,
+    )?)
 }
 
 /// High-pass corner (rad/s) of the integration for a level too short for its spectrum.

@@ -348,6 +348,24 @@ impl<'a> IntegratedMotion<'a> {
         })
     }
 
+    /// [`Self::design`] for every level, side by side; each level gets its share of
+    /// [`crate::limits::MAX_BYTES`] unless `allow_large`. The first error in level order.
+    pub fn design_all(
+        levels: &[&'a dyn LevelSource],
+        targets: &[Target],
+        corner: f64,
+        chunk: usize,
+        allow_large: bool,
+    ) -> Result<Vec<Self>, DataError> {
+        use rayon::prelude::*;
+        let limit = (!allow_large).then(|| crate::limits::MAX_BYTES / levels.len().max(1) as f64);
+        crate::first_error_in_order(
+            levels
+                .par_iter()
+                .map(|src| Self::design(*src, targets, corner, chunk, limit)),
+        )
+    }
+
     /// How the estimates of the level were made (one way for all its accelerations, so that
     /// the relative motion of two bodies is the integral of the relative acceleration).
     pub fn how(&self) -> Integration {

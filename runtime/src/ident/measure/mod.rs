@@ -458,11 +458,13 @@ fn integrators<'a>(
         return Ok(Vec::new());
     }
     let corner = plan.corners.iter().copied().fold(f64::INFINITY, f64::min) / 4.0;
-    // The levels are integrated side by side: each gets its share of the memory limit.
-    let limit = (!allow_large).then(|| crate::limits::MAX_BYTES / levels.len().max(1) as f64);
-    Ok(crate::first_error_in_order(levels.par_iter().map(|src| {
-        IntegratedMotion::design(*src, &targets, corner, chunk, limit)
-    }))?)
+    Ok(IntegratedMotion::design_all(
+        levels,
+        &targets,
+        corner,
+        chunk,
+        allow_large,
+    )?)
 }
 
 /// The report of the integrated signals: per level, the high-pass corner (rad/s; 0 where
