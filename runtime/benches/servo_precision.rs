@@ -343,13 +343,16 @@ fn record(kind: Trajectory, seed: u64) -> (ModelIr, Record) {
 type Estimate = Vec<Option<(f64, f64)>>;
 
 /// The methods compared, by name.
-const METHODS: [&str; 13] = [
+const METHODS: [&str; 16] = [
     "dynid (defaults)",
     "dynid --column-chains",
     "dynid chains, 2-step",
     "dynid to noise floor",
     "dynid chains 2-step nf",
     "dynid --keep-rests",
+    "dynid --filtered-eq.",
+    "dynid filtered 20 Hz",
+    "dynid filtered 160 Hz",
     "IDIM-LS, OLS errors",
     "IDIM-LS, HAC errors",
     "SVF-LS 10 Hz, HAC",
@@ -360,7 +363,7 @@ const METHODS: [&str; 13] = [
 ];
 
 /// Every method of [`METHODS`] on one record, each with its wall time in seconds.
-fn run_all(ir: &ModelIr, rec: &Record) -> Vec<(Estimate, f64)> {
+fn run_all(ir: &ModelIr, rec: &Record, selected: &[bool]) -> Vec<(Estimate, f64)> {
     let timed = |f: &dyn Fn() -> Estimate| {
         let t = Instant::now();
         let e = f();
@@ -431,9 +434,11 @@ fn run_all(ir: &ModelIr, rec: &Record) -> Vec<(Estimate, f64)> {
         dynid(IdentifyOptions { corners, ..opts })
     };
     let idim = || baseline::idim_ls(rec, "m.x", "u", &IdimOptions::default());
-    let t = Instant::now();
-    let idim_fit = idim();
-    let idim_time = t.elapsed().as_secs_f64();
+    let idim_time = {
+        let t = Instant::now();
+        let _ = idim();
+        t.elapsed().as_secs_f64()
+    };
     let svf_with =
         |opts: SvfOptions| timed(&|| from_fit(&baseline::svf_ls(rec, "m.x", "u", &opts), true));
     let svf = |hz: f64| svf_with(SvfOptions::at(hz));
@@ -443,38 +448,73 @@ fn run_all(ir: &ModelIr, rec: &Record) -> Vec<(Estimate, f64)> {
         rest,
         ..SvfOptions::at(80.0)
     };
-    vec![
-        dynid(IdentifyOptions::default()),
-        dynid(IdentifyOptions {
-            column_chains: true,
-            ..Default::default()
+    let filtered = |hz: f64| IdentifyOptions {
+        filtered: true,
+        corners: Some(vec![2.0 * std::f64::consts::PI * hz]),
+        ..Default::default()
+    };
+    type Method<'a> = Box<dyn Fn() -> (Estimate, f64) + 'a>;
+    let methods: Vec<Method> = vec![
+        Box::new(|| dynid(IdentifyOptions::default())),
+        Box::new(|| {
+            dynid(IdentifyOptions {
+                column_chains: true,
+                ..Default::default()
+            })
         }),
-        dynid(IdentifyOptions {
-            column_chains: true,
-            efficient: true,
-            ..Default::default()
+        Box::new(|| {
+            dynid(IdentifyOptions {
+                column_chains: true,
+                efficient: true,
+                ..Default::default()
+            })
         }),
-        to_floor(IdentifyOptions::default()),
-        to_floor(IdentifyOptions {
-            column_chains: true,
-            efficient: true,
-            ..Default::default()
+        Box::new(|| to_floor(IdentifyOptions::default())),
+        Box::new(|| {
+            to_floor(IdentifyOptions {
+                column_chains: true,
+                efficient: true,
+                ..Default::default()
+            })
         }),
-        dynid(IdentifyOptions {
-            keep_rests: true,
-            ..Default::default()
+        Box::new(|| {
+            dynid(IdentifyOptions {
+                keep_rests: true,
+                ..Default::default()
+            })
         }),
-        (from_fit(&idim_fit, false), idim_time),
-        (from_fit(&idim_fit, true), idim_time),
-        svf(10.0),
-        svf(80.0),
-        svf_with(eiv(0.0)),
-        svf_with(SvfOptions {
-            rest: 1e-3,
-            ..SvfOptions::at(80.0)
+        Box::new(|| {
+            dynid(IdentifyOptions {
+                filtered: true,
+                ..Default::default()
+            })
         }),
-        svf_with(eiv(1e-3)),
-    ]
+        Box::new(|| dynid(filtered(20.0))),
+        Box::new(|| dynid(filtered(160.0))),
+        Box::new(|| (from_fit(&idim(), false), idim_time)),
+        Box::new(|| (from_fit(&idim(), true), idim_time)),
+        Box::new(|| svf(10.0)),
+        Box::new(|| svf(80.0)),
+        Box::new(|| svf_with(eiv(0.0))),
+        Box::new(|| {
+            svf_with(SvfOptions {
+                rest: 1e-3,
+                ..SvfOptions::at(80.0)
+            })
+        }),
+        Box::new(|| svf_with(eiv(1e-3))),
+    ];
+    methods
+        .iter()
+        .zip(selected)
+        .map(|(m, &on)| {
+            if on {
+                m()
+            } else {
+                (vec![None; TRUTH.len()], 0.0)
+            }
+        })
+        .collect()
 }
 
 /// Figures of one method and parameter over the seeds.
@@ -503,6 +543,16 @@ fn main() {
         .ok()
         .map(|s| s.parse().expect("DYNID_BENCH_SEEDS is a whole number"))
         .unwrap_or(12);
+    // `DYNID_BENCH_METHODS=filtered,SVF-LS 80`: only the methods whose name holds one of
+    // the comma-separated parts.
+    let only = std::env::var("DYNID_BENCH_METHODS").ok();
+    let selected: Vec<bool> = METHODS
+        .iter()
+        .map(|m| {
+            only.as_ref()
+                .is_none_or(|o| o.split(',').any(|p| m.contains(p)))
+        })
+        .collect();
     let mut rows = Vec::new();
     for kind in Trajectory::ALL {
         // Seeds in parallel; each result keeps its seed's place.
@@ -510,10 +560,10 @@ fn main() {
             .into_par_iter()
             .map(|seed| {
                 let (ir, rec) = record(kind, seed);
-                run_all(&ir, &rec)
+                run_all(&ir, &rec, &selected)
             })
             .collect();
-        for (m, method) in METHODS.iter().enumerate() {
+        for (m, method) in METHODS.iter().enumerate().filter(|(m, _)| selected[*m]) {
             let seconds = runs.iter().map(|r| r[m].1).sum::<f64>() / runs.len() as f64;
             for (j, (param, truth)) in TRUTH.iter().enumerate() {
                 let pairs: Vec<(f64, f64)> = runs
@@ -575,7 +625,7 @@ fn main() {
     let figure = Trajectory::ALL
         .iter()
         .filter_map(|&kind| {
-            let (ours, idim) = (find(kind, METHODS[0])?, find(kind, METHODS[7])?);
+            let (ours, idim) = (find(kind, METHODS[0])?, find(kind, "IDIM-LS, HAC errors")?);
             Some(format!(
                 "{}, d: RMS error {:.1}× IDIM-LS's, RMS error / SE {:.2} (IDIM-LS {:.2})",
                 kind.label(),

@@ -16,6 +16,8 @@ pub(crate) const ACC_MIN_DEGREE: usize = 4;
 pub(crate) struct BankChoice {
     /// Drive chains by the nonlinear static columns too ([`super::plan::RootDriver`]).
     pub regressors: bool,
+    /// Rows of the filtered equation ([`super::types::IdentifyOptions::filtered`]).
+    pub filtered: bool,
     pub drivers: Vec<SignalId>,
     pub order: usize,
     pub min_degree: usize,
@@ -74,10 +76,12 @@ pub(crate) fn choose_bank(
     let n_corners = match (&opts.corners, spec.map(|f| &f.corners)) {
         (Some(c), _) => c.len(),
         (None, Some(c)) if !c.is_empty() => c.len(),
+        _ if opts.filtered => 1,
         _ => opts.n_corners,
     };
     Ok(BankChoice {
-        regressors: opts.column_chains,
+        regressors: opts.column_chains || opts.filtered,
+        filtered: opts.filtered,
         drivers,
         order,
         min_degree,

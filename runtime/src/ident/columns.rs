@@ -119,7 +119,11 @@ impl ColumnStore {
                 let ins = &plan.instruments[k];
                 let mut v = 0.0;
                 for (coef, basis) in terms {
-                    v += coef * term_moment(ins, basis, w);
+                    v += coef
+                        * match &ins.filtered {
+                            Some(a) => plan.filtered_moment(a, plan.filtered_of(basis), w),
+                            None => term_moment(ins, basis, w),
+                        };
                 }
                 v
             })

@@ -31,6 +31,11 @@ impl Plan {
     pub fn set_corners(&mut self, ir: &ModelIr, corners: &[f64]) {
         assert_eq!(corners.len(), self.corners.len());
         self.corners = corners.to_vec();
+        if self.filtered {
+            self.set_filtered_rows(ir)
+                .expect("invariant: checked when the plan was built");
+            return;
+        }
         let mut inst = Vec::new();
         for d in 0..self.n_drivers() {
             let driver = self.driver_name(ir, d);
@@ -47,6 +52,7 @@ impl Plan {
                         power: None,
                         i1: None,
                         i2: None,
+                        filtered: None,
                     });
                 }
                 if !self.integrates {
@@ -73,6 +79,7 @@ impl Plan {
                         power: None,
                         i1: Some(j1),
                         i2: Some(j),
+                        filtered: None,
                     });
                 }
             }
@@ -93,6 +100,7 @@ impl Plan {
                     power: None,
                     i1: None,
                     i2: None,
+                    filtered: None,
                 });
                 inst.push(Instrument {
                     label: format!("{}.v (power balance)", body.name),
@@ -102,6 +110,7 @@ impl Plan {
                     power: Some(bid),
                     i1: None,
                     i2: None,
+                    filtered: None,
                 });
             }
         }
@@ -199,7 +208,7 @@ impl Plan {
     /// Time derivative of `a·ι`, if it is again a combination of `ι`: filter states
     /// differentiate through `ζ' = F ζ + H s`; a measured position differentiates to its
     /// measured velocity; anything else (an input, a velocity) has no computable derivative.
-    fn deriv(&self, ir: &ModelIr, a: &RowCombination) -> Option<RowCombination> {
+    pub(super) fn deriv(&self, ir: &ModelIr, a: &RowCombination) -> Option<RowCombination> {
         let n_filter_states = self.n_filter_states();
         let mut out: RowCombination = Vec::new();
         let mut add = |k: usize, v: f64| match out.iter_mut().find(|(j, _)| *j == k) {

@@ -68,6 +68,7 @@ mod columns;
 mod corners;
 pub mod design;
 pub mod filter;
+pub(crate) mod filtered;
 mod first_pass;
 pub mod guard;
 mod identify;

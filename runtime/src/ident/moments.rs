@@ -103,6 +103,8 @@ pub(crate) struct MomentView {
     pub m_d: Vec<f64>,
     /// `Σ_b φ'_b [ι q]_b / T`; empty for `φ ≡ 1`.
     pub bnd_d: Vec<f64>,
+    /// `∫ φ / T`: 1 for the whole record.
+    pub weight: f64,
 }
 
 /// The moments an estimating equation reads from a weight `φ`'s view of a level: `⟨φ ι w⟩`,
@@ -113,6 +115,8 @@ pub(crate) trait Window {
     fn bnd(&self, a: &[(usize, f64)], col: usize) -> f64;
     fn mean_d(&self, a: &[(usize, f64)], col: usize) -> f64;
     fn bnd_d(&self, a: &[(usize, f64)], col: usize) -> f64;
+    /// `⟨φ⟩ = ∫ φ / T`, the moment of a constant 1.
+    fn weight(&self) -> f64;
 }
 
 impl Window for MomentView {
@@ -145,6 +149,10 @@ impl Window for MomentView {
         a.iter()
             .map(|&(i, c)| c * self.bnd_d[i * self.n_snap_cols + col])
             .sum()
+    }
+    #[inline]
+    fn weight(&self) -> f64 {
+        self.weight
     }
 }
 
@@ -244,6 +252,9 @@ impl Window for Hat<'_> {
     #[inline]
     fn bnd_d(&self, a: &[(usize, f64)], col: usize) -> f64 {
         a.iter().map(|&(i, c)| c * self.q_entry(i, col).1).sum()
+    }
+    fn weight(&self) -> f64 {
+        self.lm.hat_weight(self.j)
     }
 }
 
@@ -382,7 +393,10 @@ impl LevelMoments {
                 .zip(&self.snaps[j])
                 .for_each(|(b, s)| *b += s);
         }
-        self.normalise(m, bnd, m_d, bnd_d)
+        MomentView {
+            weight: self.hat_weight(j),
+            ..self.normalise(m, bnd, m_d, bnd_d)
+        }
     }
 
     /// Divide sample sums by the record's intervals, point values and `φ'` sums (which carry
@@ -409,6 +423,7 @@ impl LevelMoments {
             bnd,
             m_d,
             bnd_d,
+            weight: 1.0,
         }
     }
 }

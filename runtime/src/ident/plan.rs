@@ -8,6 +8,7 @@
 //! estimates of bodies whose velocity is not measured.
 
 use super::bank::BankChoice;
+use super::filtered::FCombo;
 use super::noise::fix::{linear_form, split_factor, ColumnFix, ExtraColumn};
 use super::types::{CornerSource, IdentifyError};
 use dynid_ir::ir::{Basis, BodyId, ExprId, ModelIr, ParamKind, SignalId, SignalKind};
@@ -62,6 +63,9 @@ pub(crate) struct Instrument {
     /// antiderivatives `J'` and `J`, which integrate a measured acceleration.
     pub i1: Option<RowCombination>,
     pub i2: Option<RowCombination>,
+    /// A row of the filtered equation: the instrument is this filtered regressor (and `a`
+    /// is empty; see [`super::filtered`]).
+    pub filtered: Option<FCombo>,
 }
 
 #[derive(Clone, Debug)]
@@ -111,6 +115,13 @@ pub(crate) struct Plan {
     pub absent: Vec<SignalId>,
     /// How the corners were chosen (filled in once the data are seen).
     pub corner_source: CornerSource,
+    /// Rows of the filtered equation instead of instrument rows ([`super::filtered`]).
+    pub filtered: bool,
+    /// Filter states accumulated as columns of `w` too (after the noise columns), for the
+    /// products of the filtered equation's rows.
+    pub state_cols: Vec<usize>,
+    /// The filtered regressor of every term's basis.
+    pub filtered_terms: Vec<(BasisMoment, FCombo)>,
 }
 
 /// A filter chain driven by a static basis column `g` (the filters may be driven by the
@@ -145,7 +156,7 @@ impl Plan {
     }
     /// Column signals `w = [g; y]` (`n_w`): static roots, measured signals, noise columns.
     pub fn n_col_signals(&self) -> usize {
-        self.roots.len() + self.y.len() + self.extra.len()
+        self.roots.len() + self.y.len() + self.extra.len() + self.state_cols.len()
     }
     /// Snapshot columns `q = [w; v̂]` (`n_q`): `w` and the end-point velocity estimates.
     pub fn n_snap_cols(&self) -> usize {
@@ -368,7 +379,11 @@ pub(crate) fn build_structure(
     if bank.regressors {
         let est: Vec<SignalId> = estimated.iter().map(|&(v, _)| v).collect();
         for t in equations.iter().flatten() {
-            let (TermCoef::Unknown { .. }, BasisMoment::Static(w)) = (&t.coef, t.basis) else {
+            // The filtered equation filters every term, known ones too.
+            let (true, BasisMoment::Static(w)) = (
+                bank.filtered || matches!(t.coef, TermCoef::Unknown { .. }),
+                t.basis,
+            ) else {
                 continue;
             };
             // Constant and linear columns add nothing: their chains are the constant or
@@ -381,7 +396,9 @@ pub(crate) fn build_structure(
             {
                 continue;
             }
-            let delayed = ir.expr_signals(roots[w]).iter().any(|s| est.contains(s));
+            // The filtered equation needs the column itself, not a delayed copy.
+            let delayed =
+                !bank.filtered && ir.expr_signals(roots[w]).iter().any(|s| est.contains(s));
             root_drivers.push(RootDriver { root: w, delayed });
         }
     }
@@ -392,7 +409,16 @@ pub(crate) fn build_structure(
             });
         }
     }
-    Ok(Plan {
+    if bank.filtered && bank.n_corners != 1 {
+        return Err(IdentifyError::BadOption {
+            message: format!(
+                "the rows of the filtered equation use one filter corner, not {}",
+                bank.n_corners
+            ),
+            help: "give one corner (--filter-corners LAMBDA, in rad/s) or none".into(),
+        });
+    }
+    let mut plan = Plan {
         roots,
         y,
         y_of,
@@ -416,7 +442,18 @@ pub(crate) fn build_structure(
         integrates,
         absent,
         corner_source: Default::default(),
-    })
+        filtered: bank.filtered,
+        state_cols: Vec::new(),
+        filtered_terms: Vec::new(),
+    };
+    if plan.filtered {
+        plan.set_filtered_rows(ir)
+            .map_err(|message| IdentifyError::BadOption {
+                message,
+                help: "identify this model with the instrument rows (the default)".into(),
+            })?;
+    }
+    Ok(plan)
 }
 
 /// The body whose position or velocity `s` is, if that body is measured only by its

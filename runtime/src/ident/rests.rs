@@ -139,8 +139,9 @@ impl Speed {
 }
 
 /// The rest intervals of one level as half-open sample ranges `[a, b)`, in order, with
-/// their summary. Two passes over the level: the RMS speed of each body, then the runs
-/// below the threshold.
+/// their summary: runs below the threshold at least `min_rest` seconds (and two samples)
+/// long. Two passes over the level: the RMS speed of each body, then the runs below the
+/// threshold.
 ///
 /// Long: the two streamed passes share the per-body state they build.
 pub(crate) fn find(
@@ -148,6 +149,7 @@ pub(crate) fn find(
     bodies: &[BodyId],
     src: &dyn LevelSource,
     chunk: usize,
+    min_rest: f64,
 ) -> Result<(Intervals, RestSummary), crate::data::DataError> {
     let ts = src.ts();
     let speeds = || -> Vec<Speed> {
@@ -187,7 +189,7 @@ pub(crate) fn find(
         .collect();
     // Pass 2: runs at rest (any body below its threshold). Samples arrive in order, one
     // body after the other per chunk, so the per-sample flags of a chunk are gathered first.
-    let min_len = ((MIN_REST / ts).ceil() as usize).max(2);
+    let min_len = ((min_rest / ts).ceil() as usize).max(2);
     let mut sp = speeds();
     let mut out = Vec::new();
     let mut run: Option<usize> = None;
@@ -305,31 +307,34 @@ pub(crate) fn left_out(
 }
 
 /// Rests of bodies with a Coulomb term, per level (see the module documentation): found, and emptied where
-/// they are not left out ([`rests_left_out`]).
+/// they are not left out ([`rests_left_out`]). For the rows of the filtered equation
+/// (`slow`) every slow sample counts, however short its run (a reversal too: there the
+/// filtered `sign(v̂)` carries the estimate's timing error for the filter's memory), and
+/// every level leaves them out.
 pub(crate) fn find_levels(
     ir: &ModelIr,
     levels: &[&dyn LevelSource],
     samples: &[usize],
     n_blocks: usize,
     keep_rests: bool,
+    slow: bool,
     chunk: usize,
 ) -> Result<Vec<LevelRests>, DataError> {
     let rest_bodies = if keep_rests { Vec::new() } else { bodies(ir) };
     let found: Vec<LevelRests> = if rest_bodies.is_empty() {
         vec![None; levels.len()]
     } else {
-        crate::first_error_in_order(
-            levels
-                .par_iter()
-                .map(|src| find(ir, &rest_bodies, *src, chunk).map(Some)),
-        )?
+        crate::first_error_in_order(levels.par_iter().map(|src| {
+            let min_rest = if slow { 0.0 } else { MIN_REST };
+            find(ir, &rest_bodies, *src, chunk, min_rest).map(Some)
+        }))?
     };
     Ok(found
         .into_iter()
         .zip(samples)
         .map(|(f, &n)| {
             f.map(|(r, summary)| {
-                if r.is_empty() || left_out(&r, &summary, n, n_blocks) {
+                if slow || r.is_empty() || left_out(&r, &summary, n, n_blocks) {
                     (r, summary)
                 } else {
                     (

@@ -71,6 +71,12 @@ pub struct IdentifyOptions {
     /// `column_chains` but its standard errors come out 2–3.7 times too small, and the
     /// offset's error grows (bench `servo_precision`).
     pub efficient: bool,
+    /// Rows of the filtered equation instead of the instrument rows: at one corner, the
+    /// equation passed through the bank's low-pass chain `F` is multiplied by each filtered
+    /// regressor `F φⱼ` and averaged (the normal equations of regressing the filtered
+    /// equation sample by sample, as moments; see [`plan`] and docs/method.md §2). Needs one
+    /// corner (given, or designed); the chains of the nonlinear static columns are added.
+    pub filtered: bool,
 }
 
 impl Default for IdentifyOptions {
@@ -90,6 +96,7 @@ impl Default for IdentifyOptions {
             keep_rests: false,
             allow_large: false,
             efficient: false,
+            filtered: false,
         }
     }
 }
@@ -285,6 +292,10 @@ pub struct CornerSource {
     /// upper edge in rad/s ([`super::first_pass::floor::BandFloor::info_bandwidth`]).
     pub info_signal: Option<String>,
     pub info_bandwidth: Option<f64>,
+    /// The one corner of the filtered equation's rows ([`IdentifyOptions::filtered`]),
+    /// designed as the information bandwidth, at most `0.5 / Tₛ`.
+    #[serde(default)]
+    pub filtered: bool,
 }
 
 impl CornerSource {
@@ -302,6 +313,13 @@ impl CornerSource {
             return match band {
                 Some(b) => format!("given ({b})"),
                 None => "given".into(),
+            };
+        }
+        if self.filtered {
+            let rule = "one corner for the filtered equation, at most 0.5/Ts";
+            return match band {
+                Some(b) => format!("{rule}: {b}"),
+                None => rule.into(),
             };
         }
         let lower = match self.lower {

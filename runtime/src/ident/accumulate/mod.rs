@@ -56,6 +56,8 @@ pub(crate) struct LevelAccumulator<'a> {
     task_len: usize,
     /// Plan row of each row of the bank's output then of the measured signals.
     row_map: Vec<Option<usize>>,
+    /// The bank's output row of each of the plan's state columns ([`Plan::state_cols`]).
+    state_rows: Vec<usize>,
     ts: f64,
     n_total: usize,
     bounds: Vec<usize>,
@@ -140,12 +142,22 @@ impl<'a> LevelAccumulator<'a> {
             }
         }
         row_map.extend((plan.n_filter_states()..n_row_signals).map(Some));
+        let state_rows = plan
+            .state_cols
+            .iter()
+            .map(|&p| {
+                let (dc, i) = (p / plan.order, p % plan.order);
+                let (d, c) = (dc / plan.corners.len(), dc % plan.corners.len());
+                bank.row(d, c, i)
+            })
+            .collect();
         let mut acc = LevelAccumulator {
             plan,
             eval,
             bank,
             task_len: 0,
             row_map,
+            state_rows,
             ts,
             n_total,
             bounds,
@@ -380,6 +392,7 @@ impl<'a> LevelAccumulator<'a> {
             eval: self.eval,
             bank,
             row_map: &self.row_map,
+            state_rows: &self.state_rows,
             extra_width: &self.extra_width,
             cols,
             drivers: &drivers,

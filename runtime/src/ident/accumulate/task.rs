@@ -100,6 +100,8 @@ pub(super) struct TaskCtx<'c> {
     pub(super) eval: &'c dyn BasisEval,
     pub(super) bank: &'c FilterBank,
     pub(super) row_map: &'c [Option<usize>],
+    /// The bank's output row of each state column of `w` ([`Plan::state_cols`]).
+    pub(super) state_rows: &'c [usize],
     pub(super) extra_width: &'c [f64],
     pub(super) cols: &'c [&'c [f64]],
     pub(super) drivers: &'c [&'c [f64]],
@@ -174,8 +176,17 @@ impl TaskCtx<'_> {
                 self.extra_width,
                 &ys,
                 len,
-                &mut w_rest[n_y * len..(n_col_signals - n_g) * len],
+                &mut w_rest[n_y * len..(n_y + plan.extra.len()) * len],
             );
+        }
+        // The state columns: copies of the bank's rows, for the products of the filtered
+        // equation's rows.
+        let n_base = n_y + plan.extra.len();
+        for (k, &r) in self.state_rows.iter().enumerate() {
+            let dst = &mut w_rest[(n_base + k) * len..(n_base + k + 1) * len];
+            for (s, d) in dst.iter_mut().enumerate() {
+                *d = sc.iota[s * n_rows + r];
+            }
         }
         wk.non_finite = w_g
             .chunks_exact(len)

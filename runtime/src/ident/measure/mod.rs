@@ -166,6 +166,7 @@ pub(crate) fn measure_pieces(
         &samples,
         n_blocks,
         opts.keep_rests,
+        opts.filtered,
         opts.chunk_len,
     )?;
 
@@ -312,7 +313,10 @@ fn set_filters(
     let span = LevelSpan::of(stats);
     let designed = design_from_data(ir, plan, stats, &span, bank.order, bank.n_corners);
     let given = corners_given(ir, opts);
-    plan.corner_source = corner_source(given, designed.as_ref());
+    plan.corner_source = CornerSource {
+        filtered: opts.filtered,
+        ..corner_source(given, designed.as_ref())
+    };
     let corners = chosen_corners(ir, opts, designed.as_ref(), &span, bank.n_corners);
     check_corners(&corners, given, stats, &span, levels)?;
     plan.corners = vec![0.0; corners.len()];
@@ -386,6 +390,7 @@ fn corner_source(given: bool, designed: Option<&Designed>) -> CornerSource {
         upper: designed.filter(|_| !given).map(|d| d.upper),
         info_signal: designed.and_then(|d| d.info_signal.as_ref().map(|(n, _)| n.clone())),
         info_bandwidth: designed.and_then(|d| d.info_signal.as_ref().map(|(_, w)| *w)),
+        filtered: false,
     }
 }
 
@@ -400,6 +405,13 @@ fn chosen_corners(
     match (&opts.corners, ir.filter.as_ref().map(|f| &f.corners)) {
         (Some(c), _) => c.clone(),
         (None, Some(c)) if !c.is_empty() => c.clone(),
+        // The filtered equation: one corner, as high as the measured signals carry
+        // information above their noise floor, and at most `FILTERED_MAX_LT / Tₛ`.
+        _ if opts.filtered => {
+            let top = crate::ident::filtered::FILTERED_MAX_LT / span.ts_min;
+            let info = designed.and_then(|d| d.info_signal.as_ref().map(|(_, w)| *w));
+            vec![info.map_or(top, |w| w.min(top))]
+        }
         _ => match designed {
             Some(d) => d.corners.clone(),
             // Not even the fastest admissible corners settle: fall through to the length

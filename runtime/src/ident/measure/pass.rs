@@ -5,6 +5,7 @@ use super::checks::{column_label, non_finite_term};
 use crate::basis::BasisEval;
 use crate::data::LevelSource;
 use crate::ident::accumulate::LevelAccumulator;
+use crate::ident::filtered;
 use crate::ident::first_pass::LevelStats;
 use crate::ident::moments::{LevelMoments, PhaseTimes};
 use crate::ident::noise;
@@ -73,6 +74,28 @@ impl Pass<'_> {
     ) -> Result<(LevelMoments, PhaseTimes), IdentifyError> {
         let (ir, plan, opts) = (self.ir, self.plan, self.opts);
         let mut acc = match rest {
+            _ if plan.filtered => {
+                let forget =
+                    |tol| filtered::forget_samples(plan.corners[0], plan.order, st.ts, tol);
+                let r = rest.map_or(&[][..], |(r, _)| &r[..]);
+                let (start, after) = (forget(filtered::START_TOL), forget(filtered::REST_TOL));
+                let out = filtered::left_out(r, st.n, start, after);
+                let (bounds, kept) = rests::layout(st.n, self.n_blocks, &out);
+                if kept.iter().filter(|k| **k).count() < 2 {
+                    return Err(IdentifyError::BadOption {
+                        message: format!(
+                            "{}: the rows of the filtered equation leave out the first {start} \
+                             samples and each rest with the {after} after it, and too little \
+                             of this level remains",
+                            src.origin()
+                        ),
+                        help: "use a higher corner (--filter-corners, rad/s), longer records, \
+                               or the instrument rows (the default)"
+                            .into(),
+                    });
+                }
+                LevelAccumulator::with_blocks(plan, self.eval, st.ts, st.n, bounds, kept, opts.hold)
+            }
             Some((r, summary)) if rests::left_out(r, summary, st.n, self.n_blocks) => {
                 let (bounds, kept) = rests::layout(st.n, self.n_blocks, r);
                 LevelAccumulator::with_blocks(plan, self.eval, st.ts, st.n, bounds, kept, opts.hold)

@@ -71,6 +71,9 @@ pub struct DesignOptions {
     pub column_chains: bool,
     pub keep_rests: bool,
     pub efficient: bool,
+    /// Rows of the filtered equation (absent in files written before it existed: `false`).
+    #[serde(default)]
+    pub filtered: bool,
 }
 
 /// The design moment statistics are made with, fixed before any piece is measured: the
@@ -177,6 +180,7 @@ impl MomentDesign {
                 column_chains: opts.column_chains,
                 keep_rests: opts.keep_rests,
                 efficient: opts.efficient,
+                filtered: opts.filtered,
             },
         }
     }
@@ -215,6 +219,7 @@ impl MomentDesign {
             keep_rests: o.keep_rests,
             allow_large: false,
             efficient: o.efficient,
+            filtered: o.filtered,
         }
     }
 
