@@ -1,0 +1,261 @@
+//! A five-body structure on a soft mount measured as a shaker test: one accelerometer per body
+//! (the language needs the motion of every body measured, so the five-body model needs
+//! five) and the force at m4, multisine excitation (0.2–10 Hz, 4 whole periods per record,
+//! random phases) at four force levels (RMS 1, 3, 10, 30), a joint between m2 and m3 with a
+//! clearance and Coulomb friction (`models/structure5_joint_accel.dyn`; its linear
+//! counterpart `models/structure5_linear_accel.dyn`; modes 0.44–7.3 Hz, 1.3–2.9 % damping,
+//! Ts = 0.01 s, 200 s per level).
+//!
+//! What it reaches and what it does not (README, "Accelerometers"):
+//!
+//! - the linear structure from noiseless accelerations comes out with every mass and
+//!   stiffness low, by 6–82 % over seeds 1–5, while positions of the same records give
+//!   them within 1 % (`linear_structure_from_accelerations_is_biased_low`, which pins it);
+//! - detection from the accelerations and the force, 5 % noise on every channel, flags the
+//!   joint's element with Coulomb friction in its template and leaves the other couplings
+//!   and the ground dampers linear, but flags the mount k1/d1 too, falsely
+//!   (`detection_flags_the_joint_with_friction`);
+//! - lumped models with fewer bodies do not find the joint from accelerations; from
+//!   positions the four-body model still does (`detection_by_model_size`, opt-in:
+//!   `DYNID_STRUCTURE_LONG=1`);
+//! - diagnosis and identification of the joint's parameters from accelerations fail on
+//!   these records (`identify` with the right model gives kb and r tens of per cent off;
+//!   `diagnose` names a prestress at (m3, m4) and its re-identification diverges); they are
+//!   not asserted.
+
+mod common;
+
+use dynid::dsl_parser::ir::ModelIr;
+use dynid::runtime::record::Record;
+use dynid::runtime::sim::{self, Grid, Phases, TestSignal};
+
+/// The multisine of the case: 0.2–10 Hz, 4 periods of 50 s, random phases.
+fn multisine() -> TestSignal {
+    TestSignal::Multisine {
+        f_min_hz: 0.2,
+        f_max_hz: 10.0,
+        periods: 4,
+        grid: Grid::Full,
+        phases: Phases::Random,
+    }
+}
+
+/// The four levels of `ir`, 200 s each at Ts = 0.01 s, `noise` on every channel.
+fn records(ir: &ModelIr, noise: f64, seed: u64) -> Vec<Record> {
+    let cfg = sim::SimConfig {
+        duration: 200.0,
+        sample: 0.01,
+        seed: common::seed(seed),
+        noise,
+        noise_on_inputs: true,
+        levels: Some(vec![1.0, 3.0, 10.0, 30.0]),
+        ..Default::default()
+    };
+    sim::simulate_signal(ir, &cfg, &multisine())
+        .expect("simulation")
+        .records
+}
+
+/// The linear structure from accelerations against positions, on noiseless records of the
+/// same seed (four levels of 200 s): positions recover every mass and stiffness,
+/// accelerations give all of them low. The second half pins a limitation of the
+/// integrations moved onto the filters on a lightly damped structure with modes over a
+/// decade (docs/method.md, "Accelerations instead of positions"): when it is lifted this
+/// test fails, and README's "Accelerometers" and that section need their figures again.
+#[test]
+fn linear_structure_from_accelerations_is_biased_low() {
+    let (acc, src) = common::model_and_source("structure5_linear_accel");
+    let pos = common::measured_otherwise(
+        &src,
+        "measure m1.a, m2.a, m3.a, m4.a, m5.a, u",
+        "measure m1.x, m2.x, m3.x, m4.x, m5.x, u",
+    );
+    let id_p = common::identify_records(&pos, &records(&pos, 0.0, 1));
+    let e_p = common::error_row("structure5 linear, positions", &pos, &id_p);
+    let id_a = common::identify_records(&acc, &records(&acc, 0.0, 1));
+    let e_a = common::error_row("structure5 linear, accelerations", &acc, &id_a);
+    let inertia_and_springs = |e: &[(String, f64)]| -> Vec<(String, f64)> {
+        e.iter()
+            .filter(|(n, _)| n.starts_with('m') || n.starts_with('k'))
+            .cloned()
+            .collect()
+    };
+    // Seeds 1–5 (`DYNID_SEED_OFFSET=0…4 cargo test --test accel_structure linear --
+    // --nocapture`): positions within 0.96 % (m4, seed 3), accelerations every mass and
+    // stiffness low, from −6.0 % (k1, seed 1) to −82 % (m5, seed 3), with standard errors of
+    // 4–93 %. Bounds: twice the largest error of the positions; half the smallest bias.
+    for (n, e) in inertia_and_springs(&e_p) {
+        assert!(e.abs() < 0.02, "positions: `{n}` off by {:+.2}%", 100.0 * e);
+    }
+    for (n, e) in inertia_and_springs(&e_a) {
+        assert!(
+            e < -0.03,
+            "accelerations: `{n}` off by {:+.2}%: the bias this test pins is gone",
+            100.0 * e
+        );
+    }
+}
+
+/// The measure line of the structure's models with `a` (accelerometers) read as `x`.
+fn by_positions(src: &str) -> String {
+    let line = src
+        .lines()
+        .find(|l| l.trim_start().starts_with("measure "))
+        .expect("a measure line");
+    src.replace(line, &line.replace(".a,", ".x,"))
+}
+
+/// `models/NAME.dyn`, measured by accelerations or (`positions`) by positions, written
+/// into `dir`; its path.
+fn model_file(dir: &std::path::Path, name: &str, positions: bool) -> std::path::PathBuf {
+    let (_, src) = common::model_and_source(name);
+    let src = if positions { by_positions(&src) } else { src };
+    let path = dir.join(format!("{name}{}.dyn", if positions { "_x" } else { "" }));
+    std::fs::write(&path, src).unwrap();
+    path
+}
+
+/// The joint's structure simulated by `dynid simulate` into `dir/data`: four multisine
+/// levels of 200 s, 5 % noise on every channel (seed 1); the level files.
+fn joint_levels(dir: &std::path::Path, positions: bool) -> Vec<std::path::PathBuf> {
+    let model = model_file(dir, "structure5_joint_accel", positions);
+    let data = dir.join(if positions { "data_x" } else { "data" });
+    let st = common::dynid()
+        .arg("simulate")
+        .arg(&model)
+        .args([
+            "--signal",
+            "multisine",
+            "--band-hz",
+            "0.2,10",
+            "--periods",
+            "4",
+            "--duration",
+            "200",
+            "--noise",
+            "0.05",
+            "--seed",
+        ])
+        .arg(common::seed(1).to_string())
+        .arg("--out")
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{}", common::stderr(&st));
+    (1..=4)
+        .map(|i| data.join(format!("level_{i}.csv")))
+        .collect()
+}
+
+/// `dynid detect` of `model` on `levels`: its verdict line per element, `Element ` and
+/// the element's name cut off (`k3/d3 (m2, m3)` → `nonlinear: backlash`).
+fn verdicts(model: &std::path::Path, levels: &[std::path::PathBuf]) -> Vec<(String, String)> {
+    let out = common::dynid()
+        .arg("detect")
+        .arg(model)
+        .args(levels)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| l.strip_prefix("Element "))
+        .filter_map(|l| l.split_once("): "))
+        .map(|(e, v)| (format!("{e})"), v.to_string()))
+        .collect()
+}
+
+/// The verdict on `element`; panics naming the verdicts when it has none.
+fn verdict<'v>(v: &'v [(String, String)], element: &str) -> &'v str {
+    v.iter()
+        .find(|(e, _)| e == element)
+        .map(|(_, v)| v.as_str())
+        .unwrap_or_else(|| panic!("no verdict on {element}: {v:?}"))
+}
+
+/// Detection from the accelerations and the force, against the linear model, on four
+/// levels of 200 s with 5 % noise on every channel (seed 1): the joint's element drifts
+/// with Coulomb friction in its template; the other couplings and the ground dampers are
+/// linear. The mount k1/d1 is flagged as well (printed, not asserted: a false detection,
+/// which the same structure measured by positions does not give: the study below).
+#[test]
+fn detection_flags_the_joint_with_friction() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = joint_levels(dir.path(), false);
+    let model = common::model_path("structure5_linear_accel.dyn");
+    let v = verdicts(&model, &levels);
+    for (e, verdict) in &v {
+        println!("structure5, accelerations: {e}: {verdict}");
+    }
+    let joint = verdict(&v, "k3/d3 (m2, m3)");
+    assert!(
+        joint.starts_with("nonlinear") && joint.contains("Coulomb friction"),
+        "{joint}"
+    );
+    for e in [
+        "k2/d2 (m1, m2)",
+        "k4/d4 (m3, m4)",
+        "k5/d5 (m4, m5)",
+        "g2 (ground, m2)",
+        "g3 (ground, m3)",
+        "g4 (ground, m4)",
+        "g5 (ground, m5)",
+    ] {
+        assert_eq!(verdict(&v, e), "linear", "{e}");
+    }
+}
+
+/// The study of model size (`DYNID_STRUCTURE_LONG=1 cargo test --test accel_structure --
+/// --nocapture`, about a minute): detection of the joint by the five-body model and by
+/// lumped models of four and three bodies, from accelerations and, on the same structure
+/// and noise, from positions. Seed 1, what it measured (README, "Accelerometers"):
+///
+/// | model | accelerations | positions |
+/// |---|---|---|
+/// | 5 bodies | joint: cubic stiffness + Coulomb friction; mount: backlash (false) | joint: backlash; all else linear |
+/// | 4 bodies | mount: cubic stiffness (false); joint linear | joint: backlash; all else linear |
+/// | 3 bodies | all linear | all linear |
+///
+/// From accelerations the lumped models' masses collapse towards zero (m4 0.007 of 1.2 in
+/// the four-body model): their fit carries no information about the joint.
+#[test]
+fn detection_by_model_size() {
+    if std::env::var("DYNID_STRUCTURE_LONG").is_err() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let joint = "k3/d3 (m2, m3)";
+    for positions in [false, true] {
+        let levels = joint_levels(dir.path(), positions);
+        let signals = if positions {
+            "positions"
+        } else {
+            "accelerations"
+        };
+        for (bodies, name) in [
+            (5, "structure5_linear_accel"),
+            (4, "structure5_lumped4_accel"),
+            (3, "structure5_lumped3_accel"),
+        ] {
+            let v = verdicts(&model_file(dir.path(), name, positions), &levels);
+            let flagged: Vec<String> = v
+                .iter()
+                .filter(|(_, v)| v != "linear")
+                .map(|(e, v)| format!("{e}: {v}"))
+                .collect();
+            println!("{bodies} bodies, {signals}: {flagged:?}");
+            let named = verdict(&v, joint) != "linear";
+            // What seed 1 gives (the table above); a change means the README's study needs
+            // its verdicts again.
+            let expected = match (bodies, positions) {
+                (5, _) => true,
+                (4, true) => true,
+                _ => false,
+            };
+            assert_eq!(named, expected, "{bodies} bodies, {signals}: {v:?}");
+            if positions && bodies > 3 {
+                assert_eq!(flagged.len(), 1, "{bodies} bodies, positions: {flagged:?}");
+            }
+        }
+    }
+}
