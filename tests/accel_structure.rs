@@ -19,9 +19,11 @@
 //!   positions the four-body model still does (`detection_by_model_size`, opt-in:
 //!   `DYNID_STRUCTURE_LONG=1`);
 //! - diagnosis and identification of the joint's parameters from accelerations fail on
-//!   these records (`identify` with the right model gives kb and r tens of per cent off;
-//!   `diagnose` names a prestress at (m3, m4) and its re-identification diverges); they are
-//!   not asserted.
+//!   these records: `identify` with the right model gives kb and r tens of per cent low,
+//!   `diagnose` names a prestress at (m3, m4) (`joint_from_accelerations_is_not_reached`,
+//!   opt-in, which pins it);
+//! - the bias of the linear fit shrinks with the record length and grows with noise
+//!   (`bias_against_record_length_and_noise`, opt-in).
 
 mod common;
 mod figures;
@@ -316,15 +318,68 @@ fn detection_by_model_size() {
             let named = verdict(&v, joint) != "linear";
             // What seed 1 gives (the table above); a change means the README's study needs
             // its verdicts again.
-            let expected = match (bodies, positions) {
-                (5, _) => true,
-                (4, true) => true,
-                _ => false,
-            };
+            let expected = matches!((bodies, positions), (5, _) | (4, true));
             assert_eq!(named, expected, "{bodies} bodies, {signals}: {v:?}");
             if positions && bodies > 3 {
                 assert_eq!(flagged.len(), 1, "{bodies} bodies, positions: {flagged:?}");
             }
         }
     }
+}
+
+/// Identification of the joint with the right model, and diagnosis against the linear one,
+/// from the accelerations of `detection_flags_the_joint_with_friction` (opt-in,
+/// `DYNID_STRUCTURE_LONG=1`): neither is reached. Seed 1: kb −77 % and r −52 % off;
+/// diagnosis names a prestress at (m3, m4), not the joint. Asserted as measured, so that
+/// a change shows here and the README's account is revisited.
+#[test]
+fn joint_from_accelerations_is_not_reached() {
+    if std::env::var("DYNID_STRUCTURE_LONG").is_err() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let levels = joint_levels(dir.path(), false);
+    let out = common::dynid()
+        .arg("identify")
+        .arg(common::model_path("structure5_joint_accel.dyn"))
+        .args(&levels)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // The value column of `name`'s row in the parameter table.
+    let value = |name: &str| -> f64 {
+        stdout
+            .lines()
+            .find_map(|l| {
+                let mut w = l.split_whitespace();
+                (w.next() == Some(name)).then(|| w.next()?.parse().ok())?
+            })
+            .unwrap_or_else(|| panic!("no row `{name}` in:\n{stdout}"))
+    };
+    let (kb, r) = (value("kb") / 300.0 - 1.0, value("r") / 0.2 - 1.0);
+    println!(
+        "joint from accelerations: kb {:+.1} %, r {:+.1} %",
+        100.0 * kb,
+        100.0 * r
+    );
+    if common::seeds_as_documented() {
+        figures::check("README.md", "accel.structure5.joint.kb", 100.0 * kb);
+        figures::check("README.md", "accel.structure5.joint.r", 100.0 * r);
+    }
+    assert!(kb < -0.2 && r < -0.2, "kb {kb:+.3}, r {r:+.3}");
+    let out = common::dynid()
+        .arg("diagnose")
+        .arg(common::model_path("structure5_linear_accel.dyn"))
+        .args(&levels)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let named = stdout
+        .lines()
+        .find(|l| l.starts_with("Most likely missing effect:"))
+        .unwrap_or_else(|| panic!("no verdict:\n{stdout}"));
+    println!("{named}");
+    assert!(!named.contains("(m2, m3)"), "{named}");
 }
