@@ -448,3 +448,85 @@ fn clearance_alone_breaks_the_fit_from_accelerations() {
         }
     }
 }
+
+/// The modes the structure's model files state: undamped 0.44–7.3 Hz, and 1.3–2.9 % of
+/// critical damping in each, the dampers being Rayleigh's `C = 0.15 M + 0.0012 K` (so
+/// `ζ = 0.15 / 2ω + 0.0012 ω / 2` exactly).
+#[test]
+fn the_structure_has_the_modes_its_model_states() {
+    let (ir, _) = common::model_and_source("structure5_linear_accel");
+    let values = sim::parameter_values(&ir).unwrap();
+    let p = |name: &str| {
+        let i = ir.params.iter().position(|q| q.name == name).unwrap();
+        values[i]
+    };
+    let m: Vec<f64> = ir
+        .bodies
+        .iter()
+        .map(|b| b.mass.scale * b.mass.param.map_or(1.0, |q| values[q.index()]))
+        .collect();
+    let k: Vec<f64> = (1..=5).map(|i| p(&format!("k{i}"))).collect();
+    // The dampers are Rayleigh's: couplings 0.0012·k, ground 0.15·m (+ 0.0012·k1 at m1).
+    for i in 0..5 {
+        let ground = if i == 0 { 0.15 * m[0] } else { 0.0 };
+        assert!((p(&format!("d{}", i + 1)) - 0.0012 * k[i] - ground).abs() < 1e-12);
+        if i > 0 {
+            assert!((p(&format!("g{}", i + 1)) - 0.15 * m[i]).abs() < 1e-12);
+        }
+    }
+    // M^-1/2 K M^-1/2 of the chain from the ground, its eigenvalues by Jacobi rotations.
+    let mut a = [[0.0; 5]; 5];
+    for i in 0..5 {
+        a[i][i] += k[i];
+        if i > 0 {
+            a[i - 1][i - 1] += k[i];
+            a[i - 1][i] -= k[i];
+            a[i][i - 1] -= k[i];
+        }
+    }
+    for (i, row) in a.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v /= (m[i] * m[j]).sqrt();
+        }
+    }
+    for _ in 0..50 {
+        for p in 0..5 {
+            for q in p + 1..5 {
+                if a[p][q].abs() < 1e-300 {
+                    continue;
+                }
+                let th = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+                let t = th.signum() / (th.abs() + (th * th + 1.0).sqrt());
+                let (c, s) = (1.0 / (t * t + 1.0).sqrt(), t / (t * t + 1.0).sqrt());
+                for row in a.iter_mut() {
+                    let (x, y) = (row[p], row[q]);
+                    row[p] = c * x - s * y;
+                    row[q] = s * x + c * y;
+                }
+                let (rp, rq) = (a[p], a[q]);
+                a[p] = std::array::from_fn(|j| c * rp[j] - s * rq[j]);
+                a[q] = std::array::from_fn(|j| s * rp[j] + c * rq[j]);
+            }
+        }
+    }
+    let mut w: Vec<f64> = (0..5).map(|i| a[i][i].sqrt()).collect();
+    w.sort_by(f64::total_cmp);
+    let hz: Vec<f64> = w.iter().map(|w| w / std::f64::consts::TAU).collect();
+    let zeta: Vec<f64> = w
+        .iter()
+        .map(|w| 0.15 / (2.0 * w) + 0.0012 * w / 2.0)
+        .collect();
+    println!("modes {hz:.3?} Hz, damping {zeta:.4?}");
+    assert!(
+        (hz[0] - 0.44).abs() < 0.005 && (hz[4] - 7.3).abs() < 0.05,
+        "{hz:?}"
+    );
+    assert!(hz[4] / hz[0] > 10.0, "{hz:?}");
+    let (lo, hi) = zeta
+        .iter()
+        .fold((1.0f64, 0.0f64), |(l, h), &z| (l.min(z), h.max(z)));
+    assert!(
+        (lo - 0.013).abs() < 0.0005 && (hi - 0.029).abs() < 0.0005,
+        "{zeta:?}"
+    );
+}
