@@ -1387,6 +1387,7 @@ class Model:
         allow_long: bool = False,
         progress=None,
         corner_check: bool = True,
+        filtered_equation: bool = False,
     ) -> Identification:
         """Identify the unknown parameters, all levels pooled, as ``dynid identify``.
 
@@ -1425,6 +1426,10 @@ class Model:
             and up, and list the estimates that move (``filter.corner_moves`` of
             ``to_dict()``; two further identifications); ``False`` is
             ``--no-corner-check``.
+        filtered_equation : bool, default False
+            Rows of the filtered equation at one corner (``--filtered-equation``; docs/method.md
+            §2): smaller errors of masses, friction and offsets on records whose input is
+            smooth between samples.
 
         Returns
         -------
@@ -1471,6 +1476,7 @@ class Model:
             rarg,
             _progress(progress),
             bool(corner_check),
+            bool(filtered_equation),
         )
         return Identification(_json.loads(js), eq, model=self, data=data)
 
@@ -1750,7 +1756,7 @@ del _f
 MomentStats = _dynid.MomentStats
 
 
-def moment_design(model, data, sample: _t.Optional[float] = None, filter_corners: _t.Optional[_t.Sequence[float]] = None, noise_correction: bool = True, balance: bool = False, column_chains: bool = False, keep_rests: bool = False, allow_large: bool = False, map=None) -> str:
+def moment_design(model, data, sample: _t.Optional[float] = None, filter_corners: _t.Optional[_t.Sequence[float]] = None, noise_correction: bool = True, balance: bool = False, column_chains: bool = False, keep_rests: bool = False, allow_large: bool = False, map=None, filtered_equation: bool = False) -> str:
     """The design moment statistics are made with, decided from a sample of the data before
     any piece is measured, as ``dynid moments --design-only`` (docs/distributed.md).
 
@@ -1762,7 +1768,7 @@ def moment_design(model, data, sample: _t.Optional[float] = None, filter_corners
         A sample of the data set, one record each: its first pass decides the corners
         (unless given), the time blocks per record (from the shortest) and the noise
         corrections.
-    sample, filter_corners, noise_correction, balance, column_chains, keep_rests, allow_large, map
+    sample, filter_corners, noise_correction, balance, column_chains, keep_rests, allow_large, map, filtered_equation
         As :meth:`Model.identify`.
 
     Returns
@@ -1778,7 +1784,7 @@ def moment_design(model, data, sample: _t.Optional[float] = None, filter_corners
     data, _ = _as_list(data)
     levels = _levels(m._m, data, sample, map)
     corners = None if filter_corners is None else [float(c) for c in filter_corners]
-    return _dynid.moment_design(m._m, levels, corners, bool(noise_correction), bool(balance), bool(column_chains), bool(keep_rests), bool(allow_large))
+    return _dynid.moment_design(m._m, levels, corners, bool(noise_correction), bool(balance), bool(column_chains), bool(keep_rests), bool(allow_large), bool(filtered_equation))
 
 
 def moments(model, data, design: str, sample: _t.Optional[float] = None, map=None, allow_large: bool = False) -> "MomentStats":

@@ -20,7 +20,6 @@ use dynid::runtime::sim;
 use dynid::runtime::sim::SimConfig;
 use dynid::runtime::sim::Start;
 use dynid::runtime::sim::DEFAULT_SUBSTEPS;
-use dynid::runtime::IdentifyOptions;
 use dynid::schema::IdentifyDoc;
 use dynid::schema::RefineReport;
 use numpy::PyArray1;
@@ -203,7 +202,7 @@ impl CompiledModel {
     /// Identify the unknown parameters from all levels pooled: `(json, equations)`, the
     /// JSON that of `dynid identify --json` (with `refined` after a refinement), the corner
     /// check included unless `corner_check` is false (`--no-corner-check`).
-    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None, corner_check=true))]
+    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None, corner_check=true, filtered_equation=false))]
     #[allow(clippy::too_many_arguments)]
     fn identify(
         &self,
@@ -218,6 +217,7 @@ impl CompiledModel {
         refine: Option<RefineArg<'_>>,
         progress: Option<Py<PyAny>>,
         corner_check: bool,
+        filtered_equation: bool,
     ) -> PyResult<(String, String)> {
         guarded(py, || {
             let ir = &self.ir;
@@ -228,15 +228,15 @@ impl CompiledModel {
                 return Err(runtime_error(py, &e));
             }
             let sources = bind(py, ir, &levels)?;
-            let opts = IdentifyOptions {
+            let opts = crate::moments::estimator_options(
                 corners,
-                balance,
                 noise_correction,
+                balance,
                 column_chains,
                 keep_rests,
                 allow_large,
-                ..Default::default()
-            };
+                filtered_equation,
+            );
             let id = py
                 .detach(|| {
                     let levels = refs(&sources);

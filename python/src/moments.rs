@@ -91,7 +91,7 @@ pub(crate) fn _moments_from_bytes(py: Python<'_>, data: &[u8]) -> PyResult<PyMom
 /// The design made from a sample of the data (JSON): corners, time blocks per record and
 /// noise corrections, as `dynid moments --design-only`.
 #[pyfunction]
-#[pyo3(signature = (model, levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false))]
+#[pyo3(signature = (model, levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, filtered_equation=false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn moment_design(
     py: Python<'_>,
@@ -103,24 +103,49 @@ pub(crate) fn moment_design(
     column_chains: bool,
     keep_rests: bool,
     allow_large: bool,
+    filtered_equation: bool,
 ) -> PyResult<String> {
     guarded(py, || {
         let ir = &model.ir;
         let sources = bind(py, ir, &levels)?;
-        let opts = IdentifyOptions {
+        let opts = estimator_options(
             corners,
-            balance,
             noise_correction,
+            balance,
             column_chains,
             keep_rests,
             allow_large,
-            ..Default::default()
-        };
+            filtered_equation,
+        );
         let design = py
             .detach(|| MomentDesign::from_data(ir, &refs(&sources), &opts))
             .map_err(|e| runtime_error(py, &e))?;
         json(&design)
     })
+}
+
+/// The library's options for the estimator keywords that `identify` and `moment_design`
+/// share (as the command line's `EstimatorArgs`: a design must be the one `identify` would
+/// make with the same keywords).
+pub(crate) fn estimator_options(
+    corners: Option<Vec<f64>>,
+    noise_correction: bool,
+    balance: bool,
+    column_chains: bool,
+    keep_rests: bool,
+    allow_large: bool,
+    filtered: bool,
+) -> IdentifyOptions {
+    IdentifyOptions {
+        corners,
+        balance,
+        noise_correction,
+        column_chains,
+        keep_rests,
+        allow_large,
+        filtered,
+        ..Default::default()
+    }
 }
 
 /// The statistics of `levels` measured with `design` (the JSON of [`moment_design`]).
