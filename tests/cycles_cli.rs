@@ -2,6 +2,7 @@
 //! flag names of `identify` that do not collide with them.
 
 mod common;
+mod figures;
 
 use common::{dynid, stderr};
 use std::path::{Path, PathBuf};
@@ -93,6 +94,16 @@ fn a_planned_record_is_cut_at_its_cycles_for_diagnose_and_detect() {
     // The planned cycle is padded to whole samples: 6.18 s at 1 kHz.
     assert!((c["period"].as_f64().unwrap() - 6.18).abs() < 1e-3, "{c}");
     assert!(c["correlation"].as_f64().unwrap() > 0.999, "{c}");
+    // docs/diagnosis.md quotes the cut, to its last digit (fixed seed).
+    let doc = "docs/diagnosis.md";
+    figures::check(doc, "cycles.period", c["period"].as_f64().unwrap());
+    figures::check(
+        doc,
+        "cycles.correlation",
+        c["correlation"].as_f64().unwrap(),
+    );
+    figures::check(doc, "cycles.count", c["cycles"].as_f64().unwrap());
+    figures::check(doc, "cycles.first_cut", c["first_cut"].as_f64().unwrap());
     let segs = v["segments"]["segments"].as_array().unwrap();
     assert_eq!(segs.len(), 4);
     // In time order, every sample kept.
@@ -229,22 +240,27 @@ fn gaps_are_printed_in_the_signals_units_beside_the_percentages() {
             assert!(s["std_diff"].as_f64().unwrap().is_finite(), "{s}");
         }
     }
-    // The figures of docs/diagnosis.md (179 µm and 14.8 N, nominal, mean over the cycles),
-    // within a factor 2 so that a change of the free-run start does not break them silently.
-    let mean_rms = |name: &str| {
+    // The figures of docs/diagnosis.md (nominal, mean over the cycles), to their last digit
+    // (fixed seed).
+    let mean = |name: &str, field: &str| {
         let v: Vec<f64> = p.json["nominal"]["levels"]
             .as_array()
             .unwrap()
             .iter()
             .flat_map(|l| l["signals"].as_array().unwrap().iter())
             .filter(|s| s["signal"] == name)
-            .map(|s| s["rms_error"].as_f64().unwrap())
+            .map(|s| s[field].as_f64().unwrap())
             .collect();
         v.iter().sum::<f64>() / v.len() as f64
     };
-    let (x_rms, u_rms) = (mean_rms("m.x"), mean_rms("u"));
+    let (x_rms, u_rms) = (mean("m.x", "rms_error"), mean("u", "rms_error"));
     assert!((90e-6..360e-6).contains(&x_rms), "m.x RMS {x_rms}");
     assert!((7.0..30.0).contains(&u_rms), "u RMS {u_rms}");
+    let doc = "docs/diagnosis.md";
+    figures::check(doc, "cycles.gap.x", mean("m.x", "statistical"));
+    figures::check(doc, "cycles.gap.x_um", 1e6 * x_rms);
+    figures::check(doc, "cycles.gap.u", mean("u", "statistical"));
+    figures::check(doc, "cycles.gap.u_n", u_rms);
     // The report's table has the same figures in units.
     assert!(p.report.contains("free-run RMS error"), "report table");
 }

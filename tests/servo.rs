@@ -214,6 +214,8 @@ fn the_slow_trajectory_sticks() {
 fn slow_trajectory_errors() {
     // (largest |error| of d, of r, largest standard error of d), estimated and measured.
     let mut worst = [[0.0f64; 3]; 2];
+    // Σ error² of d and of r over the seeds, estimated and measured.
+    let mut sq = [[0.0f64; 2]; 2];
     for seed in 1..=8 {
         for measured in [false, true] {
             let what = if measured { "measured" } else { "estimated" };
@@ -223,8 +225,21 @@ fn slow_trajectory_errors() {
             w[0] = w[0].max(100.0 * errs[1].0.abs());
             w[1] = w[1].max(100.0 * errs[2].0.abs());
             w[2] = w[2].max(100.0 * errs[1].1);
+            let q = &mut sq[usize::from(measured)];
+            q[0] += errs[1].0 * errs[1].0;
+            q[1] += errs[2].0 * errs[2].0;
         }
     }
+    // docs/method.md §7: the RMS errors with the estimated velocity over those with the
+    // measured one.
+    let ratio = |k: usize| (sq[0][k] / sq[1][k]).sqrt();
+    println!(
+        "RMS error ratio estimated / measured: d {:.2}, r {:.2}",
+        ratio(0),
+        ratio(1)
+    );
+    figures::check("docs/method.md", "servo.slow.rms_ratio.d", ratio(0));
+    figures::check("docs/method.md", "servo.slow.rms_ratio.r", ratio(1));
     let [est, mea] = worst;
     figures::check("README.md", "servo.slow.d", est[0]);
     figures::check("README.md", "servo.slow.r", est[1]);

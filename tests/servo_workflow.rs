@@ -90,6 +90,13 @@ fn identify_notes_a_set_point_column_of_a_closed_loop_record() {
         hint.contains("reference xr") && hint.contains("drifts (NRMSE"),
         "{hint}"
     );
+    // The drift the note quotes, docs/diagnosis.md's figure to its last digit (the records
+    // are fixed: planned moves, seed 3).
+    figures::check(
+        "docs/diagnosis.md",
+        "diagnose.servo.identify_hint_nrmse",
+        common::hint_nrmse(hint),
+    );
     // The closed-loop model reads `xr`: no hint, and the JSON says so.
     let closed = model_path("servo_axis_planned.dyn");
     args[1] = closed.as_os_str();
@@ -180,6 +187,22 @@ fn diagnose_scores_the_force_channel_of_an_open_loop_model_in_newtons() {
     );
     // The missing friction, whole (15 N on the motion), within the filter's error.
     assert!((rms("nominal") - 15.0).abs() < 1.0, "{f}");
+    // docs/diagnosis.md ("Force channel") quotes the three, to their last digit.
+    figures::check(
+        "docs/diagnosis.md",
+        "diagnose.force.nominal",
+        rms("nominal"),
+    );
+    figures::check(
+        "docs/diagnosis.md",
+        "diagnose.force.reidentified",
+        rms("reidentified"),
+    );
+    figures::check(
+        "docs/diagnosis.md",
+        "diagnose.force.corrected",
+        rms("corrected"),
+    );
     // The corrected model leaves the ripple (RMS about 1.06 N) and the filter's error.
     let found: Vec<&str> = v["found"]
         .as_array()

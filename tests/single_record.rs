@@ -168,6 +168,7 @@ fn detect_names_the_cubic_spring_from_one_noisy_sweep() {
     if common::seeds_as_documented() {
         figures::check("docs/detection.md", "detect.sweep.k3", k3);
         figures::check("docs/detection.md", "detect.sweep.k3_stderr", k3_se);
+        figures::check("docs/detection.md", "detect.sweep.sigma_ratio", s[2] / s[0]);
     }
 }
 
@@ -240,6 +241,14 @@ fn diagnose_finds_the_withheld_cubic_spring_in_one_sweep() {
     eprintln!("headline gap {before:.2} % → {after:.2} %");
     // Measured 46.8 % → 0.06 % (seed 24); the bound leaves room for other seeds.
     assert!(before > 20.0 && after < 1.0, "{before} → {after}");
+    // docs/diagnosis.md quotes the seed's figures, to their last digit.
+    if common::seeds_as_documented() {
+        let doc = "docs/diagnosis.md";
+        let k3 = found[0]["value"].as_f64().expect("the found coefficient");
+        figures::check(doc, "diagnose.sweep.k3", k3);
+        figures::check(doc, "diagnose.sweep.gap_before", before);
+        figures::check(doc, "diagnose.sweep.gap_after", after);
+    }
 }
 
 #[test]

@@ -212,6 +212,16 @@ pub fn verdict_coefficient(element: &serde_json::Value, effect: &str) -> (f64, f
     )
 }
 
+/// The drift (NRMSE, %) that a closed-loop hint (`closed_loop_hint` of `identify --json` or
+/// `diagnose --json`) quotes.
+pub fn hint_nrmse(hint: &str) -> f64 {
+    hint.split("(NRMSE ")
+        .nth(1)
+        .and_then(|r| r.split(" %").next())
+        .and_then(|n| n.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no NRMSE in the hint: {hint}"))
+}
+
 /// Whether the tests run on their own seeds (no `DYNID_SEED_OFFSET`, or 0): figures the docs
 /// quote for a seed are checked only then.
 pub fn seeds_as_documented() -> bool {

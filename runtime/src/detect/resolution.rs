@@ -108,26 +108,7 @@ pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooA
             continue;
         }
         let ratio = hi / lo;
-        let span = 1.0 - 1.0 / ratio;
-        let crit = critical(opts.alpha, sig.len() - 1, opts.se_dof);
-        let smallest = |shape: &dyn Fn(f64) -> f64| {
-            let g: Vec<f64> = sig.iter().map(|&s| mean * shape(s)).collect();
-            let w: Vec<f64> = se.iter().map(|s| 1.0 / (s * s)).collect();
-            let gm = g.iter().zip(&w).map(|(g, w)| g * w).sum::<f64>() / w.iter().sum::<f64>();
-            let chi2: f64 = g.iter().zip(se).map(|(g, s)| ((g - gm) / s).powi(2)).sum();
-            let by_test = if chi2 > 0.0 {
-                (crit / chi2).sqrt()
-            } else {
-                f64::INFINITY
-            };
-            let by_change = if span > 0.0 {
-                opts.min_rel_change / span
-            } else {
-                f64::INFINITY
-            };
-            by_test.max(by_change)
-        };
-        let f = smallest(&|s| s / hi).max(smallest(&|s| lo / s));
+        let f = smallest_visible(sig, se, mean, opts);
         if f > MAX_INVISIBLE {
             let element = r.curve.element.clone();
             let message = too_alike_message(&r.curve.param, &element, &r.sigma_name, ratio, f);
@@ -142,6 +123,35 @@ pub fn levels_too_alike(det: &Detection, opts: &DetectOptions) -> Vec<LevelsTooA
         }
     }
     out
+}
+
+/// The smallest visible effect (a fraction of `mean`, see the module docs) on a curve of
+/// mean `mean` with standard errors `se` at levels of intensity `sig` (at least two, all
+/// positive and finite, as are `se` and `mean`): infinite when the levels do not differ.
+pub(crate) fn smallest_visible(sig: &[f64], se: &[f64], mean: f64, opts: &DetectOptions) -> f64 {
+    let (lo, hi) = sig
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &s| (a.min(s), b.max(s)));
+    let span = 1.0 - lo / hi;
+    let crit = critical(opts.alpha, sig.len().saturating_sub(1).max(1), opts.se_dof);
+    let smallest = |shape: &dyn Fn(f64) -> f64| {
+        let g: Vec<f64> = sig.iter().map(|&s| mean * shape(s)).collect();
+        let w: Vec<f64> = se.iter().map(|s| 1.0 / (s * s)).collect();
+        let gm = g.iter().zip(&w).map(|(g, w)| g * w).sum::<f64>() / w.iter().sum::<f64>();
+        let chi2: f64 = g.iter().zip(se).map(|(g, s)| ((g - gm) / s).powi(2)).sum();
+        let by_test = if chi2 > 0.0 {
+            (crit / chi2).sqrt()
+        } else {
+            f64::INFINITY
+        };
+        let by_change = if span > 0.0 {
+            opts.min_rel_change / span
+        } else {
+            f64::INFINITY
+        };
+        by_test.max(by_change)
+    };
+    smallest(&|s| s / hi).max(smallest(&|s| lo / s))
 }
 
 /// The warnings of [`levels_too_alike`] that `dynid detect` gives on `levels` for the model

@@ -10,6 +10,11 @@ use rand_distr::{ChiSquared, Distribution, Normal};
 use super::stats::erfc;
 use super::*;
 
+// The unit tests of `ident` load it too: one copy per test module that reads the docs.
+#[allow(clippy::duplicate_mod)]
+#[path = "../../../tests/figures/mod.rs"]
+mod figures;
+
 fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs().max(1e-300)
 }
@@ -531,4 +536,21 @@ fn measured_gains_follow_the_distribution() {
         sv.gains_with(sig, 1.0, 0.0, Some(&uniform), Some(&uniform)),
         sv.gains(sig, 1.0, 0.0)
     );
+}
+
+/// docs/detection.md ("Levels too alike"): the smallest visible effect at three levels
+/// spanning a factor 3 and a factor 1.1 in σ, standard errors 1 % of the curve (with the
+/// batch-means errors' 19 degrees of freedom), the doc's figures to their last digit.
+#[test]
+fn smallest_visible_effect_of_the_doc() {
+    let opts = DetectOptions {
+        se_dof: Some(19.0),
+        ..Default::default()
+    };
+    let f = |sig: &[f64]| 100.0 * resolution::smallest_visible(sig, &[0.04; 3], 4.0, &opts);
+    let (wide, alike) = (f(&[0.1, 0.17, 0.3]), f(&[0.1, 0.105, 0.11]));
+    eprintln!("smallest visible effect: factor 3 {wide:.2} %, factor 1.1 {alike:.2} %");
+    figures::check("docs/detection.md", "detect.resolution.factor_3", wide);
+    figures::check("docs/detection.md", "detect.resolution.factor_1_1", alike);
+    assert!(alike > 100.0 * resolution::MAX_INVISIBLE && wide < 100.0 * resolution::MAX_INVISIBLE);
 }

@@ -1,4 +1,8 @@
 use super::*;
+// The unit tests of `ident` load it too: one copy per test module that reads the docs.
+#[allow(clippy::duplicate_mod)]
+#[path = "../../../tests/figures/mod.rs"]
+mod figures;
 use nalgebra::Complex as NComplex;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -86,12 +90,15 @@ fn welch_h1_matches_the_analytic_sdof_frf() {
     let (e, at) = worst(&frf, wn, z, ts, 0.05, 1.0);
     eprintln!("welch worst relative error 0.05–1 Hz: {e:.2e} at {at} Hz");
     assert!(e < 0.11, "{e} at {at} Hz");
+    // docs/method.md §8 quotes both, to their last digit (fixed data).
+    figures::check("docs/method.md", "frf.welch.peak", 100.0 * e);
     // f_n = ω_n / 2π, and B = 2ζ f_n the half-power band.
     let (f_n, band) = (wn / (2.0 * PI), 2.0 * z * wn / (2.0 * PI));
     let (lo, _) = worst(&frf, wn, z, ts, 0.05, f_n - band);
     let (hi, _) = worst(&frf, wn, z, ts, f_n + band, 1.0);
     eprintln!("welch worst relative error off the peak band: {lo:.2e} below, {hi:.2e} above");
     assert!(lo.max(hi) < OFF_PEAK, "{lo} {hi}");
+    figures::check("docs/method.md", "frf.welch.off_peak", 100.0 * lo.max(hi));
     let c = frf.coherence[0]
         .iter()
         .zip(&frf.freq_hz)
@@ -137,6 +144,22 @@ fn periodic_average_matches_the_analytic_sdof_frf_at_the_lines() {
     let (e, at) = worst(&frf, wn, z, ts, 0.0, 2.0);
     eprintln!("periodic worst relative error: {e:.2e} at {at} Hz");
     assert!(e < 1e-6, "{e}");
+    // Against the FRF without the hold's factor: the error grows with f to the top line.
+    let (e0, at0) = frf
+        .freq_hz
+        .iter()
+        .zip(&frf.h[0])
+        .map(|(&f, h)| {
+            let want = analytic(f, wn, z);
+            ((NComplex::new(h[0], h[1]) - want).norm() / want.norm(), f)
+        })
+        .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+    eprintln!("periodic worst relative error without sinc²: {e0:.2e} at {at0} Hz");
+    assert!(at0 > 1.9, "{at0} Hz");
+    // docs/method.md §8 quotes both, to their last digit (fixed data; the RK4 reference's
+    // error, not a rounding error).
+    figures::check("docs/method.md", "frf.periodic", e);
+    figures::check("docs/method.md", "frf.periodic.no_hold", e0);
 }
 
 #[test]

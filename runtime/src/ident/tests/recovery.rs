@@ -38,6 +38,27 @@ fn sdof_noise_free_within_one_percent() {
     }
 }
 
+/// The known bias falls with the sample interval (docs/method.md, "Known bias"): the
+/// records of [`sdof_noise_free_within_one_percent`] simulated at twice the rate, default
+/// corners (whose top follows the rate); d and r are the doc's figures to their last digit
+/// (fixed data).
+#[test]
+fn the_known_bias_falls_with_the_sample_interval() {
+    let ir = sdof_model("");
+    let cfg = SimConfig {
+        duration: DURATION,
+        sample: 0.005,
+        seed: 1000,
+        ..Default::default()
+    };
+    let recs = sim::simulate(&ir, &cfg).expect("simulation").records;
+    let id = run(&ir, &recs, &IdentifyOptions::default());
+    let e = rel_errors(&id, &sdof_truth());
+    eprintln!("noise 0 %, Ts 0.005 s: (d, k, k3, r) {}", fmt_errs(&e));
+    figures::check("docs/method.md", "bias.d_half_ts", 100.0 * e[0]);
+    figures::check("docs/method.md", "bias.r_half_ts", 100.0 * e[3]);
+}
+
 #[test]
 fn sdof_five_percent_noise_within_two_percent() {
     let ir = sdof_model("");
