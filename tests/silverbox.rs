@@ -780,6 +780,18 @@ fn silverbox_free_mass_hides_the_drift() {
     assert_eq!(e.verdict, DetectVerdict::Linear);
 }
 
+/// The refined parameter `n` of `refinement` (a test failure naming it where it is not).
+fn refined_param<'r>(
+    refinement: &'r dynid_runtime::refine::Refinement,
+    n: &str,
+) -> &'r dynid_runtime::refine::RefinedParam {
+    refinement
+        .params
+        .iter()
+        .find(|p| p.name == n)
+        .unwrap_or_else(|| panic!("{n} refined: {refinement:?}"))
+}
+
 /// `dynid silverbox --refine --model models/<name>` on the real record: the covariance
 /// figures and the refined ones (arrow, multisine test, mV), printed; `None` without data.
 /// Checks that the refinement converged.
@@ -843,13 +855,7 @@ fn silverbox_quadratic_offset_refines() {
     else {
         return;
     };
-    let p = |n: &str| {
-        refinement
-            .params
-            .iter()
-            .find(|p| p.name == n)
-            .unwrap_or_else(|| panic!("{n} refined: {refinement:?}"))
-    };
+    let p = |n: &str| refined_param(&refinement, n);
     println!("c {:?}, f0 {:?}", p("c"), p("f0"));
     figures::check(DOC, "silverbox.quadratic_offset.arrow", arrow);
     figures::check(DOC, "silverbox.quadratic_offset.multisine", multisine);
@@ -878,13 +884,7 @@ fn silverbox_damping_model_reaches_0_35_mv() {
     };
     // The added terms as docs/silverbox.md quotes them: e and q, and the four terms'
     // standard errors from the final Jacobian relative to their values.
-    let p = |n: &str| {
-        refinement
-            .params
-            .iter()
-            .find(|p| p.name == n)
-            .unwrap_or_else(|| panic!("{n} refined: {refinement:?}"))
-    };
+    let p = |n: &str| refined_param(&refinement, n);
     figures::check(DOC, "silverbox.damping.e", p("e").value);
     figures::check(DOC, "silverbox.damping.q", p("q").value);
     let rel: Vec<f64> = ["c", "f0", "e", "q"]

@@ -24,25 +24,13 @@
 
 use super::moments::Window;
 use super::noise::fix::{linear_form, split_factor};
-use super::plan::{BasisMoment, Instrument, Plan, RowCombination, TermCoef};
+use super::plan::{BasisMoment, FCombo, FElem, Instrument, Plan, RowCombination, TermCoef};
 use dynid_ir::ir::{ExprNode, ModelIr, SignalId};
 
 /// Highest corner of the filtered equation's chain when it is designed from the data,
 /// as `λ Tₛ`: on the servo axis of the bench `servo_precision` the mass carries a bias of
 /// 0.13 % at `λ Tₛ = 1` (160 Hz at 1 kHz) and none measurable at 0.5.
 pub(crate) const FILTERED_MAX_LT: f64 = 0.5;
-
-/// One element of a filtered signal: a row signal `ι_i` (a filter state or a measured
-/// signal), or a constant static column of `w` with its value (a constant passes the
-/// low-pass unchanged).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) enum FElem {
-    Iota(usize),
-    Const { col: usize, value: f64 },
-}
-
-/// A filtered signal: a linear combination of [`FElem`].
-pub(crate) type FCombo = Vec<(FElem, f64)>;
 
 /// Why a model's filtered equation cannot be formed.
 pub(crate) fn unsupported(what: &str) -> String {

@@ -8,13 +8,24 @@
 //! estimates of bodies whose velocity is not measured.
 
 use super::bank::BankChoice;
-use super::filtered::FCombo;
 use super::noise::fix::{linear_form, split_factor, ColumnFix, ExtraColumn};
 use super::types::{CornerSource, IdentifyError};
 use dynid_ir::ir::{Basis, BodyId, ExprId, ModelIr, ParamKind, SignalId, SignalKind};
 
 /// A sparse linear combination of the row signals `ι`.
 pub(crate) type RowCombination = Vec<(usize, f64)>;
+
+/// One element of a filtered signal ([`super::filtered`]): a row signal `ι_i` (a filter state or a measured
+/// signal), or a constant static column of `w` with its value (a constant passes the
+/// low-pass unchanged).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum FElem {
+    Iota(usize),
+    Const { col: usize, value: f64 },
+}
+
+/// A filtered signal: a linear combination of [`FElem`].
+pub(crate) type FCombo = Vec<(FElem, f64)>;
 
 /// How a term's basis becomes a moment with an instrument `a` (see [`super::moments`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
