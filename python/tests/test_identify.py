@@ -102,3 +102,17 @@ def test_identify_keywords_are_the_commands_flags(models):
     chains = model.identify(data, column_chains=True, allow_large=True)
     assert chains["d"] != default["d"]
     assert abs(chains["m"] / 50 - 1) < 3e-3, chains["m"]
+
+
+def test_filtered_equation_keyword(models):
+    # `filtered_equation` is `--filtered-equation`: one corner, said in the report, and the
+    # planned moves' mass within the same 0.3 % as the defaults (docs/method.md §2).
+    model = dynid.Model.from_file(models / "servo_axis_planned.dyn")
+    data = model.simulate(duration=25, seed=1, sample=0.001)
+    result = model.identify(data, filtered_equation=True, corner_check=False)
+    filt = result.to_dict()["filter"]
+    assert len(filt["corners"]) == 1, filt["corners"]
+    assert filt["corners_from"]["filtered"] is True
+    assert abs(result["m"] / 50 - 1) < 3e-3, result["m"]
+    design = dynid.moment_design(model, data, filtered_equation=True)
+    assert '"filtered":true' in design.replace(" ", "")
