@@ -73,7 +73,7 @@ pub fn check_corners(
 /// The identification `id` (made with `opts` from `levels`) repeated with the highest
 /// corner a factor [`CORNER_CHECK_FACTOR`] below and above, the other corners log-spaced
 /// again from the same lowest corner; the raised corner stays below half the Nyquist
-/// frequency. Per parameter of `id` estimated in all three. Costs two further
+/// frequency (the filtered equation's one corner: below `0.5/Tₛ`). Per parameter of `id` estimated in all three. Costs two further
 /// identifications.
 pub fn corner_moves(
     ir: &ModelIr,
@@ -94,12 +94,14 @@ pub fn corner_moves(
             .map(|i| lo * (top / lo).powf(i as f64 / (n - 1) as f64))
             .collect()
     };
-    let down = spread((hi / CORNER_CHECK_FACTOR).max(lo * 2.0).min(hi));
-    let up = spread(
-        (hi * CORNER_CHECK_FACTOR)
-            .min(0.5 * std::f64::consts::PI / ts)
-            .max(hi),
-    );
+    // The filtered equation's one corner: moved on its own; raised at most to the cap of
+    // its design (`0.5/Tₛ`), where the chain's discretisation starts to bias the mass.
+    let (floor, cap) = match opts.filtered {
+        true => (0.0, super::filtered::FILTERED_MAX_LT / ts),
+        false => (lo * 2.0, 0.5 * std::f64::consts::PI / ts),
+    };
+    let down = spread((hi / CORNER_CHECK_FACTOR).max(floor).min(hi));
+    let up = spread((hi * CORNER_CHECK_FACTOR).min(cap).max(hi));
     let alt = |corners: Vec<f64>| {
         identify(
             ir,

@@ -205,6 +205,17 @@ fn rest_line(id: &dynid_runtime::ident::Identification) -> String {
         .iter()
         .map(|(b, t)| format!("{b} {} m/s", print::fmt_num(*t)))
         .collect();
+    if id.filter.corners_from.filtered {
+        return format!(
+            "slow passages left out of the filtered equation, each with the filter's memory \
+             after it (at rest a Coulomb force is anywhere within its bound, at a reversal \
+             the filtered sign carries the velocity estimate's timing): {} per level; slow: \
+             speed below {} % of the RMS ({}), any length (--keep-rests keeps them)\n",
+            per_level.join(" / "),
+            100.0 * dynid_runtime::ident::rests::REST_FRACTION,
+            thr.join(", "),
+        );
+    }
     format!(
         "rests left out of the moments (at rest a Coulomb force is anywhere within its bound): {} \
          per level; at rest: speed below {} % of the RMS ({}) for at \
