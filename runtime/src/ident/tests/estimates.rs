@@ -108,11 +108,10 @@ fn unphysical_estimates_are_warned_about_by_kind() {
 /// sets of 20 seeds (`100 + seed` replaced by `300 + seed`, `600 + seed`) 91 → 95 % and
 /// 88 → 91 %. (Without the noise correction `k3` kept about one standard error of
 /// errors-in-variables bias: 65 of 80 with 20 blocks, k3 13 of 20, rms z 1.77.) A bias
-/// remains noise-free, the simulated input's path between samples (docs/method.md §3;
-/// d −0.10 %, r −0.09 %, k −0.02 %, k3 −0.03 % at Tₛ = 0.01 s; −0.06 %, −0.04 %, −0.007 %,
-/// −0.010 % at 0.005 s with the default corners, whose top follows the sample rate;
-/// unchanged with 80 instead of 20 simulator sub-steps), well inside these standard
-/// errors (0.2–1.5 %).
+/// remains noise-free, the simulated input's path between samples (docs/method.md §3 and
+/// §7, "Known bias"; its size at Tₛ = 0.01 and 0.005 s is measured by
+/// `the_known_bias_falls_with_the_sample_interval`: about a tenth of a per cent), well
+/// inside these standard errors (0.2–1.5 %).
 #[test]
 fn standard_errors_cover_the_error() {
     let ir = sdof_model("");
