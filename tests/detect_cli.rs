@@ -112,6 +112,50 @@ fn one_level_is_a_clear_error_without_output() {
     assert!(!json.exists());
 }
 
+/// Two dampers on the same bodies are one column twice: each level's fit loses one of them
+/// (rank loss), and detection names it with the fit's reason — not as a missing standard
+/// error ("NaN") further on — and writes nothing.
+#[test]
+fn a_parameter_no_level_can_estimate_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let st = dynid()
+        .args([
+            "simulate",
+            models().join("sdof_linear.dyn").to_str().unwrap(),
+        ])
+        .args(["--duration", "200", "--out", data.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{}", common::stderr(&st));
+    let src = std::fs::read_to_string(models().join("sdof_linear.dyn")).unwrap();
+    let twice = src.replace(
+        "    damper d (ground, m) ~ 0.4\n",
+        "    damper d (ground, m) ~ 0.4\n    damper d2 (ground, m) ~ 0.1\n",
+    );
+    assert_ne!(twice, src, "the model's damper line changed");
+    let model = dir.path().join("two_dampers.dyn");
+    std::fs::write(&model, twice).unwrap();
+    let json = dir.path().join("detect.json");
+    let out = dynid()
+        .arg("detect")
+        .arg(&model)
+        .args((1..=3).map(|i| data.join(format!("level_{i}.csv"))))
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = common::stderr(&out);
+    assert!(
+        err.contains("cannot be estimated at this level")
+            && err.contains("dynid::detect::unidentifiable")
+            && !err.contains("NaN"),
+        "{err}"
+    );
+    assert!(!json.exists());
+}
+
 #[test]
 fn help_teaches_with_an_example() {
     let out = dynid().args(["detect", "--help"]).output().unwrap();

@@ -452,6 +452,21 @@ pub fn level_fits(
     let fits: Vec<Identification> = (0..levels.len())
         .map(|i| moments.identify_level_holding(i, &held_values))
         .collect();
+    // A parameter that a level's fit cannot estimate (rank loss) has no point on its curve:
+    // named here, with the fit's reason, rather than as a missing standard error later.
+    for (f, src) in fits.iter().zip(levels) {
+        let lost = f
+            .unidentifiable
+            .iter()
+            .find(|u| !held_values.iter().any(|(h, _)| *h == u.name));
+        if let Some(u) = lost {
+            return Err(FromDataError::Unidentifiable {
+                origin: src.origin(),
+                param: u.name.clone(),
+                reason: u.reason.clone(),
+            });
+        }
+    }
     let n_blocks = fits
         .iter()
         .flat_map(|f| f.levels.iter().map(|l| l.blocks))

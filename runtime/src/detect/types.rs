@@ -509,4 +509,14 @@ pub enum FromDataError {
         help("check that the element's signals are measured and the record is excited")
     )]
     NoMotion { origin: String, element: String },
+    #[error("{origin}: `{param}` cannot be estimated at this level: {reason}")]
+    #[diagnostic(
+        code(dynid::detect::unidentifiable),
+        help("detection compares every unknown's estimate across the levels: remove a term that duplicates another (two elements on the same bodies with the same law), give the parameter a value in the model, or excite the levels where it is missing")
+    )]
+    Unidentifiable {
+        origin: String,
+        param: String,
+        reason: String,
+    },
 }
