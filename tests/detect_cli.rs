@@ -145,14 +145,12 @@ fn a_parameter_no_level_can_estimate_is_named() {
         .arg(&json)
         .output()
         .unwrap();
-    assert!(!out.status.success());
-    let err = common::stderr(&out);
-    assert!(
-        err.contains("cannot be estimated at this level")
-            && err.contains("dynid::detect::unidentifiable")
-            && !err.contains("NaN"),
-        "{err}"
+    common::assert_refused(
+        &out,
+        "dynid::detect::unidentifiable",
+        &["cannot be estimated at this level"],
     );
+    assert!(!common::stderr(&out).contains("NaN"));
     assert!(!json.exists());
 }
 

@@ -73,8 +73,9 @@ pub fn check_corners(
 /// The identification `id` (made with `opts` from `levels`) repeated with the highest
 /// corner a factor [`CORNER_CHECK_FACTOR`] below and above, the other corners log-spaced
 /// again from the same lowest corner; the raised corner stays below half the Nyquist
-/// frequency (the filtered equation's one corner: below `0.5/Tₛ`). Per parameter of `id` estimated in all three. Costs two further
-/// identifications.
+/// frequency (the filtered equation's one corner: below `0.5/Tₛ`). Per parameter of `id`
+/// estimated in all three. Costs up to two further identifications (none for a corner
+/// that a cap keeps where it is).
 pub fn corner_moves(
     ir: &ModelIr,
     levels: &[&dyn LevelSource],
@@ -113,8 +114,15 @@ pub fn corner_moves(
         )
     };
     // One after the other: a level read once from a pipe streams its kept copy to one
-    // reader at a time.
-    let (a, b) = (alt(down.clone())?, alt(up.clone())?);
+    // reader at a time. A moved corner that did not move (at a cap) is `id` itself.
+    let moved = |corners: &Vec<f64>| -> Result<Option<Identification>, IdentifyError> {
+        match corners == c {
+            true => Ok(None),
+            false => alt(corners.clone()).map(Some),
+        }
+    };
+    let (a, b) = (moved(&down)?, moved(&up)?);
+    let (a, b) = (a.as_ref().unwrap_or(id), b.as_ref().unwrap_or(id));
     let top = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
     Ok(id
         .params
