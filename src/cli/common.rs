@@ -106,7 +106,7 @@ pub struct EstimatorArgs {
     /// the equation passed through the low-pass chain is regressed on its own filtered
     /// terms, as moments; every slow passage of a body with a `sign` of its velocity (a rest
     /// or a reversal) is left out with what the filter remembers of it. On the simulated
-    /// servo axis it lowers the mass, friction and offset errors 2–15 fold against the
+    /// servo axis it lowers the mass, friction and offset errors 1.6–16 fold against the
     /// defaults, but its damping carries a bias its standard error does not cover
     /// (docs/method.md §2, "Rows of the filtered equation")
     #[arg(long = "filtered-equation")]
