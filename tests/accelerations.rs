@@ -68,11 +68,10 @@ fn sdof_from_accelerations_as_from_positions() {
         let e_a = common::error_row("sdof, accelerations, 5 % noise", &acc, &id_a);
         let id_p = common::identify_records(&pos, &simulate(&pos, 1000.0, seed, 1));
         let e_p = common::error_row("sdof, positions, 5 % noise", &pos, &id_p);
-        // Seeds 31–36, largest errors: accelerations k −0.27 %, d +1.10 %; positions k
-        // −0.22 %, d −1.56 %. From accelerations k comes out low on every seed (−0.03 …
-        // −0.27 %, mean −0.15 %) against a standard error of ±0.06 %: a small bias of k
-        // that its standard error does not cover (positions: k −0.22 … +0.17 %, standard
-        // error ±0.16 %).
+        // Seeds 31–36, largest errors: accelerations k −0.31 %, d −1.39 %; positions k
+        // −0.22 %, d −1.56 %. From accelerations k scatters about zero (−0.30 … +0.26 %,
+        // mean −0.08 %) with a standard error of ±0.29 % (positions: k −0.22 … +0.17 %,
+        // standard error ±0.16 %).
         common::assert_within("sdof accelerations", &e_a, &[("k", 0.007), ("d", 0.025)]);
         common::assert_within("sdof positions", &e_p, &[("k", 0.006), ("d", 0.04)]);
         if seeds.len() == 1 {
@@ -93,8 +92,8 @@ fn sdof_from_accelerations_as_from_positions() {
         se_acc.push(se(&id_a));
         se_pos.push(se(&id_p));
     }
-    // The long form over the six seeds the doc quotes (`DYNID_SEEDS=6`): k from
-    // accelerations low on every seed, its range and mean against the mean standard errors.
+    // The long form over the six seeds the doc quotes (`DYNID_SEEDS=6`): the range and mean
+    // of k from accelerations against the mean standard errors.
     if seeds.len() == 6 && common::seeds_as_documented() {
         let pct = |v: &[f64]| 100.0 * v.iter().sum::<f64>() / v.len() as f64;
         let doc = "docs/method.md";

@@ -13,6 +13,7 @@
 //!
 //! [`Measurement::restricted`]: super::measurement::Measurement::restricted
 
+use super::ends::EndProjection;
 use super::moments::{Hat, LevelMoments, MomentView, Window};
 use super::plan::{BasisMoment, Instrument, Plan, TermCoef};
 use rayon::prelude::*;
@@ -37,6 +38,9 @@ pub(crate) struct ColumnStore {
     plan: Plan,
     pub levels: Vec<LevelMoments>,
     views: Vec<OnceLock<MomentView>>,
+    /// Per level: the projection that removes the unmeasured ends of acceleration-only
+    /// bodies from its rows (see [`super::ends`]).
+    ends: Vec<OnceLock<EndProjection>>,
     /// Per column (the unknowns, then the right-hand side), per row: its terms.
     terms: Vec<Vec<Vec<ColumnTerm>>>,
     formed: Vec<OnceLock<Arc<Column>>>,
@@ -56,6 +60,7 @@ impl ColumnStore {
         }
         ColumnStore {
             views: levels.iter().map(|_| OnceLock::new()).collect(),
+            ends: levels.iter().map(|_| OnceLock::new()).collect(),
             formed: (0..=ncol).map(|_| OnceLock::new()).collect(),
             terms,
             plan,
@@ -94,15 +99,45 @@ impl ColumnStore {
         self.views[i].get_or_init(|| self.levels[i].view())
     }
 
+    fn ends(&self, i: usize) -> &EndProjection {
+        self.ends[i].get_or_init(|| {
+            // The metric: every row of the whole record at unit norm over all columns,
+            // as the solve weighs them (`row_weights`).
+            let view = self.view(i);
+            let mut sq = vec![0.0; self.plan.rows.len()];
+            for c in 0..=self.rhs() {
+                for (s, v) in sq.iter_mut().zip(self.entries(c, view)) {
+                    *s += v * v;
+                }
+            }
+            let scale: Vec<f64> = sq
+                .iter()
+                .map(|&s| {
+                    if s > 0.0 && s.is_finite() {
+                        1.0 / s.sqrt()
+                    } else {
+                        1.0
+                    }
+                })
+                .collect();
+            EndProjection::new(&self.plan, &self.levels[i], &scale)
+        })
+    }
+
     fn form(&self, c: usize) -> Column {
         (0..self.levels.len())
             .into_par_iter()
             .map(|i| {
                 let lm = &self.levels[i];
+                let ends = self.ends(i);
+                let projected = |mut y: Vec<f64>| {
+                    ends.apply(&mut y);
+                    y
+                };
                 LevelColumn {
-                    view: self.entries(c, self.view(i)),
+                    view: projected(self.entries(c, self.view(i))),
                     hats: (0..=lm.n_blocks())
-                        .map(|j| self.entries(c, &Hat::new(lm, j)))
+                        .map(|j| projected(self.entries(c, &Hat::new(lm, j))))
                         .collect(),
                 }
             })
@@ -153,9 +188,10 @@ pub(crate) fn term_moment(ins: &Instrument, basis: &BasisMoment, v: &impl Window
             }
         }
         // The integrals of a band-pass instrument: no boundary term (the velocity and
-        // position at the ends are not measured), and no `φ'` term in a hat window (the
-        // hats' contributions then sum exactly to the record's; each carries a boundary
-        // error of its own, which the standard errors count as spread).
+        // position at the ends are not measured; the directions they reach are projected
+        // out of the rows afterwards, see `super::ends`), and no `φ'` term in a hat window
+        // (the hats' contributions then sum exactly to the record's; each carries a
+        // boundary error of its own, which the standard errors count as spread).
         BasisMoment::D1Acc(w) => -v.mean(ins.i1.as_ref().expect(ROW_NEEDS_DERIVATIVES), w),
         BasisMoment::D0Acc(w) => v.mean(ins.i2.as_ref().expect(ROW_NEEDS_DERIVATIVES), w),
         BasisMoment::D2Pos(x, q) => {

@@ -67,6 +67,7 @@ mod bank;
 mod columns;
 mod corners;
 pub mod design;
+mod ends;
 pub mod filter;
 pub(crate) mod filtered;
 mod first_pass;

@@ -280,13 +280,13 @@ impl LevelMoments {
 
     /// Whether the block before boundary `j` exists and counts.
     #[inline]
-    fn kept_before(&self, j: usize) -> bool {
+    pub(crate) fn kept_before(&self, j: usize) -> bool {
         j > 0 && self.kept[j - 1]
     }
 
     /// Whether the block after boundary `j` exists and counts.
     #[inline]
-    fn kept_after(&self, j: usize) -> bool {
+    pub(crate) fn kept_after(&self, j: usize) -> bool {
         j < self.n_blocks() && self.kept[j]
     }
 
