@@ -111,6 +111,14 @@ pub struct EstimatorArgs {
     /// (docs/method.md §2, "Rows of the filtered equation")
     #[arg(long = "filtered-equation")]
     pub filtered_equation: bool,
+    /// Solve a second time with each level's rows weighted by their estimated covariance
+    /// (two-step weighting) instead of each at unit norm. On a structure measured by
+    /// accelerometers with noise on every channel it removes a large shrinkage of the
+    /// masses and stiffnesses that the default rows give (five bodies, 5 % noise: −47 % →
+    /// −0.35 %), but its standard errors come out smaller than the spread they stand for
+    /// (docs/method.md §2, "Noise on such a structure")
+    #[arg(long = "weighted-rows")]
+    pub weighted_rows: bool,
 }
 
 impl EstimatorArgs {
@@ -123,6 +131,7 @@ impl EstimatorArgs {
             column_chains: self.column_chains,
             keep_rests: self.keep_rests,
             filtered: self.filtered_equation,
+            efficient: self.weighted_rows,
             allow_large,
             ..Default::default()
         }
