@@ -23,9 +23,9 @@
 //! - with 5 % noise on every channel the default unit-norm rows shrink every mass and
 //!   stiffness by about half; the two-step weighted solve removes it
 //!   (`noise_on_a_structure_needs_the_weighted_step`, opt-in);
-//! - the clearance alone, on noiseless records of 1000 s, collapses the fit of the right
-//!   model from accelerations while positions recover it
-//!   (`clearance_alone_breaks_the_fit_from_accelerations`, opt-in).
+//! - the clearance alone, on noiseless records of 1000 s: the right model recovers its
+//!   contact stiffness from accelerations as from positions
+//!   (`clearance_alone_from_accelerations`, opt-in).
 
 mod common;
 mod figures;
@@ -437,15 +437,14 @@ fn joint_from_accelerations() {
 }
 
 /// The joint with its clearance alone (no friction), noiseless multisine records of 1000 s
-/// (opt-in, `DYNID_STRUCTURE_LONG=1`): from positions the right model recovers the contact
-/// stiffness, from accelerations (the joint's displacement integrated over whole periods)
-/// the fit collapses. Seed 1: positions kb −0.02 %, accelerations kb −87 % with every
-/// mass 60–72 % low, where the linear structure's records of the same length give them
-/// within 0.12 % (`noise_on_a_structure_needs_the_weighted_step`): the clearance that
-/// engages is what breaks the fit from accelerations; with the friction alone it holds.
-/// Pinned, so that a fix shows here.
+/// (opt-in, `DYNID_STRUCTURE_LONG=1`): positions and accelerations (the joint's
+/// displacement integrated over whole periods) both recover the contact stiffness. Seed 1:
+/// positions kb −0.02 %, accelerations kb −0.10 %. The accelerations needed the lines far
+/// below the excited band left out of the integration: the contact's kinks fold down from
+/// above the Nyquist frequency into them, and divided by `ω²` they made a displacement a
+/// hundred times the true one (kb −87 %, every mass 60–72 % low, before).
 #[test]
-fn clearance_alone_breaks_the_fit_from_accelerations() {
+fn clearance_alone_from_accelerations() {
     if std::env::var("DYNID_STRUCTURE_LONG").is_err() {
         return;
     }
@@ -480,7 +479,7 @@ fn clearance_alone_breaks_the_fit_from_accelerations() {
         figures::check(DOC, "accel.structure5.clearance.acc.kb", 100.0 * kb(&e_a));
     }
     assert!(kb(&e_p).abs() < 0.02, "positions: kb {:+.4}", kb(&e_p));
-    assert!(kb(&e_a) < -0.5, "accelerations: kb {:+.4}", kb(&e_a));
+    assert!(kb(&e_a).abs() < 0.005, "accelerations: kb {:+.4}", kb(&e_a));
     // The friction alone, from accelerations: seed 1, masses and stiffnesses −0.85 …
     // +0.42 % (bound about twice the largest).
     let (_, joint) = common::model_and_source("structure5_joint_accel");

@@ -397,6 +397,7 @@ fn integrated_levels<'a>(
     Ok(IntegratedMotion::design_all(
         levels,
         &targets,
+        &crate::ident::integrate::measured_inputs(ir),
         FALLBACK_CORNER,
         chunk,
         allow_large,

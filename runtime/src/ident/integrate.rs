@@ -36,11 +36,18 @@
 //! **Whole periods** (a multisine's steady state recorded over an integer number of
 //! periods, `dynid simulate --signal multisine --periods N`): the record is periodic, its
 //! DFT lies on the lines of `p` whole periods (every `p`-th bin), and dividing the DFT by
-//! `(jω)ᵏ` with the mean dropped is exact — no high-pass, no padding, no end effects. The
+//! `(jω)ᵏ` with the mean dropped is exact — no padding, no end effects. The
 //! bins between the lines hold only noise and are dropped, and so are the lines whose
 //! power is below twenty times the mean noise power of those bins (lines below the excited
 //! band hold only noise, which `1/ω²` would amplify most): the estimate is the integral of
 //! the average period over the lines the acceleration carries.
+//! Lines below both the lowest line a measured input excites and the band-limited corner
+//! (a quarter of the lowest mode, below) are dropped too: a linear response has nothing
+//! there, and what the sampled acceleration holds there is mostly folded down from above
+//! the Nyquist frequency. A contact (a clearance closing) puts kinks into the acceleration
+//! whose folded content, divided by `ω²` at lines a hundredth of the band, came out as a
+//! displacement a hundred times the true one and collapsed the fit of a clearance
+//! (`tests/accel_structure.rs`, `clearance_alone_from_accelerations`).
 //! Periodicity is read from the data: the largest divisor `p` of the record length (at
 //! least 2, with periods of at least 16 samples) for which the bins on that grid hold at
 //! least 99 % of the acceleration's energy (white noise puts only `1/p` of its energy
@@ -74,7 +81,8 @@ pub const METHOD_BAND: &str =
      of the lowest mode of the displacement spectrum)";
 pub const METHOD_PERIODIC: &str =
     "exact frequency-domain integration over whole periods (DFT / (jw)^k on the lines of the \
-     period, mean dropped)";
+     period from the corner up: the lowest excited input line or a quarter of the lowest mode, \
+     mean dropped)";
 
 /// Energy fraction on the grid of `p` periods above which a record counts as periodic.
 const PERIODIC_FRACTION: f64 = 0.99;
@@ -90,8 +98,23 @@ const PAD_TIME_CONSTANTS: f64 = 8.0;
 pub enum Integration {
     /// Band-limited, with the high-pass corner `ω_h` in rad/s.
     Band { corner: f64 },
-    /// Exact over `periods` whole periods.
-    Periodic { periods: usize },
+    /// Exact over `periods` whole periods, on the lines at and above `floor` rad/s: the
+    /// band-limited corner (a quarter of the lowest mode) or, where lower, the lowest line
+    /// a measured input excites. Below both the sampled acceleration holds little but what
+    /// the sampling folds down from above the Nyquist frequency (the kinks of a contact)
+    /// and noise, which `1/ω²` would amplify most.
+    Periodic { periods: usize, floor: f64 },
+}
+
+/// The slots of the model's measured inputs (their lowest excited line bounds the lines a
+/// periodic integration keeps).
+pub fn measured_inputs(ir: &dynid_ir::ir::ModelIr) -> Vec<usize> {
+    ir.signals
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.measured && matches!(s.kind, dynid_ir::ir::SignalKind::Input(_)))
+        .map(|(i, _)| i)
+        .collect()
 }
 
 /// One signal to estimate: its slot, the slot of the acceleration it integrates, and the
@@ -183,22 +206,52 @@ fn periods_of(a: &[f64]) -> Option<usize> {
     whole_periods(n, &power)
 }
 
+/// The frequency (rad/s) of the lowest line of `p` whole periods on which the input `u`
+/// carries power: above `LINE_OVER_NOISE` times the mean power between the lines and
+/// above 10⁻⁶ of the strongest line. `None` where no line does.
+fn lowest_input_line(u: &[f64], p: usize, ts: f64) -> Option<f64> {
+    let n = u.len();
+    let fwd = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+    let mean = u.iter().sum::<f64>() / n as f64;
+    let mut buf: Vec<f64> = u.iter().map(|v| v - mean).collect();
+    let mut spec = fwd.make_output_vec();
+    fwd.process(&mut buf, &mut spec)
+        .expect("invariant: buffers made by the plan");
+    let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
+    let (off, count) = power
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k > 0 && !k.is_multiple_of(p))
+        .fold((0.0, 0usize), |(s, c), (_, v)| (s + v, c + 1));
+    let top = power.iter().skip(p).step_by(p).copied().fold(0.0, f64::max);
+    let bar = (LINE_OVER_NOISE * off / count.max(1) as f64).max(1e-6 * top);
+    let k = (p..power.len()).step_by(p).find(|&k| power[k] > bar)?;
+    Some(k as f64 * 2.0 * std::f64::consts::PI / (n as f64 * ts))
+}
+
 /// How the accelerations `accels` of one level are integrated: exactly where all hold the
 /// same whole periods, else band-limited with the lowest of their corners (`fallback`
-/// where no spectrum gives one).
-fn choose(accels: &[Vec<f64>], ts: f64, fallback: f64) -> Integration {
+/// where no spectrum gives one). Over whole periods the lines below that corner are kept
+/// from the lowest line an input `inputs` excites up (see [`Integration::Periodic`]).
+fn choose(accels: &[Vec<f64>], inputs: &[Vec<f64>], ts: f64, fallback: f64) -> Integration {
     let periods: Vec<Option<usize>> = accels.iter().map(|a| periods_of(a)).collect();
+    let corner = || {
+        accels
+            .iter()
+            .filter_map(|a| corner_from_spectrum(a, ts))
+            .reduce(f64::min)
+            .unwrap_or(fallback)
+    };
     match periods.first() {
-        Some(&Some(p)) if periods.iter().all(|q| *q == Some(p)) => {
-            Integration::Periodic { periods: p }
-        }
-        _ => Integration::Band {
-            corner: accels
+        Some(&Some(p)) if periods.iter().all(|q| *q == Some(p)) => Integration::Periodic {
+            periods: p,
+            floor: inputs
                 .iter()
-                .filter_map(|a| corner_from_spectrum(a, ts))
-                .reduce(f64::min)
-                .unwrap_or(fallback),
+                .filter(|u| u.len() == accels[0].len())
+                .filter_map(|u| lowest_input_line(u, p, ts))
+                .fold(corner(), f64::min),
         },
+        _ => Integration::Band { corner: corner() },
     }
 }
 
@@ -227,7 +280,7 @@ fn integrate(a: &[f64], ts: f64, how: Integration, orders: &[u8], out: &mut [Vec
     // where it stands out of it (white noise passes 20 times its mean with probability
     // e⁻²⁰), so that lines below the band, noise only, are not amplified by 1/ω².
     let noise = match how {
-        Integration::Periodic { periods } => {
+        Integration::Periodic { periods, .. } => {
             let off = spec
                 .iter()
                 .enumerate()
@@ -255,8 +308,12 @@ fn integrate(a: &[f64], ts: f64, how: Integration, orders: &[u8], out: &mut [Vec
             // Mean dropped; the Nyquist bin of an even length dropped too (a velocity's
             // would be imaginary there, which a real inverse transform cannot hold).
             // Periodic: only the lines of the period carry the signal, every other bin is
-            // noise (which 1/ω² would amplify most at the lowest bins): dropped.
-            let off_grid = matches!(how, Integration::Periodic { periods } if !k.is_multiple_of(periods))
+            // noise (which 1/ω² would amplify most at the lowest bins): dropped. So are
+            // the lines below the floor: there the sampled acceleration holds little but
+            // what the sampling folds down from above the Nyquist frequency (a contact's
+            // kinks) or the noise, and `1/ω²` amplifies it most.
+            let off_grid = matches!(how, Integration::Periodic { periods, floor }
+                    if !k.is_multiple_of(periods) || om < floor)
                 || s.norm_sqr() < noise;
             *w = if k == 0 || off_grid || (k == last && len.is_multiple_of(2)) {
                 Complex::new(0.0, 0.0)
@@ -285,6 +342,7 @@ impl<'a> IntegratedMotion<'a> {
     pub fn design(
         inner: &'a dyn LevelSource,
         targets: &[Target],
+        inputs: &[usize],
         corner: f64,
         chunk: usize,
         limit: Option<f64>,
@@ -296,9 +354,10 @@ impl<'a> IntegratedMotion<'a> {
         accels.dedup();
         // Per sample: each acceleration and each estimate, and the transform's padded real
         // buffer and half-length complex spectrum (about three more words, padding aside).
-        let per_sample = 8.0 * (accels.len() + targets.len() + 3) as f64;
+        let per_sample = 8.0 * (accels.len() + inputs.len() + targets.len() + 3) as f64;
         let mut samples = 0usize;
         let mut data: Vec<Vec<f64>> = vec![Vec::new(); accels.len()];
+        let mut forces: Vec<Vec<f64>> = vec![Vec::new(); inputs.len()];
         inner.stream(chunk, &mut |cols, len| {
             samples += len;
             if samples as f64 * per_sample > limit {
@@ -306,6 +365,11 @@ impl<'a> IntegratedMotion<'a> {
             }
             for (d, &s) in data.iter_mut().zip(&accels) {
                 d.extend_from_slice(&cols[s][..len]);
+            }
+            for (d, &s) in forces.iter_mut().zip(inputs) {
+                if let Some(c) = cols.get(s) {
+                    d.extend_from_slice(&c[..len.min(c.len())]);
+                }
             }
         })?;
         let bytes = samples as f64 * per_sample;
@@ -324,7 +388,7 @@ impl<'a> IntegratedMotion<'a> {
         let how = if short {
             Integration::Band { corner }
         } else {
-            choose(&data, ts, corner)
+            choose(&data, &forces, ts, corner)
         };
         for (k, t) in targets.iter().enumerate() {
             let d = &data[accels
@@ -353,6 +417,7 @@ impl<'a> IntegratedMotion<'a> {
     pub fn design_all(
         levels: &[&'a dyn LevelSource],
         targets: &[Target],
+        inputs: &[usize],
         corner: f64,
         chunk: usize,
         allow_large: bool,
@@ -362,7 +427,7 @@ impl<'a> IntegratedMotion<'a> {
         crate::first_error_in_order(
             levels
                 .par_iter()
-                .map(|src| Self::design(*src, targets, corner, chunk, limit)),
+                .map(|src| Self::design(*src, targets, inputs, corner, chunk, limit)),
         )
     }
 
@@ -412,6 +477,52 @@ mod tests {
     use std::f64::consts::PI;
 
     #[test]
+    fn lines_below_the_excited_band_and_the_corner_are_left_out() {
+        // 4 periods of 250 samples; the input excites lines 3 and 7 of the period, the
+        // acceleration holds them and a small line 1 (what a contact's kinks fold down),
+        // which `1/ω²` would make the largest part of the displacement.
+        let (n, ts) = (1000, 0.01);
+        let f0 = 2.0 * PI / (250.0 * ts);
+        let wave = |k: f64, p: f64, t: f64| (k * f0 * t + p).sin();
+        let u: Vec<f64> = (0..n)
+            .map(|i| wave(3.0, 0.2, i as f64 * ts) + wave(7.0, 0.9, i as f64 * ts))
+            .collect();
+        let x = |t: f64| wave(3.0, 0.3, t) + wave(7.0, 1.1, t);
+        let a: Vec<f64> = (0..n)
+            .map(|i| {
+                let t = i as f64 * ts;
+                -(3.0 * f0).powi(2) * wave(3.0, 0.3, t) - (7.0 * f0).powi(2) * wave(7.0, 1.1, t)
+                    + 0.05 * wave(1.0, 0.0, t)
+            })
+            .collect();
+        // The input's lowest line bounds the lines kept from above (the corner read from
+        // this short record's spectrum is coarse and may lie below it).
+        let how = choose(
+            std::slice::from_ref(&a),
+            std::slice::from_ref(&u),
+            ts,
+            100.0,
+        );
+        let Integration::Periodic { periods: 4, floor } = how else {
+            panic!("{how:?}")
+        };
+        assert!(floor <= 3.0 * f0 * (1.0 + 1e-12), "{floor}");
+        let error = |floor: f64| {
+            let mut out = vec![Vec::new()];
+            let how = Integration::Periodic { periods: 4, floor };
+            integrate(&a, ts, how, &[2], &mut out);
+            (0..n)
+                .map(|i| (out[0][i] - x(i as f64 * ts)).abs())
+                .fold(0.0, f64::max)
+        };
+        // Floor at the input's lowest line: line 1 left out, the displacement exact.
+        assert!(error(3.0 * f0) < 1e-10, "{}", error(3.0 * f0));
+        // Floor below line 1: it is kept, and its displacement 0.05/ω² is the error.
+        let kept = error(0.5 * f0);
+        assert!((kept / (0.05 / f0.powi(2)) - 1.0).abs() < 1e-3, "{kept}");
+    }
+
+    #[test]
     fn whole_periods_of_a_multisine_integrate_exactly() {
         // Three lines, 4 periods of 250 samples: x = Σ sin(ω t + φ), a = −Σ ω² sin(…).
         let (n, ts) = (1000, 0.01);
@@ -439,8 +550,13 @@ mod tests {
             })
             .collect();
         let mut out = vec![Vec::new(), Vec::new()];
-        let how = choose(std::slice::from_ref(&a), ts, 0.1);
-        assert_eq!(how, Integration::Periodic { periods: 4 });
+        // The force that drives it has the same lines: the lowest bounds the lines kept.
+        let u: Vec<f64> = (0..n).map(|i| x(i as f64 * ts)).collect();
+        let how = choose(std::slice::from_ref(&a), std::slice::from_ref(&u), ts, 0.1);
+        assert!(
+            matches!(how, Integration::Periodic { periods: 4, .. }),
+            "{how:?}"
+        );
         integrate(&a, ts, how, &[2, 1], &mut out);
         for (i, (xe, ve)) in out[0].iter().zip(&out[1]).enumerate() {
             let t = i as f64 * ts;
@@ -515,7 +631,7 @@ mod tests {
         }];
         // Five words per sample here (the acceleration, the estimate, the transform):
         // 400 kB for 10 000 samples.
-        match IntegratedMotion::design(&src, &target, 0.1, 1000, Some(1e5)) {
+        match IntegratedMotion::design(&src, &target, &[], 0.1, 1000, Some(1e5)) {
             Err(DataError::TooLarge { path, rows, .. }) => {
                 assert_eq!(path, "level 1");
                 assert_eq!(rows, "1.0e4");
@@ -523,9 +639,9 @@ mod tests {
             Err(e) => panic!("another error: {e}"),
             Ok(_) => panic!("held a record above its limit"),
         }
-        let held = IntegratedMotion::design(&src, &target, 0.1, 1000, Some(1e6))
+        let held = IntegratedMotion::design(&src, &target, &[], 0.1, 1000, Some(1e6))
             .expect("within the limit");
         assert_eq!(held.values[0].len(), 10_000);
-        assert!(IntegratedMotion::design(&src, &target, 0.1, 1000, None).is_ok());
+        assert!(IntegratedMotion::design(&src, &target, &[], 0.1, 1000, None).is_ok());
     }
 }

@@ -140,7 +140,8 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
     }
     for e in &id.estimated {
         if e.method != dynid_runtime::ident::velocity::METHOD {
-            // Integrated from an acceleration: the high-pass corner, or exact over periods.
+            // Integrated from an acceleration: the high-pass corner, or over whole periods
+            // the lowest line kept (0 in moment files that predate it: "exact").
             let cut: Vec<String> = e
                 .cutoff
                 .iter()

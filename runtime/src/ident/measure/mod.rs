@@ -204,7 +204,7 @@ pub(crate) fn measure_pieces(
                 .chain(integrated.get(level).into_iter().flat_map(|m| {
                     let d = match m.how() {
                         Integration::Band { corner } => (corner, 0),
-                        Integration::Periodic { periods } => (0.0, periods),
+                        Integration::Periodic { periods, floor } => (floor, periods),
                     };
                     plan.integrated.iter().map(move |_| d)
                 }))
@@ -473,14 +473,15 @@ fn integrators<'a>(
     Ok(IntegratedMotion::design_all(
         levels,
         &targets,
+        &integrate::measured_inputs(ir),
         corner,
         chunk,
         allow_large,
     )?)
 }
 
-/// The report of the integrated signals: per level, the high-pass corner (rad/s; 0 where
-/// the level held whole periods and was integrated exactly, as the method says), no window.
+/// The report of the integrated signals: per level, the high-pass corner (rad/s; where the
+/// level held whole periods and was integrated exactly, the lowest line kept), no window.
 fn integration_reports<'a>(
     ir: &'a ModelIr,
     plan: &'a Plan,
