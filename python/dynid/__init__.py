@@ -1388,6 +1388,7 @@ class Model:
         progress=None,
         corner_check: bool = True,
         filtered_equation: bool = False,
+        weighted_rows: bool = False,
     ) -> Identification:
         """Identify the unknown parameters, all levels pooled, as ``dynid identify``.
 
@@ -1430,6 +1431,11 @@ class Model:
             Rows of the filtered equation at one corner (``--filtered-equation``; docs/method.md
             §2): smaller errors of masses, friction and offsets on records whose input is
             smooth between samples.
+        weighted_rows : bool, default False
+            Solve a second time with each level's rows weighted by their estimated
+            covariance (``--weighted-rows``): on a many-body structure measured by noisy
+            accelerometers it removes the shrinkage of the unit-norm rows, but its standard
+            errors come out smaller than the spread they stand for (docs/method.md §2).
 
         Returns
         -------
@@ -1477,6 +1483,7 @@ class Model:
             _progress(progress),
             bool(corner_check),
             bool(filtered_equation),
+            bool(weighted_rows),
         )
         return Identification(_json.loads(js), eq, model=self, data=data)
 
@@ -1756,7 +1763,7 @@ del _f
 MomentStats = _dynid.MomentStats
 
 
-def moment_design(model, data, sample: _t.Optional[float] = None, filter_corners: _t.Optional[_t.Sequence[float]] = None, noise_correction: bool = True, balance: bool = False, column_chains: bool = False, keep_rests: bool = False, allow_large: bool = False, map=None, filtered_equation: bool = False) -> str:
+def moment_design(model, data, sample: _t.Optional[float] = None, filter_corners: _t.Optional[_t.Sequence[float]] = None, noise_correction: bool = True, balance: bool = False, column_chains: bool = False, keep_rests: bool = False, allow_large: bool = False, map=None, filtered_equation: bool = False, weighted_rows: bool = False) -> str:
     """The design moment statistics are made with, decided from a sample of the data before
     any piece is measured, as ``dynid moments --design-only`` (docs/distributed.md).
 
@@ -1768,7 +1775,7 @@ def moment_design(model, data, sample: _t.Optional[float] = None, filter_corners
         A sample of the data set, one record each: its first pass decides the corners
         (unless given), the time blocks per record (from the shortest) and the noise
         corrections.
-    sample, filter_corners, noise_correction, balance, column_chains, keep_rests, allow_large, map, filtered_equation
+    sample, filter_corners, noise_correction, balance, column_chains, keep_rests, allow_large, map, filtered_equation, weighted_rows
         As :meth:`Model.identify`.
 
     Returns
@@ -1784,7 +1791,7 @@ def moment_design(model, data, sample: _t.Optional[float] = None, filter_corners
     data, _ = _as_list(data)
     levels = _levels(m._m, data, sample, map)
     corners = None if filter_corners is None else [float(c) for c in filter_corners]
-    return _dynid.moment_design(m._m, levels, corners, bool(noise_correction), bool(balance), bool(column_chains), bool(keep_rests), bool(allow_large), bool(filtered_equation))
+    return _dynid.moment_design(m._m, levels, corners, bool(noise_correction), bool(balance), bool(column_chains), bool(keep_rests), bool(allow_large), bool(filtered_equation), bool(weighted_rows))
 
 
 def moments(model, data, design: str, sample: _t.Optional[float] = None, map=None, allow_large: bool = False) -> "MomentStats":

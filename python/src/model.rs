@@ -202,7 +202,7 @@ impl CompiledModel {
     /// Identify the unknown parameters from all levels pooled: `(json, equations)`, the
     /// JSON that of `dynid identify --json` (with `refined` after a refinement), the corner
     /// check included unless `corner_check` is false (`--no-corner-check`).
-    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None, corner_check=true, filtered_equation=false))]
+    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None, corner_check=true, filtered_equation=false, weighted_rows=false))]
     #[allow(clippy::too_many_arguments)]
     fn identify(
         &self,
@@ -218,6 +218,7 @@ impl CompiledModel {
         progress: Option<Py<PyAny>>,
         corner_check: bool,
         filtered_equation: bool,
+        weighted_rows: bool,
     ) -> PyResult<(String, String)> {
         guarded(py, || {
             let ir = &self.ir;
@@ -228,7 +229,7 @@ impl CompiledModel {
                 return Err(runtime_error(py, &e));
             }
             let sources = bind(py, ir, &levels)?;
-            let opts = crate::moments::estimator_options(
+            let opts = crate::moments::EstimatorKeywords {
                 corners,
                 noise_correction,
                 balance,
@@ -236,7 +237,9 @@ impl CompiledModel {
                 keep_rests,
                 allow_large,
                 filtered_equation,
-            );
+                weighted_rows,
+            }
+            .options();
             let id = py
                 .detach(|| {
                     let levels = refs(&sources);

@@ -47,9 +47,7 @@ impl PyMomentStats {
         &self,
         py: Python<'py>,
     ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyBytes>,))> {
-        let rebuild = py
-            .import("dynid._dynid")?
-            .getattr("_moments_from_bytes")?;
+        let rebuild = py.import("dynid._dynid")?.getattr("_moments_from_bytes")?;
         Ok((rebuild, (self.to_bytes(py),)))
     }
 
@@ -91,7 +89,7 @@ pub(crate) fn _moments_from_bytes(py: Python<'_>, data: &[u8]) -> PyResult<PyMom
 /// The design made from a sample of the data (JSON): corners, time blocks per record and
 /// noise corrections, as `dynid moments --design-only`.
 #[pyfunction]
-#[pyo3(signature = (model, levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, filtered_equation=false))]
+#[pyo3(signature = (model, levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, filtered_equation=false, weighted_rows=false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn moment_design(
     py: Python<'_>,
@@ -104,11 +102,12 @@ pub(crate) fn moment_design(
     keep_rests: bool,
     allow_large: bool,
     filtered_equation: bool,
+    weighted_rows: bool,
 ) -> PyResult<String> {
     guarded(py, || {
         let ir = &model.ir;
         let sources = bind(py, ir, &levels)?;
-        let opts = estimator_options(
+        let opts = EstimatorKeywords {
             corners,
             noise_correction,
             balance,
@@ -116,7 +115,9 @@ pub(crate) fn moment_design(
             keep_rests,
             allow_large,
             filtered_equation,
-        );
+            weighted_rows,
+        }
+        .options();
         let design = py
             .detach(|| MomentDesign::from_data(ir, &refs(&sources), &opts))
             .map_err(|e| runtime_error(py, &e))?;
@@ -124,27 +125,34 @@ pub(crate) fn moment_design(
     })
 }
 
-/// The library's options for the estimator keywords that `identify` and `moment_design`
-/// share (as the command line's `EstimatorArgs`: a design must be the one `identify` would
-/// make with the same keywords).
-pub(crate) fn estimator_options(
-    corners: Option<Vec<f64>>,
-    noise_correction: bool,
-    balance: bool,
-    column_chains: bool,
-    keep_rests: bool,
-    allow_large: bool,
-    filtered: bool,
-) -> IdentifyOptions {
-    IdentifyOptions {
-        corners,
-        balance,
-        noise_correction,
-        column_chains,
-        keep_rests,
-        allow_large,
-        filtered,
-        ..Default::default()
+/// The estimator keywords that `identify` and `moment_design` share (as the command
+/// line's `EstimatorArgs`: a design must be the one `identify` would make with the same
+/// keywords).
+pub(crate) struct EstimatorKeywords {
+    pub corners: Option<Vec<f64>>,
+    pub noise_correction: bool,
+    pub balance: bool,
+    pub column_chains: bool,
+    pub keep_rests: bool,
+    pub allow_large: bool,
+    pub filtered_equation: bool,
+    pub weighted_rows: bool,
+}
+
+impl EstimatorKeywords {
+    /// The library's options for these keywords.
+    pub(crate) fn options(self) -> IdentifyOptions {
+        IdentifyOptions {
+            corners: self.corners,
+            balance: self.balance,
+            noise_correction: self.noise_correction,
+            column_chains: self.column_chains,
+            keep_rests: self.keep_rests,
+            allow_large: self.allow_large,
+            filtered: self.filtered_equation,
+            efficient: self.weighted_rows,
+            ..Default::default()
+        }
     }
 }
 

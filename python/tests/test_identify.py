@@ -104,6 +104,20 @@ def test_identify_keywords_are_the_commands_flags(models):
     assert abs(chains["m"] / 50 - 1) < 3e-3, chains["m"]
 
 
+def test_weighted_rows_keyword(models):
+    # `weighted_rows` is `--weighted-rows`: a second solve with the rows whitened, which
+    # moves the estimates (within their errors on this friendly record) and is written
+    # into a design made with it.
+    model = dynid.Model.from_file(models / "two_mass_linear_accel.dyn")
+    data = model.simulate(duration=300, seed=2, noise=0.05)
+    default = model.identify(data, corner_check=False)
+    weighted = model.identify(data, weighted_rows=True, corner_check=False)
+    assert weighted["k1"] != default["k1"]
+    assert abs(weighted["k1"] / 4 - 1) < 0.02, weighted["k1"]
+    design = dynid.moment_design(model, data, weighted_rows=True)
+    assert '"efficient":true' in design.replace(" ", "")
+
+
 def test_filtered_equation_keyword(models):
     # `filtered_equation` is `--filtered-equation`: one corner, said in the report, and the
     # planned moves' mass within the same 0.3 % as the defaults (docs/method.md §2).
