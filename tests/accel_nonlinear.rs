@@ -326,26 +326,16 @@ fn friction_between_two_accelerometers_random() {
 fn detect_and_diagnose_name_the_friction_between_two_accelerometers() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
-    let st = common::dynid()
-        .arg("simulate")
-        .arg(common::model_path("two_mass_friction_accel.dyn"))
-        .args([
-            "--duration",
-            "300",
-            "--noise",
-            "0.05",
-            "--seed",
-            "3",
-            "--out",
-        ])
-        .arg(&data)
-        .output()
-        .unwrap();
-    assert!(st.status.success(), "{}", common::stderr(&st));
+    let levels = common::simulate_levels(
+        &common::model_path("two_mass_friction_accel.dyn"),
+        ["--duration", "300", "--noise", "0.05", "--seed", "3"],
+        &data,
+        3,
+    );
     let out = common::dynid()
         .arg("detect")
         .arg(common::model_path("two_mass_linear_accel.dyn"))
-        .args((1..=3).map(|i| data.join(format!("level_{i}.csv"))))
+        .args(&levels)
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", common::stderr(&out));
@@ -362,7 +352,7 @@ fn detect_and_diagnose_name_the_friction_between_two_accelerometers() {
     let out = common::dynid()
         .arg("diagnose")
         .arg(common::model_path("two_mass_linear_accel.dyn"))
-        .args((1..=3).map(|i| data.join(format!("level_{i}.csv"))))
+        .args(&levels)
         .arg("--json")
         .arg(&json)
         .output()

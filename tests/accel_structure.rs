@@ -217,10 +217,10 @@ fn model_file(dir: &std::path::Path, name: &str, positions: bool) -> std::path::
 fn joint_levels(dir: &std::path::Path, positions: bool) -> Vec<std::path::PathBuf> {
     let model = model_file(dir, "structure5_joint_accel", positions);
     let data = dir.join(if positions { "data_x" } else { "data" });
-    let st = common::dynid()
-        .arg("simulate")
-        .arg(&model)
-        .args([
+    let seed = common::seed(1).to_string();
+    common::simulate_levels(
+        &model,
+        [
             "--signal",
             "multisine",
             "--band-hz",
@@ -232,16 +232,11 @@ fn joint_levels(dir: &std::path::Path, positions: bool) -> Vec<std::path::PathBu
             "--noise",
             "0.05",
             "--seed",
-        ])
-        .arg(common::seed(1).to_string())
-        .arg("--out")
-        .arg(&data)
-        .output()
-        .unwrap();
-    assert!(st.status.success(), "{}", common::stderr(&st));
-    (1..=4)
-        .map(|i| data.join(format!("level_{i}.csv")))
-        .collect()
+            &seed,
+        ],
+        &data,
+        4,
+    )
 }
 
 /// `dynid detect` of `model` on `levels`: its verdict line per element, `Element ` and

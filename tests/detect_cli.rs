@@ -14,33 +14,18 @@ fn models() -> std::path::PathBuf {
 #[test]
 fn detects_friction_from_simulated_csv_and_writes_json_and_plot() {
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("data");
-    let st = dynid()
-        .args([
-            "simulate",
-            models().join("sdof_coulomb.dyn").to_str().unwrap(),
-        ])
-        .args([
-            "--duration",
-            "300",
-            "--seed",
-            "3",
-            "--out",
-            data.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
+    let levels = common::simulate_levels(
+        &models().join("sdof_coulomb.dyn"),
+        ["--duration", "300", "--seed", "3"],
+        &dir.path().join("data"),
+        3,
     );
     let json = dir.path().join("detect.json");
     let plot = dir.path().join("curves.svg");
     let out = dynid()
         .arg("detect")
         .arg(models().join("sdof_linear.dyn"))
-        .args((1..=3).map(|i| data.join(format!("level_{i}.csv"))))
+        .args(&levels)
         .arg("--json")
         .arg(&json)
         .arg("--plot")
@@ -72,32 +57,17 @@ fn detects_friction_from_simulated_csv_and_writes_json_and_plot() {
 #[test]
 fn one_level_is_a_clear_error_without_output() {
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("data");
-    let st = dynid()
-        .args([
-            "simulate",
-            models().join("sdof_linear.dyn").to_str().unwrap(),
-        ])
-        .args([
-            "--duration",
-            "100",
-            "--levels",
-            "10",
-            "--out",
-            data.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
+    let levels = common::simulate_levels(
+        &models().join("sdof_linear.dyn"),
+        ["--duration", "100", "--levels", "10"],
+        &dir.path().join("data"),
+        1,
     );
     let json = dir.path().join("detect.json");
     let out = dynid()
         .arg("detect")
         .arg(models().join("sdof_linear.dyn"))
-        .arg(data.join("level_1.csv"))
+        .arg(&levels[0])
         .arg("--json")
         .arg(&json)
         .output()
@@ -118,16 +88,12 @@ fn one_level_is_a_clear_error_without_output() {
 #[test]
 fn a_parameter_no_level_can_estimate_is_named() {
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("data");
-    let st = dynid()
-        .args([
-            "simulate",
-            models().join("sdof_linear.dyn").to_str().unwrap(),
-        ])
-        .args(["--duration", "200", "--out", data.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(st.status.success(), "{}", common::stderr(&st));
+    let levels = common::simulate_levels(
+        &models().join("sdof_linear.dyn"),
+        ["--duration", "200"],
+        &dir.path().join("data"),
+        3,
+    );
     let src = std::fs::read_to_string(models().join("sdof_linear.dyn")).unwrap();
     let twice = src.replace(
         "    damper d (ground, m) ~ 0.4\n",
@@ -140,7 +106,7 @@ fn a_parameter_no_level_can_estimate_is_named() {
     let out = dynid()
         .arg("detect")
         .arg(&model)
-        .args((1..=3).map(|i| data.join(format!("level_{i}.csv"))))
+        .args(&levels)
         .arg("--json")
         .arg(&json)
         .output()
@@ -171,26 +137,17 @@ fn help_teaches_with_an_example() {
 #[test]
 fn duffing_is_cubic_and_nothing_else() {
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("duf");
-    let st = dynid()
-        .args([
-            "simulate",
-            models().join("sdof_duffing.dyn").to_str().unwrap(),
-        ])
-        .args(["--duration", "2000", "--seed", "3", "--out"])
-        .arg(&data)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
+    let levels = common::simulate_levels(
+        &models().join("sdof_duffing.dyn"),
+        ["--duration", "2000", "--seed", "3"],
+        &dir.path().join("duf"),
+        3,
     );
     let json = dir.path().join("detect.json");
     let out = dynid()
         .arg("detect")
         .arg(models().join("sdof_linear.dyn"))
-        .args((1..=3).map(|i| data.join(format!("level_{i}.csv"))))
+        .args(&levels)
         .arg("--json")
         .arg(&json)
         .output()

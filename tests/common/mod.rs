@@ -134,21 +134,37 @@ pub fn dynid() -> std::process::Command {
     std::process::Command::new(env!("CARGO_BIN_EXE_dynid"))
 }
 
-/// Three levels of two_mass (cubic coupling spring and Coulomb friction; 200 s, seed 5)
-/// written by `dynid simulate` into `dir/data`: the data of the CLI's diagnosis tests.
-pub fn two_mass_levels(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
-    let data = dir.join("data");
+/// `dynid simulate MODEL ARGS… --out OUT`, which must succeed; the first `levels` level
+/// files it wrote (`OUT/level_1.csv` …).
+pub fn simulate_levels<S: AsRef<std::ffi::OsStr>>(
+    model: &std::path::Path,
+    args: impl IntoIterator<Item = S>,
+    out: &std::path::Path,
+    levels: usize,
+) -> Vec<std::path::PathBuf> {
     let st = dynid()
         .arg("simulate")
-        .arg(model_path("two_mass.dyn"))
-        .args(["--duration", "200", "--seed", "5", "--out"])
-        .arg(&data)
+        .arg(model)
+        .args(args)
+        .arg("--out")
+        .arg(out)
         .output()
         .unwrap();
     assert!(st.status.success(), "{}", stderr(&st));
-    (1..=3)
-        .map(|i| data.join(format!("level_{i}.csv")))
+    (1..=levels)
+        .map(|i| out.join(format!("level_{i}.csv")))
         .collect()
+}
+
+/// Three levels of two_mass (cubic coupling spring and Coulomb friction; 200 s, seed 5)
+/// written by `dynid simulate` into `dir/data`: the data of the CLI's diagnosis tests.
+pub fn two_mass_levels(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    simulate_levels(
+        &model_path("two_mass.dyn"),
+        ["--duration", "200", "--seed", "5"],
+        &dir.join("data"),
+        3,
+    )
 }
 
 /// A command's standard error with miette's line wrapping undone.
@@ -252,17 +268,7 @@ pub fn setup_linear_levels(dir: &std::path::Path) -> (std::path::PathBuf, Vec<st
         &model,
     )
     .unwrap();
-    let st = dynid()
-        .arg("simulate")
-        .arg(&model)
-        .args(["--duration", "50", "--seed", "3", "--out"])
-        .arg(dir)
-        .output()
-        .unwrap();
-    assert!(st.status.success(), "{}", stderr(&st));
-    let levels = (1..=3)
-        .map(|i| dir.join(format!("level_{i}.csv")))
-        .collect();
+    let levels = simulate_levels(&model, ["--duration", "50", "--seed", "3"], dir, 3);
     (model, levels)
 }
 
