@@ -101,24 +101,23 @@ impl ColumnStore {
 
     fn ends(&self, i: usize) -> &EndProjection {
         self.ends[i].get_or_init(|| {
-            // The metric: every row of the whole record at unit norm over all columns,
-            // as the solve weighs them (`row_weights`).
+            if !self.plan.integrates {
+                return EndProjection::default();
+            }
+            // The metric: every row of the whole record at unit norm over all columns, as
+            // the solve weighs them (a row without a norm keeps its scale).
             let view = self.view(i);
-            let mut sq = vec![0.0; self.plan.rows.len()];
-            for c in 0..=self.rhs() {
-                for (s, v) in sq.iter_mut().zip(self.entries(c, view)) {
-                    *s += v * v;
+            let (ncol, nr) = (self.rhs(), self.plan.rows.len());
+            let mut c = vec![0.0; nr * ncol];
+            for j in 0..ncol {
+                for (r, v) in self.entries(j, view).into_iter().enumerate() {
+                    c[r * ncol + j] = v;
                 }
             }
-            let scale: Vec<f64> = sq
-                .iter()
-                .map(|&s| {
-                    if s > 0.0 && s.is_finite() {
-                        1.0 / s.sqrt()
-                    } else {
-                        1.0
-                    }
-                })
+            let rhs = self.entries(ncol, view);
+            let scale: Vec<f64> = super::measurement::row_weights(&c, &rhs, ncol)
+                .into_iter()
+                .map(|w| if w > 0.0 { w } else { 1.0 })
                 .collect();
             EndProjection::new(&self.plan, &self.levels[i], &scale)
         })

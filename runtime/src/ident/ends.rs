@@ -79,22 +79,19 @@ impl EndProjection {
             let rows: Vec<usize> = (0..plan.rows.len())
                 .filter(|&r| plan.rows[r].1 == l)
                 .collect();
-            let of = |r: usize, pick: fn(&super::plan::Instrument) -> Option<&RowCombination>| {
-                pick(&plan.instruments[plan.rows[r].0])
-            };
+            let instrument = |r: usize| &plan.instruments[plan.rows[r].0];
             let scale: Vec<f64> = rows.iter().map(|&r| row_scale[r]).collect();
             let mut vectors = Vec::new();
             for &j in &ends {
-                vectors.push(end_vector(lm, j, &rows, |r| of(r, |i| i.i1.as_ref())));
+                vectors.push(end_vector(lm, j, &rows, |r| instrument(r).i1.as_ref()));
                 if position {
-                    vectors.push(end_vector(lm, j, &rows, |r| of(r, |i| i.i2.as_ref())));
+                    vectors.push(end_vector(lm, j, &rows, |r| instrument(r).i2.as_ref()));
                 }
             }
             for v in &mut vectors {
                 v.iter_mut().zip(&scale).for_each(|(a, s)| *a *= s);
             }
             let basis = orthonormal(vectors);
-
             if !basis.is_empty() {
                 groups.push(Group { rows, scale, basis });
             }

@@ -194,39 +194,40 @@ fn corner_from_spectrum(a: &[f64], ts: f64) -> Option<f64> {
     Some(mode as f64 * bin / 4.0)
 }
 
-/// The number of whole periods the record `a` holds, if it is periodic.
-fn periods_of(a: &[f64]) -> Option<usize> {
-    let n = a.len();
-    let fwd = RealFftPlanner::<f64>::new().plan_fft_forward(n);
-    let mut buf = a.to_vec();
+/// The power `|X_k|²` of the DFT of `x`, `k = 0 … n/2`.
+fn power_spectrum(x: &[f64]) -> Vec<f64> {
+    let fwd = RealFftPlanner::<f64>::new().plan_fft_forward(x.len());
+    let mut buf = x.to_vec();
     let mut spec = fwd.make_output_vec();
     fwd.process(&mut buf, &mut spec)
         .expect("invariant: buffers made by the plan");
-    let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
-    whole_periods(n, &power)
+    spec.iter().map(|c| c.norm_sqr()).collect()
+}
+
+/// The mean of `power` (bin by bin, `k = 0 …`) over the bins between the lines of `p`
+/// whole periods (the mean's bin 0 left out): the noise power per bin.
+fn between_lines(power: impl Iterator<Item = f64>, p: usize) -> f64 {
+    let (sum, count) = power
+        .enumerate()
+        .filter(|(k, _)| *k > 0 && !k.is_multiple_of(p))
+        .fold((0.0, 0usize), |(s, c), (_, v)| (s + v, c + 1));
+    sum / count.max(1) as f64
+}
+
+/// The number of whole periods the record `a` holds, if it is periodic.
+fn periods_of(a: &[f64]) -> Option<usize> {
+    whole_periods(a.len(), &power_spectrum(a))
 }
 
 /// The frequency (rad/s) of the lowest line of `p` whole periods on which the input `u`
 /// carries power: above `LINE_OVER_NOISE` times the mean power between the lines and
 /// above 10⁻⁶ of the strongest line. `None` where no line does.
 fn lowest_input_line(u: &[f64], p: usize, ts: f64) -> Option<f64> {
-    let n = u.len();
-    let fwd = RealFftPlanner::<f64>::new().plan_fft_forward(n);
-    let mean = u.iter().sum::<f64>() / n as f64;
-    let mut buf: Vec<f64> = u.iter().map(|v| v - mean).collect();
-    let mut spec = fwd.make_output_vec();
-    fwd.process(&mut buf, &mut spec)
-        .expect("invariant: buffers made by the plan");
-    let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
-    let (off, count) = power
-        .iter()
-        .enumerate()
-        .filter(|(k, _)| *k > 0 && !k.is_multiple_of(p))
-        .fold((0.0, 0usize), |(s, c), (_, v)| (s + v, c + 1));
+    let power = power_spectrum(u);
     let top = power.iter().skip(p).step_by(p).copied().fold(0.0, f64::max);
-    let bar = (LINE_OVER_NOISE * off / count.max(1) as f64).max(1e-6 * top);
+    let bar = (LINE_OVER_NOISE * between_lines(power.iter().copied(), p)).max(1e-6 * top);
     let k = (p..power.len()).step_by(p).find(|&k| power[k] > bar)?;
-    Some(k as f64 * 2.0 * std::f64::consts::PI / (n as f64 * ts))
+    Some(k as f64 * 2.0 * std::f64::consts::PI / (u.len() as f64 * ts))
 }
 
 /// How the accelerations `accels` of one level are integrated: exactly where all hold the
@@ -281,12 +282,7 @@ fn integrate(a: &[f64], ts: f64, how: Integration, orders: &[u8], out: &mut [Vec
     // e⁻²⁰), so that lines below the band, noise only, are not amplified by 1/ω².
     let noise = match how {
         Integration::Periodic { periods, .. } => {
-            let off = spec
-                .iter()
-                .enumerate()
-                .filter(|(k, _)| *k > 0 && !k.is_multiple_of(periods));
-            let (sum, count) = off.fold((0.0, 0usize), |(s, c), (_, v)| (s + v.norm_sqr(), c + 1));
-            LINE_OVER_NOISE * sum / count.max(1) as f64
+            LINE_OVER_NOISE * between_lines(spec.iter().map(|c| c.norm_sqr()), periods)
         }
         Integration::Band { .. } => 0.0,
     };

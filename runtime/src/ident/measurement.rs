@@ -555,7 +555,7 @@ fn stack_rows(
 /// Row normalisation: every row (with its right-hand side) gets unit norm, so rows of weak
 /// instruments and quiet levels count as much as loud ones. (Scaled by the row's largest
 /// entry first, so that squares cannot overflow.)
-fn row_weights(c_full: &[f64], r_full: &[f64], ncol: usize) -> Vec<f64> {
+pub(super) fn row_weights(c_full: &[f64], r_full: &[f64], ncol: usize) -> Vec<f64> {
     (0..r_full.len())
         .map(|r| {
             let row = || c_full[r * ncol..(r + 1) * ncol].iter().chain([&r_full[r]]);
