@@ -42,6 +42,8 @@ mod layout;
 mod tests;
 #[cfg(target_arch = "x86_64")]
 mod x86;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use x86::{has_avx512, has_avx_fma};
 
 pub use chain::{ChainDisc, Hold};
 pub use layout::LANES;
