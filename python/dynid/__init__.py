@@ -1389,6 +1389,7 @@ class Model:
         corner_check: bool = True,
         filtered_equation: bool = False,
         weighted_rows: bool = False,
+        input_delay: bool = False,
     ) -> Identification:
         """Identify the unknown parameters, all levels pooled, as ``dynid identify``.
 
@@ -1436,6 +1437,11 @@ class Model:
             covariance (``--weighted-rows``): on a many-body structure measured by noisy
             accelerometers it removes the shrinkage of the unit-norm rows, but its standard
             errors come out smaller than the spread they stand for (docs/method.md §2).
+        input_delay : bool, default False
+            Estimate a delay of each measured input against its record (``--input-delay``):
+            one more parameter per input, ``"u.delay"`` in seconds, for a force that acts
+            later than it is recorded or changes between samples in a way a straight line
+            does not follow (docs/method.md §2, "The input between samples").
 
         Returns
         -------
@@ -1484,6 +1490,7 @@ class Model:
             bool(corner_check),
             bool(filtered_equation),
             bool(weighted_rows),
+            bool(input_delay),
         )
         return Identification(_json.loads(js), eq, model=self, data=data)
 

@@ -202,7 +202,7 @@ impl CompiledModel {
     /// Identify the unknown parameters from all levels pooled: `(json, equations)`, the
     /// JSON that of `dynid identify --json` (with `refined` after a refinement), the corner
     /// check included unless `corner_check` is false (`--no-corner-check`).
-    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None, corner_check=true, filtered_equation=false, weighted_rows=false))]
+    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None, corner_check=true, filtered_equation=false, weighted_rows=false, input_delay=false))]
     #[allow(clippy::too_many_arguments)]
     fn identify(
         &self,
@@ -219,6 +219,7 @@ impl CompiledModel {
         corner_check: bool,
         filtered_equation: bool,
         weighted_rows: bool,
+        input_delay: bool,
     ) -> PyResult<(String, String)> {
         guarded(py, || {
             let ir = &self.ir;
@@ -238,6 +239,7 @@ impl CompiledModel {
                 allow_large,
                 filtered_equation,
                 weighted_rows,
+                input_delay,
             }
             .options();
             let id = py

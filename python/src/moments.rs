@@ -116,6 +116,7 @@ pub(crate) fn moment_design(
             allow_large,
             filtered_equation,
             weighted_rows,
+            input_delay: false,
         }
         .options();
         let design = py
@@ -137,6 +138,8 @@ pub(crate) struct EstimatorKeywords {
     pub allow_large: bool,
     pub filtered_equation: bool,
     pub weighted_rows: bool,
+    /// `--input-delay` (`identify` only: moment statistics do not carry it).
+    pub input_delay: bool,
 }
 
 impl EstimatorKeywords {
@@ -151,6 +154,7 @@ impl EstimatorKeywords {
             allow_large: self.allow_large,
             filtered: self.filtered_equation,
             efficient: self.weighted_rows,
+            input_delay: self.input_delay,
             ..Default::default()
         }
     }

@@ -130,3 +130,15 @@ def test_filtered_equation_keyword(models):
     assert abs(result["m"] / 50 - 1) < 3e-3, result["m"]
     design = dynid.moment_design(model, data, filtered_equation=True)
     assert '"filtered":true' in design.replace(" ", "")
+
+
+def test_input_delay_keyword(models):
+    # `input_delay` is `--input-delay`: one more parameter, the force's delay in seconds.
+    # `simulate` holds the controller's force over each sample, half a sample (0.5 ms)
+    # behind the straight line between samples; the CLI's test on 13 s finds 0.446 ms
+    # (tests/servo_workflow.rs).
+    model = dynid.Model.from_file(models / "servo_axis_planned.dyn")
+    data = model.simulate(duration=25, seed=1, sample=0.001)
+    result = model.identify(data, filtered_equation=True, input_delay=True, corner_check=False)
+    assert 3e-4 < result["u.delay"] < 6e-4, result["u.delay"]
+    assert "u(t − " in result.equations, result.equations

@@ -119,6 +119,15 @@ pub struct EstimatorArgs {
     /// (docs/method.md §2, "Noise on such a structure")
     #[arg(long = "weighted-rows")]
     pub weighted_rows: bool,
+    /// Estimate a delay of each measured input (force) against its record: one more
+    /// unknown per input, `u.delay` in seconds, for a force that acts later than it is
+    /// recorded or that changes between samples in a way a straight line between them does
+    /// not follow (a current loop updated faster than the record). With
+    /// --filtered-equation on the simulated servo axis it removes the damping bias that the
+    /// standard errors do not cover (docs/method.md §2, "The input between samples"). Not
+    /// with `moments` or --from
+    #[arg(long = "input-delay")]
+    pub input_delay: bool,
 }
 
 impl EstimatorArgs {
@@ -132,6 +141,7 @@ impl EstimatorArgs {
             keep_rests: self.keep_rests,
             filtered: self.filtered_equation,
             efficient: self.weighted_rows,
+            input_delay: self.input_delay,
             allow_large,
             ..Default::default()
         }

@@ -53,7 +53,7 @@ pub struct Args {
     #[arg(
         long,
         value_name = "DESIGN.json",
-        conflicts_with_all = ["design_only", "filter_corners", "balance", "no_noise_correction", "column_chains", "keep_rests", "filtered_equation", "weighted_rows"]
+        conflicts_with_all = ["design_only", "filter_corners", "balance", "no_noise_correction", "column_chains", "keep_rests", "filtered_equation", "weighted_rows", "input_delay"]
     )]
     pub design: Option<PathBuf>,
     /// Write only the design made from DATA (a sample of the data set), as JSON: corners,

@@ -2,6 +2,7 @@
 //! stacked system; each measures the levels once (see [`super::measure`](fn@super::measure)).
 
 use super::guard;
+use super::input_delay;
 use super::measure::measure;
 use super::measurement::Measurement;
 use super::shape;
@@ -19,6 +20,7 @@ pub fn identify(
     levels: &[&dyn LevelSource],
     opts: &IdentifyOptions,
 ) -> Result<Identification, IdentifyError> {
+    let ir = &*input_delay::model(ir, opts)?;
     if !ir.shapes.is_empty() {
         return Ok(shape::profile(ir, levels, opts)?.1);
     }
@@ -44,6 +46,7 @@ pub fn identify_with(
     levels: &[&dyn LevelSource],
     opts: &IdentifyOptions,
 ) -> Result<Identification, IdentifyError> {
+    let ir = &*input_delay::model(ir, opts)?;
     let m = measure(ir, eval, levels, opts)?;
     Ok(guarded(&m, levels, opts))
 }
@@ -55,6 +58,7 @@ pub fn identify_per_level(
     levels: &[&dyn LevelSource],
     opts: &IdentifyOptions,
 ) -> Result<Vec<Identification>, IdentifyError> {
+    let ir = &*input_delay::model(ir, opts)?;
     let tape = Tape::compile(ir, &ir.eval_roots());
     let m = measure(ir, &tape, levels, opts)?;
     Ok((0..levels.len()).map(|i| m.identify_level(i)).collect())
@@ -67,5 +71,6 @@ pub fn assemble(
     levels: &[&dyn LevelSource],
     opts: &IdentifyOptions,
 ) -> Result<LinearSystem, IdentifyError> {
+    let ir = &*input_delay::model(ir, opts)?;
     Ok(measure(ir, eval, levels, opts)?.system())
 }

@@ -73,6 +73,7 @@ pub(crate) mod filtered;
 mod first_pass;
 pub mod guard;
 mod identify;
+mod input_delay;
 mod instruments;
 pub mod integrate;
 mod measure;

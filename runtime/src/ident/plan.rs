@@ -8,9 +8,10 @@
 //! estimates of bodies whose velocity is not measured.
 
 use super::bank::BankChoice;
+use super::input_delay;
 use super::noise::fix::{linear_form, split_factor, ColumnFix, ExtraColumn};
 use super::types::{CornerSource, IdentifyError};
-use dynid_ir::ir::{Basis, BodyId, ExprId, ModelIr, ParamKind, SignalId, SignalKind};
+use dynid_ir::ir::{Basis, BodyId, ExprId, ModelIr, ParamKind, SignalId, SignalKind, TermOrigin};
 
 /// A sparse linear combination of the row signals `ι`.
 pub(crate) type RowCombination = Vec<(usize, f64)>;
@@ -353,7 +354,20 @@ pub(crate) fn build_structure(
                     }
                 }
             };
+            // A delayed input, `c u(t − τ) ≈ c u − c τ u̇`: the unknown τ multiplies the
+            // input's derivative, formed on the instruments ([`super::input_delay`]).
+            let delay = match (t.origin, &coef) {
+                (TermOrigin::Input(i), TermCoef::Known(c)) => input_delay::param_of(ir, i)
+                    .and_then(|p| Some((col_of(p)?, *c, y_of[ir.input_signal(i).index()]?))),
+                _ => None,
+            };
             terms.push(PlanTerm { coef, basis });
+            if let Some((col, c, k)) = delay {
+                terms.push(PlanTerm {
+                    coef: TermCoef::Unknown { col, scale: -c },
+                    basis: BasisMoment::D1Pos(n_g + k),
+                });
+            }
         }
         equations.push(terms);
     }

@@ -91,6 +91,21 @@ pub fn format_equations(ir: &ModelIr, id: &Identification) -> String {
                 _ => {
                     side.push_str(&coef);
                     side.push_str(&basis);
+                    // A delayed input: `u(t − 5.1e-5(±2.2e-6) s)`.
+                    let delay = match t.origin {
+                        TermOrigin::Input(i) => {
+                            id.param(&super::input_delay::name(&ir.inputs[i.index()].name))
+                        }
+                        _ => None,
+                    };
+                    if let Some(d) = delay {
+                        side.push_str(&format!(
+                            "(t {} {}(±{}) s)",
+                            if d.value < 0.0 { "+" } else { "−" },
+                            fmt_num(d.value.abs()),
+                            fmt_se(d.stderr)
+                        ));
+                    }
                 }
             }
         }

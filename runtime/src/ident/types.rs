@@ -79,6 +79,15 @@ pub struct IdentifyOptions {
     /// equation sample by sample, as moments; see [`plan`] and docs/method.md §2). Needs one
     /// corner (given, or designed); the chains of the nonlinear static columns are added.
     pub filtered: bool,
+    /// Estimate a delay `τ` of each measured input against its record: the force that acts
+    /// is `u(t − τ) ≈ u(t) − τ u̇(t)`, one more unknown per input (named `u.delay`, in
+    /// seconds; [`super::input_delay::extend`]), whose column is the input's derivative taken on
+    /// the instruments. What it models: a force that reaches the structure later than it
+    /// is recorded, and a force that changes between samples in a way the first-order hold
+    /// of the filters does not follow (a current loop updated faster than the record, a
+    /// sample-and-hold); on the servo bench it removes the damping bias of the filtered
+    /// rows (docs/method.md §2, "The input between samples").
+    pub input_delay: bool,
 }
 
 impl Default for IdentifyOptions {
@@ -99,6 +108,7 @@ impl Default for IdentifyOptions {
             allow_large: false,
             efficient: false,
             filtered: false,
+            input_delay: false,
         }
     }
 }
@@ -168,6 +178,14 @@ pub enum IdentifyError {
         ts_slow: f64,
         corner: f64,
     },
+    #[error(
+        "the model `{model}` has no measured input whose delay could be estimated (--input-delay)"
+    )]
+    #[diagnostic(
+        code(dynid::identify::no_input_to_delay),
+        help("a delay is estimated for the forces declared by `input u on BODY` and listed in `measure`; drop --input-delay for this model")
+    )]
+    NoInputToDelay { model: String },
     #[error(
         "{origin}: every measured signal is constant ({columns}): the level carries no excitation"
     )]

@@ -78,7 +78,7 @@ pub struct Args {
         long = "from",
         value_name = "PART.dynm",
         num_args = 1..,
-        conflicts_with_all = ["data", "refine", "filter_corners", "balance", "no_balance", "no_noise_correction", "column_chains", "keep_rests", "filtered_equation", "weighted_rows"]
+        conflicts_with_all = ["data", "refine", "filter_corners", "balance", "no_balance", "no_noise_correction", "column_chains", "keep_rests", "filtered_equation", "weighted_rows", "input_delay"]
     )]
     pub from: Vec<PathBuf>,
     /// Write the result as JSON to this file.

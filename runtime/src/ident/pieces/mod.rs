@@ -197,6 +197,9 @@ impl MomentDesign {
         opts: &IdentifyOptions,
     ) -> Result<MomentDesign, MomentsError> {
         refuse_shapes(ir)?;
+        if opts.input_delay {
+            return Err(MomentsError::InputDelay);
+        }
         let first = first_pass_all(ir, levels, opts)?;
         Ok(design_levels(ir, opts, &first, levels)?)
     }
@@ -220,6 +223,9 @@ impl MomentDesign {
             allow_large: false,
             efficient: o.efficient,
             filtered: o.filtered,
+            // Not a design choice: `moments` refuses it (the pieces' sums are of the
+            // model's own columns).
+            input_delay: false,
         }
     }
 
@@ -429,6 +435,14 @@ pub enum MomentsError {
         help("make every piece with one design: `dynid moments MODEL SAMPLE... --design-only --out design.json`, then `dynid moments MODEL DATA --design design.json` for each piece")
     )]
     OtherDesign { detail: String },
+    #[error("the inputs' delays are not estimated from moment statistics: their columns are not among the model's")]
+    #[diagnostic(
+        code(dynid::moments::input_delay),
+        help(
+            "identify from the data to estimate them: `dynid identify MODEL DATA... --input-delay`"
+        )
+    )]
+    InputDelay,
     #[error("no moment statistics to merge")]
     #[diagnostic(code(dynid::moments::empty), help("give at least one .dynm file"))]
     Empty,
