@@ -315,6 +315,7 @@ fn set_filters(
     let given = corners_given(ir, opts);
     plan.corner_source = CornerSource {
         filtered: opts.filtered,
+        filtered_cap: opts.filtered.then(|| crate::ident::filtered::max_lt(opts)),
         ..corner_source(given, designed.as_ref())
     };
     let corners = chosen_corners(ir, opts, designed.as_ref(), &span, bank.n_corners);
@@ -391,6 +392,7 @@ fn corner_source(given: bool, designed: Option<&Designed>) -> CornerSource {
         info_signal: designed.and_then(|d| d.info_signal.as_ref().map(|(n, _)| n.clone())),
         info_bandwidth: designed.and_then(|d| d.info_signal.as_ref().map(|(_, w)| *w)),
         filtered: false,
+        filtered_cap: None,
     }
 }
 
@@ -406,9 +408,9 @@ fn chosen_corners(
         (Some(c), _) => c.clone(),
         (None, Some(c)) if !c.is_empty() => c.clone(),
         // The filtered equation: one corner, as high as the measured signals carry
-        // information above their noise floor, and at most `FILTERED_MAX_LT / Tₛ`.
+        // information above their noise floor, and at most `max_lt / Tₛ`.
         _ if opts.filtered => {
-            let top = crate::ident::filtered::FILTERED_MAX_LT / span.ts_min;
+            let top = crate::ident::filtered::max_lt(opts) / span.ts_min;
             let info = designed.and_then(|d| d.info_signal.as_ref().map(|(_, w)| *w));
             vec![info.map_or(top, |w| w.min(top))]
         }
