@@ -313,13 +313,10 @@ pub struct CornerSource {
     pub info_signal: Option<String>,
     pub info_bandwidth: Option<f64>,
     /// The one corner of the filtered equation's rows ([`IdentifyOptions::filtered`]),
-    /// designed as the information bandwidth, at most `filtered_cap / Tₛ`.
+    /// designed as the information bandwidth, at most `0.5 / Tₛ` (`0.25 / Tₛ` with the
+    /// inputs' delays, [`IdentifyOptions::input_delay`]).
     #[serde(default)]
     pub filtered: bool,
-    /// The highest designed corner of the filtered equation as `λ Tₛ` (0.5; 0.25 with the
-    /// inputs' delays estimated).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub filtered_cap: Option<f64>,
 }
 
 impl CornerSource {
@@ -340,13 +337,11 @@ impl CornerSource {
             };
         }
         if self.filtered {
-            let cap = self
-                .filtered_cap
-                .unwrap_or(super::filtered::FILTERED_MAX_LT);
-            let rule = format!("one corner for the filtered equation, at most {cap}/Ts");
+            let rule = "one corner for the filtered equation, at most 0.5/Ts (0.25/Ts with \
+                        --input-delay)";
             return match band {
                 Some(b) => format!("{rule}: {b}"),
-                None => rule,
+                None => rule.into(),
             };
         }
         let lower = match self.lower {

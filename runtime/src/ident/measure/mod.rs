@@ -315,7 +315,6 @@ fn set_filters(
     let given = corners_given(ir, opts);
     plan.corner_source = CornerSource {
         filtered: opts.filtered,
-        filtered_cap: opts.filtered.then(|| crate::ident::filtered::max_lt(opts)),
         ..corner_source(given, designed.as_ref())
     };
     let corners = chosen_corners(ir, opts, designed.as_ref(), &span, bank.n_corners);
@@ -392,7 +391,6 @@ fn corner_source(given: bool, designed: Option<&Designed>) -> CornerSource {
         info_signal: designed.and_then(|d| d.info_signal.as_ref().map(|(n, _)| n.clone())),
         info_bandwidth: designed.and_then(|d| d.info_signal.as_ref().map(|(_, w)| *w)),
         filtered: false,
-        filtered_cap: None,
     }
 }
 
