@@ -70,13 +70,19 @@ fn rms_and_coverage(
     seeds: std::ops::RangeInclusive<u64>,
     opts: &IdentifyOptions,
 ) -> Vec<(f64, f64)> {
-    let n = seeds.clone().count() as f64;
-    let mut acc = [(0.0, 0.0); 4];
-    for seed in seeds {
-        for (a, (e, s)) in acc
-            .iter_mut()
-            .zip(errors(&servo_with(0.1, seed, false, opts)))
-        {
+    let ids: Vec<Identification> = seeds
+        .map(|seed| servo_with(0.1, seed, false, opts))
+        .collect();
+    rms_and_cover(&ids)
+}
+
+/// RMS relative error per parameter of [`TRUTH`] over identifications, and the fraction
+/// whose error is within two standard errors.
+fn rms_and_cover(ids: &[Identification]) -> Vec<(f64, f64)> {
+    let n = ids.len() as f64;
+    let mut acc = vec![(0.0, 0.0); TRUTH.len()];
+    for id in ids {
+        for (a, (e, s)) in acc.iter_mut().zip(errors(id)) {
             a.0 += e * e / n;
             a.1 += f64::from(u8::from(e.abs() < 2.0 * s)) / n;
         }
@@ -373,26 +379,6 @@ fn filtered_equation_rows_shrink_the_mass_friction_and_offset_errors() {
     );
 }
 
-/// RMS relative error and coverage (|error| < 2 SE) per parameter of [`TRUTH`] over
-/// identifications, and the mean estimated input delay in sample intervals.
-fn summary(ids: &[Identification]) -> (Vec<(f64, f64)>, f64) {
-    let n = ids.len() as f64;
-    let mut acc = vec![(0.0, 0.0); TRUTH.len()];
-    for id in ids {
-        for (a, (e, s)) in acc.iter_mut().zip(errors(id)) {
-            a.0 += e * e / n;
-            a.1 += f64::from(u8::from(e.abs() < 2.0 * s)) / n;
-        }
-    }
-    let delay = ids
-        .iter()
-        .map(|id| id.param("u.delay").map_or(f64::NAN, |p| p.value))
-        .sum::<f64>()
-        / n
-        / 1e-3;
-    (acc.iter().map(|&(m, c)| (m.sqrt(), c)).collect(), delay)
-}
-
 /// The controller updates ten times per sample and holds: the force's staircase lags the
 /// straight line between samples the filters assume, which biases the damping of the
 /// filtered rows by more than their standard errors. An unknown delay of the input
@@ -465,7 +451,15 @@ fn an_input_delay_takes_up_the_force_between_samples() {
                 .map(|(ir, rec)| servo_common::identify_record(ir, rec, opts))
                 .collect()
         };
-        let ((off, _), (on, delay)) = (summary(&run(&filtered)), summary(&run(&delayed)));
+        let with_delay = run(&delayed);
+        let (off, on) = (rms_and_cover(&run(&filtered)), rms_and_cover(&with_delay));
+        // The mean delay found, in ms.
+        let delay = with_delay
+            .iter()
+            .map(|id| id.param("u.delay").expect("the delay estimated").value)
+            .sum::<f64>()
+            / with_delay.len() as f64
+            / 1e-3;
         println!("{kind}: mean input delay {delay:.4} ms");
         for (k, (name, _)) in TRUTH.iter().enumerate() {
             println!(
