@@ -108,8 +108,9 @@ pub struct EstimatorArgs {
     /// terms, as moments; every slow passage of a body with a `sign` of its velocity (a rest
     /// or a reversal) is left out with what the filter remembers of it. On the simulated
     /// servo axis it lowers the mass, friction and offset errors 1.6–16 fold against the
-    /// defaults, but its damping carries a bias its standard error does not cover
-    /// (docs/method.md §2, "Rows of the filtered equation")
+    /// defaults, but its damping carries a bias its standard error does not cover unless
+    /// --input-delay takes up the force's path between samples (docs/method.md §2, "Rows of
+    /// the filtered equation")
     #[arg(long = "filtered-equation")]
     pub filtered_equation: bool,
     /// Solve a second time with each level's rows weighted by their estimated covariance
