@@ -480,7 +480,7 @@ fn an_input_delay_takes_up_the_force_between_samples() {
             figures::check("README.md", keys.0[3], 100.0 * on[3].0);
         }
         // The damping: measured 0.152 → 0.005 % (random) and 0.207 → 0.050 % (planned),
-        // ratios 0.035 and 0.24; bounds two and three times those.
+        // ratios 0.035 and 0.24; bounds about three and two times those.
         let bound = if kind == "random" { 0.1 } else { 0.5 };
         assert!(
             on[1].0 < bound * off[1].0,

@@ -295,7 +295,7 @@
 //! cap without it). With the filtered rows it removes their damping bias: random m 0.005,
 //! d 0.005, r 0.010, f0 0.069 % — below the best baseline on every parameter (SVF-LS rests
 //! out 0.007, 0.149, 0.076, 0.097 %; SVF-LS 80 Hz d 0.096 %), every one covered on 83–100 %
-//! of the seeds (at 500 rad/s the mass is low on every seed, coverage 42 %); planned m 0.008,
+//! of the seeds (at 500 rad/s the mass's coverage is 42 %, RMS e/SE 2.24); planned m 0.008,
 //! d 0.050, r 0.060, f0 0.319 % with coverage 92–100 % — d and r below every baseline, m just
 //! above SVF-LS rests out's 0.007 %, f0 above IDIM-LS's 0.234 %. It does not cure a model
 //! error: with the Stribeck term the filtered rows' d and r stay 1.0 and 1.7 % off, and with

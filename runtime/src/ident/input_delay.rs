@@ -27,8 +27,8 @@ pub(crate) fn name(input: &str) -> String {
 }
 
 /// The model identification solves: `ir` itself, or with the inputs' delays where
-/// [`IdentifyOptions::input_delay`] asks for them.
-/// Refused where no input is measured: there is no delay to estimate.
+/// [`IdentifyOptions::input_delay`] asks for them; refused where that leaves no input
+/// with a delay (none is measured).
 pub(crate) fn model<'a>(
     ir: &'a ModelIr,
     opts: &IdentifyOptions,
@@ -37,9 +37,7 @@ pub(crate) fn model<'a>(
         return Ok(Cow::Borrowed(ir));
     }
     let out = extend(ir);
-    if out.params.len() == ir.params.len()
-        && !(0..ir.inputs.len()).any(|i| param_of(ir, InputId(i as u32)).is_some())
-    {
+    if !(0..out.inputs.len()).any(|i| param_of(&out, InputId(i as u32)).is_some()) {
         return Err(IdentifyError::NoInputToDelay {
             model: ir.name.clone(),
         });

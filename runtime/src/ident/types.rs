@@ -337,11 +337,14 @@ impl CornerSource {
             };
         }
         if self.filtered {
-            let rule = "one corner for the filtered equation, at most 0.5/Ts (0.25/Ts with \
-                        --input-delay)";
+            let rule = format!(
+                "one corner for the filtered equation, at most {}/Ts ({}/Ts with --input-delay)",
+                super::filtered::FILTERED_MAX_LT,
+                super::filtered::FILTERED_DELAY_MAX_LT
+            );
             return match band {
                 Some(b) => format!("{rule}: {b}"),
-                None => rule.into(),
+                None => rule,
             };
         }
         let lower = match self.lower {
