@@ -12,358 +12,366 @@
 //! f0 = −2 N, 1 kHz for 25 s, 1 µm encoder, PD controller updated ten times per sample,
 //! position and force only (the velocity is not recorded). Each record kind
 //! ([`Trajectory`]) is made by [`record`]; per method and parameter the table gives, over
-//! the seeds, the RMS relative error, the mean reported standard error (relative), the
-//! coverage (fraction of seeds with |error| < 2 SE) and the RMS of error / SE (1 for honest
-//! errors), and the mean time per record.
+//! the seeds, the RMS relative error, the mean relative error (the part of the error common
+//! to every seed: a bias of the method on this axis), the mean reported standard error
+//! (relative), the coverage (fraction of seeds with |error| < 2 SE) and the RMS of
+//! error / SE (1 for honest errors), and the mean time per record.
 //!
 //! Run: `cargo bench -p dynid-runtime --bench servo_precision` (`-- --json` prints one JSON
-//! object instead of the table; `DYNID_BENCH_SEEDS=12` sets the number of seeds, 1…N).
+//! object instead of the table; `DYNID_BENCH_SEEDS=N` sets the number of seeds, 1…N, 48 by
+//! default). Forty-eight seeds, not twelve: an RMS error over `n` seeds is itself uncertain
+//! by about `1/√(2n)` of its value, ±20 % at twelve — enough to turn a tie into a ranking.
+//! At twelve seeds IDIM-LS's offset on the planned moves came out 0.234 % against dynid's
+//! 0.319 % (filtered rows with the delay); at forty-eight every method's offset there lies
+//! between 0.283 and 0.302 %: a tie at the floor the force's noise sets.
 //!
-//! Measured (2026-11-27, after the input delay was added; seeds 1–12;
-//! `DYNID_BENCH_SEEDS=12 cargo bench -p dynid-runtime --bench servo_precision` — on a
-//! machine shared with other builds, so `ms/rec` is only roughly comparable within the
-//! table; RMS error and mean SE in % of the truth, `cover` the fraction of seeds
-//! with |error| < 2 SE, `e/SE` the RMS of error / SE; the planned records carry white noise
-//! of 1 % of the force's spread on the force, drawn from the seed — without it every seed
-//! would give the same record). Every row but the `--input-delay` and `filtered + delay`
-//! ones is that of the previous run to the last digit but for `ms/rec`.
-//! `DYNID_BENCH_METHODS=filtered,IDIM` runs only the methods whose names hold one of the comma-separated parts;
-//! `DYNID_BENCH_INPUT_OVERSAMPLE=N` sets the controller's updates per sample (10 here):
+//! Measured (2026-11-27; seeds 1–48; `cargo bench -p dynid-runtime --bench
+//! servo_precision`, 40 s in all — on a machine shared with other builds, so `ms/rec` is
+//! only roughly comparable within the table; errors and mean SE in % of the truth, `cover`
+//! the fraction of seeds with |error| < 2 SE, `e/SE` the RMS of error / SE; the planned
+//! records carry white noise of 1 % of the force's spread on the force, drawn from the
+//! seed — without it every seed would give the same record).
+//! `DYNID_BENCH_METHODS=filtered,IDIM` runs only the methods whose names hold one of the
+//! comma-separated parts; `DYNID_BENCH_INPUT_OVERSAMPLE=N` sets the controller's updates
+//! per sample (10 here):
 //!
 //! ```text
-//! servo axis, seeds 1–12: RMS error, mean SE (both % of the truth), coverage |e| < 2 SE, RMS e/SE
+//! servo axis, seeds 1–48: RMS and mean error, mean SE (% of the truth), coverage |e| < 2 SE, RMS e/SE
 //!
 //! random reference
-//! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.014%    0.022%    100%    0.68       8.4
-//! dynid (defaults)            d    0.472%    0.510%    100%    0.83       8.4
-//! dynid (defaults)            r    1.359%    1.388%    100%    0.81       8.4
-//! dynid (defaults)           f0    1.465%    0.982%    100%    1.00       8.4
-//! dynid --column-chains       m    0.042%    0.031%    100%    1.16       9.9
-//! dynid --column-chains       d    0.256%    0.228%     92%    0.96       9.9
-//! dynid --column-chains       r    0.702%    0.582%     92%    1.18       9.9
-//! dynid --column-chains      f0    0.864%    1.003%     92%    0.80       9.9
-//! dynid chains, 2-step        m    0.013%    0.010%     83%    2.06       8.8
-//! dynid chains, 2-step        d    0.200%    0.109%     67%    3.65       8.8
-//! dynid chains, 2-step        r    0.545%    0.301%     50%    2.92       8.8
-//! dynid chains, 2-step       f0    1.179%    0.649%     67%    2.11       8.8
-//! dynid to noise floor        m    0.180%    0.143%    100%    0.84       5.7
-//! dynid to noise floor        d    1.863%    1.775%    100%    0.69       5.7
-//! dynid to noise floor        r    5.029%    4.843%    100%    0.74       5.7
-//! dynid to noise floor       f0    2.051%    2.426%     92%    1.10       5.7
-//! dynid chains 2-step nf      m    0.012%    0.013%     83%    1.46       7.5
-//! dynid chains 2-step nf      d    0.194%    0.207%    100%    1.06       7.5
-//! dynid chains 2-step nf      r    0.599%    0.603%     92%    1.15       7.5
-//! dynid chains 2-step nf     f0    0.890%    1.134%     92%    1.14       7.5
-//! dynid --keep-rests          m    0.014%    0.022%    100%    0.68       4.8
-//! dynid --keep-rests          d    0.472%    0.510%    100%    0.83       4.8
-//! dynid --keep-rests          r    1.359%    1.388%    100%    0.81       4.8
-//! dynid --keep-rests         f0    1.465%    0.982%    100%    1.00       4.8
-//! dynid --filtered-eq.        m    0.009%    0.004%     42%    2.41       5.8
-//! dynid --filtered-eq.        d    0.152%    0.023%      0%    6.93       5.8
-//! dynid --filtered-eq.        r    0.091%    0.053%     75%    1.74       5.8
-//! dynid --filtered-eq.       f0    0.091%    0.218%    100%    0.40       5.8
-//! dynid filtered 20 Hz        m    0.021%    0.005%      0%    4.33       5.4
-//! dynid filtered 20 Hz        d    0.168%    0.024%      0%    7.24       5.4
-//! dynid filtered 20 Hz        r    0.189%    0.062%     25%    3.06       5.4
-//! dynid filtered 20 Hz       f0    0.099%    0.224%    100%    0.43       5.4
-//! dynid filtered 160 Hz       m    0.126%    0.004%      0%   28.92       5.7
-//! dynid filtered 160 Hz       d    0.126%    0.021%      0%    5.96       5.7
-//! dynid filtered 160 Hz       r    0.059%    0.053%     92%    1.14       5.7
-//! dynid filtered 160 Hz      f0    0.098%    0.223%    100%    0.42       5.7
-//! dynid --input-delay         m    0.022%    0.022%     83%    1.20       5.1
-//! dynid --input-delay         d    0.502%    0.457%     92%    0.97       5.1
-//! dynid --input-delay         r    1.308%    1.253%    100%    0.74       5.1
-//! dynid --input-delay        f0    0.688%    0.781%     92%    1.05       5.1
-//! dynid filtered + delay      m    0.005%    0.004%     83%    1.23       6.0
-//! dynid filtered + delay      d    0.005%    0.004%     92%    1.36       6.0
-//! dynid filtered + delay      r    0.010%    0.009%     92%    1.10       6.0
-//! dynid filtered + delay     f0    0.069%    0.090%    100%    0.81       6.0
-//! dynid filt.+delay 500/s      m    0.007%    0.003%     42%    2.24       7.3
-//! dynid filt.+delay 500/s      d    0.007%    0.004%     67%    1.81       7.3
-//! dynid filt.+delay 500/s      r    0.009%    0.009%     83%    1.05       7.3
-//! dynid filt.+delay 500/s     f0    0.065%    0.084%    100%    0.83       7.3
-//! IDIM-LS, OLS errors         m    0.029%    0.016%     75%    1.79       1.7
-//! IDIM-LS, OLS errors         d    0.163%    0.088%     58%    1.77       1.7
-//! IDIM-LS, OLS errors         r    0.785%    0.197%      0%    3.96       1.7
-//! IDIM-LS, OLS errors        f0    0.639%    0.872%     92%    0.73       1.7
-//! IDIM-LS, HAC errors         m    0.029%    0.014%     67%    2.08       1.7
-//! IDIM-LS, HAC errors         d    0.163%    0.064%     50%    2.41       1.7
-//! IDIM-LS, HAC errors         r    0.785%    0.169%      0%    4.61       1.7
-//! IDIM-LS, HAC errors        f0    0.639%    0.587%     92%    1.03       1.7
-//! SVF-LS 10 Hz, HAC           m    0.102%    0.022%      0%    4.63     151.9
-//! SVF-LS 10 Hz, HAC           d    0.169%    0.102%     83%    1.70     151.9
-//! SVF-LS 10 Hz, HAC           r    0.681%    0.275%     50%    1.99     151.9
-//! SVF-LS 10 Hz, HAC          f0    1.210%    1.556%    100%    0.74     151.9
-//! SVF-LS 80 Hz, HAC           m    0.027%    0.006%      0%    4.45      22.8
-//! SVF-LS 80 Hz, HAC           d    0.096%    0.037%     33%    3.41      22.8
-//! SVF-LS 80 Hz, HAC           r    0.149%    0.094%     92%    1.48      22.8
-//! SVF-LS 80 Hz, HAC          f0    0.313%    0.417%    100%    0.62      22.8
-//! SVF-LS 80 Hz, EIV comp.      m    0.034%    0.006%      0%    5.58      21.7
-//! SVF-LS 80 Hz, EIV comp.      d    0.096%    0.037%     33%    3.40      21.7
-//! SVF-LS 80 Hz, EIV comp.      r    0.149%    0.094%     92%    1.47      21.7
-//! SVF-LS 80 Hz, EIV comp.     f0    0.314%    0.416%    100%    0.62      21.7
-//! SVF-LS 80 Hz, rests out      m    0.007%    0.005%     83%    1.54      20.5
-//! SVF-LS 80 Hz, rests out      d    0.149%    0.025%      0%    5.95      20.5
-//! SVF-LS 80 Hz, rests out      r    0.076%    0.059%     92%    1.30      20.5
-//! SVF-LS 80 Hz, rests out     f0    0.097%    0.256%    100%    0.39      20.5
-//! SVF-LS 80, rests+EIV        m    0.014%    0.005%      8%    2.95      20.6
-//! SVF-LS 80, rests+EIV        d    0.151%    0.025%      0%    5.99      20.6
-//! SVF-LS 80, rests+EIV        r    0.079%    0.059%     92%    1.34      20.6
-//! SVF-LS 80, rests+EIV       f0    0.096%    0.255%    100%    0.38      20.6
+//! method                  param   RMS err  mean err   mean SE   cover    e/SE    ms/rec
+//! dynid (defaults)            m    0.021%    0.000%    0.024%     96%    1.09       5.5
+//! dynid (defaults)            d    0.903%   -0.239%    1.146%     96%    0.90       5.5
+//! dynid (defaults)            r    2.538%    0.463%    3.205%    100%    0.84       5.5
+//! dynid (defaults)           f0    1.463%    0.567%    1.646%     96%    1.08       5.5
+//! dynid --column-chains       m    0.035%    0.015%    0.029%     94%    1.38       5.9
+//! dynid --column-chains       d    0.343%    0.019%    0.345%     90%    1.14       5.9
+//! dynid --column-chains       r    0.879%   -0.267%    0.858%     90%    1.50       5.9
+//! dynid --column-chains      f0    1.538%    0.274%    1.175%     88%    1.29       5.9
+//! dynid chains, 2-step        m    0.013%   -0.008%    0.009%     75%    2.40       5.7
+//! dynid chains, 2-step        d    0.196%    0.022%    0.124%     71%    2.39       5.7
+//! dynid chains, 2-step        r    0.635%   -0.408%    0.320%     56%    2.73       5.7
+//! dynid chains, 2-step       f0    1.084%    0.384%    0.856%     81%    1.66       5.7
+//! dynid to noise floor        m    0.221%   -0.040%    0.149%     98%    0.89       4.6
+//! dynid to noise floor        d    1.763%   -0.299%    2.479%    100%    0.68       4.6
+//! dynid to noise floor        r    4.833%    0.559%    6.855%    100%    0.68       4.6
+//! dynid to noise floor       f0    2.668%    0.589%    3.118%     96%    0.93       4.6
+//! dynid chains 2-step nf      m    0.015%   -0.004%    0.014%     85%    1.36       5.6
+//! dynid chains 2-step nf      d    0.210%    0.040%    0.209%     94%    1.10       5.6
+//! dynid chains 2-step nf      r    0.723%   -0.466%    0.559%     83%    1.84       5.6
+//! dynid chains 2-step nf     f0    1.645%   -0.123%    1.717%     90%    1.25       5.6
+//! dynid --keep-rests          m    0.021%    0.000%    0.024%     96%    1.09       4.3
+//! dynid --keep-rests          d    0.903%   -0.239%    1.146%     96%    0.90       4.3
+//! dynid --keep-rests          r    2.538%    0.463%    3.205%    100%    0.84       4.3
+//! dynid --keep-rests         f0    1.463%    0.567%    1.646%     96%    1.08       4.3
+//! dynid --filtered-eq.        m    0.009%    0.008%    0.003%     38%    2.46       4.9
+//! dynid --filtered-eq.        d    0.147%   -0.145%    0.024%      0%    6.36       4.9
+//! dynid --filtered-eq.        r    0.082%    0.059%    0.053%     83%    1.56       4.9
+//! dynid --filtered-eq.       f0    0.121%   -0.008%    0.212%    100%    0.57       4.9
+//! dynid filtered 20 Hz        m    0.021%    0.021%    0.005%      0%    4.78       4.8
+//! dynid filtered 20 Hz        d    0.160%   -0.158%    0.025%      0%    6.72       4.8
+//! dynid filtered 20 Hz        r    0.178%    0.165%    0.060%     23%    3.03       4.8
+//! dynid filtered 20 Hz       f0    0.150%    0.007%    0.213%    100%    0.71       4.8
+//! dynid filtered 160 Hz       m    0.127%   -0.127%    0.004%      0%   28.99       4.8
+//! dynid filtered 160 Hz       d    0.124%   -0.122%    0.022%      0%    5.71       4.8
+//! dynid filtered 160 Hz       r    0.057%    0.014%    0.052%     96%    1.10       4.8
+//! dynid filtered 160 Hz      f0    0.107%   -0.015%    0.218%    100%    0.49       4.8
+//! dynid --input-delay         m    0.024%    0.015%    0.023%     85%    1.37       4.8
+//! dynid --input-delay         d    0.646%   -0.069%    0.652%     96%    0.89       4.8
+//! dynid --input-delay         r    1.822%    0.218%    1.842%     98%    0.81       4.8
+//! dynid --input-delay        f0    0.790%    0.014%    1.043%     98%    0.89       4.8
+//! dynid filtered + delay      m    0.005%    0.003%    0.003%     83%    1.39       4.9
+//! dynid filtered + delay      d    0.004%    0.000%    0.003%     94%    1.09       4.9
+//! dynid filtered + delay      r    0.009%    0.003%    0.008%     88%    1.17       4.9
+//! dynid filtered + delay     f0    0.078%   -0.000%    0.089%     96%    0.94       4.9
+//! dynid filt.+delay 500/s      m    0.007%   -0.006%    0.003%     40%    2.53       5.0
+//! dynid filt.+delay 500/s      d    0.007%    0.006%    0.004%     71%    1.78       5.0
+//! dynid filt.+delay 500/s      r    0.009%   -0.005%    0.009%     94%    1.00       5.0
+//! dynid filt.+delay 500/s     f0    0.070%   -0.001%    0.084%     96%    0.90       5.0
+//! IDIM-LS, OLS errors         m    0.024%    0.021%    0.016%     83%    1.47       1.7
+//! IDIM-LS, OLS errors         d    0.156%    0.146%    0.088%     71%    1.73       1.7
+//! IDIM-LS, OLS errors         r    0.767%   -0.753%    0.196%      0%    3.88       1.7
+//! IDIM-LS, OLS errors        f0    0.574%    0.055%    0.874%     98%    0.65       1.7
+//! IDIM-LS, HAC errors         m    0.024%    0.021%    0.015%     75%    1.66       1.7
+//! IDIM-LS, HAC errors         d    0.156%    0.146%    0.063%     35%    2.39       1.7
+//! IDIM-LS, HAC errors         r    0.767%   -0.753%    0.167%      0%    4.55       1.7
+//! IDIM-LS, HAC errors        f0    0.574%    0.055%    0.579%     96%    0.96       1.7
+//! SVF-LS 10 Hz, HAC           m    0.097%    0.095%    0.021%      0%    4.56     144.5
+//! SVF-LS 10 Hz, HAC           d    0.209%    0.100%    0.130%     90%    1.37     144.5
+//! SVF-LS 10 Hz, HAC           r    0.784%   -0.619%    0.352%     67%    1.84     144.5
+//! SVF-LS 10 Hz, HAC          f0    1.858%   -0.266%    1.619%    100%    1.00     144.5
+//! SVF-LS 80 Hz, HAC           m    0.026%    0.026%    0.006%      0%    4.18      21.5
+//! SVF-LS 80 Hz, HAC           d    0.095%   -0.088%    0.037%     33%    3.31      21.5
+//! SVF-LS 80 Hz, HAC           r    0.145%   -0.104%    0.095%     94%    1.32      21.5
+//! SVF-LS 80 Hz, HAC          f0    0.249%    0.026%    0.403%    100%    0.56      21.5
+//! SVF-LS 80 Hz, EIV comp.      m    0.033%    0.033%    0.006%      0%    5.31      21.2
+//! SVF-LS 80 Hz, EIV comp.      d    0.096%   -0.088%    0.037%     33%    3.29      21.2
+//! SVF-LS 80 Hz, EIV comp.      r    0.145%   -0.104%    0.095%     94%    1.32      21.2
+//! SVF-LS 80 Hz, EIV comp.     f0    0.250%    0.027%    0.402%    100%    0.56      21.2
+//! SVF-LS 80 Hz, rests out      m    0.008%    0.007%    0.005%     88%    1.50      19.8
+//! SVF-LS 80 Hz, rests out      d    0.143%   -0.141%    0.025%      0%    5.64      19.8
+//! SVF-LS 80 Hz, rests out      r    0.067%    0.041%    0.058%     94%    1.12      19.8
+//! SVF-LS 80 Hz, rests out     f0    0.119%   -0.004%    0.254%    100%    0.47      19.8
+//! SVF-LS 80, rests+EIV        m    0.014%    0.014%    0.005%      8%    2.90      19.7
+//! SVF-LS 80, rests+EIV        d    0.144%   -0.142%    0.025%      0%    5.68      19.7
+//! SVF-LS 80, rests+EIV        r    0.069%    0.045%    0.058%     94%    1.16      19.7
+//! SVF-LS 80, rests+EIV       f0    0.118%   -0.003%    0.253%    100%    0.46      19.7
 //!
 //! planned moves
-//! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.027%    0.038%    100%    0.75      24.1
-//! dynid (defaults)            d    0.129%    0.166%     92%    0.85      24.1
-//! dynid (defaults)            r    0.210%    0.242%     92%    0.93      24.1
-//! dynid (defaults)           f0    0.239%    0.309%    100%    0.83      24.1
-//! dynid --column-chains       m    0.071%    0.047%     83%    1.52      25.1
-//! dynid --column-chains       d    0.477%    0.208%     42%    2.21      25.1
-//! dynid --column-chains       r    0.689%    0.293%     42%    2.28      25.1
-//! dynid --column-chains      f0    0.219%    0.427%     92%    0.71      25.1
-//! dynid chains, 2-step        m    0.070%    0.028%     42%    2.60      25.0
-//! dynid chains, 2-step        d    0.205%    0.144%     83%    1.63      25.0
-//! dynid chains, 2-step        r    0.290%    0.205%     92%    1.50      25.0
-//! dynid chains, 2-step       f0    0.231%    0.352%    100%    0.71      25.0
-//! dynid to noise floor        m    0.053%    0.014%      8%    5.49      23.6
-//! dynid to noise floor        d    0.359%    0.158%     33%    2.29      23.6
-//! dynid to noise floor        r    0.395%    0.233%     75%    1.66      23.6
-//! dynid to noise floor       f0    0.236%    0.421%    100%    0.61      23.6
-//! dynid chains 2-step nf      m    0.034%    0.098%     92%    0.86      25.9
-//! dynid chains 2-step nf      d    0.414%    0.845%    100%    0.55      25.9
-//! dynid chains 2-step nf      r    0.501%    0.907%    100%    0.70      25.9
-//! dynid chains 2-step nf     f0    0.342%    3.824%    100%    0.11      25.9
-//! dynid --keep-rests          m   23.417%    2.846%      0%    8.23      22.9
-//! dynid --keep-rests          d   67.303%    6.899%      0%   36.85      22.9
-//! dynid --keep-rests          r   67.263%   11.077%      0%    6.07      22.9
-//! dynid --keep-rests         f0    6.922%   20.803%    100%    0.33      22.9
-//! dynid --filtered-eq.        m    0.009%    0.009%     92%    0.95      23.4
-//! dynid --filtered-eq.        d    0.207%    0.042%      0%    5.13      23.4
-//! dynid --filtered-eq.        r    0.105%    0.063%     67%    1.66      23.4
-//! dynid --filtered-eq.       f0    0.305%    0.338%    100%    0.94      23.4
-//! dynid filtered 20 Hz        m    0.011%    0.021%    100%    0.53      23.0
-//! dynid filtered 20 Hz        d    0.129%    0.050%     25%    2.63      23.0
-//! dynid filtered 20 Hz        r    0.065%    0.073%    100%    0.92      23.0
-//! dynid filtered 20 Hz       f0    0.388%    0.358%     92%    1.09      23.0
-//! dynid filtered 160 Hz       m    0.172%    0.012%      0%   14.49      23.5
-//! dynid filtered 160 Hz       d    0.210%    0.041%      0%    5.36      23.5
-//! dynid filtered 160 Hz       r    0.124%    0.061%     67%    2.01      23.5
-//! dynid filtered 160 Hz      f0    0.278%    0.352%    100%    0.81      23.5
-//! dynid --input-delay         m    0.042%    0.029%     75%    1.50      23.2
-//! dynid --input-delay         d    0.218%    0.245%     92%    0.97      23.2
-//! dynid --input-delay         r    0.257%    0.333%    100%    0.83      23.2
-//! dynid --input-delay        f0    0.232%    0.320%    100%    0.81      23.2
-//! dynid filtered + delay      m    0.008%    0.012%    100%    0.74      24.1
-//! dynid filtered + delay      d    0.050%    0.056%    100%    0.83      24.1
-//! dynid filtered + delay      r    0.060%    0.070%    100%    0.85      24.1
-//! dynid filtered + delay     f0    0.319%    0.318%     92%    1.06      24.1
-//! dynid filt.+delay 500/s      m    0.015%    0.009%     92%    1.63      20.3
-//! dynid filt.+delay 500/s      d    0.049%    0.051%    100%    0.92      20.3
-//! dynid filt.+delay 500/s      r    0.062%    0.064%     92%    0.97      20.3
-//! dynid filt.+delay 500/s     f0    0.285%    0.307%    100%    0.96      20.3
-//! IDIM-LS, OLS errors         m    0.025%    0.025%    100%    1.00       1.4
-//! IDIM-LS, OLS errors         d    0.076%    0.147%    100%    0.52       1.4
-//! IDIM-LS, OLS errors         r    0.368%    0.199%     67%    1.84       1.4
-//! IDIM-LS, OLS errors        f0    0.234%    0.914%    100%    0.26       1.4
-//! IDIM-LS, HAC errors         m    0.025%    0.015%     83%    1.64       1.4
-//! IDIM-LS, HAC errors         d    0.076%    0.099%    100%    0.77       1.4
-//! IDIM-LS, HAC errors         r    0.368%    0.157%     17%    2.35       1.4
-//! IDIM-LS, HAC errors        f0    0.234%    0.524%    100%    0.45       1.4
-//! SVF-LS 10 Hz, HAC           m    0.282%    0.098%      0%    2.89     142.9
-//! SVF-LS 10 Hz, HAC           d   15.825%    2.439%      0%    6.49     142.9
-//! SVF-LS 10 Hz, HAC           r   26.551%    2.925%      0%    9.08     142.9
-//! SVF-LS 10 Hz, HAC          f0    2.726%   27.672%    100%    0.10     142.9
-//! SVF-LS 80 Hz, HAC           m    0.014%    0.225%    100%    0.06      21.2
-//! SVF-LS 80 Hz, HAC           d   27.561%    2.601%      0%   10.59      21.2
-//! SVF-LS 80 Hz, HAC           r   47.352%    3.753%      0%   12.62      21.2
-//! SVF-LS 80 Hz, HAC          f0    9.814%   17.156%    100%    0.57      21.2
-//! SVF-LS 80 Hz, EIV comp.      m    0.035%    0.225%    100%    0.16      20.7
-//! SVF-LS 80 Hz, EIV comp.      d   27.561%    2.601%      0%   10.59      20.7
-//! SVF-LS 80 Hz, EIV comp.      r   47.352%    3.753%      0%   12.62      20.7
-//! SVF-LS 80 Hz, EIV comp.     f0    9.814%   17.155%    100%    0.57      20.7
-//! SVF-LS 80 Hz, rests out      m    0.007%    0.011%    100%    0.62      14.7
-//! SVF-LS 80 Hz, rests out      d    0.212%    0.056%      0%    3.81      14.7
-//! SVF-LS 80 Hz, rests out      r    0.110%    0.078%     83%    1.41      14.7
-//! SVF-LS 80 Hz, rests out     f0    0.288%    0.341%    100%    0.84      14.7
-//! SVF-LS 80, rests+EIV        m    0.013%    0.011%    100%    1.21      14.6
-//! SVF-LS 80, rests+EIV        d    0.214%    0.056%      0%    3.82      14.6
-//! SVF-LS 80, rests+EIV        r    0.114%    0.077%     83%    1.47      14.6
-//! SVF-LS 80, rests+EIV       f0    0.288%    0.341%    100%    0.84      14.6
+//! method                  param   RMS err  mean err   mean SE   cover    e/SE    ms/rec
+//! dynid (defaults)            m    0.030%    0.014%    0.038%    100%    0.81      23.4
+//! dynid (defaults)            d    0.146%    0.062%    0.165%     92%    0.95      23.4
+//! dynid (defaults)            r    0.229%   -0.136%    0.239%     92%    1.01      23.4
+//! dynid (defaults)           f0    0.286%   -0.026%    0.299%     96%    0.99      23.4
+//! dynid --column-chains       m    0.064%    0.057%    0.045%     90%    1.40      24.2
+//! dynid --column-chains       d    0.419%    0.390%    0.192%     50%    2.16      24.2
+//! dynid --column-chains       r    0.614%   -0.577%    0.265%     46%    2.29      24.2
+//! dynid --column-chains      f0    0.293%   -0.079%    0.382%     98%    0.84      24.2
+//! dynid chains, 2-step        m    0.069%    0.064%    0.027%     42%    2.66      24.6
+//! dynid chains, 2-step        d    0.201%    0.141%    0.142%     81%    1.69      24.6
+//! dynid chains, 2-step        r    0.283%   -0.199%    0.201%     83%    1.50      24.6
+//! dynid chains, 2-step       f0    0.332%   -0.063%    0.321%     92%    1.17      24.6
+//! dynid to noise floor        m    0.057%   -0.054%    0.014%     12%    5.51      23.1
+//! dynid to noise floor        d    0.378%   -0.361%    0.154%     29%    2.44      23.1
+//! dynid to noise floor        r    0.418%    0.386%    0.235%     77%    1.70      23.1
+//! dynid to noise floor       f0    0.288%   -0.044%    0.427%    100%    0.72      23.1
+//! dynid chains 2-step nf      m    0.030%   -0.006%    0.073%     96%    0.89      24.4
+//! dynid chains 2-step nf      d    0.453%   -0.424%    1.118%    100%    0.51      24.4
+//! dynid chains 2-step nf      r    0.536%    0.492%    1.320%    100%    0.57      24.4
+//! dynid chains 2-step nf     f0    0.482%   -0.209%    4.272%    100%    0.13      24.4
+//! dynid --keep-rests          m   23.413%   23.413%    2.847%      0%    8.22      22.2
+//! dynid --keep-rests          d   67.288%   67.288%    6.201%      0%   39.48      22.2
+//! dynid --keep-rests          r   67.251%  -67.251%   11.085%      0%    6.07      22.2
+//! dynid --keep-rests         f0    7.036%   -7.032%   20.816%    100%    0.34      22.2
+//! dynid --filtered-eq.        m    0.008%   -0.001%    0.009%     92%    1.02      22.8
+//! dynid --filtered-eq.        d    0.213%   -0.209%    0.041%      0%    5.46      22.8
+//! dynid --filtered-eq.        r    0.109%    0.091%    0.061%     65%    1.84      22.8
+//! dynid --filtered-eq.       f0    0.289%    0.014%    0.330%     98%    0.92      22.8
+//! dynid filtered 20 Hz        m    0.012%    0.003%    0.021%    100%    0.58      22.8
+//! dynid filtered 20 Hz        d    0.140%   -0.132%    0.051%     29%    2.86      22.8
+//! dynid filtered 20 Hz        r    0.069%    0.028%    0.070%     96%    1.04      22.8
+//! dynid filtered 20 Hz       f0    0.333%    0.008%    0.342%     92%    1.01      22.8
+//! dynid filtered 160 Hz       m    0.171%   -0.171%    0.012%      0%   14.69      22.9
+//! dynid filtered 160 Hz       d    0.215%   -0.211%    0.042%      2%    5.35      22.9
+//! dynid filtered 160 Hz       r    0.126%    0.113%    0.061%     62%    2.13      22.9
+//! dynid filtered 160 Hz      f0    0.281%    0.033%    0.341%     98%    0.84      22.9
+//! dynid --input-delay         m    0.044%    0.038%    0.028%     75%    1.62      23.3
+//! dynid --input-delay         d    0.267%    0.214%    0.236%     85%    1.26      23.3
+//! dynid --input-delay         r    0.313%   -0.229%    0.325%     94%    1.03      23.3
+//! dynid --input-delay        f0    0.289%   -0.051%    0.317%     96%    0.94      23.3
+//! dynid filtered + delay      m    0.009%    0.001%    0.012%     98%    0.78      22.8
+//! dynid filtered + delay      d    0.051%   -0.017%    0.051%     96%    1.04      22.8
+//! dynid filtered + delay      r    0.060%    0.015%    0.066%     98%    0.97      22.8
+//! dynid filtered + delay     f0    0.286%   -0.006%    0.301%     96%    0.99      22.8
+//! dynid filt.+delay 500/s      m    0.014%   -0.012%    0.009%     83%    1.83      19.9
+//! dynid filt.+delay 500/s      d    0.049%   -0.004%    0.047%     94%    1.06      19.9
+//! dynid filt.+delay 500/s      r    0.060%    0.012%    0.060%     92%    1.06      19.9
+//! dynid filt.+delay 500/s     f0    0.286%    0.007%    0.292%     98%    1.00      19.9
+//! IDIM-LS, OLS errors         m    0.026%    0.026%    0.025%    100%    1.05       1.4
+//! IDIM-LS, OLS errors         d    0.074%    0.061%    0.148%    100%    0.50       1.4
+//! IDIM-LS, OLS errors         r    0.368%   -0.365%    0.200%     71%    1.85       1.4
+//! IDIM-LS, OLS errors        f0    0.302%   -0.127%    0.915%    100%    0.33       1.4
+//! IDIM-LS, HAC errors         m    0.026%    0.026%    0.015%     83%    1.72       1.4
+//! IDIM-LS, HAC errors         d    0.074%    0.061%    0.100%    100%    0.74       1.4
+//! IDIM-LS, HAC errors         r    0.368%   -0.365%    0.158%     21%    2.33       1.4
+//! IDIM-LS, HAC errors        f0    0.302%   -0.127%    0.525%    100%    0.58       1.4
+//! SVF-LS 10 Hz, HAC           m    0.283%    0.283%    0.098%      0%    2.90     143.6
+//! SVF-LS 10 Hz, HAC           d   15.829%   15.829%    2.444%      0%    6.48     143.6
+//! SVF-LS 10 Hz, HAC           r   26.562%  -26.562%    2.927%      0%    9.07     143.6
+//! SVF-LS 10 Hz, HAC          f0    2.840%   -2.832%   27.673%    100%    0.10     143.6
+//! SVF-LS 80 Hz, HAC           m    0.016%    0.014%    0.225%    100%    0.07      21.1
+//! SVF-LS 80 Hz, HAC           d   27.559%   27.559%    2.602%      0%   10.59      21.1
+//! SVF-LS 80 Hz, HAC           r   47.356%  -47.356%    3.752%      0%   12.62      21.1
+//! SVF-LS 80 Hz, HAC          f0    9.917%   -9.915%   17.156%    100%    0.58      21.1
+//! SVF-LS 80 Hz, EIV comp.      m    0.036%    0.036%    0.225%    100%    0.16      21.0
+//! SVF-LS 80 Hz, EIV comp.      d   27.559%   27.559%    2.602%      0%   10.59      21.0
+//! SVF-LS 80 Hz, EIV comp.      r   47.356%  -47.356%    3.752%      0%   12.62      21.0
+//! SVF-LS 80 Hz, EIV comp.     f0    9.917%   -9.915%   17.155%    100%    0.58      21.0
+//! SVF-LS 80 Hz, rests out      m    0.007%   -0.003%    0.011%     98%    0.67      14.8
+//! SVF-LS 80 Hz, rests out      d    0.218%   -0.214%    0.056%      2%    3.95      14.8
+//! SVF-LS 80 Hz, rests out      r    0.114%    0.100%    0.077%     77%    1.48      14.8
+//! SVF-LS 80 Hz, rests out     f0    0.284%    0.054%    0.339%    100%    0.84      14.8
+//! SVF-LS 80, rests+EIV        m    0.014%    0.013%    0.010%     90%    1.36      14.8
+//! SVF-LS 80, rests+EIV        d    0.221%   -0.216%    0.056%      2%    3.97      14.8
+//! SVF-LS 80, rests+EIV        r    0.118%    0.104%    0.077%     77%    1.53      14.8
+//! SVF-LS 80, rests+EIV       f0    0.284%    0.054%    0.339%    100%    0.84      14.8
 //!
 //! planned moves, Stribeck friction not in the model
-//! method                  param   RMS err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    2.044%    0.150%      0%   13.60      30.9
-//! dynid (defaults)            d    4.446%    1.273%      0%    3.49      30.9
-//! dynid (defaults)            r    5.283%    2.470%      0%    2.14      30.9
-//! dynid (defaults)           f0    0.232%    3.047%    100%    0.08      30.9
-//! dynid --column-chains       m    1.979%    0.193%      0%   10.27      32.6
-//! dynid --column-chains       d    4.090%    1.185%      0%    3.45      32.6
-//! dynid --column-chains       r    4.971%    2.008%      0%    2.47      32.6
-//! dynid --column-chains      f0    0.243%    2.826%    100%    0.09      32.6
-//! dynid chains, 2-step        m    2.147%    0.138%      0%   15.58      32.8
-//! dynid chains, 2-step        d    6.534%    1.391%      0%    4.70      32.8
-//! dynid chains, 2-step        r    8.070%    0.966%      0%    8.40      32.8
-//! dynid chains, 2-step       f0    3.251%    3.758%    100%    0.87      32.8
-//! dynid to noise floor        m    1.092%    0.117%      0%    9.34      30.2
-//! dynid to noise floor        d    2.268%    0.613%      0%    3.72      30.2
-//! dynid to noise floor        r    3.093%    1.346%      0%    2.30      30.2
-//! dynid to noise floor       f0    0.748%    1.966%    100%    0.38      30.2
-//! dynid chains 2-step nf      m    2.064%    0.126%      0%   16.44      31.6
-//! dynid chains 2-step nf      d    3.948%    0.781%      0%    5.05      31.6
-//! dynid chains 2-step nf      r    4.467%    1.101%      0%    4.06      31.6
-//! dynid chains 2-step nf     f0    2.567%    2.224%    100%    1.16      31.6
-//! dynid --keep-rests          m   33.784%    3.272%      0%   10.33      29.5
-//! dynid --keep-rests          d   96.495%    8.970%      0%   10.76      29.5
-//! dynid --keep-rests          r  100.948%   14.321%      0%    7.05      29.5
-//! dynid --keep-rests         f0    3.311%   12.592%    100%    0.26      29.5
-//! dynid --filtered-eq.        m    0.040%    0.017%     33%    2.37      29.6
-//! dynid --filtered-eq.        d    1.392%    0.179%      0%    7.80      29.6
-//! dynid --filtered-eq.        r    2.227%    0.352%      0%    6.33      29.6
-//! dynid --filtered-eq.       f0    0.313%    1.517%    100%    0.21      29.6
-//! dynid filtered 20 Hz        m    0.067%    0.023%      8%    2.95      29.7
-//! dynid filtered 20 Hz        d    0.561%    0.083%      0%    6.86      29.7
-//! dynid filtered 20 Hz        r    0.880%    0.190%      0%    4.68      29.7
-//! dynid filtered 20 Hz       f0    0.389%    0.779%    100%    0.50      29.7
-//! dynid filtered 160 Hz       m    0.188%    0.018%      0%   10.74      29.9
-//! dynid filtered 160 Hz       d    2.558%    0.355%      0%    7.22      29.9
-//! dynid filtered 160 Hz       r    4.211%    0.608%      0%    6.92      29.9
-//! dynid filtered 160 Hz      f0    0.258%    2.881%    100%    0.09      29.9
-//! dynid --input-delay         m    1.600%    0.098%      0%   16.41      30.3
-//! dynid --input-delay         d    2.243%    1.500%    100%    1.49      30.3
-//! dynid --input-delay         r    3.446%    2.076%    100%    1.66      30.3
-//! dynid --input-delay        f0    0.533%    1.883%    100%    0.28      30.3
-//! dynid filtered + delay      m    0.042%    0.018%     33%    2.43      30.5
-//! dynid filtered + delay      d    1.023%    0.169%      0%    6.08      30.5
-//! dynid filtered + delay      r    1.666%    0.325%      0%    5.14      30.5
-//! dynid filtered + delay     f0    0.317%    1.216%    100%    0.26      30.5
-//! dynid filt.+delay 500/s      m    0.008%    0.014%    100%    0.58      27.7
-//! dynid filt.+delay 500/s      d    2.064%    0.325%      0%    6.35      27.7
-//! dynid filt.+delay 500/s      r    3.500%    0.553%      0%    6.33      27.7
-//! dynid filt.+delay 500/s     f0    0.273%    2.454%    100%    0.11      27.7
-//! IDIM-LS, OLS errors         m    0.047%    0.032%    100%    1.44       1.5
-//! IDIM-LS, OLS errors         d    3.369%    0.191%      0%   17.65       1.5
-//! IDIM-LS, OLS errors         r    5.596%    0.259%      0%   21.59       1.5
-//! IDIM-LS, OLS errors        f0    0.241%    1.181%    100%    0.20       1.5
-//! IDIM-LS, HAC errors         m    0.047%    0.027%     92%    1.73       1.5
-//! IDIM-LS, HAC errors         d    3.369%    0.405%      0%    8.32       1.5
-//! IDIM-LS, HAC errors         r    5.596%    0.627%      0%    8.93       1.5
-//! IDIM-LS, HAC errors        f0    0.241%    2.024%    100%    0.12       1.5
-//! SVF-LS 10 Hz, HAC           m    0.315%    0.092%      0%    3.44     150.0
-//! SVF-LS 10 Hz, HAC           d   13.450%    2.384%      0%    5.64     150.0
-//! SVF-LS 10 Hz, HAC           r   22.585%    3.043%      0%    7.42     150.0
-//! SVF-LS 10 Hz, HAC          f0    4.661%   37.101%    100%    0.13     150.0
-//! SVF-LS 80 Hz, HAC           m    0.032%    0.176%    100%    0.18      22.5
-//! SVF-LS 80 Hz, HAC           d   20.549%    2.280%      0%    9.01      22.5
-//! SVF-LS 80 Hz, HAC           r   35.287%    3.465%      0%   10.18      22.5
-//! SVF-LS 80 Hz, HAC          f0   19.365%   18.474%    100%    1.05      22.5
-//! SVF-LS 80 Hz, EIV comp.      m    0.053%    0.176%    100%    0.30      21.7
-//! SVF-LS 80 Hz, EIV comp.      d   20.549%    2.280%      0%    9.01      21.7
-//! SVF-LS 80 Hz, EIV comp.      r   35.287%    3.465%      0%   10.18      21.7
-//! SVF-LS 80 Hz, EIV comp.     f0   19.365%   18.473%    100%    1.05      21.7
-//! SVF-LS 80 Hz, rests out      m    0.027%    0.021%    100%    1.28      16.0
-//! SVF-LS 80 Hz, rests out      d    2.495%    0.341%      0%    7.32      16.0
-//! SVF-LS 80 Hz, rests out      r    4.083%    0.533%      0%    7.66      16.0
-//! SVF-LS 80 Hz, rests out     f0    0.257%    1.508%    100%    0.17      16.0
-//! SVF-LS 80, rests+EIV        m    0.012%    0.021%    100%    0.59      15.8
-//! SVF-LS 80, rests+EIV        d    2.498%    0.341%      0%    7.34      15.8
-//! SVF-LS 80, rests+EIV        r    4.088%    0.533%      0%    7.67      15.8
-//! SVF-LS 80, rests+EIV       f0    0.257%    1.504%    100%    0.17      15.8
+//! method                  param   RMS err  mean err   mean SE   cover    e/SE    ms/rec
+//! dynid (defaults)            m    2.039%    2.039%    0.151%      0%   13.50      29.4
+//! dynid (defaults)            d    4.440%    4.438%    1.265%      0%    3.51      29.4
+//! dynid (defaults)            r    5.280%   -5.277%    2.458%      0%    2.15      29.4
+//! dynid (defaults)           f0    0.305%   -0.101%    3.033%    100%    0.10      29.4
+//! dynid --column-chains       m    1.973%    1.973%    0.193%      0%   10.22      30.9
+//! dynid --column-chains       d    4.058%    4.056%    1.178%      0%    3.45      30.9
+//! dynid --column-chains       r    4.929%   -4.926%    1.995%      0%    2.47      30.9
+//! dynid --column-chains      f0    0.286%   -0.019%    2.799%    100%    0.10      30.9
+//! dynid chains, 2-step        m    2.147%    2.147%    0.138%      0%   15.59      31.2
+//! dynid chains, 2-step        d    6.500%    6.498%    1.387%      0%    4.69      31.2
+//! dynid chains, 2-step        r    8.035%   -8.032%    0.920%      0%    9.59      31.2
+//! dynid chains, 2-step       f0    3.467%   -3.446%    3.694%    100%    0.94      31.2
+//! dynid to noise floor        m    1.103%    1.102%    0.118%      0%    9.34      29.3
+//! dynid to noise floor        d    2.274%    2.271%    0.629%      0%    3.65      29.3
+//! dynid to noise floor        r    3.115%   -3.109%    1.362%      0%    2.29      29.3
+//! dynid to noise floor       f0    0.671%    0.609%    1.953%    100%    0.35      29.3
+//! dynid chains 2-step nf      m    2.078%    2.077%    0.125%      0%   28.44      30.8
+//! dynid chains 2-step nf      d    4.101%    4.081%    0.803%      0%    5.07      30.8
+//! dynid chains 2-step nf      r    4.704%   -4.672%    1.094%      0%    6.85      30.8
+//! dynid chains 2-step nf     f0    2.777%   -2.746%    2.268%    100%    1.24      30.8
+//! dynid --keep-rests          m   33.780%   33.780%    3.273%      0%   10.32      29.1
+//! dynid --keep-rests          d   96.464%   96.463%    8.996%      0%   10.73      29.1
+//! dynid --keep-rests          r  100.914% -100.913%   14.329%      0%    7.04      29.1
+//! dynid --keep-rests         f0    3.214%    3.206%   12.608%    100%    0.25      29.1
+//! dynid --filtered-eq.        m    0.042%    0.041%    0.017%     19%    2.43      29.3
+//! dynid --filtered-eq.        d    1.355%   -1.341%    0.169%      0%    7.95      29.3
+//! dynid --filtered-eq.        r    2.161%    2.137%    0.345%      0%    6.19      29.3
+//! dynid --filtered-eq.       f0    0.289%   -0.005%    1.458%    100%    0.21      29.3
+//! dynid filtered 20 Hz        m    0.068%    0.067%    0.023%      6%    2.99      29.2
+//! dynid filtered 20 Hz        d    0.572%   -0.570%    0.079%      0%    7.33      29.2
+//! dynid filtered 20 Hz        r    0.891%    0.888%    0.191%      0%    4.69      29.2
+//! dynid filtered 20 Hz       f0    0.336%    0.001%    0.764%    100%    0.44      29.2
+//! dynid filtered 160 Hz       m    0.187%   -0.187%    0.017%      0%   10.85      29.3
+//! dynid filtered 160 Hz       d    2.562%   -2.562%    0.351%      0%    7.31      29.3
+//! dynid filtered 160 Hz       r    4.210%    4.210%    0.609%      0%    6.91      29.3
+//! dynid filtered 160 Hz      f0    0.284%   -0.017%    2.874%    100%    0.10      29.3
+//! dynid --input-delay         m    1.599%    1.599%    0.098%      0%   16.44      29.4
+//! dynid --input-delay         d    2.281%    2.276%    1.501%    100%    1.52      29.4
+//! dynid --input-delay         r    3.488%   -3.481%    2.083%    100%    1.67      29.4
+//! dynid --input-delay        f0    0.468%    0.369%    1.891%    100%    0.25      29.4
+//! dynid filtered + delay      m    0.044%    0.043%    0.018%     19%    2.50      29.4
+//! dynid filtered + delay      d    1.014%   -1.012%    0.161%      0%    6.31      29.4
+//! dynid filtered + delay      r    1.638%    1.635%    0.320%      0%    5.13      29.4
+//! dynid filtered + delay     f0    0.290%   -0.013%    1.183%    100%    0.25      29.4
+//! dynid filt.+delay 500/s      m    0.008%    0.003%    0.013%    100%    0.60      25.2
+//! dynid filt.+delay 500/s      d    2.070%   -2.069%    0.321%      0%    6.45      25.2
+//! dynid filt.+delay 500/s      r    3.500%    3.499%    0.554%      0%    6.32      25.2
+//! dynid filt.+delay 500/s     f0    0.288%   -0.025%    2.446%    100%    0.12      25.2
+//! IDIM-LS, OLS errors         m    0.048%    0.047%    0.032%    100%    1.48       1.5
+//! IDIM-LS, OLS errors         d    3.373%   -3.373%    0.191%      0%   17.65       1.5
+//! IDIM-LS, OLS errors         r    5.597%    5.596%    0.260%      0%   21.56       1.5
+//! IDIM-LS, OLS errors        f0    0.325%   -0.171%    1.183%    100%    0.27       1.5
+//! IDIM-LS, HAC errors         m    0.048%    0.047%    0.027%     85%    1.77       1.5
+//! IDIM-LS, HAC errors         d    3.373%   -3.373%    0.404%      0%    8.35       1.5
+//! IDIM-LS, HAC errors         r    5.597%    5.596%    0.627%      0%    8.92       1.5
+//! IDIM-LS, HAC errors        f0    0.325%   -0.171%    2.025%    100%    0.16       1.5
+//! SVF-LS 10 Hz, HAC           m    0.316%    0.316%    0.092%      0%    3.45     145.9
+//! SVF-LS 10 Hz, HAC           d   13.452%   13.452%    2.389%      0%    5.63     145.9
+//! SVF-LS 10 Hz, HAC           r   22.594%  -22.594%    3.045%      0%    7.42     145.9
+//! SVF-LS 10 Hz, HAC          f0    4.775%   -4.770%   37.100%    100%    0.13     145.9
+//! SVF-LS 80 Hz, HAC           m    0.033%    0.032%    0.176%    100%    0.19      21.4
+//! SVF-LS 80 Hz, HAC           d   20.549%   20.549%    2.281%      0%    9.01      21.4
+//! SVF-LS 80 Hz, HAC           r   35.296%  -35.296%    3.466%      0%   10.18      21.4
+//! SVF-LS 80 Hz, HAC          f0   19.466%  -19.465%   18.476%    100%    1.05      21.4
+//! SVF-LS 80 Hz, EIV comp.      m    0.054%    0.054%    0.176%    100%    0.31      21.3
+//! SVF-LS 80 Hz, EIV comp.      d   20.549%   20.549%    2.281%      0%    9.01      21.3
+//! SVF-LS 80 Hz, EIV comp.      r   35.296%  -35.296%    3.466%      0%   10.18      21.3
+//! SVF-LS 80 Hz, EIV comp.     f0   19.466%  -19.465%   18.475%    100%    1.05      21.3
+//! SVF-LS 80 Hz, rests out      m    0.026%   -0.025%    0.021%     98%    1.24      15.1
+//! SVF-LS 80 Hz, rests out      d    2.500%   -2.499%    0.339%      0%    7.37      15.1
+//! SVF-LS 80 Hz, rests out      r    4.084%    4.084%    0.533%      0%    7.67      15.1
+//! SVF-LS 80 Hz, rests out     f0    0.283%   -0.024%    1.507%    100%    0.19      15.1
+//! SVF-LS 80, rests+EIV        m    0.012%   -0.010%    0.021%    100%    0.57      15.0
+//! SVF-LS 80, rests+EIV        d    2.502%   -2.502%    0.339%      0%    7.38      15.0
+//! SVF-LS 80, rests+EIV        r    4.089%    4.089%    0.532%      0%    7.68      15.0
+//! SVF-LS 80, rests+EIV       f0    0.283%   -0.024%    1.502%    100%    0.19      15.0
 //! ```
 //!
 //! **Rows of the filtered equation** (`--filtered-eq.`: `IdentifyOptions::filtered`, one
 //! corner designed as the encoder's information bandwidth capped at 0.5/Ts = 500 rad/s;
 //! `filtered 20 Hz`, `160 Hz`: the corner given as 126 and 1005 rad/s; docs/method.md §2).
-//! On random references m 0.009 %, d 0.152 %, r 0.091 %, f0 0.091 % — against the defaults
-//! 1.6×, 3.1×, 15× and 16× smaller, level with SVF-LS 80 Hz with its rows near rest dropped
-//! (0.007, 0.149, 0.076, 0.097 %), f0 below every baseline; on planned moves m 0.009 % and
-//! r 0.105 % (below IDIM-LS's 0.025 and 0.368 %, level with SVF-LS rests out), but d 0.207 %
-//! (IDIM-LS 0.076 %) and f0 0.305 % (0.234 %); with the Stribeck term the model lacks it
-//! moves least of all methods (m 0.040, d 1.4, r 2.2 %). Its damping errors are a bias the
-//! standard errors do not cover (coverage 0 % on both suites), the same bias as SVF-LS
-//! rests out's: the force's path between samples. With `DYNID_BENCH_INPUT_OVERSAMPLE=100`
-//! (seeds 1–6) it falls to d 0.015 % random / 0.031 % planned (IDIM-LS 0.29 / 0.28 %),
-//! m 0.005 / 0.010 %, r 0.011 / 0.054 %, f0 0.090 / 0.248 %, with coverage 6 of 6 on the
-//! planned moves; with `=1` both filtered regressions give d 1.4 %. The 160 Hz corner
-//! (λTs = 1) biases the mass by 0.13 %, the 20 Hz corner the friction on random references
-//! (0.19 %): hence the
-//! cap at 0.5/Ts.
+//! On random references m 0.009 %, d 0.147 %, r 0.082 %, f0 0.121 % — against the defaults
+//! 2.3×, 6×, 31× and 12× smaller, level with SVF-LS 80 Hz with its rows near rest dropped
+//! (0.008, 0.143, 0.067, 0.119 %); on planned moves m 0.008 % and r 0.109 % (below
+//! IDIM-LS's 0.026 and 0.368 %, level with SVF-LS rests out), d 0.213 % (IDIM-LS 0.074 %)
+//! and f0 0.289 % (level with every method); with the Stribeck term the model lacks it
+//! moves less than the defaults and both baselines (m 0.042, d 1.4, r 2.2 %). Its damping
+//! errors are a bias the standard errors do not cover (mean error −0.145 % random, −0.209 %
+//! planned, coverage 0 % on both suites), the same bias as SVF-LS rests out's: the force's
+//! path between samples. With `DYNID_BENCH_INPUT_OVERSAMPLE=100` (seeds 1–6, an earlier
+//! run) it falls to d 0.015 % random / 0.031 % planned (IDIM-LS 0.29 / 0.28 %), m 0.005 /
+//! 0.010 %, r 0.011 / 0.054 %, f0 0.090 / 0.248 %, with coverage 6 of 6 on the planned
+//! moves; with `=1` both filtered regressions give d 1.4 %. The 160 Hz corner (λTs = 1)
+//! biases the mass by −0.13 % (random) and −0.17 % (planned), the 20 Hz corner the
+//! friction on random references (+0.17 %): hence the cap at 0.5/Ts.
 //!
 //! **Input delay** (`dynid --input-delay`, `filtered + delay`: `IdentifyOptions::input_delay`,
 //! one unknown delay of the force, docs/method.md §2, "The input between samples"; the
 //! filtered rows' corner designed at most 0.25/Ts = 250 rad/s with it, `500/s`: given at the
-//! cap without it). With the filtered rows it removes their damping bias: random m 0.005,
-//! d 0.005, r 0.010, f0 0.069 % — below the best baseline on every parameter (SVF-LS rests
-//! out 0.007, 0.149, 0.076, 0.097 %; SVF-LS 80 Hz d 0.096 %), every one covered on 83–100 %
-//! of the seeds (at 500 rad/s the mass's coverage is 42 %, RMS e/SE 2.24); planned m 0.008,
-//! d 0.050, r 0.060, f0 0.319 % with coverage 92–100 % — d and r below every baseline, m just
-//! above SVF-LS rests out's 0.007 %, f0 above IDIM-LS's 0.234 %. It does not cure a model
-//! error: with the Stribeck term the filtered rows' d and r stay 1.0 and 1.7 % off, and with
-//! the default instrument rows the delay takes part of the model error up and moves the mass
-//! by 1.6 % (16 standard errors). On the default rows alone it changes little (random d
-//! 0.47 → 0.50 %).
+//! cap without it). With the filtered rows it removes their damping bias. Random: m 0.005,
+//! d 0.004, r 0.009, f0 0.078 % — below the best baseline on every parameter (SVF-LS rests
+//! out m 0.008, r 0.067, f0 0.119 %; SVF-LS 80 Hz d 0.095 %), covered on 83–96 % of the
+//! seeds (at 500 rad/s the mass comes out low, −0.006 % on the mean, coverage 40 %, RMS e/SE
+//! 2.53). Planned: m 0.009, d 0.051, r 0.060, f0 0.286 %, covered on 96–98 % — d and r below
+//! every baseline (IDIM-LS d 0.074 %, SVF-LS rests out r 0.114 %), f0 level with all
+//! (SVF-LS rests out 0.284 %, IDIM-LS 0.302 %), m 1.3× SVF-LS rests out's 0.007 % (IDIM-LS
+//! 0.026 %). It does not cure a model error: with the Stribeck term the filtered rows' d
+//! and r stay 1.0 and 1.6 % off, and with the default instrument rows the delay takes part
+//! of the model error up and moves the mass by 1.6 % (16 standard errors). On the default
+//! rows alone it helps one suite and hurts the other (damping, random 0.90 → 0.65 %,
+//! planned 0.15 → 0.27 %).
 //!
 //! **SVF-LS variants** (`SvfOptions`, 80 Hz): `EIV comp.` takes the encoder's rounding
 //! (white, 1 µm²/12) out of the normal matrix; `rests out` drops every row whose filter
 //! memory holds a sample with the aligned filtered velocity below 1 mm/s; `rests+EIV` both.
-//! The compensation does not remove the mass error on random references (0.027 → 0.034 %,
-//! e/SE 4.45 → 5.58): that error is the estimator's own — it is there without noise or
+//! The compensation does not remove the mass error on random references (0.026 → 0.033 %,
+//! e/SE 4.18 → 5.31): that error is the estimator's own — it is there without noise or
 //! quantisation (+0.03 %, `baseline::tests::noise_free_servo_axis_is_recovered`) — and not
 //! errors in the variables (which the compensation does remove where they are, test
 //! `baseline::tests::compensation_removes_the_noise_bias_and_rests_drop_rows`). Dropping
 //! the rows near rest is what helps: on random references (where it drops the rows near the
-//! velocity's zero crossings) m 0.007 %, r 0.076 %, f0 0.097 % — the smallest errors of any
-//! method here — but d 0.149 % with a standard error 6× too small (coverage 0 %); on
-//! planned moves it removes SVF-LS's failure at the rests (d 27.6 → 0.21 %, r 47 → 0.11 %,
-//! m 0.007 %, f0 0.29 %), d again with errors 3.8× too small; with the Stribeck term d and
-//! r move by 2.5 and 4.1 % (IDIM-LS 3.4, 5.6 %; dynid 4.4, 5.3 %). So an estimator at the
-//! precision of the filtered-equation regression needs, besides its rows, standard errors
-//! that cover the damping (the Newey–West lag of twice the filter memory does not).
+//! velocity's zero crossings) m 0.008 %, r 0.067 %, f0 0.119 % — the smallest errors of any
+//! baseline here — but d 0.143 % with a standard error 6× too small (coverage 0 %); on
+//! planned moves it removes SVF-LS's failure at the rests (d 27.6 → 0.22 %, r 47 → 0.11 %,
+//! m 0.007 %, f0 0.28 %), d again with errors 4× too small; with the Stribeck term d and r
+//! move by 2.5 and 4.1 % (IDIM-LS 3.4, 5.6 %; dynid's defaults 4.4, 5.3 %).
 //!
-//! **Random reference.** dynid's errors are honest and its mass error the smallest;
-//! IDIM-LS's RMS errors of d, r and f0 are 2.9×, 1.7× and 2.3× smaller, SVF-LS's at 80 Hz
-//! 5×, 9× and 4.7×, but both baselines carry biases their standard errors do not cover
-//! (IDIM-LS r −0.6 to −1.1 %, its classical and HAC coverage of r 0 %; measured without
+//! **Random reference.** dynid's defaults give honest errors (coverage 96–100 %, e/SE
+//! 0.84–1.09) and a mass error (0.021 %) level with IDIM-LS's (0.024 %); IDIM-LS's RMS
+//! errors of d, r and f0 are 5.8×, 3.3× and 2.5× smaller, SVF-LS's at 80 Hz 9.5×, 17× and
+//! 5.9×, but both baselines carry biases their standard errors do not cover (IDIM-LS r
+//! −0.75 % on the mean, its classical and HAC coverage of r 0 %; measured without
 //! quantisation in `baseline::tests::noise_free_servo_axis_is_recovered`).
-//! `--column-chains` cuts dynid's d, r and f0 errors by 40–50 % and raises its mass error
-//! (docs/method.md §2). The two-step weighting on top of the chains (`chains, 2-step`:
-//! `IdentifyOptions { column_chains, efficient }`, opt-in, docs/method.md §5) brings the
-//! mass back to 0.013 % and cuts d and r by a further 22 %, but the offset's error grows
-//! (0.86 → 1.18 %) and every standard error comes out 2–3.7 times too small (coverage
-//! 50–83 %): not honest, hence not the default. Rests are left out only where they hold 5 % of a level's samples
-//! or more: no random record reaches that, so the defaults and `--keep-rests` give the
-//! same estimates there; the defaults' `ms/rec` includes the two passes that look for
-//! rests (8.5 against 5.6 ms per record in this run).
+//! `--column-chains` cuts the defaults' d and r errors by 62 and 65 % and leaves f0 where it
+//! is (1.54 %), at a larger mass error (0.035 %; docs/method.md §2). The two-step weighting
+//! on top of the chains (`chains, 2-step`: `IdentifyOptions { column_chains, efficient }`,
+//! opt-in, docs/method.md §5) brings the mass to 0.013 % and d and r to 0.196 and 0.635 %,
+//! but every standard error comes out 1.7–2.7 times too small (coverage 56–81 %): not
+//! honest, hence not the default. Rests are left out only where they hold 5 % of a level's
+//! samples or more: no random record reaches that, so the defaults and `--keep-rests` give
+//! the same estimates there; the defaults' `ms/rec` includes the two passes that look for
+//! rests (5.5 against 4.3 ms per record in this run).
 //!
 //! **Corners to the noise floor** (`to noise floor`: the highest corner raised to where the
 //! encoder stands above its noise floor, capped at a fifth of the Nyquist frequency, about
 //! 628 rad/s; `chains 2-step nf`: the same with column chains and the two-step weighting).
-//! On random set points the raised corner makes every error larger (d 0.47 → 1.86 %, r
-//! 1.36 → 5.03 %), with honest errors; with chains and two steps the errors come out nearly
-//! honest (coverage 83–100 %, e/SE 1.06–1.46; m 0.012, d 0.194, r 0.599, f0 0.890 %), still
-//! above SVF-LS 80 Hz's d and r. On planned moves the raised corner makes m, d and r worse
-//! than the defaults (0.053, 0.36, 0.40 % against 0.027, 0.13, 0.21 %) with errors that do
-//! not cover them; with the Stribeck term the model lacks it moves every estimate less than
-//! the defaults (m 1.1, d 2.3, r 3.1 % against 2.0, 4.4, 5.3 %; IDIM-LS d 3.4, r 5.6 %). No one corner rule wins on all
-//! three suites: the defaults stay.
+//! On random set points the raised corner makes every error larger (m 0.021 → 0.221 %, d
+//! 0.90 → 1.76 %, r 2.54 → 4.83 %), with honest errors; with chains and two steps the
+//! errors come out nearly honest (coverage 83–94 %, e/SE 1.10–1.84; m 0.015, d 0.210, r
+//! 0.723, f0 1.645 %), still above SVF-LS 80 Hz's d and r. On planned moves the raised
+//! corner makes m, d and r worse than the defaults (0.057, 0.38, 0.42 % against 0.030,
+//! 0.15, 0.23 %) with errors that do not cover them; with the Stribeck term the model lacks
+//! it moves every estimate less than the defaults (m 1.1, d 2.3, r 3.1 % against 2.0, 4.4,
+//! 5.3 %; IDIM-LS d 3.4, r 5.6 %). No one corner rule wins on all three suites: the
+//! defaults stay.
 //!
 //! **Planned moves** (a third of every cycle at rest). dynid leaves the rests out of its
-//! moments (docs/method.md §7): RMS errors m 0.027 %, d 0.129 %, r 0.210 %, f0 0.239 %,
-//! with honest errors for all four (coverage 92–100 %, e/SE 0.75–0.93) — below IDIM-LS's
-//! for r (0.368 %), level with it for m (0.025 %) and f0 (0.234 %), 1.7× IDIM-LS's for d
-//! (0.076 %). Before the velocity estimate fitted the reversals (the overshoots at the
+//! moments (docs/method.md §7): RMS errors m 0.030 %, d 0.146 %, r 0.229 %, f0 0.286 %,
+//! with honest errors for all four (coverage 92–100 %, e/SE 0.81–1.01) — below IDIM-LS's
+//! for r (0.368 %) and f0 (0.302 %), level with it for m (0.026 %), 2.0× IDIM-LS's for d
+//! (0.074 %). Before the velocity estimate fitted the reversals (the overshoots at the
 //! ends of moves, where the Coulomb force flips and the smoothing differentiator crossed
 //! zero a quarter of a sample late; `runtime/src/ident/velocity.rs`, docs/method.md §7), the
 //! mass carried a bias of +0.09 % (RMS 0.094 %, coverage 0 %). SVF-LS at 80 Hz with its rows
-//! near rest dropped (`rests out`) is the better baseline here for m (0.007 %) and r (0.110
-//! %), its damping errors 4× too small (coverage 0 %). The two-step
-//! //! weighting gives m 0.070 % (coverage 42 %). With the rests kept
-//! (`--keep-rests`) the mass is off by 23 %, damping and friction by 67 %: at rest the
-//! Coulomb force lies anywhere in ±fc while the model says `r·sign(v̂)`. SVF-LS, which
-//! keeps the rows at rest, fails the same way (d 16–28 %, r 27–47 %). With a Stribeck term
-//! the model lacks, dynid's friction split moves by 4.4–5.3 % (IDIM-LS 3.4–5.6 %), its
-//! mass by 2.0 % (IDIM-LS 0.05 %), all at several of their standard errors; the two-step
-//! weighting moves the friction split further (d 6.5 %, r 8.1 %).
+//! near rest dropped (`rests out`) is the better baseline here for m (0.007 %) and r (0.114
+//! %), its damping errors 4× too small (coverage 2 %). The two-step weighting gives m
+//! 0.069 % (coverage 42 %). With the rests kept (`--keep-rests`) the mass is off by 23 %,
+//! damping and friction by 67 %: at rest the Coulomb force lies anywhere in ±fc while the
+//! model says `r·sign(v̂)`. SVF-LS, which keeps the rows at rest, fails the same way (d
+//! 16–28 %, r 27–47 %). With a Stribeck term the model lacks, dynid's friction split moves
+//! by 4.4–5.3 % (IDIM-LS 3.4–5.6 %), its mass by 2.0 % (IDIM-LS 0.05 %), all at several of
+//! their standard errors; the two-step weighting moves the friction split further (d 6.5 %,
+//! r 8.0 %); the filtered rows at their designed corners move it least (d 1.0–1.4 %, r
+//! 1.6–2.2 %; at 20 Hz 0.57 and 0.89 %).
 //!
 //! IDIM-LS's Newey–West errors come out below its classical ones (the decimated residuals
 //! are negatively correlated at short lags). `ms/rec` is the wall time per record with the
@@ -672,6 +680,8 @@ struct Row {
     n: usize,
     /// RMS of (estimate / truth − 1).
     rms_error: f64,
+    /// Mean of (estimate / truth − 1): the part of the RMS error common to every seed.
+    mean_error: f64,
     /// Mean of SE / |truth|.
     mean_se: f64,
     /// Fraction of seeds with |error| < 2 SE.
@@ -687,7 +697,7 @@ fn main() {
     let seeds: u64 = std::env::var("DYNID_BENCH_SEEDS")
         .ok()
         .map(|s| s.parse().expect("DYNID_BENCH_SEEDS is a whole number"))
-        .unwrap_or(12);
+        .unwrap_or(48);
     // `DYNID_BENCH_METHODS=filtered,SVF-LS 80`: only the methods whose name holds one of
     // the comma-separated parts.
     let only = std::env::var("DYNID_BENCH_METHODS").ok();
@@ -726,6 +736,7 @@ fn main() {
                     param,
                     n: pairs.len(),
                     rms_error: ms(&|p| p.0),
+                    mean_error: pairs.iter().map(|p| p.0).sum::<f64>() / n,
                     mean_se: pairs.iter().map(|p| p.1).sum::<f64>() / n,
                     coverage: pairs.iter().filter(|p| p.0.abs() < 2.0 * p.1).count() as f64 / n,
                     rms_z: ms(&|p| if p.1 > 0.0 { p.0 / p.1 } else { 0.0 }),
@@ -742,19 +753,20 @@ fn main() {
         );
         return;
     }
-    println!("servo axis, seeds 1–{seeds}: RMS error, mean SE (both % of the truth), coverage |e| < 2 SE, RMS e/SE");
+    println!("servo axis, seeds 1–{seeds}: RMS and mean error, mean SE (% of the truth), coverage |e| < 2 SE, RMS e/SE");
     for kind in Trajectory::ALL {
         println!("\n{}", kind.label());
         println!(
-            "{:<22} {:>6} {:>9} {:>9} {:>7} {:>7} {:>9}",
-            "method", "param", "RMS err", "mean SE", "cover", "e/SE", "ms/rec"
+            "{:<22} {:>6} {:>9} {:>9} {:>9} {:>7} {:>7} {:>9}",
+            "method", "param", "RMS err", "mean err", "mean SE", "cover", "e/SE", "ms/rec"
         );
         for r in rows.iter().filter(|r| r.trajectory == kind.label()) {
             println!(
-                "{:<22} {:>6} {:>8.3}% {:>8.3}% {:>6.0}% {:>7.2} {:>9.1}",
+                "{:<22} {:>6} {:>8.3}% {:>8.3}% {:>8.3}% {:>6.0}% {:>7.2} {:>9.1}",
                 r.method,
                 r.param,
                 100.0 * r.rms_error,
+                100.0 * r.mean_error,
                 100.0 * r.mean_se,
                 100.0 * r.coverage,
                 r.rms_z,

@@ -129,9 +129,9 @@ pub struct Designed {
 ///
 /// The information bandwidth does not move the corners: raising the highest corner to it
 /// (1.6 … 628 rad/s instead of 1.6 … 136 rad/s on the random servo records of the bench
-/// `servo_precision`, seeds 1–12) multiplied the RMS errors of the defaults by 1.4 to 13
-/// (mass 0.014 → 0.18 %, damping 0.47 → 1.9 %, Coulomb friction 1.35 → 5.2 %, offset
-/// 1.44 → 2.07 %): a moment
+/// `servo_precision`, seeds 1–48) multiplied the RMS errors of the defaults by 1.8 to 10.5
+/// (mass 0.021 → 0.22 %, damping 0.90 → 1.76 %, Coulomb friction 2.54 → 4.83 %, offset
+/// 1.46 → 2.67 %): a moment
 /// `⟨ι'' x⟩` at a high corner weighs the encoder's rounding by `λ²` and more, while a
 /// regression of the filtered equation weighs it by the regressor's own size
 /// (docs/method.md §2).

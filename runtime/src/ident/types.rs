@@ -68,8 +68,8 @@ pub struct IdentifyOptions {
     /// Solve a second time with every level's rows whitened by their estimated covariance
     /// (two-step weighting of the moment rows, docs/method.md §5; the CLI's
     /// `--weighted-rows`). Off (the default): on the servo axis it lowers the RMS errors of
-    /// mass, damping and friction with `column_chains` but its standard errors come out
-    /// 2–3.7 times too small, and the offset's error grows (bench `servo_precision`). On a
+    /// mass, damping, friction and offset with `column_chains` but its standard errors come
+    /// out 1.7–2.7 times too small (bench `servo_precision`). On a
     /// many-body structure measured by noisy accelerometers it removes the shrinkage the
     /// unit-norm rows give (`tests/accel_structure.rs`).
     pub efficient: bool,
