@@ -124,6 +124,9 @@ impl Detection {
                     x.pair_summary
                 );
             }
+            if let Some(line) = e.unranked_explanation() {
+                let _ = writeln!(out, "  {line}");
+            }
             if e.ranking.is_empty() {
                 continue;
             }

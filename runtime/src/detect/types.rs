@@ -364,6 +364,42 @@ pub struct ElementFinding {
     pub explained_by: Option<String>,
 }
 
+impl ElementFinding {
+    /// For an unexplained drift: the template that explains the most of it where that is
+    /// not the first-ranked one — it fits, but its parameters cost more quasi-AICc than the
+    /// element's few curve points repay (at four levels a clearance with friction, five
+    /// parameters on eight points, ranks below the clearance alone). `None` otherwise.
+    pub fn unranked_explanation(&self) -> Option<String> {
+        let Verdict::Unexplained { .. } = self.verdict else {
+            return None;
+        };
+        let first = self.ranking.first()?;
+        let (rank, most) = self
+            .ranking
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.aicc.is_finite() && f.explained.is_finite())
+            .max_by(|a, b| a.1.explained.total_cmp(&b.1.explained))?;
+        if rank == 0 || most.explained <= first.explained {
+            return None;
+        }
+        Some(format!(
+            "the first-ranked template ({}) explains {:.0} %; {} explains {:.0} % (χ²/dof {}) \
+             but ranks #{} (ΔAICc {}): its {} parameters on {} curve points cost more than \
+             its better fit repays — more levels can rank it",
+            first.name,
+            100.0 * first.explained,
+            most.name,
+            100.0 * most.explained,
+            fmt_g(most.reduced_chi2),
+            rank + 1,
+            fmt_g(most.delta_aicc),
+            most.n_params,
+            most.n_points
+        ))
+    }
+}
+
 /// A single effect tried through the estimator: its coefficient fitted so that the
 /// measured curves of the element and its neighbours, minus the drift the effect predicts
 /// for this fit on these inputs, are as constant as possible.
