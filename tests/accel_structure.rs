@@ -19,7 +19,11 @@
 //!   does (`detection_by_model_size`, opt-in: `DYNID_STRUCTURE_LONG=1`);
 //! - diagnosis against the linear model names Coulomb friction at the joint; the joint's
 //!   parameters from accelerations, with the right model, come out tens of per cent low
-//!   (`joint_from_accelerations`, opt-in, which pins it);
+//!   with the default rows and within 5 % with `--weighted-rows`
+//!   (`joint_from_accelerations`, opt-in);
+//! - a log sine sweep instead of the multisine: noiseless, the joint and every mass and
+//!   spring as from the multisine (`joint_from_a_sweep`); with 5 % noise all of them
+//!   5–34 % low (`joint_from_a_noisy_sweep`, opt-in, pinned as measured);
 //! - with 5 % noise on every channel the default unit-norm rows shrink every mass and
 //!   stiffness by about half; the two-step weighted solve removes it
 //!   (`noise_on_a_structure_needs_the_weighted_step`, opt-in);
@@ -434,6 +438,120 @@ fn joint_from_accelerations() {
         .unwrap_or_else(|| panic!("no verdict:\n{stdout}"));
     println!("{named}");
     assert!(named.contains("(m2, m3)"), "{named}");
+}
+
+/// The joint's structure driven by a log sine sweep (0.2–10 Hz, four sweeps per 200 s
+/// record, the four force amplitudes 1, 3, 10, 30), simulated by `dynid simulate` into
+/// `dir/sweep` with `noise` on every channel (seed 1); the level files.
+fn sweep_levels(dir: &std::path::Path, noise: f64, seed: u64) -> Vec<std::path::PathBuf> {
+    let model = model_file(dir, "structure5_joint_accel", false);
+    let seed = common::seed(seed).to_string();
+    let noise = noise.to_string();
+    common::simulate_levels(
+        &model,
+        [
+            "--signal",
+            "sweep",
+            "--band-hz",
+            "0.2,10",
+            "--periods",
+            "4",
+            "--duration",
+            "200",
+            "--noise",
+            noise.as_str(),
+            "--seed",
+            seed.as_str(),
+        ],
+        &dir.join("sweep"),
+        4,
+    )
+}
+
+/// `dynid identify` of the joint's model on `levels` with `flags`: the relative error of
+/// every mass, spring, the contact stiffness and the friction, by name.
+fn all_errors(levels: &[std::path::PathBuf], flags: &[&str]) -> Vec<(String, f64)> {
+    let truth = [
+        ("m2", 1.5),
+        ("m3", 1.0),
+        ("m4", 0.7),
+        ("m5", 0.5),
+        ("k1", 50.0),
+        ("k2", 200.0),
+        ("k3", 300.0),
+        ("k4", 400.0),
+        ("k5", 500.0),
+        ("kb", 300.0),
+        ("r", 0.2),
+    ];
+    let out = common::dynid()
+        .arg("identify")
+        .arg(common::model_path("structure5_joint_accel.dyn"))
+        .args(levels)
+        .args(flags)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    truth
+        .iter()
+        .map(|&(name, t)| {
+            let v: f64 = stdout
+                .lines()
+                .find_map(|l| {
+                    let mut w = l.split_whitespace();
+                    (w.next() == Some(name)).then(|| w.next()?.parse().ok())?
+                })
+                .unwrap_or_else(|| panic!("no row `{name}` in:\n{stdout}"));
+            (name.to_string(), v / t - 1.0)
+        })
+        .collect()
+}
+
+/// The joint from a sine sweep's accelerations, noiseless, with `--weighted-rows`: as from
+/// the multisine. A sweep excites every line of its period, below its band too; there the
+/// contact's and the friction's folded content swamped the small quasi-static displacement,
+/// and every mass, spring and the joint came out 59–91 % low until the integration kept
+/// the lines below a quarter of the lowest mode only where they stand out of the folded
+/// level (`runtime/src/ident/integrate.rs`). Measured: masses, springs and kb within
+/// 1.8 %, r +8.8 % (the multisine's noiseless records: 0.6 % and +2.3 %). Bounds
+/// 3 % and 15 %. With 5 % noise the sweep still loses (opt-in
+/// `joint_from_a_noisy_sweep`).
+#[test]
+fn joint_from_a_sweep() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = sweep_levels(dir.path(), 0.0, 1);
+    let errs = all_errors(&levels, &["--weighted-rows"]);
+    println!("joint from a noiseless sweep, weighted rows: {errs:.4?}");
+    for (name, e) in &errs {
+        let bound = if name == "r" { 0.15 } else { 0.03 };
+        assert!(e.abs() < bound, "{name} {e:+.4}: {errs:.4?}");
+    }
+}
+
+/// The same sweep with 5 % noise on every channel, seeds 1–4 (opt-in,
+/// `DYNID_STRUCTURE_LONG=1`): every mass and spring comes out low together, −5 to −34 %
+/// over the seeds (standard errors 3–13 % on seeds 2–4), where the multisine's records give −2 to −5 %
+/// (`joint_from_accelerations`); the linear structure from the same noisy sweep is within
+/// 4 % (a one-off run): the noise of the integrated displacement in the joint's columns
+/// is what the weighted rows do not absorb here. Pinned as measured (all low, none beyond
+/// −45 %), so that a fix shows.
+#[test]
+fn joint_from_a_noisy_sweep() {
+    if std::env::var("DYNID_STRUCTURE_LONG").is_err() {
+        return;
+    }
+    for seed in 1..=4 {
+        let dir = tempfile::tempdir().unwrap();
+        let levels = sweep_levels(dir.path(), 0.05, seed);
+        let errs = all_errors(&levels, &["--weighted-rows"]);
+        println!("joint from a noisy sweep, seed {seed}: {errs:.3?}");
+        for (name, e) in &errs {
+            if name != "r" {
+                assert!((-0.45..0.0).contains(e), "seed {seed}, {name} {e:+.3}");
+            }
+        }
+    }
 }
 
 /// The joint with its clearance alone (no friction), noiseless multisine records of 1000 s

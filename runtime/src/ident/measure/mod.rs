@@ -204,7 +204,7 @@ pub(crate) fn measure_pieces(
                 .chain(integrated.get(level).into_iter().flat_map(|m| {
                     let d = match m.how() {
                         Integration::Band { corner } => (corner, 0),
-                        Integration::Periodic { periods, floor } => (floor, periods),
+                        Integration::Periodic { periods, floor, .. } => (floor, periods),
                     };
                     plan.integrated.iter().map(move |_| d)
                 }))
