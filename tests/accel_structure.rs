@@ -224,14 +224,29 @@ fn model_file(dir: &std::path::Path, name: &str, positions: bool) -> std::path::
 /// The joint's structure simulated by `dynid simulate` into `dir/data`: four multisine
 /// levels of 200 s, 5 % noise on every channel (seed 1); the level files.
 fn joint_levels(dir: &std::path::Path, positions: bool) -> Vec<std::path::PathBuf> {
+    let data = if positions { "data_x" } else { "data" };
+    simulated_joint(dir, positions, "multisine", 0.05, 1, data)
+}
+
+/// The joint's structure (measured by positions where `positions`) simulated by `dynid
+/// simulate` into `dir/out`: `signal` (multisine or sweep) over 0.2–10 Hz, four periods
+/// in each of the four levels of 200 s, `noise` on every channel, seed `seed`; the level
+/// files.
+fn simulated_joint(
+    dir: &std::path::Path,
+    positions: bool,
+    signal: &str,
+    noise: f64,
+    seed: u64,
+    out: &str,
+) -> Vec<std::path::PathBuf> {
     let model = model_file(dir, "structure5_joint_accel", positions);
-    let data = dir.join(if positions { "data_x" } else { "data" });
-    let seed = common::seed(1).to_string();
+    let (seed, noise) = (common::seed(seed).to_string(), noise.to_string());
     common::simulate_levels(
         &model,
         [
             "--signal",
-            "multisine",
+            signal,
             "--band-hz",
             "0.2,10",
             "--periods",
@@ -239,11 +254,11 @@ fn joint_levels(dir: &std::path::Path, positions: bool) -> Vec<std::path::PathBu
             "--duration",
             "200",
             "--noise",
-            "0.05",
+            &noise,
             "--seed",
             &seed,
         ],
-        &data,
+        &dir.join(out),
         4,
     )
 }
@@ -361,26 +376,12 @@ fn detection_by_model_size() {
 /// `dynid identify` of the joint's model on `levels` with `flags`: the relative errors of
 /// the contact stiffness kb and the friction r (truth 300 and 0.2).
 fn joint_errors(levels: &[std::path::PathBuf], flags: &[&str]) -> (f64, f64) {
-    let out = common::dynid()
-        .arg("identify")
-        .arg(common::model_path("structure5_joint_accel.dyn"))
-        .args(levels)
-        .args(flags)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    // The value column of `name`'s row in the parameter table.
-    let value = |name: &str| -> f64 {
-        stdout
-            .lines()
-            .find_map(|l| {
-                let mut w = l.split_whitespace();
-                (w.next() == Some(name)).then(|| w.next()?.parse().ok())?
-            })
-            .unwrap_or_else(|| panic!("no row `{name}` in:\n{stdout}"))
-    };
-    let (kb, r) = (value("kb") / 300.0 - 1.0, value("r") / 0.2 - 1.0);
+    let errs = all_errors(levels, flags);
+    let error = |name: &str| errs.iter().find(|(n, _)| n == name).map(|(_, e)| *e);
+    let (kb, r) = (
+        error("kb").expect("kb is estimated"),
+        error("r").expect("r is estimated"),
+    );
     println!(
         "joint from accelerations {flags:?}: kb {:+.1} %, r {:+.1} %",
         100.0 * kb,
@@ -441,31 +442,10 @@ fn joint_from_accelerations() {
 }
 
 /// The joint's structure driven by a log sine sweep (0.2–10 Hz, four sweeps per 200 s
-/// record, the four force amplitudes 1, 3, 10, 30), simulated by `dynid simulate` into
-/// `dir/sweep` with `noise` on every channel (seed 1); the level files.
+/// record, the four force amplitudes 1, 3, 10, 30) with `noise` on every channel, seed
+/// `seed`, in `dir/sweep`; the level files.
 fn sweep_levels(dir: &std::path::Path, noise: f64, seed: u64) -> Vec<std::path::PathBuf> {
-    let model = model_file(dir, "structure5_joint_accel", false);
-    let seed = common::seed(seed).to_string();
-    let noise = noise.to_string();
-    common::simulate_levels(
-        &model,
-        [
-            "--signal",
-            "sweep",
-            "--band-hz",
-            "0.2,10",
-            "--periods",
-            "4",
-            "--duration",
-            "200",
-            "--noise",
-            noise.as_str(),
-            "--seed",
-            seed.as_str(),
-        ],
-        &dir.join("sweep"),
-        4,
-    )
+    simulated_joint(dir, false, "sweep", noise, seed, "sweep")
 }
 
 /// `dynid identify` of the joint's model on `levels` with `flags`: the relative error of
