@@ -62,7 +62,10 @@
 //! keeps its lines, a contact's kinks and a friction's jumps do not): in the same check
 //! the joint's displacement error fell to 0.07–1.3 times its RMS, as on the multisine's
 //! records (0.07–0.92), and its identification from a noiseless sweep came to the
-//! multisine's precision (`tests/accel_structure.rs`, `joint_from_a_sweep`).
+//! multisine's precision (`tests/accel_structure.rs`, `joint_from_a_sweep`). Where the
+//! excitation itself reaches the top quarter of the band, that level is the response's
+//! own and the lines below the corner are dropped unless they stand out of it: the
+//! displacement there is then missing, as with the band-limited integration.
 //! Periodicity is read from the data: the largest divisor `p` of the record length (at
 //! least 2, with periods of at least 16 samples) for which the bins on that grid hold at
 //! least 99 % of the acceleration's energy (white noise puts only `1/p` of its energy
