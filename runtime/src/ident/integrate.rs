@@ -55,11 +55,12 @@
 //! displacement at those lines is quasi-static and small while the folded content is
 //! not: the relative displacement of a joint with clearance and friction, integrated so,
 //! was off by 0.3–16 times its RMS over the four levels of a noiseless sweep (measured
-//! once against the simulated positions, not a test). So between the input's lowest line and the band-limited corner a line is kept
-//! only where its power stands twenty times above the folded level, read as the median
-//! line power over the top quarter of the band (what lies just below the Nyquist
-//! frequency folds to just above zero; a smooth response has next to nothing there and
-//! keeps its lines, a contact's kinks and a friction's jumps do not): in the same check
+//! once against the simulated positions, not a test). So between the input's lowest line
+//! and the band-limited corner a line is kept only where its power stands twenty times
+//! above the folded level, read as the median line power over the top quarter of the
+//! band (what lies just below the Nyquist frequency folds to just above zero; a smooth
+//! response has next to nothing there and keeps its lines, a contact's kinks and a
+//! friction's jumps do not): in the same check
 //! the joint's displacement error fell to 0.07–1.3 times its RMS, as on the multisine's
 //! records (0.07–0.92), and its identification from a noiseless sweep came to the
 //! multisine's precision (`tests/accel_structure.rs`, `joint_from_a_sweep`). Where the
