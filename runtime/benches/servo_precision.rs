@@ -22,8 +22,10 @@
 //! default). Forty-eight seeds, not twelve: an RMS error over `n` seeds is itself uncertain
 //! by about `1/√(2n)` of its value, ±20 % at twelve — enough to turn a tie into a ranking.
 //! At twelve seeds IDIM-LS's offset on the planned moves came out 0.234 % against dynid's
-//! 0.319 % (filtered rows with the delay); at forty-eight every method's offset there lies
-//! between 0.283 and 0.302 %: a tie at the floor the force's noise sets.
+//! 0.319 % (filtered rows with the delay); at forty-eight both baselines that leave the
+//! rests out and dynid's defaults and filtered rows at their designed corners lie between
+//! 0.284 and 0.302 %: a tie (the force's noise is all that differs between the seeds of a
+//! planned record).
 //!
 //! Measured (2026-11-27; seeds 1–48; `cargo bench -p dynid-runtime --bench
 //! servo_precision`, 40 s in all — on a machine shared with other builds, so `ms/rec` is
@@ -283,7 +285,7 @@
 //! 2.3×, 6×, 31× and 12× smaller, level with SVF-LS 80 Hz with its rows near rest dropped
 //! (0.008, 0.143, 0.067, 0.119 %); on planned moves m 0.008 % and r 0.109 % (below
 //! IDIM-LS's 0.026 and 0.368 %, level with SVF-LS rests out), d 0.213 % (IDIM-LS 0.074 %)
-//! and f0 0.289 % (level with every method); with the Stribeck term the model lacks it
+//! and f0 0.289 % (level with both baselines); with the Stribeck term the model lacks it
 //! moves less than the defaults and both baselines (m 0.042, d 1.4, r 2.2 %). Its damping
 //! errors are a bias the standard errors do not cover (mean error −0.145 % random, −0.209 %
 //! planned, coverage 0 % on both suites), the same bias as SVF-LS rests out's: the force's
@@ -302,7 +304,7 @@
 //! out m 0.008, r 0.067, f0 0.119 %; SVF-LS 80 Hz d 0.095 %), covered on 83–96 % of the
 //! seeds (at 500 rad/s the mass comes out low, −0.006 % on the mean, coverage 40 %, RMS e/SE
 //! 2.53). Planned: m 0.009, d 0.051, r 0.060, f0 0.286 %, covered on 96–98 % — d and r below
-//! every baseline (IDIM-LS d 0.074 %, SVF-LS rests out r 0.114 %), f0 level with all
+//! every baseline (IDIM-LS d 0.074 %, SVF-LS rests out r 0.114 %), f0 level with both
 //! (SVF-LS rests out 0.284 %, IDIM-LS 0.302 %), m 1.3× SVF-LS rests out's 0.007 % (IDIM-LS
 //! 0.026 %). It does not cure a model error: with the Stribeck term the filtered rows' d
 //! and r stay 1.0 and 1.6 % off, and with the default instrument rows the delay takes part
