@@ -68,10 +68,15 @@ fn assert_reported(id: &Identification, signals: &[(&str, &str)], data: Data, be
                 // response may not repeat exactly (seed 73), and that level falls back to
                 // the band-limited integration.
                 assert!(e.method.contains("whole periods"), "{}", e.method);
-                // The lowest line kept: the multisine's lowest (0.02 Hz), below a quarter
-                // of the mode.
+                // The lowest line kept at the lowest level: none below the multisine's
+                // lowest (0.02 Hz), and lines below the mode (2 rad/s) where they stand out
+                // of the noise (0.377 rad/s on the suite's seed).
                 let lowest = 2.0 * std::f64::consts::PI * 0.02;
-                assert!((e.cutoff[0] / lowest - 1.0).abs() < 1e-9, "{:?}", e.cutoff);
+                assert!(
+                    e.cutoff[0] >= lowest * (1.0 - 1e-9) && e.cutoff[0] < 2.0,
+                    "{:?}",
+                    e.cutoff
+                );
             }
             Data::Random => {
                 assert!(e.method.contains("band-limited"), "{}", e.method);

@@ -157,6 +157,8 @@ pub struct IntegratedMotion<'a> {
     slots: Vec<usize>,
     values: Vec<Vec<f64>>,
     how: Integration,
+    /// Per target: the lowest line its estimate kept (rad/s), over whole periods.
+    lowest: Vec<Option<f64>>,
 }
 
 /// The largest number of whole periods the record `a` holds (see the module docs), from its
@@ -302,8 +304,15 @@ fn choose(accels: &[Vec<f64>], inputs: &[Vec<f64>], ts: f64, fallback: f64) -> I
 }
 
 /// Integrate `a` (sample interval `ts`) as `how` says into the estimates `out[k]` of
-/// orders `orders[k]`.
-fn integrate(a: &[f64], ts: f64, how: Integration, orders: &[u8], out: &mut [Vec<f64>]) {
+/// orders `orders[k]`; the lowest line kept (rad/s) over whole periods, `None` where none
+/// is or the integration is band-limited.
+fn integrate(
+    a: &[f64],
+    ts: f64,
+    how: Integration,
+    orders: &[u8],
+    out: &mut [Vec<f64>],
+) -> Option<f64> {
     let n = a.len();
     let mut planner = RealFftPlanner::<f64>::new();
     let len = match how {
@@ -347,6 +356,7 @@ fn integrate(a: &[f64], ts: f64, how: Integration, orders: &[u8], out: &mut [Vec
     let last = spec.len() - 1;
     let mut work = vec![Complex::new(0.0, 0.0); spec.len()];
     let mut time = vec![0.0; len];
+    let mut lowest: Option<f64> = None;
     for (o, est) in orders.iter().zip(out.iter_mut()) {
         for (k, (w, s)) in work.iter_mut().zip(&spec).enumerate() {
             let om = k as f64 * dw;
@@ -372,6 +382,9 @@ fn integrate(a: &[f64], ts: f64, how: Integration, orders: &[u8], out: &mut [Vec
             *w = if k == 0 || off_grid || (k == last && len.is_multiple_of(2)) {
                 Complex::new(0.0, 0.0)
             } else {
+                if matches!(how, Integration::Periodic { .. }) {
+                    lowest = Some(lowest.map_or(om, |l: f64| l.min(om)));
+                }
                 let jw = Complex::new(0.0, om);
                 let d = if *o == 1 { jw } else { jw * jw };
                 *s * (h / len as f64) / d
@@ -382,6 +395,7 @@ fn integrate(a: &[f64], ts: f64, how: Integration, orders: &[u8], out: &mut [Vec
         est.clear();
         est.extend_from_slice(&time[..n]);
     }
+    lowest
 }
 
 impl<'a> IntegratedMotion<'a> {
@@ -438,6 +452,7 @@ impl<'a> IntegratedMotion<'a> {
         }
         let ts = inner.ts();
         let mut values = vec![Vec::new(); targets.len()];
+        let mut lowest = vec![None; targets.len()];
         let short = data.iter().any(|d| d.len() < 4);
         let how = if short {
             Integration::Band { corner }
@@ -453,7 +468,7 @@ impl<'a> IntegratedMotion<'a> {
             if short {
                 out[0] = vec![0.0; d.len()];
             } else {
-                integrate(d, ts, how, &[t.order], &mut out);
+                lowest[k] = integrate(d, ts, how, &[t.order], &mut out);
             }
             let [o] = out;
             values[k] = o;
@@ -463,6 +478,7 @@ impl<'a> IntegratedMotion<'a> {
             slots: targets.iter().map(|t| t.slot).collect(),
             values,
             how,
+            lowest,
         })
     }
 
@@ -489,6 +505,12 @@ impl<'a> IntegratedMotion<'a> {
     /// the relative motion of two bodies is the integral of the relative acceleration).
     pub fn how(&self) -> Integration {
         self.how
+    }
+
+    /// The lowest line target `k`'s estimate kept (rad/s), where it was integrated over
+    /// whole periods and kept any.
+    pub fn lowest_line(&self, k: usize) -> Option<f64> {
+        self.lowest.get(k).copied().flatten()
     }
 }
 

@@ -153,8 +153,17 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
                     }
                 })
                 .collect();
+            // Over whole periods every level: the lowest line each kept.
+            let what = if e
+                .method
+                .starts_with(dynid_runtime::ident::integrate::METHOD_PERIODIC)
+            {
+                "lowest line kept"
+            } else {
+                "corner"
+            };
             s.push_str(&format!(
-                "{} integrated from {} ({}; corner {} rad/s per level)\n",
+                "{} integrated from {} ({}; {what} {} rad/s per level)\n",
                 e.signal,
                 e.from,
                 e.method,

@@ -202,11 +202,12 @@ pub(crate) fn measure_pieces(
                 .unwrap_or_default()
                 .into_iter()
                 .chain(integrated.get(level).into_iter().flat_map(|m| {
-                    let d = match m.how() {
+                    (0..plan.integrated.len()).map(move |k| match m.how() {
                         Integration::Band { corner } => (corner, 0),
-                        Integration::Periodic { periods, floor, .. } => (floor, periods),
-                    };
-                    plan.integrated.iter().map(move |_| d)
+                        Integration::Periodic { periods, floor, .. } => {
+                            (m.lowest_line(k).unwrap_or(floor), periods)
+                        }
+                    })
                 }))
                 .collect(),
         })
