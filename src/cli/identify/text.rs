@@ -153,12 +153,12 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
                     }
                 })
                 .collect();
-            // Over whole periods every level: the lowest line each kept.
-            let what = if e
-                .method
-                .starts_with(dynid_runtime::ident::integrate::METHOD_PERIODIC)
-            {
+            // Over whole periods: the lowest line each kept; levels of both kinds: either.
+            let periodic = dynid_runtime::ident::integrate::METHOD_PERIODIC;
+            let what = if e.method.starts_with(periodic) {
                 "lowest line kept"
+            } else if e.method.contains(periodic) {
+                "corner or, over whole periods, lowest line kept"
             } else {
                 "corner"
             };
