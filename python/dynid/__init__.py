@@ -1663,7 +1663,7 @@ def segments(model, data, sample: _t.Optional[float] = None, map=None, segments:
     return Segments(_json.loads(js), table, [_frame(*r) for r in recs], labels)
 
 
-def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float = 1e-3, map=None, frf_periods: _t.Optional[int] = None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False) -> Detection:
+def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float = 1e-3, map=None, frf_periods: _t.Optional[int] = None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False, weighted_rows: bool = False) -> Detection:
     """Which elements of a linear model hide a nonlinearity, and which kind, as
     ``dynid detect``: the linear model is identified at every level, and a parameter that
     drifts with the level names the effect.
@@ -1685,6 +1685,11 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
     frf_periods : int, optional
         Each record holds this many periods of a periodic excitation (``--frf-periods``).
     SPLIT_PARAMETERS
+    weighted_rows : bool, default False
+        Fit each level with its rows weighted by their estimated covariance
+        (``--weighted-rows``): per-level values free of the shrinkage that noise on
+        accelerations gives the default rows, but standard errors smaller than their
+        spread (docs/detection.md, "Noisy accelerations").
 
     Returns
     -------
@@ -1708,7 +1713,7 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
     seg, by, cut = _split_kw(segments, split_by, cut)
     data, single = _as_list(data)
     levels = _levels(m._m, data, sample, map, every_column=len(data) == 1)
-    js, table, warnings, verdicts = _dynid.detect(m._m, levels, float(alpha), frf_periods, seg, by, cut, bool(allow_large))
+    js, table, warnings, verdicts = _dynid.detect(m._m, levels, float(alpha), frf_periods, seg, by, cut, bool(allow_large), bool(weighted_rows))
     return Detection(_json.loads(js), table, warnings, verdicts)
 
 

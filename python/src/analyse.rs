@@ -33,7 +33,7 @@ pub(crate) type DetectOut = (String, String, Vec<String>, Vec<(String, String)>)
 /// level is cut into levels as the command line cuts one file (`segments`, `split_by`,
 /// `cut`); the segment table is the first warning's companion in the JSON (`segments`).
 #[pyfunction]
-#[pyo3(signature = (model, levels, alpha=1e-3, frf_periods=None, segments=None, split_by=None, cut="auto", allow_large=false))]
+#[pyo3(signature = (model, levels, alpha=1e-3, frf_periods=None, segments=None, split_by=None, cut="auto", allow_large=false, weighted_rows=false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn detect(
     py: Python<'_>,
@@ -45,6 +45,7 @@ pub(crate) fn detect(
     split_by: Option<String>,
     cut: &str,
     allow_large: bool,
+    weighted_rows: bool,
 ) -> PyResult<DetectOut> {
     guarded(py, || {
         if !(alpha > 0.0 && alpha < 1.0) {
@@ -68,6 +69,7 @@ pub(crate) fn detect(
         };
         let iopts = IdentifyOptions {
             allow_large,
+            efficient: weighted_rows,
             ..Default::default()
         };
         let (det, fits, frfs) = py

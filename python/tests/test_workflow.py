@@ -84,6 +84,10 @@ def test_detect_to_dict_is_the_cli_json(csv_levels, tmp_path):
     got = dynid.detect(model, files).to_dict()
     assert got == expected
     assert got["schema_version"] == 2
+    # `weighted_rows` is `--weighted-rows`: other per-level fits, the same document.
+    weighted = cli_json(exe, ["detect", str(model), *files, "--weighted-rows"], tmp_path)
+    assert dynid.detect(model, files, weighted_rows=True).to_dict() == weighted
+    assert weighted["detection"]["params"] != got["detection"]["params"]
 
 
 def test_diagnose_to_dict_is_the_cli_json(csv_levels, tmp_path):
