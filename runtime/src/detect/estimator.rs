@@ -22,9 +22,10 @@
 //! A candidate *explains* the element when, after its predicted drift is removed, no curve
 //! of the element drifts by the constancy test. The best explaining single effect
 //! (smallest χ²) becomes the verdict, and a pair or an `also suspected` second effect is
-//! kept only when no single effect explains the element. A neighbour whose curves no
+//! kept only when no single effect explains the element. Any other element whose curves no
 //! longer drift once the candidate's predicted leak is removed is reported linear, with
-//! the reason.
+//! the reason. Where no single effect explains the element and its verdict is a pair of
+//! effects, the pair is run once at the linearisation's coefficients for that check alone.
 //!
 //! This module picks the elements and applies the verdicts; `runs` simulates the estimator
 //! on each candidate, `score` fits p to the measured curves and tests what is left.
@@ -35,13 +36,13 @@ mod score;
 use dynid_ir::ir::{ModelIr, Node};
 
 use super::candidate::Candidate;
-use super::format::fmt_pm;
+use super::format::{fmt_g, fmt_pm};
 use super::from_data::{groups, LevelFits};
 use super::types::{DetectOptions, Detection, EstimatorFit, Role, Verdict};
 use crate::data::LevelSource;
 use crate::ident::IdentifyOptions;
 use crate::record::Record;
-use runs::{head_record, run_trials, singles_of, Trial};
+use runs::{head_record, pair_of, run_pair, run_trials, singles_of, Trial};
 use score::{fit_p, still_drifting, Scoped};
 use std::sync::atomic::AtomicUsize;
 
@@ -187,21 +188,48 @@ pub(crate) fn refine(
         let winner = fitted.first().filter(|f| f.explains).cloned();
         let Some(w) = winner else {
             det.elements[ti].estimator = fitted;
+            // No single effect explains the element. Where its verdict is a pair, the
+            // pair at the linearisation's coefficients, run through the estimator, says
+            // which drifts of other elements are its leak.
+            let verdict_pair = match &det.elements[ti].verdict {
+                Verdict::Nonlinear { best, .. } => {
+                    pair_of(&det.elements[ti], &builtins).filter(|p| p.effect == *best)
+                }
+                _ => None,
+            };
+            let Some(pair) = verdict_pair else {
+                continue;
+            };
+            let Some(t) = run_pair(
+                ir,
+                &base,
+                &pair,
+                (&a, &b),
+                &inputs,
+                &sim_ident,
+                opts.hold_inertia,
+                (&done, &total),
+                progress,
+            ) else {
+                continue;
+            };
+            let coefs: Vec<String> = pair
+                .terms
+                .iter()
+                .map(|(_, name, p, _)| format!("{name} = {}", fmt_g(*p)))
+                .collect();
+            let cause = format!(
+                "{} at {name} predicts in this fit ({}, as linearised)",
+                pair.effect,
+                coefs.join(", ")
+            );
+            quiet_leaks(det, &mut explained, ti, &cause, |j| corrected(&t, j, 1.0));
             continue;
         };
         let t = trials
             .iter()
             .find(|t| t.effect == w.effect)
             .expect("invariant: the winner is one of the trials");
-        let quiet: Vec<usize> = neighbours
-            .iter()
-            .copied()
-            .filter(|&j| det.elements[j].verdict != Verdict::Linear)
-            .filter(|&j| {
-                let (left, ok) = corrected(t, j, w.value);
-                ok && left.is_empty()
-            })
-            .collect();
         let finding = &mut det.elements[ti];
         finding.estimator = fitted;
         finding.verdict = Verdict::Nonlinear {
@@ -214,20 +242,46 @@ pub(crate) fn refine(
             ),
         };
         finding.suspected = None;
-        for j in quiet {
-            let n = &mut det.elements[j];
-            n.explained_by = Some(format!(
-                "its drift is the leak that {} at {} predicts in this fit ({} = {}); \
-                 none is left once that is removed",
-                w.effect,
-                name,
-                w.coef_name,
-                fmt_pm(w.value, w.stderr)
-            ));
-            n.verdict = Verdict::Linear;
-            n.suspected = None;
-            explained[j] = true;
-        }
+        let cause = format!(
+            "{} at {} predicts in this fit ({} = {})",
+            w.effect,
+            name,
+            w.coef_name,
+            fmt_pm(w.value, w.stderr)
+        );
+        quiet_leaks(det, &mut explained, ti, &cause, |j| {
+            corrected(t, j, w.value)
+        });
+    }
+}
+
+/// Report as linear, with `cause` as the reason, every other flagged element `j` whose
+/// curves no longer drift once the predicted leak is removed (`corrected(j)`: the curves
+/// still drifting, and whether every one had a prediction). Every element of the model is
+/// checked, not only the neighbours of `ti`: the simulated fits are of the whole model,
+/// and along a chain of bodies a strong joint's leak reaches past the elements next to it.
+fn quiet_leaks(
+    det: &mut Detection,
+    explained: &mut [bool],
+    ti: usize,
+    cause: &str,
+    corrected: impl Fn(usize) -> (Vec<String>, bool),
+) {
+    let quiet: Vec<usize> = (0..det.elements.len())
+        .filter(|&j| j != ti && det.elements[j].verdict != Verdict::Linear)
+        .filter(|&j| {
+            let (left, ok) = corrected(j);
+            ok && left.is_empty()
+        })
+        .collect();
+    for j in quiet {
+        let n = &mut det.elements[j];
+        n.explained_by = Some(format!(
+            "its drift is the leak that {cause}; none is left once that is removed"
+        ));
+        n.verdict = Verdict::Linear;
+        n.suspected = None;
+        explained[j] = true;
     }
 }
 

@@ -359,7 +359,7 @@ pub struct ElementFinding {
     /// refitted per level, see `detect::estimator`), the explaining ones first, then by χ².
     #[serde(default)]
     pub estimator: Vec<EstimatorFit>,
-    /// Why a drifting element is reported linear: a neighbour's effect predicts its drift.
+    /// Why a drifting element is reported linear: another element's effect predicts its drift.
     #[serde(default)]
     pub explained_by: Option<String>,
 }

@@ -164,6 +164,140 @@ fn estimator_curves(
     )
 }
 
+/// `base` with the element's linear parts set to `linear_parts` and a force of the
+/// `terms` `(effect, shape θ, coefficient)` added at the element `(a, b)`, driven by
+/// `inputs` and fitted per level with `sim_ident` ([`estimator_curves`]); `None` where an
+/// effect cannot be written or a run fails.
+#[allow(clippy::too_many_arguments)] // the model, the force and the run's settings
+fn driven_fit(
+    ir: &ModelIr,
+    base: &ModelIr,
+    linear_parts: &[(String, f64)],
+    terms: &[(&str, f64, f64)],
+    (a, b): (&str, &str),
+    inputs: &[Record],
+    sim_ident: &IdentifyOptions,
+    hold_inertia: bool,
+) -> Option<Curves> {
+    let mut model = base.clone();
+    for (param, v) in linear_parts {
+        let _ = model.set_nominal(param, *v);
+    }
+    let bases: Vec<BasisFn> = terms
+        .iter()
+        .map(|(effect, theta, _)| basis_of(effect, *theta))
+        .collect::<Option<_>>()?;
+    // One coefficient per term: `p_candidate`, `p_candidate_2`, … (where free).
+    let names: Vec<String> = (0..terms.len())
+        .map(|i| match i {
+            0 => model.fresh_name("p_candidate"),
+            _ => model.fresh_name(&format!("p_candidate_{}", i + 1)),
+        })
+        .collect();
+    let new_terms: Vec<NewTerm> = terms
+        .iter()
+        .zip(&bases)
+        .zip(&names)
+        .map(|(((_, _, p), basis), param)| NewTerm {
+            param,
+            nominal: Some(*p),
+            basis: &**basis,
+        })
+        .collect();
+    let fname = model.fresh_name("candidate");
+    model.add_force(&fname, (a, b), &new_terms).ok()?;
+    estimator_curves(ir, &model, inputs, sim_ident, hold_inertia)
+}
+
+/// A template of two effects, the verdict of an element that no single effect explains
+/// through the estimator: its effects with their coefficients and shapes, and the element's
+/// linear parts, as the statistical linearisation fitted them.
+pub(super) struct Pair {
+    /// `backlash + Coulomb friction`.
+    pub(super) effect: String,
+    /// `(effect, coefficient name, coefficient, shape θ)` per effect.
+    pub(super) terms: Vec<(String, String, f64, f64)>,
+    pub(super) linear_parts: Vec<(String, f64)>,
+}
+
+/// The pair of `finding`'s verdict (its first-ranked template, where that has two built-in
+/// effects with finite, non-zero coefficients), or `None`.
+pub(super) fn pair_of(finding: &ElementFinding, builtins: &[Candidate]) -> Option<Pair> {
+    let f = finding.ranking.first().filter(|f| f.effects.len() == 2)?;
+    let est = f.effect_estimates();
+    let value = |name: &str| est.iter().find(|e| e.name == name).map(|e| e.value);
+    let terms = f
+        .effects
+        .iter()
+        .map(|effect| {
+            let c = builtins.iter().find(|c| c.name == *effect)?;
+            let p = value(&c.coef_name).filter(|p| p.is_finite() && *p != 0.0)?;
+            let theta = c.shape.as_ref().map_or(Some(0.0), |s| value(&s.name))?;
+            Some((c.name.clone(), c.coef_name.clone(), p, theta))
+        })
+        .collect::<Option<Vec<_>>>()?;
+    Some(Pair {
+        effect: f.effects.join(" + "),
+        terms,
+        linear_parts: f
+            .estimates
+            .iter()
+            .filter_map(|e| {
+                e.name
+                    .strip_suffix(" (linear part)")
+                    .map(|n| (n.to_string(), e.value))
+            })
+            .collect(),
+    })
+}
+
+/// The estimator's trial of `pair` at element `(a, b)`: runs without the pair and with it
+/// at the coefficients the linearisation fitted (factor 0 and 1 of the trial's `ps`), with
+/// the same inputs and fits as [`run_trials`]; `None` where a run fails.
+#[allow(clippy::too_many_arguments)] // the run's inputs and its progress counters
+pub(super) fn run_pair(
+    ir: &ModelIr,
+    base: &ModelIr,
+    pair: &Pair,
+    (a, b): (&str, &str),
+    inputs: &[Record],
+    sim_ident: &IdentifyOptions,
+    hold_inertia: bool,
+    (done, total): (&AtomicUsize, &AtomicUsize),
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Option<Trial> {
+    let total = total.fetch_add(2, Ordering::Relaxed) + 2;
+    let curves: Vec<Option<Curves>> = [0.0, 1.0]
+        .par_iter()
+        .map(|&factor| {
+            let terms: Vec<(&str, f64, f64)> = pair
+                .terms
+                .iter()
+                .map(|(effect, _, p, theta)| (effect.as_str(), *theta, factor * p))
+                .collect();
+            let out = driven_fit(
+                ir,
+                base,
+                &pair.linear_parts,
+                &terms,
+                (a, b),
+                inputs,
+                sim_ident,
+                hold_inertia,
+            );
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(n, total);
+            out
+        })
+        .collect();
+    Some(Trial {
+        effect: pair.effect.clone(),
+        coef_name: String::new(),
+        ps: vec![0.0, 1.0],
+        curves: curves.into_iter().collect::<Option<_>>()?,
+    })
+}
+
 /// The single-effect templates of `finding`'s ranking that the estimator can run: a
 /// built-in effect with a finite, non-zero coefficient, its shape and the element's linear
 /// parts as the statistical linearisation fitted them.
@@ -225,32 +359,22 @@ pub(super) fn run_trials(
         .par_iter()
         .map(|&(c, k)| {
             let run = || -> Option<Curves> {
-                let Single {
-                    effect,
-                    p,
-                    theta,
-                    linear_parts,
-                    ..
-                } = &singles[c];
-                let mut model = base.clone();
-                for (param, v) in linear_parts {
-                    let _ = model.set_nominal(param, *v);
-                }
-                let basis = basis_of(effect, *theta)?;
-                let pname = model.fresh_name("p_candidate");
-                let fname = model.fresh_name("candidate");
-                model
-                    .add_force(
-                        &fname,
-                        (a, b),
-                        &[NewTerm {
-                            param: &pname,
-                            nominal: Some(P_FACTORS[k] * p),
-                            basis: &*basis,
-                        }],
-                    )
-                    .ok()?;
-                estimator_curves(ir, &model, inputs, sim_ident, hold_inertia)
+                let single = &singles[c];
+                let term = (
+                    single.effect.as_str(),
+                    single.theta,
+                    P_FACTORS[k] * single.p,
+                );
+                driven_fit(
+                    ir,
+                    base,
+                    &single.linear_parts,
+                    &[term],
+                    (a, b),
+                    inputs,
+                    sim_ident,
+                    hold_inertia,
+                )
             };
             let out = run();
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;
@@ -273,4 +397,104 @@ pub(super) fn run_trials(
             })
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::types::{Estimate, TemplateFit, Verdict};
+
+    fn estimate(name: &str, value: f64) -> Estimate {
+        Estimate {
+            name: name.into(),
+            value,
+            stderr: 0.1 * value.abs(),
+        }
+    }
+
+    fn fit(effects: &[&str], estimates: Vec<Estimate>, n_effect: usize) -> TemplateFit {
+        TemplateFit {
+            name: effects.join(" + "),
+            effects: effects.iter().map(|e| e.to_string()).collect(),
+            formula: String::new(),
+            estimates,
+            n_effect_estimates: n_effect,
+            chi2: 1.0,
+            dof: 3,
+            n_params: 5,
+            n_points: 8,
+            reduced_chi2: 1.0,
+            gof_p_value: 0.5,
+            explained: 0.99,
+            aicc: 0.0,
+            bic: 0.0,
+            delta_aicc: 0.0,
+            cond: 1.0,
+            coef_corr: 0.1,
+            inverse_pair: false,
+            predictions: Vec::new(),
+        }
+    }
+
+    fn finding(ranking: Vec<TemplateFit>) -> ElementFinding {
+        ElementFinding {
+            element: "k3/d3 (m2, m3)".into(),
+            verdict: Verdict::Nonlinear {
+                best: ranking[0].name.clone(),
+                summary: String::new(),
+            },
+            drifting: vec!["k3".into()],
+            ranking,
+            constant_chi2: 50.0,
+            constant_aicc: 60.0,
+            c_hat: 1.0,
+            suspected: None,
+            estimator: Vec::new(),
+            explained_by: None,
+        }
+    }
+
+    #[test]
+    fn a_pair_verdict_runs_with_both_coefficients_and_the_gap() {
+        let builtins = Candidate::builtins();
+        let pair = fit(
+            &["backlash", "Coulomb friction"],
+            vec![
+                estimate("k3 (linear part)", 290.0),
+                estimate("d3 (linear part)", 0.35),
+                estimate("kb", 276.0),
+                estimate("r", 0.18),
+                estimate("g", 0.028),
+            ],
+            3,
+        );
+        let single = fit(
+            &["backlash"],
+            vec![
+                estimate("k3 (linear part)", 280.0),
+                estimate("d3 (linear part)", 0.5),
+                estimate("kb", 250.0),
+                estimate("g", 0.03),
+            ],
+            2,
+        );
+        let p = pair_of(&finding(vec![pair.clone(), single.clone()]), &builtins).unwrap();
+        assert_eq!(p.effect, "backlash + Coulomb friction");
+        assert_eq!(
+            p.terms,
+            vec![
+                ("backlash".into(), "kb".into(), 276.0, 0.028),
+                ("Coulomb friction".into(), "r".into(), 0.18, 0.0),
+            ]
+        );
+        assert_eq!(
+            p.linear_parts,
+            vec![("k3".to_string(), 290.0), ("d3".to_string(), 0.35)]
+        );
+        // A single effect first is no pair; nor is a pair missing a coefficient.
+        assert!(pair_of(&finding(vec![single, pair.clone()]), &builtins).is_none());
+        let mut no_r = pair;
+        no_r.estimates[3].value = 0.0;
+        assert!(pair_of(&finding(vec![no_r]), &builtins).is_none());
+    }
 }
