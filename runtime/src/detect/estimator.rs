@@ -42,7 +42,7 @@ use super::types::{DetectOptions, Detection, EstimatorFit, Role, Verdict};
 use crate::data::LevelSource;
 use crate::ident::IdentifyOptions;
 use crate::record::Record;
-use runs::{head_record, pair_of, run_pair, run_trials, singles_of, Trial};
+use runs::{head_record, pair_of, singles_of, Runner, Trial};
 use score::{fit_p, still_drifting, Scoped};
 use std::sync::atomic::AtomicUsize;
 
@@ -151,17 +151,18 @@ pub(crate) fn refine(
             ir.node_name(site.nodes.0).to_string(),
             ir.node_name(site.nodes.1).to_string(),
         );
-        let trials = run_trials(
+        let runner = Runner {
             ir,
-            &base,
-            &singles,
-            (&a, &b),
-            &inputs,
-            &sim_ident,
-            opts.hold_inertia,
-            (&done, &total),
+            base: &base,
+            site: (&a, &b),
+            inputs: &inputs,
+            sim_ident: &sim_ident,
+            hold_inertia: opts.hold_inertia,
+            done: &done,
+            total: &total,
             progress,
-        );
+        };
+        let trials = runner.trials(&singles);
         let in_scope = |el: usize| -> Vec<Scoped> {
             params
                 .iter()
@@ -200,17 +201,7 @@ pub(crate) fn refine(
             let Some(pair) = verdict_pair else {
                 continue;
             };
-            let Some(t) = run_pair(
-                ir,
-                &base,
-                &pair,
-                (&a, &b),
-                &inputs,
-                &sim_ident,
-                opts.hold_inertia,
-                (&done, &total),
-                progress,
-            ) else {
+            let Some(t) = runner.pair(&pair) else {
                 continue;
             };
             let coefs: Vec<String> = pair

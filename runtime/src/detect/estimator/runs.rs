@@ -164,51 +164,6 @@ fn estimator_curves(
     )
 }
 
-/// `base` with the element's linear parts set to `linear_parts` and a force of the
-/// `terms` `(effect, shape θ, coefficient)` added at the element `(a, b)`, driven by
-/// `inputs` and fitted per level with `sim_ident` ([`estimator_curves`]); `None` where an
-/// effect cannot be written or a run fails.
-#[allow(clippy::too_many_arguments)] // the model, the force and the run's settings
-fn driven_fit(
-    ir: &ModelIr,
-    base: &ModelIr,
-    linear_parts: &[(String, f64)],
-    terms: &[(&str, f64, f64)],
-    (a, b): (&str, &str),
-    inputs: &[Record],
-    sim_ident: &IdentifyOptions,
-    hold_inertia: bool,
-) -> Option<Curves> {
-    let mut model = base.clone();
-    for (param, v) in linear_parts {
-        let _ = model.set_nominal(param, *v);
-    }
-    let bases: Vec<BasisFn> = terms
-        .iter()
-        .map(|(effect, theta, _)| basis_of(effect, *theta))
-        .collect::<Option<_>>()?;
-    // One coefficient per term: `p_candidate`, `p_candidate_2`, … (where free).
-    let names: Vec<String> = (0..terms.len())
-        .map(|i| match i {
-            0 => model.fresh_name("p_candidate"),
-            _ => model.fresh_name(&format!("p_candidate_{}", i + 1)),
-        })
-        .collect();
-    let new_terms: Vec<NewTerm> = terms
-        .iter()
-        .zip(&bases)
-        .zip(&names)
-        .map(|(((_, _, p), basis), param)| NewTerm {
-            param,
-            nominal: Some(*p),
-            basis: &**basis,
-        })
-        .collect();
-    let fname = model.fresh_name("candidate");
-    model.add_force(&fname, (a, b), &new_terms).ok()?;
-    estimator_curves(ir, &model, inputs, sim_ident, hold_inertia)
-}
-
 /// A template of two effects, the verdict of an element that no single effect explains
 /// through the estimator: its effects with their coefficients and shapes, and the element's
 /// linear parts, as the statistical linearisation fitted them.
@@ -251,53 +206,6 @@ pub(super) fn pair_of(finding: &ElementFinding, builtins: &[Candidate]) -> Optio
     })
 }
 
-/// The estimator's trial of `pair` at element `(a, b)`: runs without the pair and with it
-/// at the coefficients the linearisation fitted (factor 0 and 1 of the trial's `ps`), with
-/// the same inputs and fits as [`run_trials`]; `None` where a run fails.
-#[allow(clippy::too_many_arguments)] // the run's inputs and its progress counters
-pub(super) fn run_pair(
-    ir: &ModelIr,
-    base: &ModelIr,
-    pair: &Pair,
-    (a, b): (&str, &str),
-    inputs: &[Record],
-    sim_ident: &IdentifyOptions,
-    hold_inertia: bool,
-    (done, total): (&AtomicUsize, &AtomicUsize),
-    progress: &(dyn Fn(usize, usize) + Sync),
-) -> Option<Trial> {
-    let total = total.fetch_add(2, Ordering::Relaxed) + 2;
-    let curves: Vec<Option<Curves>> = [0.0, 1.0]
-        .par_iter()
-        .map(|&factor| {
-            let terms: Vec<(&str, f64, f64)> = pair
-                .terms
-                .iter()
-                .map(|(effect, _, p, theta)| (effect.as_str(), *theta, factor * p))
-                .collect();
-            let out = driven_fit(
-                ir,
-                base,
-                &pair.linear_parts,
-                &terms,
-                (a, b),
-                inputs,
-                sim_ident,
-                hold_inertia,
-            );
-            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-            progress(n, total);
-            out
-        })
-        .collect();
-    Some(Trial {
-        effect: pair.effect.clone(),
-        coef_name: String::new(),
-        ps: vec![0.0, 1.0],
-        curves: curves.into_iter().collect::<Option<_>>()?,
-    })
-}
-
 /// The single-effect templates of `finding`'s ranking that the estimator can run: a
 /// built-in effect with a finite, non-zero coefficient, its shape and the element's linear
 /// parts as the statistical linearisation fitted them.
@@ -335,68 +243,132 @@ pub(super) fn singles_of(finding: &ElementFinding, builtins: &[Candidate]) -> Ve
         .collect()
 }
 
-/// The estimator's trials of `singles` at element `(a, b)`: each run at every factor of
-/// [`P_FACTORS`] (in parallel), `base` plus the candidate driven by `inputs` and fitted
-/// with `sim_ident`; a trial whose runs all succeed is kept. `done` and `total` count the
-/// simulations for `progress`.
-#[allow(clippy::too_many_arguments)] // the run's inputs and its progress counters
-pub(super) fn run_trials(
-    ir: &ModelIr,
-    base: &ModelIr,
-    singles: &[Single],
-    (a, b): (&str, &str),
-    inputs: &[Record],
-    sim_ident: &IdentifyOptions,
-    hold_inertia: bool,
-    (done, total): (&AtomicUsize, &AtomicUsize),
-    progress: &(dyn Fn(usize, usize) + Sync),
-) -> Vec<Trial> {
-    let jobs: Vec<(usize, usize)> = (0..singles.len())
-        .flat_map(|c| (0..P_FACTORS.len()).map(move |k| (c, k)))
-        .collect();
-    let total = total.fetch_add(jobs.len(), Ordering::Relaxed) + jobs.len();
-    let runs: Vec<Option<Curves>> = jobs
-        .par_iter()
-        .map(|&(c, k)| {
-            let run = || -> Option<Curves> {
-                let single = &singles[c];
-                let term = (
-                    single.effect.as_str(),
-                    single.theta,
-                    P_FACTORS[k] * single.p,
-                );
-                driven_fit(
-                    ir,
-                    base,
-                    &single.linear_parts,
-                    &[term],
-                    (a, b),
-                    inputs,
-                    sim_ident,
-                    hold_inertia,
-                )
-            };
-            let out = run();
-            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-            progress(n, total);
-            out
-        })
-        .collect();
-    singles
-        .iter()
-        .enumerate()
-        .filter_map(|(c, single)| {
-            let curves: Vec<Curves> = (0..P_FACTORS.len())
-                .map(|k| runs[c * P_FACTORS.len() + k].clone())
-                .collect::<Option<_>>()?;
-            Some(Trial {
-                effect: single.effect.clone(),
-                coef_name: single.coef.clone(),
-                ps: P_FACTORS.iter().map(|f| f * single.p).collect(),
-                curves,
+/// What every estimator run at one element shares: the linear model fitted, the model
+/// simulated (`base`, the linear part at the levels' values), the element's nodes, the level
+/// inputs, the fit's settings and the counters of the simulations for `progress`.
+pub(super) struct Runner<'a> {
+    pub(super) ir: &'a ModelIr,
+    pub(super) base: &'a ModelIr,
+    pub(super) site: (&'a str, &'a str),
+    pub(super) inputs: &'a [Record],
+    pub(super) sim_ident: &'a IdentifyOptions,
+    pub(super) hold_inertia: bool,
+    pub(super) done: &'a AtomicUsize,
+    pub(super) total: &'a AtomicUsize,
+    pub(super) progress: &'a (dyn Fn(usize, usize) + Sync),
+}
+
+/// One run: the element's linear parts and the terms `(effect, shape θ, coefficient)` of
+/// the force added at the element.
+type Job<'j> = (&'j [(String, f64)], Vec<(&'j str, f64, f64)>);
+
+impl Runner<'_> {
+    /// `base` with the element's linear parts set and a force of the terms added at the
+    /// element, driven by the inputs and fitted per level ([`estimator_curves`]); `None`
+    /// where an effect cannot be written or a run fails.
+    fn driven_fit(&self, (linear_parts, terms): &Job) -> Option<Curves> {
+        let mut model = self.base.clone();
+        for (param, v) in linear_parts.iter() {
+            let _ = model.set_nominal(param, *v);
+        }
+        let bases: Vec<BasisFn> = terms
+            .iter()
+            .map(|(effect, theta, _)| basis_of(effect, *theta))
+            .collect::<Option<_>>()?;
+        // One coefficient per term: `p_candidate`, `p_candidate_2`, … (where free).
+        let names: Vec<String> = (0..terms.len())
+            .map(|i| match i {
+                0 => model.fresh_name("p_candidate"),
+                _ => model.fresh_name(&format!("p_candidate_{}", i + 1)),
             })
+            .collect();
+        let new_terms: Vec<NewTerm> = terms
+            .iter()
+            .zip(&bases)
+            .zip(&names)
+            .map(|(((_, _, p), basis), param)| NewTerm {
+                param,
+                nominal: Some(*p),
+                basis: &**basis,
+            })
+            .collect();
+        let fname = model.fresh_name("candidate");
+        model.add_force(&fname, self.site, &new_terms).ok()?;
+        estimator_curves(
+            self.ir,
+            &model,
+            self.inputs,
+            self.sim_ident,
+            self.hold_inertia,
+        )
+    }
+
+    /// Every job's curves, run in parallel, each finished run counted for `progress`.
+    fn run_all(&self, jobs: &[Job]) -> Vec<Option<Curves>> {
+        let total = self.total.fetch_add(jobs.len(), Ordering::Relaxed) + jobs.len();
+        jobs.par_iter()
+            .map(|job| {
+                let out = self.driven_fit(job);
+                let n = self.done.fetch_add(1, Ordering::Relaxed) + 1;
+                (self.progress)(n, total);
+                out
+            })
+            .collect()
+    }
+
+    /// The trials of `singles`: each run at every factor of [`P_FACTORS`] times its
+    /// estimate; a trial whose runs all succeed is kept.
+    pub(super) fn trials(&self, singles: &[Single]) -> Vec<Trial> {
+        let jobs: Vec<Job> = singles
+            .iter()
+            .flat_map(|s| {
+                P_FACTORS.iter().map(move |f| {
+                    (
+                        &s.linear_parts[..],
+                        vec![(s.effect.as_str(), s.theta, f * s.p)],
+                    )
+                })
+            })
+            .collect();
+        let runs = self.run_all(&jobs);
+        singles
+            .iter()
+            .enumerate()
+            .filter_map(|(c, single)| {
+                let curves: Vec<Curves> = (0..P_FACTORS.len())
+                    .map(|k| runs[c * P_FACTORS.len() + k].clone())
+                    .collect::<Option<_>>()?;
+                Some(Trial {
+                    effect: single.effect.clone(),
+                    coef_name: single.coef.clone(),
+                    ps: P_FACTORS.iter().map(|f| f * single.p).collect(),
+                    curves,
+                })
+            })
+            .collect()
+    }
+
+    /// The trial of `pair`: runs without it and with it at the coefficients the
+    /// linearisation fitted (factors 0 and 1, the trial's `ps`); `None` where a run fails.
+    pub(super) fn pair(&self, pair: &Pair) -> Option<Trial> {
+        let jobs: Vec<Job> = [0.0, 1.0]
+            .iter()
+            .map(|f| {
+                let terms = pair
+                    .terms
+                    .iter()
+                    .map(|(effect, _, p, theta)| (effect.as_str(), *theta, f * p))
+                    .collect();
+                (&pair.linear_parts[..], terms)
+            })
+            .collect();
+        Some(Trial {
+            effect: pair.effect.clone(),
+            coef_name: String::new(),
+            ps: vec![0.0, 1.0],
+            curves: self.run_all(&jobs).into_iter().collect::<Option<_>>()?,
         })
-        .collect()
+    }
 }
 
 #[cfg(test)]
