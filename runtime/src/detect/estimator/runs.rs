@@ -12,7 +12,7 @@ use super::P_FACTORS;
 use crate::data::{LevelSource, RecordSource};
 use crate::detect::candidate::Candidate;
 use crate::detect::from_data::level_fits;
-use crate::detect::types::ElementFinding;
+use crate::detect::types::{ElementFinding, TemplateFit};
 use crate::ident::IdentifyOptions;
 use crate::record::Record;
 use crate::sim::{simulate_driven_from, Start};
@@ -194,16 +194,20 @@ pub(super) fn pair_of(finding: &ElementFinding, builtins: &[Candidate]) -> Optio
     Some(Pair {
         effect: f.effects.join(" + "),
         terms,
-        linear_parts: f
-            .estimates
-            .iter()
-            .filter_map(|e| {
-                e.name
-                    .strip_suffix(" (linear part)")
-                    .map(|n| (n.to_string(), e.value))
-            })
-            .collect(),
+        linear_parts: linear_parts(f),
     })
+}
+
+/// The element's linear parts as the template `f` fitted them (`k3 (linear part)` → `k3`).
+fn linear_parts(f: &TemplateFit) -> Vec<(String, f64)> {
+    f.estimates
+        .iter()
+        .filter_map(|e| {
+            e.name
+                .strip_suffix(" (linear part)")
+                .map(|n| (n.to_string(), e.value))
+        })
+        .collect()
 }
 
 /// The single-effect templates of `finding`'s ranking that the estimator can run: a
@@ -223,15 +227,7 @@ pub(super) fn singles_of(finding: &ElementFinding, builtins: &[Candidate]) -> Ve
                 .as_ref()
                 .and_then(|s| est.iter().find(|e| e.name == s.name))
                 .map_or(0.0, |e| e.value);
-            let linear_parts = f
-                .estimates
-                .iter()
-                .filter_map(|e| {
-                    e.name
-                        .strip_suffix(" (linear part)")
-                        .map(|n| (n.to_string(), e.value))
-                })
-                .collect();
+            let linear_parts = linear_parts(f);
             (p.is_finite() && p != 0.0).then(|| Single {
                 effect: c.name.clone(),
                 coef: c.coef_name.clone(),
@@ -374,7 +370,7 @@ impl Runner<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::detect::types::{Estimate, TemplateFit, Verdict};
+    use crate::detect::types::{Estimate, Verdict};
 
     fn estimate(name: &str, value: f64) -> Estimate {
         Estimate {
