@@ -60,7 +60,7 @@ const P_STEPS: usize = 240;
 /// the worker threads).
 ///
 /// Longer than most functions here: one pass over the drifting elements, strongest first,
-/// in which an element explained as a neighbour's leak is skipped; the pass's state (the
+/// in which an element explained as another's leak is skipped; the pass's state (the
 /// explained flags, the progress counters, the shared inputs) would otherwise travel
 /// through every step as arguments.
 pub(crate) fn refine(
