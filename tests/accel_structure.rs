@@ -563,21 +563,20 @@ fn sweep_levels(dir: &std::path::Path, noise: f64, seed: u64) -> Vec<std::path::
 }
 
 /// `dynid identify` of the joint's model on `levels` with `flags`: the relative error of
-/// every mass, spring, the contact stiffness and the friction, by name.
+/// every mass, spring, the contact stiffness and the friction, by name, against the values
+/// the model simulates with.
 fn all_errors(levels: &[std::path::PathBuf], flags: &[&str]) -> Vec<(String, f64)> {
-    let truth = [
-        ("m2", 1.5),
-        ("m3", 1.0),
-        ("m4", 0.7),
-        ("m5", 0.5),
-        ("k1", 50.0),
-        ("k2", 200.0),
-        ("k3", 300.0),
-        ("k4", 400.0),
-        ("k5", 500.0),
-        ("kb", 300.0),
-        ("r", 0.2),
-    ];
+    let (ir, _) = common::model_and_source("structure5_joint_accel");
+    let values = sim::parameter_values(&ir).unwrap();
+    let truth: Vec<(&str, f64)> = [
+        "m2", "m3", "m4", "m5", "k1", "k2", "k3", "k4", "k5", "kb", "r",
+    ]
+    .into_iter()
+    .map(|name| {
+        let p = ir.params.iter().position(|p| p.name == name).unwrap();
+        (name, values[p])
+    })
+    .collect();
     let out = common::dynid()
         .arg("identify")
         .arg(common::model_path("structure5_joint_accel.dyn"))
