@@ -242,7 +242,7 @@ impl Plan {
     }
 
     /// Column of `w` that holds filter state `i` (one of [`Plan::state_cols`]).
-    fn state_col(&self, i: usize) -> Option<usize> {
+    pub(crate) fn state_col(&self, i: usize) -> Option<usize> {
         let base = self.roots.len() + self.y.len() + self.extra.len();
         self.state_cols
             .iter()

@@ -59,6 +59,38 @@ impl ChainDisc {
         }
     }
 
+    /// Covariance of the chain's states (row-major `order × order`) when its driving
+    /// samples are white noise of unit variance: `Σₘ hₘ hₘᵀ` over the impulse response of
+    /// one sample, `h₀ = Γ₁` (the sample is the hold's newer end), `h₁ = Φ Γ₁ + Γ₀`,
+    /// `hₘ = Φ hₘ₋₁`, summed until the response has decayed to 10⁻¹⁰ of its largest
+    /// squared norm (the chain's memory; a stable chain's response decays geometrically).
+    pub fn noise_covariance(&self) -> Vec<f64> {
+        let n = self.order;
+        let mut p = vec![0.0; n * n];
+        let mut h = self.g1.clone();
+        let mut next = vec![0.0; n];
+        let mut peak = 0.0f64;
+        for m in 0.. {
+            let norm: f64 = h.iter().map(|v| v * v).sum();
+            peak = peak.max(norm);
+            if m > 1 && norm <= 1e-10 * peak {
+                break;
+            }
+            for i in 0..n {
+                for j in 0..n {
+                    p[i * n + j] += h[i] * h[j];
+                }
+            }
+            for (i, nx) in next.iter_mut().enumerate() {
+                let row = &self.phi[i * n..(i + 1) * n];
+                *nx = row.iter().zip(&h).map(|(a, b)| a * b).sum::<f64>()
+                    + if m == 0 { self.g0[i] } else { 0.0 };
+            }
+            std::mem::swap(&mut h, &mut next);
+        }
+        p
+    }
+
     /// Advance one chain over a block of driving samples.
     ///
     /// `state` holds `ζ` at the sample before `s[0]` (with `s_prev` the driving value there);

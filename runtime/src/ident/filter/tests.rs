@@ -255,3 +255,36 @@ fn chains_match_the_generic_loop() {
         assert!((a - b).abs() < 1e-14, "{a} vs {b}");
     }
 }
+
+/// The chain's noise covariance is the sum of products of its impulse response as `run`
+/// produces it (a unit sample, then zeros), and for one first-order section the closed form
+/// `g₁² + (φ g₁ + g₀)² / (1 − φ²)`.
+#[test]
+fn noise_covariance_sums_the_impulse_response_of_run() {
+    let (lambda, ts) = (30.0, 0.01);
+    let d = ChainDisc::new(lambda, 1, ts, Hold::FirstOrder);
+    let (phi, g0, g1) = (d.phi[0], d.g0[0], d.g1[0]);
+    let closed = g1 * g1 + (phi * g1 + g0).powi(2) / (1.0 - phi * phi);
+    let p = d.noise_covariance();
+    assert!((p[0] / closed - 1.0).abs() < 1e-9, "{} vs {closed}", p[0]);
+    for order in [3, 4] {
+        let d = ChainDisc::new(lambda, order, ts, Hold::FirstOrder);
+        let n = 4000;
+        let mut s = vec![0.0; n];
+        s[0] = 1.0;
+        let mut st = vec![0.0; order];
+        let mut out = vec![0.0; order * n];
+        d.run(&mut st, 0.0, &s, &mut out, n);
+        let p = d.noise_covariance();
+        for i in 0..order {
+            for j in 0..order {
+                let direct: f64 = (0..n).map(|k| out[i * n + k] * out[j * n + k]).sum();
+                assert!(
+                    (p[i * order + j] - direct).abs() < 1e-9 * direct.abs().max(1e-12),
+                    "order {order} ({i}, {j}): {} vs {direct}",
+                    p[i * order + j]
+                );
+            }
+        }
+    }
+}

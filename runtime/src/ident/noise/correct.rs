@@ -24,7 +24,15 @@ fn factorial(n: i32) -> f64 {
 ///
 /// Long: one walk over the static roots builds each fix together with the extra columns it
 /// needs, whose indices the later fixes read.
+///
+/// Rows of the filtered equation take a nonlinear column only through the chain it drives
+/// (`F g`, not `g` in a product), which these fixes of `g`'s products do not reach: none is
+/// attached there, and the report names such terms uncorrected. Their linear terms are
+/// freed of the noise in [`debias`].
 pub(crate) fn attach(plan: &mut Plan, ir: &ModelIr) {
+    if plan.filtered {
+        return;
+    }
     let n_g = plan.roots.len();
     let ny = plan.y.len();
     let to_y = |lin: &[(SignalId, f64)]| -> Option<Vec<(usize, f64)>> {
@@ -184,6 +192,34 @@ pub(crate) fn debias(plan: &Plan, lm: &mut LevelMoments, var_y: &[f64], hold: Ho
     let (n_row_signals, n_col_signals, n_snap_cols) =
         (lm.n_row_signals, lm.n_col_signals, lm.n_snap_cols);
     let n_g = plan.roots.len();
+    // Rows of the filtered equation (`plan.state_cols`): products of two states of one
+    // chain. White noise of variance σ² on the chain's driver adds σ² Pᵢⱼ per sample to
+    // ⟨ζᵢ ζⱼ⟩ (P: [`ChainDisc::noise_covariance`]), whatever the signal does.
+    if !plan.state_cols.is_empty() {
+        for (d, &sig) in plan.drivers.iter().enumerate() {
+            let Some(k) = plan.y_of[sig.index()] else {
+                continue;
+            };
+            if var_y[k] <= 0.0 {
+                continue;
+            }
+            for (c, &lam) in plan.corners.iter().enumerate() {
+                let p = ChainDisc::new(lam, plan.order, lm.ts, hold).noise_covariance();
+                for i in 0..plan.order {
+                    for j in 0..plan.order {
+                        let Some(col) = plan.state_col(plan.state(d, c, j)) else {
+                            continue;
+                        };
+                        let row = plan.state(d, c, i);
+                        let bias = p[i * plan.order + j] * var_y[k];
+                        for (sum, &len) in lm.sums.iter_mut().zip(&lm.lens) {
+                            sum[row * n_col_signals + col] -= bias * len as f64;
+                        }
+                    }
+                }
+            }
+        }
+    }
     // First-order hold: a filter state holds its driver's current sample with weight Γ₁,
     // so its product with a column linear in that driver gains Γ₁ σ² per sample.
     for (d, &sig) in plan.drivers.iter().enumerate() {

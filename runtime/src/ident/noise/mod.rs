@@ -10,6 +10,12 @@
 //! `E[sign(v+n) | v] = erf(v/(√2 σ))` is a flattened step. The `Γ₁` part is removed as well
 //! (`⟨ζᵢ y⟩` loses `Γ₁ᵢ σ²` per sample for a column linear in the driver `y`).
 //!
+//! The rows of the filtered equation ([`super::filtered`]) are the exception: they multiply
+//! two states of the same chain, whose noise parts correlate over the chain's memory, so
+//! `⟨ζᵢ ζⱼ⟩` loses `σ² Pᵢⱼ` per sample ([`crate::ident::filter::ChainDisc::noise_covariance`]).
+//! Their nonlinear columns enter only through the chains they drive, which the fixes below
+//! do not reach: none is attached there, and such terms are reported uncorrected.
+//!
 //! # Noise level
 //!
 //! Estimated per measured signal in the first pass, from its high-frequency floor: see
