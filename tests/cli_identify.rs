@@ -68,6 +68,51 @@ fn simulate_then_identify_writes_json() {
     assert!(v["unidentifiable"].as_array().unwrap().is_empty());
 }
 
+/// With noisy records and `--filtered-equation` the report says which nonlinear terms go
+/// uncorrected and why (those rows reach them only through their own chains), instead of
+/// claiming them de-biased.
+#[test]
+fn filtered_rows_on_noisy_records_name_the_terms_left_uncorrected() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("noisy");
+    let o = dynid(&[
+        "simulate",
+        &model(),
+        "--duration",
+        "100",
+        "--noise",
+        "0.05",
+        "--seed",
+        &common::seed(5).to_string(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json = dir.path().join("result.json");
+    let mut args = vec!["identify".to_string(), model()];
+    args.extend((1..=3).map(|i| out.join(format!("level_{i}.csv")).display().to_string()));
+    args.extend([
+        "--filtered-equation".into(),
+        "--no-corner-check".into(),
+        "--json".into(),
+        json.display().to_string(),
+    ]);
+    let o = dynid(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("measurement noise"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!(!line.contains("de-biased"), "{line}");
+    assert!(
+        line.contains("no correction for: m.x^3, sign(m.v)")
+            && line.contains("the instrument rows, the default, do"),
+        "{line}"
+    );
+    assert!(json.exists());
+}
+
 /// Run `identify` on one prepared file (a valid level copied for the others) and return
 /// stderr; checks the exit status, that the error carries `code` and that no `--json` file
 /// appears. The callers then check only what the message must name (the file, the line,

@@ -180,7 +180,7 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
         ));
     }
     s.push_str(&rest_line(id));
-    s.push_str(&noise_line(&id.noise));
+    s.push_str(&noise_line(&id.noise, id.filter.corners_from.filtered));
     s
 }
 
@@ -237,8 +237,9 @@ fn rest_line(id: &dynid_runtime::ident::Identification) -> String {
     )
 }
 
-/// One line: the estimated noise per signal and what was done about it.
-fn noise_line(n: &dynid_runtime::ident::NoiseSummary) -> String {
+/// One line: the estimated noise per signal and what was done about it (`filtered`: the rows
+/// of the filtered equation, which correct no nonlinear term, say so).
+fn noise_line(n: &dynid_runtime::ident::NoiseSummary, filtered: bool) -> String {
     let levels: Vec<String> = n
         .fraction
         .iter()
@@ -267,6 +268,12 @@ fn noise_line(n: &dynid_runtime::ident::NoiseSummary) -> String {
             },
             n.uncorrected.join(", ")
         ));
+        if n.enabled && filtered {
+            s.push_str(
+                " (the rows of the filtered equation correct no nonlinear term for noise; \
+                 the instrument rows, the default, do)",
+            );
+        }
     }
     s.push('\n');
     s
