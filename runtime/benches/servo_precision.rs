@@ -29,17 +29,21 @@
 //!
 //! `dynid filt.+delay, v rec.` is `dynid filtered + delay` given the simulated velocity as
 //! a measured column of the same run: what is left of its error once the velocity
-//! estimate is exact. On the random references the mass's mean error goes from +0.003 %
-//! (about one standard error, covered on 83 % of the seeds) to 0.000 %: that bias is the
-//! velocity estimate's (`v̂` crosses zero late at reversals, docs/method.md §7). The
-//! damping's and friction's mean errors become +0.003 % and −0.007 % (covered on 83 % and
-//! 77 %): a bias of about one standard error that the velocity estimate does not cause.
-//! Neither is it the simulator's integration across reversals (the same with 200 RK4
-//! sub-steps per sample instead of 20, a one-off run); it follows the force's path between
-//! samples beyond the delay's first order (with one controller update per sample,
-//! `DYNID_BENCH_INPUT_OVERSAMPLE=1`, the signs turn: d −0.002 %, r +0.007 %, one-off). On
-//! the planned moves the mass's RMS error stays 0.009 % with the velocity recorded, so its
-//! gap to SVF-LS with the rests dropped (0.007 %) is not the velocity estimate's either.
+//! estimate is exact. Its errors are level with those of the estimated velocity (random
+//! references: m 0.0012 against 0.0007 %, d 0.0025 / 0.0019 %, r 0.0065 / 0.0053 %, f0
+//! 0.017 / 0.017 %; planned moves: m 0.0081 / 0.0085 %), so the velocity estimate costs
+//! these rows nothing measurable, and the planned mass's gap to SVF-LS with the rests
+//! dropped (0.007 %) is not the estimate's. Until every single slow sample was left out
+//! with the filter's memory after it (a reversal between two samples often leaves just
+//! one; a rest needed two), the reversals in motion that escaped carried `v̂`'s late zero
+//! crossing into the products: the random mass came out +0.003 % (one standard error,
+//! covered on 83 % of the seeds) with the estimate and 0.000 % with the velocity recorded,
+//! and the RMS errors of `dynid filtered + delay` were m 0.005, d 0.004, r 0.009, f0
+//! 0.078 % — now 0.0007, 0.0019, 0.0053, 0.017 %, with standard errors that shrank as much
+//! (their spread about the mean 1.06–1.18 times the mean SE). What is left uncovered is a
+//! bias of about one standard error on the random mass (−0.0005 % at 0.0004 %, covered on
+//! 67 % of the seeds). The planned moves pay a little for the data left out (d 0.051 →
+//! 0.055 %, r 0.060 → 0.074 %), still below both baselines.
 //!
 //! Measured (2026-11-27; seeds 1–48; `cargo bench -p dynid-runtime --bench
 //! servo_precision`, 40 s in all — on a machine shared with other builds, so `ms/rec` is
@@ -56,58 +60,58 @@
 //!
 //! random reference
 //! method                  param   RMS err  mean err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.021%    0.000%    0.024%     96%    1.09       6.3
-//! dynid (defaults)            d    0.903%   -0.239%    1.146%     96%    0.90       6.3
-//! dynid (defaults)            r    2.538%    0.463%    3.205%    100%    0.84       6.3
-//! dynid (defaults)           f0    1.463%    0.567%    1.646%     96%    1.08       6.3
-//! dynid --column-chains       m    0.035%    0.015%    0.029%     94%    1.38       6.4
-//! dynid --column-chains       d    0.343%    0.019%    0.345%     90%    1.14       6.4
-//! dynid --column-chains       r    0.879%   -0.267%    0.858%     90%    1.50       6.4
-//! dynid --column-chains      f0    1.538%    0.274%    1.175%     88%    1.29       6.4
-//! dynid chains, 2-step        m    0.013%   -0.008%    0.009%     75%    2.40       6.1
-//! dynid chains, 2-step        d    0.196%    0.022%    0.124%     71%    2.39       6.1
-//! dynid chains, 2-step        r    0.635%   -0.408%    0.320%     56%    2.73       6.1
-//! dynid chains, 2-step       f0    1.084%    0.384%    0.856%     81%    1.66       6.1
-//! dynid to noise floor        m    0.221%   -0.040%    0.149%     98%    0.89       4.7
-//! dynid to noise floor        d    1.763%   -0.299%    2.479%    100%    0.68       4.7
-//! dynid to noise floor        r    4.833%    0.559%    6.855%    100%    0.68       4.7
-//! dynid to noise floor       f0    2.668%    0.589%    3.118%     96%    0.93       4.7
-//! dynid chains 2-step nf      m    0.015%   -0.004%    0.014%     85%    1.36       6.0
-//! dynid chains 2-step nf      d    0.210%    0.040%    0.209%     94%    1.10       6.0
-//! dynid chains 2-step nf      r    0.723%   -0.466%    0.559%     83%    1.84       6.0
-//! dynid chains 2-step nf     f0    1.645%   -0.123%    1.717%     90%    1.25       6.0
-//! dynid --keep-rests          m    0.021%    0.000%    0.024%     96%    1.09       4.5
-//! dynid --keep-rests          d    0.903%   -0.239%    1.146%     96%    0.90       4.5
-//! dynid --keep-rests          r    2.538%    0.463%    3.205%    100%    0.84       4.5
-//! dynid --keep-rests         f0    1.463%    0.567%    1.646%     96%    1.08       4.5
-//! dynid --filtered-eq.        m    0.009%    0.008%    0.003%     38%    2.46       5.3
-//! dynid --filtered-eq.        d    0.147%   -0.145%    0.024%      0%    6.36       5.3
-//! dynid --filtered-eq.        r    0.082%    0.059%    0.053%     83%    1.56       5.3
-//! dynid --filtered-eq.       f0    0.121%   -0.008%    0.212%    100%    0.57       5.3
-//! dynid filtered 20 Hz        m    0.021%    0.021%    0.005%      0%    4.78       4.9
-//! dynid filtered 20 Hz        d    0.160%   -0.158%    0.025%      0%    6.72       4.9
-//! dynid filtered 20 Hz        r    0.178%    0.165%    0.060%     23%    3.03       4.9
-//! dynid filtered 20 Hz       f0    0.150%    0.007%    0.213%    100%    0.71       4.9
-//! dynid filtered 160 Hz       m    0.127%   -0.127%    0.004%      0%   28.99       5.1
-//! dynid filtered 160 Hz       d    0.124%   -0.122%    0.022%      0%    5.71       5.1
-//! dynid filtered 160 Hz       r    0.057%    0.014%    0.052%     96%    1.10       5.1
-//! dynid filtered 160 Hz      f0    0.107%   -0.015%    0.218%    100%    0.49       5.1
-//! dynid --input-delay         m    0.024%    0.015%    0.023%     85%    1.37       4.8
-//! dynid --input-delay         d    0.646%   -0.069%    0.652%     96%    0.89       4.8
-//! dynid --input-delay         r    1.822%    0.218%    1.842%     98%    0.81       4.8
-//! dynid --input-delay        f0    0.790%    0.014%    1.043%     98%    0.89       4.8
-//! dynid filtered + delay      m    0.005%    0.003%    0.003%     83%    1.39       5.6
-//! dynid filtered + delay      d    0.004%    0.000%    0.003%     94%    1.09       5.6
-//! dynid filtered + delay      r    0.009%    0.003%    0.008%     88%    1.17       5.6
-//! dynid filtered + delay     f0    0.078%   -0.000%    0.089%     96%    0.94       5.6
-//! dynid filt.+delay 500/s      m    0.007%   -0.006%    0.003%     40%    2.53       5.5
-//! dynid filt.+delay 500/s      d    0.007%    0.006%    0.004%     71%    1.78       5.5
-//! dynid filt.+delay 500/s      r    0.009%   -0.005%    0.009%     94%    1.00       5.5
-//! dynid filt.+delay 500/s     f0    0.070%   -0.001%    0.084%     96%    0.90       5.5
-//! dynid filt.+delay, v rec.      m    0.004%    0.000%    0.003%     92%    1.25       3.3
-//! dynid filt.+delay, v rec.      d    0.005%    0.003%    0.003%     83%    1.41       3.3
-//! dynid filt.+delay, v rec.      r    0.012%   -0.007%    0.008%     77%    1.38       3.3
-//! dynid filt.+delay, v rec.     f0    0.079%   -0.010%    0.081%     98%    0.98       3.3
+//! dynid (defaults)            m    0.021%    0.000%    0.024%     96%    1.09       5.1
+//! dynid (defaults)            d    0.903%   -0.239%    1.146%     96%    0.90       5.1
+//! dynid (defaults)            r    2.538%    0.463%    3.205%    100%    0.84       5.1
+//! dynid (defaults)           f0    1.463%    0.567%    1.646%     96%    1.08       5.1
+//! dynid --column-chains       m    0.035%    0.015%    0.029%     94%    1.38       5.7
+//! dynid --column-chains       d    0.343%    0.019%    0.345%     90%    1.14       5.7
+//! dynid --column-chains       r    0.879%   -0.267%    0.858%     90%    1.50       5.7
+//! dynid --column-chains      f0    1.538%    0.274%    1.175%     88%    1.29       5.7
+//! dynid chains, 2-step        m    0.013%   -0.008%    0.009%     75%    2.40       5.5
+//! dynid chains, 2-step        d    0.196%    0.022%    0.124%     71%    2.39       5.5
+//! dynid chains, 2-step        r    0.635%   -0.408%    0.320%     56%    2.73       5.5
+//! dynid chains, 2-step       f0    1.084%    0.384%    0.856%     81%    1.66       5.5
+//! dynid to noise floor        m    0.221%   -0.040%    0.149%     98%    0.89       4.3
+//! dynid to noise floor        d    1.763%   -0.299%    2.479%    100%    0.68       4.3
+//! dynid to noise floor        r    4.833%    0.559%    6.855%    100%    0.68       4.3
+//! dynid to noise floor       f0    2.668%    0.589%    3.118%     96%    0.93       4.3
+//! dynid chains 2-step nf      m    0.015%   -0.004%    0.014%     85%    1.36       5.5
+//! dynid chains 2-step nf      d    0.210%    0.040%    0.209%     94%    1.10       5.5
+//! dynid chains 2-step nf      r    0.723%   -0.466%    0.559%     83%    1.84       5.5
+//! dynid chains 2-step nf     f0    1.645%   -0.123%    1.717%     90%    1.25       5.5
+//! dynid --keep-rests          m    0.021%    0.000%    0.024%     96%    1.09       4.6
+//! dynid --keep-rests          d    0.903%   -0.239%    1.146%     96%    0.90       4.6
+//! dynid --keep-rests          r    2.538%    0.463%    3.205%    100%    0.84       4.6
+//! dynid --keep-rests         f0    1.463%    0.567%    1.646%     96%    1.08       4.6
+//! dynid --filtered-eq.        m    0.006%    0.006%    0.002%     23%    2.87       5.3
+//! dynid --filtered-eq.        d    0.154%   -0.151%    0.024%      0%    6.64       5.3
+//! dynid --filtered-eq.        r    0.098%    0.080%    0.053%     67%    1.86       5.3
+//! dynid --filtered-eq.       f0    0.103%   -0.005%    0.194%    100%    0.54       5.3
+//! dynid filtered 20 Hz        m    0.023%    0.023%    0.003%      0%    8.09       5.0
+//! dynid filtered 20 Hz        d    0.179%   -0.177%    0.024%      0%    7.92       5.0
+//! dynid filtered 20 Hz        r    0.264%    0.258%    0.054%      0%    5.16       5.0
+//! dynid filtered 20 Hz       f0    0.166%    0.021%    0.201%    100%    0.83       5.0
+//! dynid filtered 160 Hz       m    0.131%   -0.131%    0.004%      0%   36.92       4.7
+//! dynid filtered 160 Hz       d    0.125%   -0.123%    0.022%      0%    5.69       4.7
+//! dynid filtered 160 Hz       r    0.063%    0.016%    0.052%     96%    1.21       4.7
+//! dynid filtered 160 Hz      f0    0.091%   -0.010%    0.205%    100%    0.45       4.7
+//! dynid --input-delay         m    0.024%    0.015%    0.023%     85%    1.37       4.3
+//! dynid --input-delay         d    0.646%   -0.069%    0.652%     96%    0.89       4.3
+//! dynid --input-delay         r    1.822%    0.218%    1.842%     98%    0.81       4.3
+//! dynid --input-delay        f0    0.790%    0.014%    1.043%     98%    0.89       4.3
+//! dynid filtered + delay      m    0.001%   -0.000%    0.000%     67%    1.83       4.9
+//! dynid filtered + delay      d    0.002%    0.000%    0.002%     94%    1.10       4.9
+//! dynid filtered + delay      r    0.005%   -0.000%    0.004%     90%    1.23       4.9
+//! dynid filtered + delay     f0    0.017%   -0.000%    0.015%     90%    1.17       4.9
+//! dynid filt.+delay 500/s      m    0.010%   -0.010%    0.001%      0%   15.03       4.7
+//! dynid filt.+delay 500/s      d    0.006%    0.005%    0.003%     79%    1.65       4.7
+//! dynid filt.+delay 500/s      r    0.008%   -0.004%    0.009%     96%    0.93       4.7
+//! dynid filt.+delay 500/s     f0    0.027%   -0.002%    0.025%     94%    1.09       4.7
+//! dynid filt.+delay, v rec.      m    0.001%    0.001%    0.000%     44%    2.84       2.8
+//! dynid filt.+delay, v rec.      d    0.003%    0.001%    0.002%     90%    1.26       2.8
+//! dynid filt.+delay, v rec.      r    0.007%   -0.002%    0.005%     90%    1.24       2.8
+//! dynid filt.+delay, v rec.     f0    0.017%    0.002%    0.017%     94%    1.02       2.8
 //! IDIM-LS, OLS errors         m    0.024%    0.021%    0.016%     83%    1.47       1.6
 //! IDIM-LS, OLS errors         d    0.156%    0.146%    0.088%     71%    1.73       1.6
 //! IDIM-LS, OLS errors         r    0.767%   -0.753%    0.196%      0%    3.88       1.6
@@ -116,81 +120,81 @@
 //! IDIM-LS, HAC errors         d    0.156%    0.146%    0.063%     35%    2.39       1.6
 //! IDIM-LS, HAC errors         r    0.767%   -0.753%    0.167%      0%    4.55       1.6
 //! IDIM-LS, HAC errors        f0    0.574%    0.055%    0.579%     96%    0.96       1.6
-//! SVF-LS 10 Hz, HAC           m    0.097%    0.095%    0.021%      0%    4.56     145.3
-//! SVF-LS 10 Hz, HAC           d    0.209%    0.100%    0.130%     90%    1.37     145.3
-//! SVF-LS 10 Hz, HAC           r    0.784%   -0.619%    0.352%     67%    1.84     145.3
-//! SVF-LS 10 Hz, HAC          f0    1.858%   -0.266%    1.619%    100%    1.00     145.3
-//! SVF-LS 80 Hz, HAC           m    0.026%    0.026%    0.006%      0%    4.18      21.6
-//! SVF-LS 80 Hz, HAC           d    0.095%   -0.088%    0.037%     33%    3.31      21.6
-//! SVF-LS 80 Hz, HAC           r    0.145%   -0.104%    0.095%     94%    1.32      21.6
-//! SVF-LS 80 Hz, HAC          f0    0.249%    0.026%    0.403%    100%    0.56      21.6
-//! SVF-LS 80 Hz, EIV comp.      m    0.033%    0.033%    0.006%      0%    5.31      21.0
-//! SVF-LS 80 Hz, EIV comp.      d    0.096%   -0.088%    0.037%     33%    3.29      21.0
-//! SVF-LS 80 Hz, EIV comp.      r    0.145%   -0.104%    0.095%     94%    1.32      21.0
-//! SVF-LS 80 Hz, EIV comp.     f0    0.250%    0.027%    0.402%    100%    0.56      21.0
-//! SVF-LS 80 Hz, rests out      m    0.008%    0.007%    0.005%     88%    1.50      19.8
-//! SVF-LS 80 Hz, rests out      d    0.143%   -0.141%    0.025%      0%    5.64      19.8
-//! SVF-LS 80 Hz, rests out      r    0.067%    0.041%    0.058%     94%    1.12      19.8
-//! SVF-LS 80 Hz, rests out     f0    0.119%   -0.004%    0.254%    100%    0.47      19.8
-//! SVF-LS 80, rests+EIV        m    0.014%    0.014%    0.005%      8%    2.90      19.9
-//! SVF-LS 80, rests+EIV        d    0.144%   -0.142%    0.025%      0%    5.68      19.9
-//! SVF-LS 80, rests+EIV        r    0.069%    0.045%    0.058%     94%    1.16      19.9
-//! SVF-LS 80, rests+EIV       f0    0.118%   -0.003%    0.253%    100%    0.46      19.9
+//! SVF-LS 10 Hz, HAC           m    0.097%    0.095%    0.021%      0%    4.56     140.0
+//! SVF-LS 10 Hz, HAC           d    0.209%    0.100%    0.130%     90%    1.37     140.0
+//! SVF-LS 10 Hz, HAC           r    0.784%   -0.619%    0.352%     67%    1.84     140.0
+//! SVF-LS 10 Hz, HAC          f0    1.858%   -0.266%    1.619%    100%    1.00     140.0
+//! SVF-LS 80 Hz, HAC           m    0.026%    0.026%    0.006%      0%    4.18      20.3
+//! SVF-LS 80 Hz, HAC           d    0.095%   -0.088%    0.037%     33%    3.31      20.3
+//! SVF-LS 80 Hz, HAC           r    0.145%   -0.104%    0.095%     94%    1.32      20.3
+//! SVF-LS 80 Hz, HAC          f0    0.249%    0.026%    0.403%    100%    0.56      20.3
+//! SVF-LS 80 Hz, EIV comp.      m    0.033%    0.033%    0.006%      0%    5.31      20.2
+//! SVF-LS 80 Hz, EIV comp.      d    0.096%   -0.088%    0.037%     33%    3.29      20.2
+//! SVF-LS 80 Hz, EIV comp.      r    0.145%   -0.104%    0.095%     94%    1.32      20.2
+//! SVF-LS 80 Hz, EIV comp.     f0    0.250%    0.027%    0.402%    100%    0.56      20.2
+//! SVF-LS 80 Hz, rests out      m    0.008%    0.007%    0.005%     88%    1.50      19.2
+//! SVF-LS 80 Hz, rests out      d    0.143%   -0.141%    0.025%      0%    5.64      19.2
+//! SVF-LS 80 Hz, rests out      r    0.067%    0.041%    0.058%     94%    1.12      19.2
+//! SVF-LS 80 Hz, rests out     f0    0.119%   -0.004%    0.254%    100%    0.47      19.2
+//! SVF-LS 80, rests+EIV        m    0.014%    0.014%    0.005%      8%    2.90      19.3
+//! SVF-LS 80, rests+EIV        d    0.144%   -0.142%    0.025%      0%    5.68      19.3
+//! SVF-LS 80, rests+EIV        r    0.069%    0.045%    0.058%     94%    1.16      19.3
+//! SVF-LS 80, rests+EIV       f0    0.118%   -0.003%    0.253%    100%    0.46      19.3
 //!
 //! planned moves
 //! method                  param   RMS err  mean err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.030%    0.014%    0.038%    100%    0.81      23.4
-//! dynid (defaults)            d    0.146%    0.062%    0.165%     92%    0.95      23.4
-//! dynid (defaults)            r    0.229%   -0.136%    0.239%     92%    1.01      23.4
-//! dynid (defaults)           f0    0.286%   -0.026%    0.299%     96%    0.99      23.4
-//! dynid --column-chains       m    0.064%    0.057%    0.045%     90%    1.40      24.6
-//! dynid --column-chains       d    0.419%    0.390%    0.192%     50%    2.16      24.6
-//! dynid --column-chains       r    0.614%   -0.577%    0.265%     46%    2.29      24.6
-//! dynid --column-chains      f0    0.293%   -0.079%    0.382%     98%    0.84      24.6
-//! dynid chains, 2-step        m    0.069%    0.064%    0.027%     42%    2.66      24.6
-//! dynid chains, 2-step        d    0.201%    0.141%    0.142%     81%    1.69      24.6
-//! dynid chains, 2-step        r    0.283%   -0.199%    0.201%     83%    1.50      24.6
-//! dynid chains, 2-step       f0    0.332%   -0.063%    0.321%     92%    1.17      24.6
-//! dynid to noise floor        m    0.057%   -0.054%    0.014%     12%    5.51      22.9
-//! dynid to noise floor        d    0.378%   -0.361%    0.154%     29%    2.44      22.9
-//! dynid to noise floor        r    0.418%    0.386%    0.235%     77%    1.70      22.9
-//! dynid to noise floor       f0    0.288%   -0.044%    0.427%    100%    0.72      22.9
-//! dynid chains 2-step nf      m    0.030%   -0.006%    0.073%     96%    0.89      24.4
-//! dynid chains 2-step nf      d    0.453%   -0.424%    1.118%    100%    0.51      24.4
-//! dynid chains 2-step nf      r    0.536%    0.492%    1.320%    100%    0.57      24.4
-//! dynid chains 2-step nf     f0    0.482%   -0.209%    4.272%    100%    0.13      24.4
-//! dynid --keep-rests          m   23.413%   23.413%    2.847%      0%    8.22      22.6
-//! dynid --keep-rests          d   67.288%   67.288%    6.201%      0%   39.48      22.6
-//! dynid --keep-rests          r   67.251%  -67.251%   11.085%      0%    6.07      22.6
-//! dynid --keep-rests         f0    7.036%   -7.032%   20.816%    100%    0.34      22.6
-//! dynid --filtered-eq.        m    0.008%   -0.001%    0.009%     92%    1.02      23.2
-//! dynid --filtered-eq.        d    0.213%   -0.209%    0.041%      0%    5.46      23.2
-//! dynid --filtered-eq.        r    0.109%    0.091%    0.061%     65%    1.84      23.2
-//! dynid --filtered-eq.       f0    0.289%    0.014%    0.330%     98%    0.92      23.2
-//! dynid filtered 20 Hz        m    0.012%    0.003%    0.021%    100%    0.58      22.7
-//! dynid filtered 20 Hz        d    0.140%   -0.132%    0.051%     29%    2.86      22.7
-//! dynid filtered 20 Hz        r    0.069%    0.028%    0.070%     96%    1.04      22.7
-//! dynid filtered 20 Hz       f0    0.333%    0.008%    0.342%     92%    1.01      22.7
-//! dynid filtered 160 Hz       m    0.171%   -0.171%    0.012%      0%   14.69      22.9
-//! dynid filtered 160 Hz       d    0.215%   -0.211%    0.042%      2%    5.35      22.9
-//! dynid filtered 160 Hz       r    0.126%    0.113%    0.061%     62%    2.13      22.9
-//! dynid filtered 160 Hz      f0    0.281%    0.033%    0.341%     98%    0.84      22.9
-//! dynid --input-delay         m    0.044%    0.038%    0.028%     75%    1.62      23.0
-//! dynid --input-delay         d    0.267%    0.214%    0.236%     85%    1.26      23.0
-//! dynid --input-delay         r    0.313%   -0.229%    0.325%     94%    1.03      23.0
-//! dynid --input-delay        f0    0.289%   -0.051%    0.317%     96%    0.94      23.0
-//! dynid filtered + delay      m    0.009%    0.001%    0.012%     98%    0.78      23.0
-//! dynid filtered + delay      d    0.051%   -0.017%    0.051%     96%    1.04      23.0
-//! dynid filtered + delay      r    0.060%    0.015%    0.066%     98%    0.97      23.0
-//! dynid filtered + delay     f0    0.286%   -0.006%    0.301%     96%    0.99      23.0
-//! dynid filt.+delay 500/s      m    0.014%   -0.012%    0.009%     83%    1.83      20.4
-//! dynid filt.+delay 500/s      d    0.049%   -0.004%    0.047%     94%    1.06      20.4
-//! dynid filt.+delay 500/s      r    0.060%    0.012%    0.060%     92%    1.06      20.4
-//! dynid filt.+delay 500/s     f0    0.286%    0.007%    0.292%     98%    1.00      20.4
-//! dynid filt.+delay, v rec.      m    0.009%    0.003%    0.011%     98%    0.86       3.6
-//! dynid filt.+delay, v rec.      d    0.053%   -0.020%    0.051%     96%    1.06       3.6
-//! dynid filt.+delay, v rec.      r    0.064%    0.027%    0.065%     96%    1.05       3.6
-//! dynid filt.+delay, v rec.     f0    0.283%   -0.009%    0.302%     96%    0.98       3.6
+//! dynid (defaults)            m    0.030%    0.014%    0.038%    100%    0.81      22.6
+//! dynid (defaults)            d    0.146%    0.062%    0.165%     92%    0.95      22.6
+//! dynid (defaults)            r    0.229%   -0.136%    0.239%     92%    1.01      22.6
+//! dynid (defaults)           f0    0.286%   -0.026%    0.299%     96%    0.99      22.6
+//! dynid --column-chains       m    0.064%    0.057%    0.045%     90%    1.40      23.5
+//! dynid --column-chains       d    0.419%    0.390%    0.192%     50%    2.16      23.5
+//! dynid --column-chains       r    0.614%   -0.577%    0.265%     46%    2.29      23.5
+//! dynid --column-chains      f0    0.293%   -0.079%    0.382%     98%    0.84      23.5
+//! dynid chains, 2-step        m    0.069%    0.064%    0.027%     42%    2.66      23.6
+//! dynid chains, 2-step        d    0.201%    0.141%    0.142%     81%    1.69      23.6
+//! dynid chains, 2-step        r    0.283%   -0.199%    0.201%     83%    1.50      23.6
+//! dynid chains, 2-step       f0    0.332%   -0.063%    0.321%     92%    1.17      23.6
+//! dynid to noise floor        m    0.057%   -0.054%    0.014%     12%    5.51      22.0
+//! dynid to noise floor        d    0.378%   -0.361%    0.154%     29%    2.44      22.0
+//! dynid to noise floor        r    0.418%    0.386%    0.235%     77%    1.70      22.0
+//! dynid to noise floor       f0    0.288%   -0.044%    0.427%    100%    0.72      22.0
+//! dynid chains 2-step nf      m    0.030%   -0.006%    0.073%     96%    0.89      23.4
+//! dynid chains 2-step nf      d    0.453%   -0.424%    1.118%    100%    0.51      23.4
+//! dynid chains 2-step nf      r    0.536%    0.492%    1.320%    100%    0.57      23.4
+//! dynid chains 2-step nf     f0    0.482%   -0.209%    4.272%    100%    0.13      23.4
+//! dynid --keep-rests          m   23.413%   23.413%    2.847%      0%    8.22      21.9
+//! dynid --keep-rests          d   67.288%   67.288%    6.201%      0%   39.48      21.9
+//! dynid --keep-rests          r   67.251%  -67.251%   11.085%      0%    6.07      21.9
+//! dynid --keep-rests         f0    7.036%   -7.032%   20.816%    100%    0.34      21.9
+//! dynid --filtered-eq.        m    0.010%    0.007%    0.009%     90%    1.25      22.3
+//! dynid --filtered-eq.        d    0.258%   -0.254%    0.043%      0%    6.30      22.3
+//! dynid --filtered-eq.        r    0.187%    0.173%    0.067%     29%    2.84      22.3
+//! dynid --filtered-eq.       f0    0.288%    0.004%    0.275%     94%    1.10      22.3
+//! dynid filtered 20 Hz        m    0.055%    0.053%    0.017%      4%    3.35      22.2
+//! dynid filtered 20 Hz        d    0.154%   -0.144%    0.054%     25%    2.96      22.2
+//! dynid filtered 20 Hz        r    0.135%    0.109%    0.081%     73%    1.71      22.2
+//! dynid filtered 20 Hz       f0    0.344%    0.007%    0.307%     92%    1.13      22.2
+//! dynid filtered 160 Hz       m    0.169%   -0.169%    0.015%      0%   11.53      22.4
+//! dynid filtered 160 Hz       d    0.242%   -0.238%    0.043%      0%    5.80      22.4
+//! dynid filtered 160 Hz       r    0.169%    0.160%    0.071%     42%    2.40      22.4
+//! dynid filtered 160 Hz      f0    0.280%    0.032%    0.291%     98%    0.97      22.4
+//! dynid --input-delay         m    0.044%    0.038%    0.028%     75%    1.62      22.3
+//! dynid --input-delay         d    0.267%    0.214%    0.236%     85%    1.26      22.3
+//! dynid --input-delay         r    0.313%   -0.229%    0.325%     94%    1.03      22.3
+//! dynid --input-delay        f0    0.289%   -0.051%    0.317%     96%    0.94      22.3
+//! dynid filtered + delay      m    0.008%    0.001%    0.009%     94%    1.19      22.6
+//! dynid filtered + delay      d    0.055%   -0.010%    0.050%     90%    1.14      22.6
+//! dynid filtered + delay      r    0.074%    0.015%    0.072%     92%    1.06      22.6
+//! dynid filtered + delay     f0    0.290%   -0.014%    0.276%     92%    1.11      22.6
+//! dynid filt.+delay 500/s      m    0.019%   -0.018%    0.008%     40%    2.78      19.3
+//! dynid filt.+delay 500/s      d    0.054%    0.014%    0.046%     88%    1.21      19.3
+//! dynid filt.+delay 500/s      r    0.069%    0.014%    0.064%     92%    1.11      19.3
+//! dynid filt.+delay 500/s     f0    0.288%    0.003%    0.264%     94%    1.12      19.3
+//! dynid filt.+delay, v rec.      m    0.008%    0.000%    0.008%     92%    1.19       2.9
+//! dynid filt.+delay, v rec.      d    0.056%   -0.015%    0.049%     90%    1.18       2.9
+//! dynid filt.+delay, v rec.      r    0.082%    0.039%    0.071%     90%    1.20       2.9
+//! dynid filt.+delay, v rec.     f0    0.286%   -0.014%    0.275%     94%    1.09       2.9
 //! IDIM-LS, OLS errors         m    0.026%    0.026%    0.025%    100%    1.05       1.4
 //! IDIM-LS, OLS errors         d    0.074%    0.061%    0.148%    100%    0.50       1.4
 //! IDIM-LS, OLS errors         r    0.368%   -0.365%    0.200%     71%    1.85       1.4
@@ -199,144 +203,143 @@
 //! IDIM-LS, HAC errors         d    0.074%    0.061%    0.100%    100%    0.74       1.4
 //! IDIM-LS, HAC errors         r    0.368%   -0.365%    0.158%     21%    2.33       1.4
 //! IDIM-LS, HAC errors        f0    0.302%   -0.127%    0.525%    100%    0.58       1.4
-//! SVF-LS 10 Hz, HAC           m    0.283%    0.283%    0.098%      0%    2.90     143.2
-//! SVF-LS 10 Hz, HAC           d   15.829%   15.829%    2.444%      0%    6.48     143.2
-//! SVF-LS 10 Hz, HAC           r   26.562%  -26.562%    2.927%      0%    9.07     143.2
-//! SVF-LS 10 Hz, HAC          f0    2.840%   -2.832%   27.673%    100%    0.10     143.2
-//! SVF-LS 80 Hz, HAC           m    0.016%    0.014%    0.225%    100%    0.07      21.1
-//! SVF-LS 80 Hz, HAC           d   27.559%   27.559%    2.602%      0%   10.59      21.1
-//! SVF-LS 80 Hz, HAC           r   47.356%  -47.356%    3.752%      0%   12.62      21.1
-//! SVF-LS 80 Hz, HAC          f0    9.917%   -9.915%   17.156%    100%    0.58      21.1
-//! SVF-LS 80 Hz, EIV comp.      m    0.036%    0.036%    0.225%    100%    0.16      20.9
-//! SVF-LS 80 Hz, EIV comp.      d   27.559%   27.559%    2.602%      0%   10.59      20.9
-//! SVF-LS 80 Hz, EIV comp.      r   47.356%  -47.356%    3.752%      0%   12.62      20.9
-//! SVF-LS 80 Hz, EIV comp.     f0    9.917%   -9.915%   17.155%    100%    0.58      20.9
-//! SVF-LS 80 Hz, rests out      m    0.007%   -0.003%    0.011%     98%    0.67      14.7
-//! SVF-LS 80 Hz, rests out      d    0.218%   -0.214%    0.056%      2%    3.95      14.7
-//! SVF-LS 80 Hz, rests out      r    0.114%    0.100%    0.077%     77%    1.48      14.7
-//! SVF-LS 80 Hz, rests out     f0    0.284%    0.054%    0.339%    100%    0.84      14.7
-//! SVF-LS 80, rests+EIV        m    0.014%    0.013%    0.010%     90%    1.36      14.8
-//! SVF-LS 80, rests+EIV        d    0.221%   -0.216%    0.056%      2%    3.97      14.8
-//! SVF-LS 80, rests+EIV        r    0.118%    0.104%    0.077%     77%    1.53      14.8
-//! SVF-LS 80, rests+EIV       f0    0.284%    0.054%    0.339%    100%    0.84      14.8
+//! SVF-LS 10 Hz, HAC           m    0.283%    0.283%    0.098%      0%    2.90     140.3
+//! SVF-LS 10 Hz, HAC           d   15.829%   15.829%    2.444%      0%    6.48     140.3
+//! SVF-LS 10 Hz, HAC           r   26.562%  -26.562%    2.927%      0%    9.07     140.3
+//! SVF-LS 10 Hz, HAC          f0    2.840%   -2.832%   27.673%    100%    0.10     140.3
+//! SVF-LS 80 Hz, HAC           m    0.016%    0.014%    0.225%    100%    0.07      20.3
+//! SVF-LS 80 Hz, HAC           d   27.559%   27.559%    2.602%      0%   10.59      20.3
+//! SVF-LS 80 Hz, HAC           r   47.356%  -47.356%    3.752%      0%   12.62      20.3
+//! SVF-LS 80 Hz, HAC          f0    9.917%   -9.915%   17.156%    100%    0.58      20.3
+//! SVF-LS 80 Hz, EIV comp.      m    0.036%    0.036%    0.225%    100%    0.16      20.0
+//! SVF-LS 80 Hz, EIV comp.      d   27.559%   27.559%    2.602%      0%   10.59      20.0
+//! SVF-LS 80 Hz, EIV comp.      r   47.356%  -47.356%    3.752%      0%   12.62      20.0
+//! SVF-LS 80 Hz, EIV comp.     f0    9.917%   -9.915%   17.155%    100%    0.58      20.0
+//! SVF-LS 80 Hz, rests out      m    0.007%   -0.003%    0.011%     98%    0.67      14.3
+//! SVF-LS 80 Hz, rests out      d    0.218%   -0.214%    0.056%      2%    3.95      14.3
+//! SVF-LS 80 Hz, rests out      r    0.114%    0.100%    0.077%     77%    1.48      14.3
+//! SVF-LS 80 Hz, rests out     f0    0.284%    0.054%    0.339%    100%    0.84      14.3
+//! SVF-LS 80, rests+EIV        m    0.014%    0.013%    0.010%     90%    1.36      14.2
+//! SVF-LS 80, rests+EIV        d    0.221%   -0.216%    0.056%      2%    3.97      14.2
+//! SVF-LS 80, rests+EIV        r    0.118%    0.104%    0.077%     77%    1.53      14.2
+//! SVF-LS 80, rests+EIV       f0    0.284%    0.054%    0.339%    100%    0.84      14.2
 //!
 //! planned moves, Stribeck friction not in the model
 //! method                  param   RMS err  mean err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    2.039%    2.039%    0.151%      0%   13.50      29.6
-//! dynid (defaults)            d    4.440%    4.438%    1.265%      0%    3.51      29.6
-//! dynid (defaults)            r    5.280%   -5.277%    2.458%      0%    2.15      29.6
-//! dynid (defaults)           f0    0.305%   -0.101%    3.033%    100%    0.10      29.6
-//! dynid --column-chains       m    1.973%    1.973%    0.193%      0%   10.22      30.9
-//! dynid --column-chains       d    4.058%    4.056%    1.178%      0%    3.45      30.9
-//! dynid --column-chains       r    4.929%   -4.926%    1.995%      0%    2.47      30.9
-//! dynid --column-chains      f0    0.286%   -0.019%    2.799%    100%    0.10      30.9
-//! dynid chains, 2-step        m    2.147%    2.147%    0.138%      0%   15.59      30.8
-//! dynid chains, 2-step        d    6.500%    6.498%    1.387%      0%    4.69      30.8
-//! dynid chains, 2-step        r    8.035%   -8.032%    0.920%      0%    9.59      30.8
-//! dynid chains, 2-step       f0    3.467%   -3.446%    3.694%    100%    0.94      30.8
-//! dynid to noise floor        m    1.103%    1.102%    0.118%      0%    9.34      29.1
-//! dynid to noise floor        d    2.274%    2.271%    0.629%      0%    3.65      29.1
-//! dynid to noise floor        r    3.115%   -3.109%    1.362%      0%    2.29      29.1
-//! dynid to noise floor       f0    0.671%    0.609%    1.953%    100%    0.35      29.1
-//! dynid chains 2-step nf      m    2.078%    2.077%    0.125%      0%   28.44      31.1
-//! dynid chains 2-step nf      d    4.101%    4.081%    0.803%      0%    5.07      31.1
-//! dynid chains 2-step nf      r    4.704%   -4.672%    1.094%      0%    6.85      31.1
-//! dynid chains 2-step nf     f0    2.777%   -2.746%    2.268%    100%    1.24      31.1
-//! dynid --keep-rests          m   33.780%   33.780%    3.273%      0%   10.32      28.7
-//! dynid --keep-rests          d   96.464%   96.463%    8.996%      0%   10.73      28.7
-//! dynid --keep-rests          r  100.914% -100.913%   14.329%      0%    7.04      28.7
-//! dynid --keep-rests         f0    3.214%    3.206%   12.608%    100%    0.25      28.7
-//! dynid --filtered-eq.        m    0.042%    0.041%    0.017%     19%    2.43      29.3
-//! dynid --filtered-eq.        d    1.355%   -1.341%    0.169%      0%    7.95      29.3
-//! dynid --filtered-eq.        r    2.161%    2.137%    0.345%      0%    6.19      29.3
-//! dynid --filtered-eq.       f0    0.289%   -0.005%    1.458%    100%    0.21      29.3
-//! dynid filtered 20 Hz        m    0.068%    0.067%    0.023%      6%    2.99      29.1
-//! dynid filtered 20 Hz        d    0.572%   -0.570%    0.079%      0%    7.33      29.1
-//! dynid filtered 20 Hz        r    0.891%    0.888%    0.191%      0%    4.69      29.1
-//! dynid filtered 20 Hz       f0    0.336%    0.001%    0.764%    100%    0.44      29.1
-//! dynid filtered 160 Hz       m    0.187%   -0.187%    0.017%      0%   10.85      29.4
-//! dynid filtered 160 Hz       d    2.562%   -2.562%    0.351%      0%    7.31      29.4
-//! dynid filtered 160 Hz       r    4.210%    4.210%    0.609%      0%    6.91      29.4
-//! dynid filtered 160 Hz      f0    0.284%   -0.017%    2.874%    100%    0.10      29.4
-//! dynid --input-delay         m    1.599%    1.599%    0.098%      0%   16.44      29.1
-//! dynid --input-delay         d    2.281%    2.276%    1.501%    100%    1.52      29.1
-//! dynid --input-delay         r    3.488%   -3.481%    2.083%    100%    1.67      29.1
-//! dynid --input-delay        f0    0.468%    0.369%    1.891%    100%    0.25      29.1
-//! dynid filtered + delay      m    0.044%    0.043%    0.018%     19%    2.50      29.5
-//! dynid filtered + delay      d    1.014%   -1.012%    0.161%      0%    6.31      29.5
-//! dynid filtered + delay      r    1.638%    1.635%    0.320%      0%    5.13      29.5
-//! dynid filtered + delay     f0    0.290%   -0.013%    1.183%    100%    0.25      29.5
-//! dynid filt.+delay 500/s      m    0.008%    0.003%    0.013%    100%    0.60      25.9
-//! dynid filt.+delay 500/s      d    2.070%   -2.069%    0.321%      0%    6.45      25.9
-//! dynid filt.+delay 500/s      r    3.500%    3.499%    0.554%      0%    6.32      25.9
-//! dynid filt.+delay 500/s     f0    0.288%   -0.025%    2.446%    100%    0.12      25.9
-//! dynid filt.+delay, v rec.      m    0.045%    0.044%    0.018%     17%    2.51       3.7
-//! dynid filt.+delay, v rec.      d    1.235%   -1.232%    0.163%      0%    7.59       3.7
-//! dynid filt.+delay, v rec.      r    2.049%    2.043%    0.345%      0%    5.93       3.7
-//! dynid filt.+delay, v rec.     f0    0.288%   -0.018%    1.430%    100%    0.20       3.7
-//! IDIM-LS, OLS errors         m    0.048%    0.047%    0.032%    100%    1.48       1.6
-//! IDIM-LS, OLS errors         d    3.373%   -3.373%    0.191%      0%   17.65       1.6
-//! IDIM-LS, OLS errors         r    5.597%    5.596%    0.260%      0%   21.56       1.6
-//! IDIM-LS, OLS errors        f0    0.325%   -0.171%    1.183%    100%    0.27       1.6
-//! IDIM-LS, HAC errors         m    0.048%    0.047%    0.027%     85%    1.77       1.6
-//! IDIM-LS, HAC errors         d    3.373%   -3.373%    0.404%      0%    8.35       1.6
-//! IDIM-LS, HAC errors         r    5.597%    5.596%    0.627%      0%    8.92       1.6
-//! IDIM-LS, HAC errors        f0    0.325%   -0.171%    2.025%    100%    0.16       1.6
-//! SVF-LS 10 Hz, HAC           m    0.316%    0.316%    0.092%      0%    3.45     144.2
-//! SVF-LS 10 Hz, HAC           d   13.452%   13.452%    2.389%      0%    5.63     144.2
-//! SVF-LS 10 Hz, HAC           r   22.594%  -22.594%    3.045%      0%    7.42     144.2
-//! SVF-LS 10 Hz, HAC          f0    4.775%   -4.770%   37.100%    100%    0.13     144.2
-//! SVF-LS 80 Hz, HAC           m    0.033%    0.032%    0.176%    100%    0.19      20.9
-//! SVF-LS 80 Hz, HAC           d   20.549%   20.549%    2.281%      0%    9.01      20.9
-//! SVF-LS 80 Hz, HAC           r   35.296%  -35.296%    3.466%      0%   10.18      20.9
-//! SVF-LS 80 Hz, HAC          f0   19.466%  -19.465%   18.476%    100%    1.05      20.9
-//! SVF-LS 80 Hz, EIV comp.      m    0.054%    0.054%    0.176%    100%    0.31      20.8
-//! SVF-LS 80 Hz, EIV comp.      d   20.549%   20.549%    2.281%      0%    9.01      20.8
-//! SVF-LS 80 Hz, EIV comp.      r   35.296%  -35.296%    3.466%      0%   10.18      20.8
-//! SVF-LS 80 Hz, EIV comp.     f0   19.466%  -19.465%   18.475%    100%    1.05      20.8
-//! SVF-LS 80 Hz, rests out      m    0.026%   -0.025%    0.021%     98%    1.24      14.5
-//! SVF-LS 80 Hz, rests out      d    2.500%   -2.499%    0.339%      0%    7.37      14.5
-//! SVF-LS 80 Hz, rests out      r    4.084%    4.084%    0.533%      0%    7.67      14.5
-//! SVF-LS 80 Hz, rests out     f0    0.283%   -0.024%    1.507%    100%    0.19      14.5
-//! SVF-LS 80, rests+EIV        m    0.012%   -0.010%    0.021%    100%    0.57      14.5
-//! SVF-LS 80, rests+EIV        d    2.502%   -2.502%    0.339%      0%    7.38      14.5
-//! SVF-LS 80, rests+EIV        r    4.089%    4.089%    0.532%      0%    7.68      14.5
-//! SVF-LS 80, rests+EIV       f0    0.283%   -0.024%    1.502%    100%    0.19      14.5
-//!
-//! row for docs/performance.md:
-//! | `servo_precision` | random reference, d: RMS error 5.8× IDIM-LS's, RMS error / SE 0.90 (IDIM-LS 2.39); planned moves, d: RMS error 2.0× IDIM-LS's, RMS error / SE 0.95 (IDIM-LS 0.74); planned moves, Stribeck friction not in the model, d: RMS error 1.3× IDIM-LS's, RMS error / SE 3.51 (IDIM-LS 8.35) | IDIM-LS and SVF-LS (`baseline`) on the same records | 2026-11-27 | 0ca9eb5+ | AMD EPYC, 2 threads | `cargo bench -p dynid-runtime --bench servo_precision` |
+//! dynid (defaults)            m    2.039%    2.039%    0.151%      0%   13.50      28.3
+//! dynid (defaults)            d    4.440%    4.438%    1.265%      0%    3.51      28.3
+//! dynid (defaults)            r    5.280%   -5.277%    2.458%      0%    2.15      28.3
+//! dynid (defaults)           f0    0.305%   -0.101%    3.033%    100%    0.10      28.3
+//! dynid --column-chains       m    1.973%    1.973%    0.193%      0%   10.22      29.6
+//! dynid --column-chains       d    4.058%    4.056%    1.178%      0%    3.45      29.6
+//! dynid --column-chains       r    4.929%   -4.926%    1.995%      0%    2.47      29.6
+//! dynid --column-chains      f0    0.286%   -0.019%    2.799%    100%    0.10      29.6
+//! dynid chains, 2-step        m    2.147%    2.147%    0.138%      0%   15.59      29.5
+//! dynid chains, 2-step        d    6.500%    6.498%    1.387%      0%    4.69      29.5
+//! dynid chains, 2-step        r    8.035%   -8.032%    0.920%      0%    9.59      29.5
+//! dynid chains, 2-step       f0    3.467%   -3.446%    3.694%    100%    0.94      29.5
+//! dynid to noise floor        m    1.103%    1.102%    0.118%      0%    9.34      27.6
+//! dynid to noise floor        d    2.274%    2.271%    0.629%      0%    3.65      27.6
+//! dynid to noise floor        r    3.115%   -3.109%    1.362%      0%    2.29      27.6
+//! dynid to noise floor       f0    0.671%    0.609%    1.953%    100%    0.35      27.6
+//! dynid chains 2-step nf      m    2.078%    2.077%    0.125%      0%   28.44      29.4
+//! dynid chains 2-step nf      d    4.101%    4.081%    0.803%      0%    5.07      29.4
+//! dynid chains 2-step nf      r    4.704%   -4.672%    1.094%      0%    6.85      29.4
+//! dynid chains 2-step nf     f0    2.777%   -2.746%    2.268%    100%    1.24      29.4
+//! dynid --keep-rests          m   33.780%   33.780%    3.273%      0%   10.32      27.8
+//! dynid --keep-rests          d   96.464%   96.463%    8.996%      0%   10.73      27.8
+//! dynid --keep-rests          r  100.914% -100.913%   14.329%      0%    7.04      27.8
+//! dynid --keep-rests         f0    3.214%    3.206%   12.608%    100%    0.25      27.8
+//! dynid --filtered-eq.        m    0.022%    0.020%    0.013%     77%    1.77      28.2
+//! dynid --filtered-eq.        d    1.238%   -1.174%    0.238%      0%    4.99      28.2
+//! dynid --filtered-eq.        r    1.955%    1.829%    0.423%      8%    4.18      28.2
+//! dynid --filtered-eq.       f0    0.293%   -0.016%    1.414%    100%    0.53      28.2
+//! dynid filtered 20 Hz        m    0.056%    0.055%    0.016%      4%    3.49      27.7
+//! dynid filtered 20 Hz        d    0.145%   -0.134%    0.054%     40%    2.78      27.7
+//! dynid filtered 20 Hz        r    0.126%    0.097%    0.081%     79%    1.58      27.7
+//! dynid filtered 20 Hz       f0    0.345%   -0.004%    0.308%     92%    1.13      27.7
+//! dynid filtered 160 Hz       m    0.198%   -0.198%    0.025%      0%    8.00      28.3
+//! dynid filtered 160 Hz       d    2.405%   -2.405%    0.446%      0%    5.39      28.3
+//! dynid filtered 160 Hz       r    3.938%    3.938%    0.725%      0%    5.44      28.3
+//! dynid filtered 160 Hz      f0    0.283%   -0.018%    2.857%    100%    0.10      28.3
+//! dynid --input-delay         m    1.599%    1.599%    0.098%      0%   16.44      28.1
+//! dynid --input-delay         d    2.281%    2.276%    1.501%    100%    1.52      28.1
+//! dynid --input-delay         r    3.488%   -3.481%    2.083%    100%    1.67      28.1
+//! dynid --input-delay        f0    0.468%    0.369%    1.891%    100%    0.25      28.1
+//! dynid filtered + delay      m    0.009%    0.002%    0.010%     92%    1.04      28.6
+//! dynid filtered + delay      d    0.433%   -0.405%    0.134%     12%    2.99      28.6
+//! dynid filtered + delay      r    0.774%    0.724%    0.241%     10%    2.95      28.6
+//! dynid filtered + delay     f0    0.296%   -0.023%    0.702%    100%    0.61      28.6
+//! dynid filt.+delay 500/s      m    0.023%   -0.022%    0.013%     83%    1.82      24.2
+//! dynid filt.+delay 500/s      d    1.938%   -1.938%    0.420%      0%    4.62      24.2
+//! dynid filt.+delay 500/s      r    3.376%    3.375%    0.708%      0%    4.77      24.2
+//! dynid filt.+delay 500/s     f0    0.291%   -0.032%    2.566%    100%    0.11      24.2
+//! dynid filt.+delay, v rec.      m    0.009%    0.004%    0.011%     96%    0.88       2.9
+//! dynid filt.+delay, v rec.      d    0.837%   -0.784%    0.210%     12%    3.61       2.9
+//! dynid filt.+delay, v rec.      r    1.496%    1.402%    0.383%     10%    3.52       2.9
+//! dynid filt.+delay, v rec.     f0    0.293%   -0.029%    1.205%    100%    0.53       2.9
+//! IDIM-LS, OLS errors         m    0.048%    0.047%    0.032%    100%    1.48       1.4
+//! IDIM-LS, OLS errors         d    3.373%   -3.373%    0.191%      0%   17.65       1.4
+//! IDIM-LS, OLS errors         r    5.597%    5.596%    0.260%      0%   21.56       1.4
+//! IDIM-LS, OLS errors        f0    0.325%   -0.171%    1.183%    100%    0.27       1.4
+//! IDIM-LS, HAC errors         m    0.048%    0.047%    0.027%     85%    1.77       1.4
+//! IDIM-LS, HAC errors         d    3.373%   -3.373%    0.404%      0%    8.35       1.4
+//! IDIM-LS, HAC errors         r    5.597%    5.596%    0.627%      0%    8.92       1.4
+//! IDIM-LS, HAC errors        f0    0.325%   -0.171%    2.025%    100%    0.16       1.4
+//! SVF-LS 10 Hz, HAC           m    0.316%    0.316%    0.092%      0%    3.45     140.1
+//! SVF-LS 10 Hz, HAC           d   13.452%   13.452%    2.389%      0%    5.63     140.1
+//! SVF-LS 10 Hz, HAC           r   22.594%  -22.594%    3.045%      0%    7.42     140.1
+//! SVF-LS 10 Hz, HAC          f0    4.775%   -4.770%   37.100%    100%    0.13     140.1
+//! SVF-LS 80 Hz, HAC           m    0.033%    0.032%    0.176%    100%    0.19      20.3
+//! SVF-LS 80 Hz, HAC           d   20.549%   20.549%    2.281%      0%    9.01      20.3
+//! SVF-LS 80 Hz, HAC           r   35.296%  -35.296%    3.466%      0%   10.18      20.3
+//! SVF-LS 80 Hz, HAC          f0   19.466%  -19.465%   18.476%    100%    1.05      20.3
+//! SVF-LS 80 Hz, EIV comp.      m    0.054%    0.054%    0.176%    100%    0.31      20.0
+//! SVF-LS 80 Hz, EIV comp.      d   20.549%   20.549%    2.281%      0%    9.01      20.0
+//! SVF-LS 80 Hz, EIV comp.      r   35.296%  -35.296%    3.466%      0%   10.18      20.0
+//! SVF-LS 80 Hz, EIV comp.     f0   19.466%  -19.465%   18.475%    100%    1.05      20.0
+//! SVF-LS 80 Hz, rests out      m    0.026%   -0.025%    0.021%     98%    1.24      14.3
+//! SVF-LS 80 Hz, rests out      d    2.500%   -2.499%    0.339%      0%    7.37      14.3
+//! SVF-LS 80 Hz, rests out      r    4.084%    4.084%    0.533%      0%    7.67      14.3
+//! SVF-LS 80 Hz, rests out     f0    0.283%   -0.024%    1.507%    100%    0.19      14.3
+//! SVF-LS 80, rests+EIV        m    0.012%   -0.010%    0.021%    100%    0.57      14.2
+//! SVF-LS 80, rests+EIV        d    2.502%   -2.502%    0.339%      0%    7.38      14.2
+//! SVF-LS 80, rests+EIV        r    4.089%    4.089%    0.532%      0%    7.68      14.2
+//! SVF-LS 80, rests+EIV       f0    0.283%   -0.024%    1.502%    100%    0.19      14.2
 //! ```
 //!
 //! **Rows of the filtered equation** (`--filtered-eq.`: `IdentifyOptions::filtered`, one
 //! corner designed as the encoder's information bandwidth capped at 0.5/Ts = 500 rad/s;
-//! `filtered 20 Hz`, `160 Hz`: the corner given as 126 and 1005 rad/s; docs/method.md §2).
-//! On random references m 0.009 %, d 0.147 %, r 0.082 %, f0 0.121 % — against the defaults
-//! 2.3×, 6×, 31× and 12× smaller, level with SVF-LS 80 Hz with its rows near rest dropped
-//! (0.008, 0.143, 0.067, 0.119 %); on planned moves m 0.008 % and r 0.109 % (below
-//! IDIM-LS's 0.026 and 0.368 %, level with SVF-LS rests out), d 0.213 % (IDIM-LS 0.074 %)
-//! and f0 0.289 % (level with both baselines); with the Stribeck term the model lacks it
-//! moves less than the defaults and both baselines (m 0.042, d 1.4, r 2.2 %). Its damping
-//! errors are a bias the standard errors do not cover (mean error −0.145 % random, −0.209 %
-//! planned, coverage 0 % on both suites), the same bias as SVF-LS rests out's: the force's
-//! path between samples. With `DYNID_BENCH_INPUT_OVERSAMPLE=100` (seeds 1–6, an earlier
-//! run) it falls to d 0.015 % random / 0.031 % planned (IDIM-LS 0.29 / 0.28 %), m 0.005 /
-//! 0.010 %, r 0.011 / 0.054 %, f0 0.090 / 0.248 %, with coverage 6 of 6 on the planned
-//! moves; with `=1` both filtered regressions give d 1.4 %. The 160 Hz corner (λTs = 1)
-//! biases the mass by −0.13 % (random) and −0.17 % (planned), the 20 Hz corner the
-//! friction on random references (+0.17 %): hence the cap at 0.5/Ts.
+//! `filtered 20 Hz`, `160 Hz`: the corner given as 126 and 1005 rad/s; docs/method.md §2;
+//! every slow sample left out with the filter's memory after it). On random references
+//! m 0.006 %, d 0.154 %, r 0.098 %, f0 0.103 % — against the defaults 3.5×, 6×, 26× and
+//! 14× smaller, beside SVF-LS 80 Hz with its rows near rest dropped (0.008, 0.143, 0.067,
+//! 0.119 %); on planned moves m 0.010 % and r 0.187 % (below IDIM-LS's 0.026 and 0.368 %),
+//! d 0.258 % (IDIM-LS 0.074 %) and f0 0.288 % (level with both baselines); with the
+//! Stribeck term the model lacks it moves less than the defaults and both baselines (m
+//! 0.022, d 1.2, r 2.0 %). Its damping errors are a bias the standard errors do not cover
+//! (mean error −0.151 % random, −0.254 % planned, coverage 0 % on both suites), like
+//! SVF-LS rests out's: the force's path between samples. With
+//! `DYNID_BENCH_INPUT_OVERSAMPLE=100` (seeds 1–6, measured once) it falls to d 0.015 %
+//! random / 0.025 % planned (IDIM-LS 0.29 / 0.28 %), m 0.008 / 0.010 %, r 0.013 / 0.072 %,
+//! f0 0.021 / 0.18 %, with coverage 6 of 6 on the planned moves; with `=1` both filtered
+//! regressions give d 1.4 %. The 160 Hz corner (λTs = 1) biases the mass by −0.13 %
+//! (random) and −0.17 % (planned), the 20 Hz corner the friction on random references
+//! (+0.26 %): hence the cap at 0.5/Ts.
 //!
 //! **Input delay** (`dynid --input-delay`, `filtered + delay`: `IdentifyOptions::input_delay`,
 //! one unknown delay of the force, docs/method.md §2, "The input between samples"; the
 //! filtered rows' corner designed at most 0.25/Ts = 250 rad/s with it, `500/s`: given at the
-//! cap without it). With the filtered rows it removes their damping bias. Random: m 0.005,
-//! d 0.004, r 0.009, f0 0.078 % — below the best baseline on every parameter (SVF-LS rests
-//! out m 0.008, r 0.067, f0 0.119 %; SVF-LS 80 Hz d 0.095 %), covered on 83–96 % of the
-//! seeds (at 500 rad/s the mass comes out low, −0.006 % on the mean, coverage 40 %, RMS e/SE
-//! 2.53). Planned: m 0.009, d 0.051, r 0.060, f0 0.286 %, covered on 96–98 % — d and r below
+//! cap without it). With the filtered rows it removes their damping bias. Random: m 0.0007,
+//! d 0.0019, r 0.0053, f0 0.017 % — below the best baseline on every parameter by 7–50×
+//! (SVF-LS rests out m 0.008, r 0.067, f0 0.119 %; SVF-LS 80 Hz d 0.095 %), covered on
+//! 90–94 % of the seeds except the mass (67 %: −0.0005 % on the mean at a standard error of
+//! 0.0004 %; at 500 rad/s the mass comes out low, −0.010 % on the mean, coverage 0 %).
+//! Planned: m 0.0085, d 0.055, r 0.074, f0 0.290 %, covered on 90–94 % — d and r below
 //! every baseline (IDIM-LS d 0.074 %, SVF-LS rests out r 0.114 %), f0 level with both
-//! (SVF-LS rests out 0.284 %, IDIM-LS 0.302 %), m 1.3× SVF-LS rests out's 0.007 % (IDIM-LS
+//! (SVF-LS rests out 0.284 %, IDIM-LS 0.302 %), m 1.2× SVF-LS rests out's 0.007 % (IDIM-LS
 //! 0.026 %). It does not cure a model error: with the Stribeck term the filtered rows' d
-//! and r stay 1.0 and 1.6 % off, and with the default instrument rows the delay takes part
+//! and r stay 0.43 and 0.77 % off, and with the default instrument rows the delay takes part
 //! of the model error up and moves the mass by 1.6 % (16 standard errors). On the default
 //! rows alone it helps one suite and hurts the other (damping, random 0.90 → 0.65 %,
 //! planned 0.15 → 0.27 %).
@@ -401,8 +404,8 @@
 //! 16–28 %, r 27–47 %). With a Stribeck term the model lacks, dynid's friction split moves
 //! by 4.4–5.3 % (IDIM-LS 3.4–5.6 %), its mass by 2.0 % (IDIM-LS 0.05 %), all at several of
 //! their standard errors; the two-step weighting moves the friction split further (d 6.5 %,
-//! r 8.0 %); the filtered rows at their designed corners move it least (d 1.0–1.4 %, r
-//! 1.6–2.2 %; at 20 Hz 0.57 and 0.89 %).
+//! r 8.0 %); the filtered rows at their designed corners move it least (d 0.4–1.2 %, r
+//! 0.8–2.0 %; at 20 Hz 0.15 and 0.13 %).
 //!
 //! IDIM-LS's Newey–West errors come out below its classical ones (the decimated residuals
 //! are negatively correlated at short lags). `ms/rec` is the wall time per record with the

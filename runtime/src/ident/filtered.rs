@@ -30,17 +30,17 @@ use dynid_ir::ir::{ExprNode, ModelIr, SignalId};
 /// Highest corner of the filtered equation's chain when it is designed from the data,
 /// as `λ Tₛ`: on the servo axis of the bench `servo_precision` (seeds 1–48) the mass's
 /// mean error is −0.13 % (random references) and −0.17 % (planned moves) at `λ Tₛ = 1`
-/// (160 Hz at 1 kHz), +0.008 % and −0.001 % at 0.5.
+/// (160 Hz at 1 kHz), +0.006 % and +0.007 % at 0.5.
 pub(crate) const FILTERED_MAX_LT: f64 = 0.5;
 
 /// [`FILTERED_MAX_LT`] with the inputs' delays estimated
 /// ([`super::types::IdentifyOptions::input_delay`]): the delay takes up the first-order lag
 /// of the force's path between samples, and what is left grows with `(λ Tₛ)²`. On the
 /// bench `servo_precision` (seeds 1–48, random references) the mass's RMS error at
-/// `λ Tₛ = 0.5` was 0.007 % against a standard error of 0.003 %, −0.006 % on the mean
-/// (coverage 40 %, row `dynid filt.+delay 500/s`), and at 0.25 every parameter's error was
-/// covered on 83–96 % of the seeds, with the same or smaller RMS errors (row `dynid
-/// filtered + delay`).
+/// `λ Tₛ = 0.5` is 0.010 % against a standard error of 0.001 %, all of it bias (coverage
+/// 0 %, row `dynid filt.+delay 500/s`), and at 0.25 0.0007 % (a bias of about one standard
+/// error, coverage 67 %), with the other parameters' errors covered on 90–94 % of the seeds
+/// and RMS errors 1.5–3× smaller (row `dynid filtered + delay`).
 pub(crate) const FILTERED_DELAY_MAX_LT: f64 = 0.25;
 
 /// The highest designed corner of the filtered equation for `opts`, as `λ Tₛ`.

@@ -140,7 +140,8 @@ impl Speed {
 
 /// The rest intervals of one level as half-open sample ranges `[a, b)`, in order, with
 /// their summary: runs below the threshold at least `min_rest` seconds (and two samples)
-/// long. Two passes over the level: the RMS speed of each body, then the runs below the
+/// long, or with `min_rest` 0 every sample below it (the slow samples of the rows of the
+/// filtered equation). Two passes over the level: the RMS speed of each body, then the runs below the
 /// threshold.
 ///
 /// Long: the two streamed passes share the per-body state they build.
@@ -189,7 +190,13 @@ pub(crate) fn find(
         .collect();
     // Pass 2: runs at rest (any body below its threshold). Samples arrive in order, one
     // body after the other per chunk, so the per-sample flags of a chunk are gathered first.
-    let min_len = ((min_rest / ts).ceil() as usize).max(2);
+    // A rest needs two samples below the threshold; the slow samples of the filtered rows
+    // (`min_rest` 0) count one by one, as a reversal between two samples often has one.
+    let min_len = if min_rest > 0.0 {
+        ((min_rest / ts).ceil() as usize).max(2)
+    } else {
+        1
+    };
     let mut sp = speeds();
     let mut out = Vec::new();
     let mut run: Option<usize> = None;
@@ -370,5 +377,46 @@ mod tests {
         let (b, k) = layout(1001, 10, &[]);
         assert_eq!(b, (0..=10).map(|i| i * 100).collect::<Vec<_>>());
         assert!(k.iter().all(|k| *k));
+    }
+
+    /// A reversal between two samples leaves one slow sample (the central difference that
+    /// straddles it): a rest needs two and `MIN_REST`, the filtered rows' slow samples
+    /// count it alone.
+    #[test]
+    fn a_single_slow_sample_counts_only_for_the_filtered_rows() {
+        let ir = dsl_parser::compile_str(
+            "axis",
+            "model axis {
+                body m = 1.0
+                input u on m
+                measure m.x, u
+                force friction (ground, m) = r ~ 1.0 * sign(v)
+            }",
+        )
+        .expect("valid model");
+        // A triangle wave of position, 1 mm per sample up then down: the central
+        // difference is zero at each turn, and 1 m/s everywhere else.
+        let ts = 1e-3;
+        let x: Vec<f64> = (0..400)
+            .map(|k| {
+                let p = k % 100;
+                1e-3 * if p <= 50 { p } else { 100 - p } as f64
+            })
+            .collect();
+        let rec = crate::record::Record {
+            names: vec!["m.x".into(), "u".into()],
+            columns: vec![x, vec![0.0; 400]],
+            ts,
+            t0: 0.0,
+        };
+        let src = crate::data::RecordSource::new(&rec, &ir, "axis").expect("valid record");
+        let bodies = bodies(&ir);
+        let (rests, _) = find(&ir, &bodies, &src, 64, MIN_REST).unwrap();
+        assert!(rests.is_empty(), "{rests:?}");
+        let (slow, summary) = find(&ir, &bodies, &src, 64, 0.0).unwrap();
+        // The turns at 50, 150, 250, 350 (at 100, 200, 300 the wave turns too).
+        assert_eq!(slow.len(), 7, "{slow:?}");
+        assert!(slow.iter().all(|(a, b)| b - a == 1), "{slow:?}");
+        assert_eq!(summary.samples, 7);
     }
 }
