@@ -22,17 +22,17 @@ fn model() -> String {
 
 /// Three simulated levels of the SDOF model, 400 s each.
 fn simulated(dir: &Path) -> Vec<PathBuf> {
+    simulated_with(dir, &["--duration", "400"])
+}
+
+/// Three simulated levels of the SDOF model in `dir/data`, with `extra` arguments.
+fn simulated_with(dir: &Path, extra: &[&str]) -> Vec<PathBuf> {
     let out = dir.join("data");
-    let o = dynid(&[
-        "simulate",
-        &model(),
-        "--duration",
-        "400",
-        "--seed",
-        &common::seed(5).to_string(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (model, seed) = (model(), common::seed(5).to_string());
+    let mut args = vec!["simulate", &model, "--seed", &seed];
+    args.extend(extra);
+    args.extend(["--out", out.to_str().unwrap()]);
+    let o = dynid(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     (1..=3)
         .map(|i| out.join(format!("level_{i}.csv")))
@@ -74,23 +74,10 @@ fn simulate_then_identify_writes_json() {
 #[test]
 fn filtered_rows_on_noisy_records_name_the_terms_left_uncorrected() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("noisy");
-    let o = dynid(&[
-        "simulate",
-        &model(),
-        "--duration",
-        "100",
-        "--noise",
-        "0.05",
-        "--seed",
-        &common::seed(5).to_string(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let files = simulated_with(dir.path(), &["--duration", "100", "--noise", "0.05"]);
     let json = dir.path().join("result.json");
     let mut args = vec!["identify".to_string(), model()];
-    args.extend((1..=3).map(|i| out.join(format!("level_{i}.csv")).display().to_string()));
+    args.extend(files.iter().map(|p| p.display().to_string()));
     args.extend([
         "--filtered-equation".into(),
         "--no-corner-check".into(),
