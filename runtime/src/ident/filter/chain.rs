@@ -23,6 +23,10 @@ pub enum Hold {
 }
 
 impl ChainDisc {
+    /// Most samples of an impulse response [`Self::noise_covariance`] sums: a chain whose
+    /// memory is longer (`λ Tₛ` below about 3·10⁻⁶) is truncated there.
+    pub const MAX_MEMORY: usize = 10_000_000;
+
     /// Discretise the chain with corner `lambda` (rad/s) and `order` sections.
     pub fn new(lambda: f64, order: usize, ts: f64, hold: Hold) -> ChainDisc {
         let n = order;
@@ -63,14 +67,15 @@ impl ChainDisc {
     /// samples are white noise of unit variance: `Σₘ hₘ hₘᵀ` over the impulse response of
     /// one sample, `h₀ = Γ₁` (the sample is the hold's newer end), `h₁ = Φ Γ₁ + Γ₀`,
     /// `hₘ = Φ hₘ₋₁`, summed until the response has decayed to 10⁻¹⁰ of its largest
-    /// squared norm (the chain's memory; a stable chain's response decays geometrically).
+    /// squared norm (the chain's memory; a stable chain's response decays geometrically),
+    /// and over at most [`Self::MAX_MEMORY`] samples.
     pub fn noise_covariance(&self) -> Vec<f64> {
         let n = self.order;
         let mut p = vec![0.0; n * n];
         let mut h = self.g1.clone();
         let mut next = vec![0.0; n];
         let mut peak = 0.0f64;
-        for m in 0.. {
+        for m in 0..Self::MAX_MEMORY {
             let norm: f64 = h.iter().map(|v| v * v).sum();
             peak = peak.max(norm);
             if m > 1 && norm <= 1e-10 * peak {
