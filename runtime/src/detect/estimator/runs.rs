@@ -179,15 +179,11 @@ pub(super) struct Pair {
 /// effects with finite, non-zero coefficients), or `None`.
 pub(super) fn pair_of(finding: &ElementFinding, builtins: &[Candidate]) -> Option<Pair> {
     let f = finding.ranking.first().filter(|f| f.effects.len() == 2)?;
-    let est = f.effect_estimates();
-    let value = |name: &str| est.iter().find(|e| e.name == name).map(|e| e.value);
     let terms = f
         .effects
         .iter()
         .map(|effect| {
-            let c = builtins.iter().find(|c| c.name == *effect)?;
-            let p = value(&c.coef_name).filter(|p| p.is_finite() && *p != 0.0)?;
-            let theta = c.shape.as_ref().map_or(Some(0.0), |s| value(&s.name))?;
+            let (c, p, theta) = effect_term(f, effect, builtins)?;
             Some((c.name.clone(), c.coef_name.clone(), p, theta))
         })
         .collect::<Option<Vec<_>>>()?;
@@ -196,6 +192,22 @@ pub(super) fn pair_of(finding: &ElementFinding, builtins: &[Candidate]) -> Optio
         terms,
         linear_parts: linear_parts(f),
     })
+}
+
+/// Effect `effect` of template `f` as the estimator runs it: its built-in candidate, the
+/// coefficient the template fitted (finite and non-zero) and its shape θ (0 for an effect
+/// without one); `None` where any is missing.
+fn effect_term<'c>(
+    f: &TemplateFit,
+    effect: &str,
+    builtins: &'c [Candidate],
+) -> Option<(&'c Candidate, f64, f64)> {
+    let c = builtins.iter().find(|c| c.name == effect)?;
+    let est = f.effect_estimates();
+    let value = |name: &str| est.iter().find(|e| e.name == name).map(|e| e.value);
+    let p = value(&c.coef_name).filter(|p| p.is_finite() && *p != 0.0)?;
+    let theta = c.shape.as_ref().map_or(Some(0.0), |s| value(&s.name))?;
+    Some((c, p, theta))
 }
 
 /// The element's linear parts as the template `f` fitted them (`k3 (linear part)` → `k3`).
@@ -219,21 +231,13 @@ pub(super) fn singles_of(finding: &ElementFinding, builtins: &[Candidate]) -> Ve
         .iter()
         .filter(|f| f.effects.len() == 1)
         .filter_map(|f| {
-            let c = builtins.iter().find(|c| c.name == f.effects[0])?;
-            let est = f.effect_estimates();
-            let p = est.first()?.value;
-            let theta = c
-                .shape
-                .as_ref()
-                .and_then(|s| est.iter().find(|e| e.name == s.name))
-                .map_or(0.0, |e| e.value);
-            let linear_parts = linear_parts(f);
-            (p.is_finite() && p != 0.0).then(|| Single {
+            let (c, p, theta) = effect_term(f, &f.effects[0], builtins)?;
+            Some(Single {
                 effect: c.name.clone(),
                 coef: c.coef_name.clone(),
                 p,
                 theta,
-                linear_parts,
+                linear_parts: linear_parts(f),
             })
         })
         .collect()
