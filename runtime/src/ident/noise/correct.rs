@@ -192,19 +192,46 @@ pub(crate) fn debias(plan: &Plan, lm: &mut LevelMoments, var_y: &[f64], hold: Ho
     let (n_row_signals, n_col_signals, n_snap_cols) =
         (lm.n_row_signals, lm.n_col_signals, lm.n_snap_cols);
     let n_g = plan.roots.len();
-    // Rows of the filtered equation (`plan.state_cols`): products of two states of one
-    // chain. White noise of variance σ² on the chain's driver adds σ² Pᵢⱼ per sample to
-    // ⟨ζᵢ ζⱼ⟩ (P: [`ChainDisc::noise_covariance`]), whatever the signal does.
-    if !plan.state_cols.is_empty() {
+    // Per noisy driver and corner, two corrections of the products with the driver's chain:
+    // - first-order hold: a filter state holds its driver's current sample with weight Γ₁,
+    //   so its product with a column linear in that driver gains Γ₁ σ² per sample;
+    // - rows of the filtered equation (`plan.state_cols`): products of two states of one
+    //   chain gain σ² Pᵢⱼ per sample (P: [`ChainDisc::noise_covariance`]), whatever the
+    //   signal does.
+    let noisy = |sig: SignalId| plan.y_of[sig.index()].filter(|&k| var_y[k] > 0.0);
+    if plan.drivers.iter().any(|&sig| noisy(sig).is_some()) {
+        let discs: Vec<ChainDisc> = plan
+            .corners
+            .iter()
+            .map(|&lam| ChainDisc::new(lam, plan.order, lm.ts, hold))
+            .collect();
+        let covs: Vec<Vec<f64>> = if plan.state_cols.is_empty() {
+            Vec::new()
+        } else {
+            discs.iter().map(ChainDisc::noise_covariance).collect()
+        };
         for (d, &sig) in plan.drivers.iter().enumerate() {
-            let Some(k) = plan.y_of[sig.index()] else {
+            let Some(k) = noisy(sig) else {
                 continue;
             };
-            if var_y[k] <= 0.0 {
-                continue;
+            let mut cols = vec![(n_g + k, 1.0)];
+            for (j, lin) in &plan.linear_roots {
+                if let Some(&(_, a)) = lin.iter().find(|(y, _)| *y == k) {
+                    cols.push((*j, a));
+                }
             }
-            for (c, &lam) in plan.corners.iter().enumerate() {
-                let p = ChainDisc::new(lam, plan.order, lm.ts, hold).noise_covariance();
+            for (c, disc) in discs.iter().enumerate() {
+                for (i, g) in disc.g1.iter().enumerate() {
+                    let row = plan.state(d, c, i);
+                    for &(col, a) in &cols {
+                        for (sum, &len) in lm.sums.iter_mut().zip(&lm.lens) {
+                            sum[row * n_col_signals + col] -= a * g * var_y[k] * len as f64;
+                        }
+                    }
+                }
+                let Some(p) = covs.get(c) else {
+                    continue;
+                };
                 for i in 0..plan.order {
                     for j in 0..plan.order {
                         let Some(col) = plan.state_col(plan.state(d, c, j)) else {
@@ -215,33 +242,6 @@ pub(crate) fn debias(plan: &Plan, lm: &mut LevelMoments, var_y: &[f64], hold: Ho
                         for (sum, &len) in lm.sums.iter_mut().zip(&lm.lens) {
                             sum[row * n_col_signals + col] -= bias * len as f64;
                         }
-                    }
-                }
-            }
-        }
-    }
-    // First-order hold: a filter state holds its driver's current sample with weight Γ₁,
-    // so its product with a column linear in that driver gains Γ₁ σ² per sample.
-    for (d, &sig) in plan.drivers.iter().enumerate() {
-        let Some(k) = plan.y_of[sig.index()] else {
-            continue;
-        };
-        if var_y[k] <= 0.0 {
-            continue;
-        }
-        let mut cols = vec![(n_g + k, 1.0)];
-        for (j, lin) in &plan.linear_roots {
-            if let Some(&(_, a)) = lin.iter().find(|(y, _)| *y == k) {
-                cols.push((*j, a));
-            }
-        }
-        for (c, &lam) in plan.corners.iter().enumerate() {
-            let g1 = ChainDisc::new(lam, plan.order, lm.ts, hold).g1;
-            for (i, g) in g1.iter().enumerate() {
-                let row = plan.state(d, c, i);
-                for &(col, a) in &cols {
-                    for (sum, &len) in lm.sums.iter_mut().zip(&lm.lens) {
-                        sum[row * n_col_signals + col] -= a * g * var_y[k] * len as f64;
                     }
                 }
             }
