@@ -384,16 +384,8 @@ mod tests {
     /// count it alone.
     #[test]
     fn a_single_slow_sample_counts_only_for_the_filtered_rows() {
-        let ir = dsl_parser::compile_str(
-            "axis",
-            "model axis {
-                body m = 1.0
-                input u on m
-                measure m.x, u
-                force friction (ground, m) = r ~ 1.0 * sign(v)
-            }",
-        )
-        .expect("valid model");
+        // Position and force measured, Coulomb friction on `m`.
+        let ir = crate::sim::test_models::ServoAxis::standard().model();
         // A triangle wave of position, 1 mm per sample up then down: the central
         // difference is zero at each turn, and 1 m/s everywhere else.
         let ts = 1e-3;
