@@ -102,8 +102,9 @@ pub struct EstimatorArgs {
     #[arg(long = "keep-rests")]
     pub keep_rests: bool,
     /// Rows of the filtered equation: at one corner (given by --filter-corners, else the
-    /// band where the measured signals stand above their noise floor, at most 0.5/Ts rad/s,
-    /// 0.25/Ts with --input-delay)
+    /// band where the measured signals stand above their noise floor, at most 0.5/Ts rad/s;
+    /// with --input-delay on a chain of six sections unless the model's filter block gives
+    /// an order, and at most 0.25/Ts on fewer)
     /// the equation passed through the low-pass chain is regressed on its own filtered
     /// terms, as moments; every slow passage of a body with a `sign` of its velocity (a rest
     /// or a reversal) is left out with what the filter remembers of it. On the simulated

@@ -63,10 +63,16 @@ pub(crate) fn choose_bank(
     } else {
         2
     };
+    // The filtered equation with the inputs' delays: a steeper chain, so that its corner
+    // can rise to 0.5/Tₛ (`filtered::FILTERED_DELAY_ORDER`).
+    let fallback = match opts.filtered && opts.input_delay {
+        true => (min_degree + 1).max(super::filtered::FILTERED_DELAY_ORDER),
+        false => min_degree + 1,
+    };
     let order = opts
         .order
         .or(spec.map(|f| f.order as usize))
-        .unwrap_or(min_degree + 1);
+        .unwrap_or(fallback);
     if order < min_degree || order > 8 {
         return Err(IdentifyError::BadOption {
             message: format!("filter order {order}"),

@@ -96,10 +96,10 @@ pub fn corner_moves(
             .collect()
     };
     // The filtered equation's one corner: moved on its own; raised at most to the cap of
-    // its design (`0.5/Tₛ`, `0.25/Tₛ` with the inputs' delays), where the force's path
-    // between samples and the chain's discretisation start to bias the mass.
+    // its design (`0.5/Tₛ`; `0.25/Tₛ` with the inputs' delays on a chain given fewer than
+    // six sections), where the force's path between samples starts to bias the mass.
     let (floor, cap) = match opts.filtered {
-        true => (0.0, super::filtered::max_lt(opts) / ts),
+        true => (0.0, super::filtered::max_lt(opts, id.filter.order) / ts),
         false => (lo * 2.0, 0.5 * std::f64::consts::PI / ts),
     };
     let down = spread((hi / CORNER_CHECK_FACTOR).max(floor).min(hi));

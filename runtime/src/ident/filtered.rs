@@ -33,19 +33,33 @@ use dynid_ir::ir::{ExprNode, ModelIr, SignalId};
 /// (160 Hz at 1 kHz), +0.006 % and +0.007 % at 0.5.
 pub(crate) const FILTERED_MAX_LT: f64 = 0.5;
 
-/// [`FILTERED_MAX_LT`] with the inputs' delays estimated
-/// ([`super::types::IdentifyOptions::input_delay`]): the delay takes up the first-order lag
-/// of the force's path between samples, and what is left grows with `(λ Tₛ)²`. On the
-/// bench `servo_precision` (seeds 1–48, random references) the mass's RMS error at
-/// `λ Tₛ = 0.5` is 0.010 % against a standard error of 0.001 %, all of it bias (coverage
-/// 0 %, row `dynid filt.+delay 500/s`), and at 0.25 0.0007 % (a bias of about one standard
-/// error, coverage 67 %), with the other parameters' errors covered on 90–94 % of the seeds
-/// and RMS errors 1.5–3× smaller (row `dynid filtered + delay`).
+/// Sections of the filtered equation's chain with the inputs' delays estimated
+/// ([`super::types::IdentifyOptions::input_delay`]), unless the options or the model's
+/// filter block give an order. The delay takes up the first-order lag of the force's path
+/// between samples; what is left enters through what the chain passes near and above the
+/// Nyquist frequency, where the sampled force misstates its path between samples, and a
+/// chain of more sections passes less of it at the same corner. Mean error of the mass on
+/// the random references of the bench `servo_precision` (seeds 1–48, row `dynid filt.+delay
+/// 4 sect.` with `DYNID_BENCH_FILTERED_ORDER` and `DYNID_BENCH_FILTERED_CORNER` set), with
+/// its mean standard error 0.0004–0.0007 %: 4 sections −0.0005 % at `λ Tₛ = 0.25`,
+/// −0.0023 % at 0.35, −0.0098 % at 0.5; 6 sections −0.0001 % at 0.4, −0.0003 % at 0.5,
+/// −0.0020 % at 0.7; 8 sections −0.0003 % at 0.6, −0.0017 % at 0.8. Six sections keep the
+/// bias below the standard error up to 0.5 — the cap without the delay — where the planned
+/// moves' mass, whose error is the force noise's, gains from the wider band (RMS 0.0085 %
+/// with 4 sections at 0.25, 0.0072 % with 6 at 0.5; designed, the corner stops at the
+/// position's information bandwidth, below the cap on those records: 0.0081 %).
+pub(crate) const FILTERED_DELAY_ORDER: usize = 6;
+
+/// The cap of the filtered equation's designed corner with the inputs' delays estimated
+/// on a chain of fewer than [`FILTERED_DELAY_ORDER`] sections (an order given by the
+/// options or the model): with 4 sections the mass's mean error on the random references
+/// is −0.0005 % at `λ Tₛ = 0.25` and −0.0098 % at 0.5 (see [`FILTERED_DELAY_ORDER`]).
 pub(crate) const FILTERED_DELAY_MAX_LT: f64 = 0.25;
 
-/// The highest designed corner of the filtered equation for `opts`, as `λ Tₛ`.
-pub(crate) fn max_lt(opts: &super::types::IdentifyOptions) -> f64 {
-    if opts.input_delay {
+/// The highest designed corner of the filtered equation for `opts` on a chain of `order`
+/// sections, as `λ Tₛ`.
+pub(crate) fn max_lt(opts: &super::types::IdentifyOptions, order: usize) -> f64 {
+    if opts.input_delay && order < FILTERED_DELAY_ORDER {
         FILTERED_DELAY_MAX_LT
     } else {
         FILTERED_MAX_LT

@@ -28,8 +28,10 @@ pub struct IdentifyOptions {
     pub corners: Option<Vec<f64>>,
     /// Number of corners when they are designed from the data.
     pub n_corners: usize,
-    /// Sections per low-pass chain. `None`: 3, or 4 when accelerations must come from
-    /// positions alone (so the instruments keep relative degree ≥ 3).
+    /// Sections per low-pass chain. `None`: the model's filter block, else 3, or 4 when
+    /// accelerations must come from positions alone (so the instruments keep relative
+    /// degree ≥ 3), 5 when bodies are measured by accelerations only, and at least 6 for
+    /// the filtered equation with the inputs' delays (`filtered` and `input_delay`).
     pub order: Option<usize>,
     /// Signals driving the filter bank. `None`: the model's filter block, else the measured
     /// positions and inputs.
@@ -314,7 +316,8 @@ pub struct CornerSource {
     pub info_bandwidth: Option<f64>,
     /// The one corner of the filtered equation's rows ([`IdentifyOptions::filtered`]),
     /// designed as the information bandwidth, at most `0.5 / Tₛ` (`0.25 / Tₛ` with the
-    /// inputs' delays, [`IdentifyOptions::input_delay`]).
+    /// inputs' delays, [`IdentifyOptions::input_delay`], on a chain given fewer than six
+    /// sections).
     #[serde(default)]
     pub filtered: bool,
 }
@@ -338,9 +341,11 @@ impl CornerSource {
         }
         if self.filtered {
             let rule = format!(
-                "one corner for the filtered equation, at most {}/Ts ({}/Ts with --input-delay)",
+                "one corner for the filtered equation, at most {}/Ts ({}/Ts with --input-delay \
+                 on a chain given fewer than {} sections)",
                 super::filtered::FILTERED_MAX_LT,
-                super::filtered::FILTERED_DELAY_MAX_LT
+                super::filtered::FILTERED_DELAY_MAX_LT,
+                super::filtered::FILTERED_DELAY_ORDER
             );
             return match band {
                 Some(b) => format!("{rule}: {b}"),

@@ -318,7 +318,7 @@ fn set_filters(
         filtered: opts.filtered,
         ..corner_source(given, designed.as_ref())
     };
-    let corners = chosen_corners(ir, opts, designed.as_ref(), &span, bank.n_corners);
+    let corners = chosen_corners(ir, opts, designed.as_ref(), &span, bank);
     check_corners(&corners, given, stats, &span, levels)?;
     plan.corners = vec![0.0; corners.len()];
     plan.set_corners(ir, &corners);
@@ -401,7 +401,7 @@ fn chosen_corners(
     opts: &IdentifyOptions,
     designed: Option<&Designed>,
     span: &LevelSpan,
-    n_corners: usize,
+    bank: &BankChoice,
 ) -> Vec<f64> {
     match (&opts.corners, ir.filter.as_ref().map(|f| &f.corners)) {
         (Some(c), _) => c.clone(),
@@ -409,7 +409,7 @@ fn chosen_corners(
         // The filtered equation: one corner, as high as the measured signals carry
         // information above their noise floor, and at most `max_lt / Tₛ`.
         _ if opts.filtered => {
-            let top = crate::ident::filtered::max_lt(opts) / span.ts_min;
+            let top = crate::ident::filtered::max_lt(opts, bank.order) / span.ts_min;
             let info = designed.and_then(|d| d.info_signal.as_ref().map(|(_, w)| *w));
             vec![info.map_or(top, |w| w.min(top))]
         }
@@ -419,7 +419,7 @@ fn chosen_corners(
             // check, which names the record length they need.
             None => {
                 let cap = design::max_corner(span.ts_min);
-                vec![cap / 2.0; n_corners]
+                vec![cap / 2.0; bank.n_corners]
             }
         },
     }

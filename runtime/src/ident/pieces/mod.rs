@@ -210,7 +210,9 @@ impl MomentDesign {
         IdentifyOptions {
             corners: Some(self.corners.clone()),
             n_corners: o.n_corners,
-            order: o.order,
+            // The order the moments were taken with (the options' fallback may depend on
+            // a choice that is not the design's, such as the inputs' delays).
+            order: Some(self.order),
             drivers: o.drivers.clone(),
             balance: o.balance,
             n_blocks: Some(self.n_blocks),
