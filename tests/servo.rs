@@ -499,7 +499,7 @@ fn an_input_delay_takes_up_the_force_between_samples() {
                 100.0 * off[k].0
             );
         }
-        // The errors now cover every parameter on most seeds (measured 10–11 of 12 for
+        // The errors now cover every parameter on most seeds (measured 10–12 of 12 for
         // each, both kinds; 88–98 % over the bench's 48 seeds; without the delay the
         // damping's on none), hence at least 9 of 12.
         for k in 0..TRUTH.len() {

@@ -335,10 +335,10 @@ fn the_plant_of_a_closed_loop_record_refines_in_sub_records() {
 /// controller updated once per sample and held: a staircase half a sample behind the
 /// straight line between samples). Measured with `--filtered-equation`: without the delay
 /// (corner 500 rad/s) d 116.9 ± 0.22 (−2.6 %) and r 15.31 ± 0.046 (+2.1 %); with it (six
-/// sections, corner 500 rad/s) d 119.89 ± 0.033, r 15.009 ± 0.0029 and `u.delay` 0.476 ±
-/// 0.007 ms, against `Tₛ/2 = 0.5 ms` — a record without noise, so what is left (−0.10 %,
-/// +0.06 %) is the force's path between samples beyond a delay, two to three standard
-/// errors. Bounds: the delay
+/// sections, corner 500 rad/s) d 119.89 ± 0.046, r 15.009 ± 0.0038 and `u.delay` 0.476 ±
+/// 0.010 ms, against `Tₛ/2 = 0.5 ms` — a record without noise, so what is left (−0.09 %,
+/// +0.06 %, each 2.4 standard errors) is the force's path between samples beyond a
+/// delay. Bounds: the delay
 /// within 0.3 … 0.6 ms, d and r within 0.5 %. `moments` refuses the flag with the way to
 /// get it.
 #[test]

@@ -21,15 +21,16 @@
 //!   SVD's work space — [`SOLVE_COPIES`] copies;
 //! * the standard errors' window rows, `(B + 1) r` per level.
 //!
-//! The number of blocks is chosen from the record (at most [`super::design::MAX_BLOCKS`])
-//! unless it is given, so the estimate takes the largest: an upper bound.
+//! The number of blocks is chosen from the record (at most [`super::design::MAX_BLOCKS`],
+//! [`super::design::FILTERED_MAX_BLOCKS`] for the rows of the filtered equation) unless it
+//! is given, so the estimate takes the largest: an upper bound.
 //!
 //! The estimate bounds the peak resident memory of `dynid identify` on chains of `N` unit
 //! masses, springs and dampers between neighbours, every position measured (the model of
 //! this module's tests and of `tests/bounded_work.rs`; the test
 //! `estimates_bound_the_measured_peaks` holds the measured peaks, docs/performance.md lists
-//! them). Before reading, the estimate takes the most blocks, 80: a record that chooses
-//! fewer (a short one, or slow filter corners) takes less.
+//! them). Before reading, the estimate takes the most blocks (80; 400 with the filtered
+//! rows): a record that chooses fewer (a short one, or slow filter corners) takes less.
 
 use super::accumulate::TASK_LEN;
 use super::design;
@@ -113,7 +114,7 @@ pub fn estimate(
         let placeholder: Vec<f64> = (1..=corners).map(|c| c as f64).collect();
         plan.set_corners(ir, &placeholder);
     }
-    let blocks = opts.n_blocks.unwrap_or(design::MAX_BLOCKS);
+    let blocks = opts.n_blocks.unwrap_or(design::max_blocks(opts));
     Ok(MemoryEstimate {
         bytes: bytes(&plan, levels, blocks, opts.chunk_len),
         bodies: ir.bodies.len(),

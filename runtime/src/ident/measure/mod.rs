@@ -323,10 +323,11 @@ fn set_filters(
     plan.corners = vec![0.0; corners.len()];
     plan.set_corners(ir, &corners);
     let n_blocks = opts.n_blocks.unwrap_or_else(|| {
-        design::blocks(
+        design::blocks_up_to(
             span.min_duration,
             design::time_constant(&corners, bank.order),
             span.min_samples,
+            design::max_blocks(opts),
         )
     });
     check_lengths(
