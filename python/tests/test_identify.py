@@ -135,7 +135,7 @@ def test_filtered_equation_keyword(models):
 def test_input_delay_keyword(models):
     # `input_delay` is `--input-delay`: one more parameter, the force's delay in seconds.
     # `simulate` holds the controller's force over each sample, half a sample (0.5 ms)
-    # behind the straight line between samples; the CLI's test on 13 s finds 0.476 ms
+    # behind the straight line between samples; the CLI's test on 13 s finds 0.501 ms
     # (tests/servo_workflow.rs).
     model = dynid.Model.from_file(models / "servo_axis_planned.dyn")
     data = model.simulate(duration=25, seed=1, sample=0.001)

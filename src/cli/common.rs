@@ -127,8 +127,9 @@ pub struct EstimatorArgs {
     /// recorded or that changes between samples in a way a straight line between them does
     /// not follow (a current loop updated faster than the record). With
     /// --filtered-equation on the simulated servo axis it removes the damping bias that the
-    /// standard errors do not cover (docs/method.md §2, "The input between samples"). Not
-    /// with `moments` or --from
+    /// standard errors do not cover, and a designed corner is also tried halved and
+    /// quartered, keeping the one with the smallest standard errors (three passes over the
+    /// data; docs/method.md §2, "The input between samples"). Not with `moments` or --from
     #[arg(long = "input-delay")]
     pub input_delay: bool,
 }

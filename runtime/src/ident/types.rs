@@ -320,6 +320,22 @@ pub struct CornerSource {
     /// sections).
     #[serde(default)]
     pub filtered: bool,
+    /// The filtered equation's designed corner and those below it that were tried, each
+    /// with its standard errors' size against the kept one's (empty: no search; see
+    /// [`super::identify::FILTERED_CORNER_STEPS`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tried: Vec<CornerTry>,
+}
+
+/// One corner of the filtered equation's search ([`CornerSource::tried`]).
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+pub struct CornerTry {
+    /// rad/s.
+    pub corner: f64,
+    /// The geometric mean of the parameters' standard errors at this corner against that
+    /// at the kept one, from the determinant of their covariance:
+    /// `(det Σ / det Σ_kept)^(1/2p)` (1 at the kept corner, above 1 elsewhere).
+    pub se_ratio: f64,
 }
 
 impl CornerSource {
@@ -347,9 +363,30 @@ impl CornerSource {
                 super::filtered::FILTERED_DELAY_MAX_LT,
                 super::filtered::FILTERED_DELAY_ORDER
             );
-            return match band {
+            let rule = match band {
                 Some(b) => format!("{rule}: {b}"),
                 None => rule,
+            };
+            return match self.tried.len() {
+                0 | 1 => rule,
+                _ => {
+                    let tried: Vec<String> = self
+                        .tried
+                        .iter()
+                        .map(|t| {
+                            format!(
+                                "{} rad/s ×{:.2}",
+                                dynid_ir::num::sig(t.corner, 3, false),
+                                t.se_ratio
+                            )
+                        })
+                        .collect();
+                    format!(
+                        "{rule}; kept the corner with the smallest standard errors of {} \
+                         (their geometric mean against the kept corner's)",
+                        tried.join(", ")
+                    )
+                }
             };
         }
         let lower = match self.lower {

@@ -221,7 +221,9 @@ fn filtered_equation_rows_recover_the_noise_free_sdof() {
 
 /// With the inputs' delays the filtered rows' chain has six sections (the instrument rows
 /// of this model take four) and its corner keeps the cap 0.5/Ts; an order given by the
-/// options is kept, and with fewer than six sections the cap is 0.25/Ts. The moments are
+/// options is kept, and with fewer than six sections the cap is 0.25/Ts. The designed
+/// corner is searched: it, its half and its quarter are tried and the one whose estimates
+/// have the smallest covariance determinant kept. The moments are
 /// solved with the sections they were taken with (a design rebuilt from options that
 /// lacked the delay once took four sections for moments taken with six, and its estimates
 /// were off by orders of magnitude). Measured: see the message (`cargo test -p
@@ -240,9 +242,10 @@ fn filtered_rows_with_the_delay_take_six_sections() {
         let id = run(&ir, sdof_data(), &opts);
         let e = rel_errors(&id, &sdof_truth());
         eprintln!(
-            "order {order:?}: {} sections, corner {:?}, (d, k, k3, r) {}",
+            "order {order:?}: {} sections, corner {:?} of {:?}, (d, k, k3, r) {}",
             id.filter.order,
             id.filter.corners,
+            id.filter.corners_from.tried,
             fmt_errs(&e)
         );
         assert_eq!(id.filter.order, sections);
@@ -251,6 +254,15 @@ fn filtered_rows_with_the_delay_take_six_sections() {
             "{:?}",
             id.filter.corners
         );
+        // The designed corner, halved and quartered, each with its standard errors against
+        // the kept corner's: 1 where kept, above elsewhere.
+        let tried = &id.filter.corners_from.tried;
+        assert_eq!(tried.len(), 3, "{tried:?}");
+        assert!((tried[1].corner / tried[0].corner - 0.5).abs() < 1e-12, "{tried:?}");
+        let kept: Vec<_> = tried.iter().filter(|t| t.se_ratio == 1.0).collect();
+        assert_eq!(kept.len(), 1, "{tried:?}");
+        assert_eq!(kept[0].corner, id.filter.corners[0]);
+        assert!(tried.iter().all(|t| t.se_ratio >= 1.0), "{tried:?}");
         // Measured at most 0.02 % (d) with either chain; bound three times that.
         assert!(e.iter().all(|e| e.abs() < 0.0006), "{}", fmt_errs(&e));
     }
