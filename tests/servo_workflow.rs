@@ -366,7 +366,7 @@ fn identify_estimates_the_delay_of_a_held_force() {
         let est = param(name)["value"].as_f64().unwrap();
         assert!((est / truth - 1.0).abs() < 3e-5, "{name} {est}");
     }
-    let tried = v["filter"]["corners_from"]["tried"]
+    let tried = v["filter"]["corners_tried"]
         .as_array()
         .expect("corners tried");
     let corners: Vec<f64> = tried

@@ -6,9 +6,7 @@ use super::input_delay;
 use super::measure::measure;
 use super::measurement::Measurement;
 use super::shape;
-use super::types::{
-    CornerSource, CornerTry, Identification, IdentifyError, IdentifyOptions, LinearSystem,
-};
+use super::types::{CornerTry, Identification, IdentifyError, IdentifyOptions, LinearSystem};
 use crate::basis::BasisEval;
 use crate::data::LevelSource;
 use crate::tape::Tape;
@@ -50,7 +48,7 @@ pub const FILTERED_CORNER_STEPS: [f64; 2] = [2.0, 4.0];
 /// The pooled identification of `ir` (its inputs' delays already among its unknowns); for
 /// the filtered equation with the inputs' delays and a designed corner, the best of that
 /// corner and those a factor [`FILTERED_CORNER_STEPS`] below it (a corner the records
-/// cannot carry is not tried), said in [`super::types::CornerSource::tried`].
+/// cannot carry is not tried), said in [`super::types::FilterSummary::corners_tried`].
 fn pooled(
     ir: &ModelIr,
     eval: &dyn BasisEval,
@@ -91,16 +89,14 @@ fn pooled(
     }
     let (kept, mut id) = best;
     let p = id.params.len().max(1) as f64;
-    id.filter.corners_from = CornerSource {
-        tried: tried
-            .into_iter()
-            .map(|(corner, s)| CornerTry {
-                corner,
-                se_ratio: ((s - kept) / (2.0 * p)).exp(),
-            })
-            .collect(),
-        ..source
-    };
+    id.filter.corners_from = source;
+    id.filter.corners_tried = tried
+        .into_iter()
+        .map(|(corner, s)| CornerTry {
+            corner,
+            se_ratio: ((s - kept) / (2.0 * p)).exp(),
+        })
+        .collect();
     Ok(id)
 }
 
@@ -116,6 +112,7 @@ fn log_det(id: &Identification) -> Option<f64> {
     let v: f64 = chol.l().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
     v.is_finite().then_some(v)
 }
+
 /// The pooled identification with the guard's warnings (see [`guard`]).
 fn guarded(
     m: &Measurement<'_>,

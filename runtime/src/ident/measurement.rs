@@ -78,6 +78,7 @@ impl<'m> Measurement<'m> {
         FilterSummary {
             corners: self.plan.corners.clone(),
             corners_from: self.plan.corner_source.clone(),
+            corners_tried: Vec::new(),
             corner_moves: Vec::new(),
             order: self.plan.order,
             drivers: self

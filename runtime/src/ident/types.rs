@@ -320,14 +320,36 @@ pub struct CornerSource {
     /// sections).
     #[serde(default)]
     pub filtered: bool,
-    /// The filtered equation's designed corner and those below it that were tried, each
-    /// with its standard errors' size against the kept one's (empty: no search; see
-    /// [`super::identify::FILTERED_CORNER_STEPS`]).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub tried: Vec<CornerTry>,
 }
 
-/// One corner of the filtered equation's search ([`CornerSource::tried`]).
+impl FilterSummary {
+    /// One line for the report: how the corners were chosen
+    /// ([`CornerSource::describe`]) and, after a search, the corners tried.
+    pub fn describe_corners(&self) -> String {
+        let rule = self.corners_from.describe();
+        if self.corners_tried.len() < 2 {
+            return rule;
+        }
+        let tried: Vec<String> = self
+            .corners_tried
+            .iter()
+            .map(|t| {
+                format!(
+                    "{} rad/s ×{:.2}",
+                    dynid_ir::num::sig(t.corner, 3, false),
+                    t.se_ratio
+                )
+            })
+            .collect();
+        format!(
+            "{rule}; kept the corner with the smallest standard errors of {} (their geometric \
+             mean against the kept corner's)",
+            tried.join(", ")
+        )
+    }
+}
+
+/// One corner of the filtered equation's search ([`FilterSummary::corners_tried`]).
 #[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
 pub struct CornerTry {
     /// rad/s.
@@ -363,30 +385,9 @@ impl CornerSource {
                 super::filtered::FILTERED_DELAY_MAX_LT,
                 super::filtered::FILTERED_DELAY_ORDER
             );
-            let rule = match band {
+            return match band {
                 Some(b) => format!("{rule}: {b}"),
                 None => rule,
-            };
-            return match self.tried.len() {
-                0 | 1 => rule,
-                _ => {
-                    let tried: Vec<String> = self
-                        .tried
-                        .iter()
-                        .map(|t| {
-                            format!(
-                                "{} rad/s ×{:.2}",
-                                dynid_ir::num::sig(t.corner, 3, false),
-                                t.se_ratio
-                            )
-                        })
-                        .collect();
-                    format!(
-                        "{rule}; kept the corner with the smallest standard errors of {} \
-                         (their geometric mean against the kept corner's)",
-                        tried.join(", ")
-                    )
-                }
             };
         }
         let lower = match self.lower {
@@ -410,6 +411,11 @@ pub struct FilterSummary {
     pub corners: Vec<f64>,
     /// How they were chosen.
     pub corners_from: CornerSource,
+    /// The filtered equation's designed corner and those below it that were tried, each
+    /// with its standard errors' size against the kept one's (empty: no search; see
+    /// [`super::identify::FILTERED_CORNER_STEPS`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub corners_tried: Vec<CornerTry>,
     /// Parameters whose estimates move by more than their standard errors when the highest
     /// corner is moved a factor 4 down or up ([`super::corner_moves`]; filled in by the
     /// command line, empty otherwise).

@@ -132,7 +132,7 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
     ));
     s.push_str(&format!(
         "corners chosen by: {}\n",
-        id.filter.corners_from.describe()
+        id.filter.describe_corners()
     ));
     for r in &id.residual {
         let lv: Vec<String> = r.per_level.iter().map(|v| format!("{v:.2e}")).collect();

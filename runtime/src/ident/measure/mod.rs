@@ -393,7 +393,6 @@ fn corner_source(given: bool, designed: Option<&Designed>) -> CornerSource {
         info_signal: designed.and_then(|d| d.info_signal.as_ref().map(|(n, _)| n.clone())),
         info_bandwidth: designed.and_then(|d| d.info_signal.as_ref().map(|(_, w)| *w)),
         filtered: false,
-        tried: Vec::new(),
     }
 }
 

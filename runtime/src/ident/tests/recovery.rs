@@ -245,7 +245,7 @@ fn filtered_rows_with_the_delay_take_six_sections() {
             "order {order:?}: {} sections, corner {:?} of {:?}, (d, k, k3, r) {}",
             id.filter.order,
             id.filter.corners,
-            id.filter.corners_from.tried,
+            id.filter.corners_tried,
             fmt_errs(&e)
         );
         assert_eq!(id.filter.order, sections);
@@ -256,9 +256,12 @@ fn filtered_rows_with_the_delay_take_six_sections() {
         );
         // The designed corner, halved and quartered, each with its standard errors against
         // the kept corner's: 1 where kept, above elsewhere.
-        let tried = &id.filter.corners_from.tried;
+        let tried = &id.filter.corners_tried;
         assert_eq!(tried.len(), 3, "{tried:?}");
-        assert!((tried[1].corner / tried[0].corner - 0.5).abs() < 1e-12, "{tried:?}");
+        assert!(
+            (tried[1].corner / tried[0].corner - 0.5).abs() < 1e-12,
+            "{tried:?}"
+        );
         let kept: Vec<_> = tried.iter().filter(|t| t.se_ratio == 1.0).collect();
         assert_eq!(kept.len(), 1, "{tried:?}");
         assert_eq!(kept[0].corner, id.filter.corners[0]);
