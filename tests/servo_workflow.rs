@@ -397,3 +397,31 @@ fn identify_estimates_the_delay_of_a_held_force() {
     assert!(stderr(&o).contains("--input-delay"), "{}", stderr(&o));
     assert!(!dir.path().join("delay.dynm").exists());
 }
+
+/// `identify` with the default rows on the planned axis (Coulomb friction, a measured force,
+/// an encoder without noise worth a correction) points at `--filtered-equation
+/// --input-delay`; with them, or for a model without Coulomb friction, it does not.
+#[test]
+fn identify_points_a_servo_record_at_the_filtered_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = &planned().1;
+    let planned_model = model_path("servo_axis_planned.dyn");
+    let open = write_model(dir.path(), "open.dyn", OPEN_LOOP);
+    let hint = "there --filtered-equation --input-delay may be far more precise";
+    let run = |model: &Path, extra: &[&str]| -> String {
+        let mut args: Vec<&std::ffi::OsStr> = vec!["identify".as_ref(), model.as_os_str()];
+        args.extend(files.iter().map(|p| p.as_os_str()));
+        args.extend(extra.iter().map(std::ffi::OsStr::new));
+        args.push("--no-corner-check".as_ref());
+        let o = dynid().args(&args).output().unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let text = run(&planned_model, &[]);
+    assert!(text.contains("Note: Coulomb friction"), "{text}");
+    assert!(text.contains(hint), "{text}");
+    let text = run(&planned_model, &["--filtered-equation", "--input-delay"]);
+    assert!(!text.contains(hint), "{text}");
+    let text = run(&open, &[]);
+    assert!(!text.contains(hint), "{text}");
+}
