@@ -381,7 +381,7 @@ fn identify_estimates_the_delay_of_a_held_force() {
         v["filter"]
     );
     assert!(
-        text.contains("kept the corner with the smallest standard errors"),
+        text.contains("a lower corner is kept where they are"),
         "{text}"
     );
     let o = dynid()

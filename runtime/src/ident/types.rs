@@ -342,9 +342,10 @@ impl FilterSummary {
             })
             .collect();
         format!(
-            "{rule}; kept the corner with the smallest standard errors of {} (their geometric \
-             mean against the kept corner's)",
-            tried.join(", ")
+            "{rule}; tried {} (the geometric mean of the standard errors against the kept \
+             corner's; a lower corner is kept where they are {}× smaller)",
+            tried.join(", "),
+            super::identify::FILTERED_CORNER_GAIN
         )
     }
 }
@@ -356,7 +357,9 @@ pub struct CornerTry {
     pub corner: f64,
     /// The geometric mean of the parameters' standard errors at this corner against that
     /// at the kept one, from the determinant of their covariance:
-    /// `(det Σ / det Σ_kept)^(1/2p)` (1 at the kept corner, above 1 elsewhere).
+    /// `(det Σ / det Σ_kept)^(1/2p)` (1 at the kept corner; a lower corner is kept only
+    /// where it is at most 1/[`super::identify::FILTERED_CORNER_GAIN`] of the designed
+    /// one's).
     pub se_ratio: f64,
 }
 

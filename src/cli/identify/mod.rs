@@ -226,15 +226,25 @@ fn identify_from(args: &Args) -> miette::Result<()> {
 
 /// The note pointing at the rows of the filtered equation with the input's delay where the
 /// record is of a servo axis's kind — Coulomb friction (rests were looked for), a measured
-/// input, no noise worth a correction — identified with the default rows, and the model
-/// can form those rows.
+/// input, velocities estimated from positions, no noise worth a correction — identified
+/// with the default rows, and the model can form those rows.
 fn filtered_hint(ir: &ModelIr, id: &Identification) -> Option<String> {
     let coulomb = id.levels.iter().any(|l| l.rests.is_some());
+    // Velocities estimated from positions: what a drive records (encoder and force).
+    let from_positions = id
+        .estimated
+        .iter()
+        .any(|e| e.method == dynid_runtime::ident::velocity::METHOD);
     let input = (0..ir.inputs.len()).any(|i| {
         let s = ir.input_signal(dsl_parser::ir::InputId(i as u32));
         ir.signal(s).measured
     });
-    if id.filter.corners_from.filtered || !coulomb || !input || !id.noise.corrected.is_empty() {
+    if id.filter.corners_from.filtered
+        || !coulomb
+        || !input
+        || !from_positions
+        || !id.noise.corrected.is_empty()
+    {
         return None;
     }
     let opts = dynid_runtime::IdentifyOptions {
@@ -244,8 +254,8 @@ fn filtered_hint(ir: &ModelIr, id: &Identification) -> Option<String> {
     };
     dynid_runtime::ident::memory::estimate(ir, id.levels.len(), &opts).ok()?;
     Some(
-        "Coulomb friction, a measured force and positions without noise worth a correction, \
-         as on a servo axis: there --filtered-equation --input-delay may be far more precise \
+        "Coulomb friction, a measured force and positions without noise worth a correction \
+         (velocities estimated from them), as on a servo axis: there --filtered-equation --input-delay may be far more precise \
          (on the simulated servo axis, bench `servo_precision`: RMS errors about 50–500 \
          times smaller on random set points, about 3 times on planned moves, the offset \
          level; docs/method.md §2, \"The input between samples\")"
