@@ -88,7 +88,10 @@ pub struct IdentifyOptions {
     /// is recorded, and a force that changes between samples in a way the first-order hold
     /// of the filters does not follow (a current loop updated faster than the record, a
     /// sample-and-hold); on the servo bench it removes the damping bias of the filtered
-    /// rows (docs/method.md §2, "The input between samples").
+    /// rows (docs/method.md §2, "The input between samples"). With `filtered` the chain has
+    /// six sections unless an order is given, and a designed corner is also tried halved and
+    /// quartered (`identify`'s corner search, reported in
+    /// [`FilterSummary::corners_tried`]).
     pub input_delay: bool,
 }
 
