@@ -350,7 +350,8 @@
 //! information bandwidth holds the designed corner below the cap, and the search keeps it;
 //! given at the cap (`DYNID_BENCH_FILTERED_ORDER=6 DYNID_BENCH_FILTERED_CORNER=500`) the
 //! mass is 0.0072 %. The three identifications of the search cost their time (`ms/rec`
-//! 25.7 and 74.9 on the two suites, against 9.5 and 26.6 in the run before it). It does not cure a model error: with the Stribeck
+//! 28.1 and 80.2 on the two suites in this run, against 9.6 and 26.2 in the run before the
+//! search, on the same machine: about three times). It does not cure a model error: with the Stribeck
 //! term the filtered rows' d and r stay 0.185 and 0.309 % off (the search lowered the
 //! corner on some seeds; 0.30 and 0.53 % at the designed one), and with the default instrument rows the
 //! delay takes part of the model error up and moves the mass by 1.6 % (16 standard

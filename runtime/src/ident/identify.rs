@@ -83,8 +83,9 @@ fn pooled(
     let p = designed.params.len().max(1) as f64;
     let mut tried = vec![(top, score)];
     // A lower corner must beat the designed one by the margin: its score is compared
-    // with the designed corner's less `2p ln(gain)`.
+    // with the designed corner's less `2p ln(gain)`. `kept`: the kept corner's own score.
     let mut best = (score - 2.0 * p * FILTERED_CORNER_GAIN.ln(), designed);
+    let mut kept = score;
     for step in FILTERED_CORNER_STEPS {
         let alt_opts = IdentifyOptions {
             corners: Some(vec![top / step]),
@@ -102,13 +103,10 @@ fn pooled(
         tried.push((top / step, score));
         if score < best.0 {
             best = (score, alt);
+            kept = score;
         }
     }
     let (_, mut id) = best;
-    let kept = tried
-        .iter()
-        .find(|(c, _)| *c == id.filter.corners[0])
-        .map_or(score, |t| t.1);
     id.filter.corners_from = source;
     id.filter.corners_tried = tried
         .into_iter()

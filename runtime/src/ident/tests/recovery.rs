@@ -222,8 +222,9 @@ fn filtered_equation_rows_recover_the_noise_free_sdof() {
 /// With the inputs' delays the filtered rows' chain has six sections (the instrument rows
 /// of this model take four) and its corner keeps the cap 0.5/Ts; an order given by the
 /// options is kept, and with fewer than six sections the cap is 0.25/Ts. The designed
-/// corner is searched: it, its half and its quarter are tried and the one whose estimates
-/// have the smallest covariance determinant kept. The moments are
+/// corner is searched: it, its half and its quarter are tried, and a lower one kept where
+/// its covariance determinant makes the standard errors `FILTERED_CORNER_GAIN` times
+/// smaller. The moments are
 /// solved with the sections they were taken with (a design rebuilt from options that
 /// lacked the delay once took four sections for moments taken with six, and its estimates
 /// were off by orders of magnitude). Measured: see the message (`cargo test -p
