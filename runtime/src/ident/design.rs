@@ -177,8 +177,9 @@ pub const MAX_BLOCKS: usize = 80;
 /// `planned_cycles_agree_with_the_filtered_rows_and_delay`): χ²/dof of the cycles about
 /// their mean m 1.50, d 1.59, r 2.20, f0 0.81 with at most 80 blocks (measured once before
 /// the change), 1.35, 1.15, 1.77, 0.73 with 400; on the whole records of the bench
-/// `servo_precision` (48 seeds, designed corner) the same estimates, covered on 90–98 %
-/// against 88–92 % (planned) and 90–100 % against 90–98 % (random).
+/// `servo_precision` (48 seeds, at the designed corner, the bench's table before the
+/// corner search of `identify`) the same estimates, covered on 90–98 % against 88–92 %
+/// (planned) and 90–100 % against 90–98 % (random).
 pub const FILTERED_MAX_BLOCKS: usize = 400;
 
 /// The most blocks chosen from the record for `opts`: [`FILTERED_MAX_BLOCKS`] for the rows
