@@ -66,6 +66,11 @@ fn max_rel(a: &Identification, b: &Identification) -> f64 {
 fn merge_equals_whole(ir: &ModelIr, recs: &[Record], opts: &IdentifyOptions) -> (f64, usize) {
     let srcs = sources(ir, recs);
     let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
+    // Moments hold the instrument rows (no choice of rows: `IdentifyOptions::auto_rows`).
+    let opts = &IdentifyOptions {
+        auto_rows: false,
+        ..opts.clone()
+    };
     let whole = identify(ir, &levels, opts).unwrap();
     let design = MomentDesign::from_data(ir, &levels, opts).unwrap();
     let parts = pieces(ir, recs, &design);

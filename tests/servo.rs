@@ -46,7 +46,12 @@ fn record(rms: f64, seed: u64, measured_velocity: bool) -> (ModelIr, Record) {
 
 /// [`servo`] with a reference of `rms` metres.
 fn servo_at(rms: f64, seed: u64, measured_velocity: bool) -> Identification {
-    servo_with(rms, seed, measured_velocity, &IdentifyOptions::default())
+    servo_with(
+        rms,
+        seed,
+        measured_velocity,
+        &IdentifyOptions::instrument_rows(),
+    )
 }
 
 /// [`servo_at`] with the identification options `opts`.
@@ -265,7 +270,7 @@ fn slow_trajectory_errors() {
 /// either way. The bounds: ratios below 0.75 for d, r, f0 and below 5 for m.
 #[test]
 fn column_chains_shrink_the_damping_and_friction_errors() {
-    let off = rms_and_coverage(1..=12, &IdentifyOptions::default());
+    let off = rms_and_coverage(1..=12, &IdentifyOptions::instrument_rows());
     let on = rms_and_coverage(
         1..=12,
         &IdentifyOptions {
@@ -327,7 +332,7 @@ fn column_chains_shrink_the_damping_and_friction_errors() {
 /// docs/method.md §2, "Rows of the filtered equation", whose figures this checks.
 #[test]
 fn filtered_equation_rows_shrink_the_mass_friction_and_offset_errors() {
-    let off = rms_and_coverage(1..=12, &IdentifyOptions::default());
+    let off = rms_and_coverage(1..=12, &IdentifyOptions::instrument_rows());
     let on = rms_and_coverage(
         1..=12,
         &IdentifyOptions {
@@ -515,7 +520,7 @@ fn an_input_delay_takes_up_the_force_between_samples() {
 
 /// Identify `rec` with the default options.
 fn identify_record(ir: &ModelIr, rec: &Record) -> Identification {
-    servo_common::identify_record(ir, rec, &IdentifyOptions::default())
+    servo_common::identify_record(ir, rec, &IdentifyOptions::instrument_rows())
 }
 
 /// Planned moves with dwells, seeds 1–12: the rests (a third of every cycle) are left out
@@ -669,7 +674,7 @@ fn planned_cycles_agree_within_their_errors() {
 fn corner_check(ir: &ModelIr, rec: &Record) -> Vec<dynid::runtime::ident::CornerMove> {
     let src = RecordSource::new(rec, ir, "servo").expect("record");
     let levels: Vec<&dyn LevelSource> = vec![&src];
-    let opts = IdentifyOptions::default();
+    let opts = IdentifyOptions::instrument_rows();
     let id = identify(ir, &levels, &opts).expect("identification");
     dynid::runtime::ident::corner_moves(ir, &levels, &opts, &id)
         .expect("identification at the moved corners")

@@ -237,8 +237,12 @@ fn identify_without_offset(seed: u64) -> dynid::runtime::ident::Identification {
     let ir = axis.model();
     let src = RecordSource::new(&out.records[0], &ir, "servo").expect("record");
     let levels: Vec<&dyn LevelSource> = vec![&src];
-    dynid::runtime::identify(&ir, &levels, &dynid::runtime::IdentifyOptions::default())
-        .expect("identification")
+    dynid::runtime::identify(
+        &ir,
+        &levels,
+        &dynid::runtime::IdentifyOptions::instrument_rows(),
+    )
+    .expect("identification")
 }
 
 #[test]
@@ -297,7 +301,7 @@ fn detect(ir: &ModelIr, recs: &[Record]) -> dynid::runtime::detect::Detection {
     use dynid::runtime::detect::{detect_from_data, DetectOptions};
     let srcs = common::sources(ir, recs);
     let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
-    let opts = dynid::runtime::IdentifyOptions::default();
+    let opts = dynid::runtime::IdentifyOptions::instrument_rows();
     detect_from_data(ir, &levels, &opts, &DetectOptions::default(), &[])
         .expect("detect")
         .0
@@ -372,7 +376,7 @@ fn diagnose_gives_the_levels_too_alike_warning_of_detect() {
     let (det, fits) = detect_from_data(
         &ir,
         &levels,
-        &dynid::runtime::IdentifyOptions::default(),
+        &dynid::runtime::IdentifyOptions::instrument_rows(),
         &opts,
         &[],
     )

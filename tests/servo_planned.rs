@@ -88,7 +88,7 @@ fn planned_errors_cover_every_parameter() {
     let mut all = Vec::new();
     for seed in seeds(12) {
         let (ir, rec) = planned_record(seed);
-        let e = errors(&ident(&ir, &rec, &IdentifyOptions::default()));
+        let e = errors(&ident(&ir, &rec, &IdentifyOptions::instrument_rows()));
         println!("seed {seed}: {}", row(&e));
         all.push(e);
     }
@@ -197,7 +197,7 @@ fn planned_mass_bias_came_from_late_reversals() {
     let mut lags = (f64::INFINITY, f64::NEG_INFINITY);
     for seed in seeds(4) {
         let (ir, rec) = planned_record(seed);
-        let designed = ident(&ir, &rec, &IdentifyOptions::default());
+        let designed = ident(&ir, &rec, &IdentifyOptions::instrument_rows());
         let opts = IdentifyOptions {
             corners: Some(designed.filter.corners.clone()),
             order: Some(4),
@@ -404,7 +404,7 @@ fn planned_cycles_agree_within_their_errors() {
         chi_dof,
         pair,
         ratio,
-    } = cycle_study(&IdentifyOptions::default());
+    } = cycle_study(&IdentifyOptions::instrument_rows());
     // docs/method.md §6 quotes the range of χ²/dof over the parameters, on seeds 1–4 (the
     // suite) and 1–8 (`DYNID_PLANNED_SEEDS=8`).
     check_chi_range(

@@ -238,8 +238,11 @@ fn a_closed_loop_refinement_is_refused_with_the_way_to_refine_the_plant() {
 /// without `reference`, `control` and `excite`) refined on one record in sub-records of
 /// 0.5 s. Measured (`DYNID_SERVO_LONG=1 cargo test --test servo_workflow refine --
 /// --nocapture`, debug build, 85 s): m 50.01, d 120.0, r 15.00, f0 −3.200 (truth 50, 120,
-/// 15, −3.2); the records are planned and noise-free but for the encoder, so every run
-/// gives these. Long: set `DYNID_SERVO_LONG` to run it.
+/// 15, −3.2) from the covariance estimate's 49.994 ± 0.0011, 120.0, 15.00, −3.200 (the rows
+/// `identify` chooses for this record: the filtered equation with the force's delay; on
+/// this noise-free record the mass's standard error, from the encoder's rounding alone,
+/// is five times smaller than its error); the records are planned and noise-free but for
+/// the encoder, so every run gives these. Long: set `DYNID_SERVO_LONG` to run it.
 #[test]
 fn the_plant_of_a_closed_loop_record_refines_in_sub_records() {
     if std::env::var("DYNID_SERVO_LONG").is_err() {
@@ -398,30 +401,69 @@ fn identify_estimates_the_delay_of_a_held_force() {
     assert!(!dir.path().join("delay.dynm").exists());
 }
 
-/// `identify` with the default rows on the planned axis (Coulomb friction, a measured force,
-/// an encoder without noise worth a correction) points at `--filtered-equation
-/// --input-delay`; with them, or for a model without Coulomb friction, it does not.
+/// `identify` with the defaults on the planned axis (Coulomb friction, a measured force,
+/// an encoder without noise worth a correction) chooses the rows of the filtered equation
+/// with the input's delay, says so, and gives what the two flags give; with
+/// `--instrument-rows`, or from moment statistics (`--from`), it keeps the instrument rows
+/// and points at the choice in a note; for a model without Coulomb friction it does
+/// neither.
 #[test]
-fn identify_points_a_servo_record_at_the_filtered_rows() {
+fn identify_chooses_the_filtered_rows_for_a_servo_record() {
     let dir = tempfile::tempdir().unwrap();
     let files = &planned().1;
     let planned_model = model_path("servo_axis_planned.dyn");
     let open = write_model(dir.path(), "open.dyn", OPEN_LOOP);
-    let hint = "there --filtered-equation --input-delay may be far more precise";
-    let run = |model: &Path, extra: &[&str]| -> String {
+    let chosen = "rows: the filtered equation with the input's delay, chosen for this record";
+    let hint = "which `identify` chooses for such records from their files";
+    let run = |model: &Path, extra: &[&str], name: &str| -> (String, serde_json::Value) {
         let mut args: Vec<&std::ffi::OsStr> = vec!["identify".as_ref(), model.as_os_str()];
         args.extend(files.iter().map(|p| p.as_os_str()));
         args.extend(extra.iter().map(std::ffi::OsStr::new));
         args.push("--no-corner-check".as_ref());
-        let o = dynid().args(&args).output().unwrap();
-        assert!(o.status.success(), "{}", stderr(&o));
-        String::from_utf8_lossy(&o.stdout).into_owned()
+        run_json(&args, &dir.path().join(name))
     };
-    let text = run(&planned_model, &[]);
+    let (text, auto) = run(&planned_model, &[], "auto.json");
+    assert!(text.contains(chosen), "{text}");
+    assert!(text.contains("= u(t − "), "{text}");
+    assert!(!text.contains(hint), "{text}");
+    assert_eq!(auto["filter"]["auto_rows"], true, "{}", auto["filter"]);
+    let (_, asked) = run(
+        &planned_model,
+        &["--filtered-equation", "--input-delay"],
+        "asked.json",
+    );
+    assert_eq!(asked["filter"]["auto_rows"], false, "{}", asked["filter"]);
+    assert_eq!(auto["parameters"], asked["parameters"]);
+    let (text, kept) = run(&planned_model, &["--instrument-rows"], "kept.json");
+    assert!(!text.contains(chosen), "{text}");
     assert!(text.contains("Note: Coulomb friction"), "{text}");
     assert!(text.contains(hint), "{text}");
-    let text = run(&planned_model, &["--filtered-equation", "--input-delay"]);
-    assert!(!text.contains(hint), "{text}");
-    let text = run(&open, &[]);
-    assert!(!text.contains(hint), "{text}");
+    assert!(
+        kept["parameters"]["u.delay"].is_null(),
+        "{}",
+        kept["parameters"]
+    );
+    let (text, _) = run(&open, &[], "open.json");
+    assert!(!text.contains(chosen) && !text.contains(hint), "{text}");
+    // From moment statistics: the instrument rows, and the note.
+    let dynm = dir.path().join("planned.dynm");
+    let o = dynid()
+        .arg("moments")
+        .arg(&planned_model)
+        .args(files)
+        .arg("--out")
+        .arg(&dynm)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = dynid()
+        .arg("identify")
+        .arg(&planned_model)
+        .arg("--from")
+        .arg(&dynm)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(!text.contains(chosen) && text.contains(hint), "{text}");
 }

@@ -87,7 +87,7 @@ fn cubic_coulomb_25_s_at_1_khz_within_five_percent() {
     for seed in 31..36 {
         let recs = simulate(&ir, 25.0, 0.0, seed);
         assert_eq!(recs[0].len(), 25_000);
-        let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
+        let id = common::identify_with(&ir, &recs, &IdentifyOptions::instrument_rows())
             .expect("25 s records identify");
         let case = format!("sdof_cubic_coulomb, 3 × 25 s at 1 kHz, seed {seed}");
         largest = largest.max(check(&case, &ir, &id, 0.002).abs());
@@ -129,7 +129,7 @@ fn si_rig_25_s_at_1_khz_within_five_percent() {
     let (mut held, mut failed) = (0.0f64, f64::INFINITY);
     for seed in (32..).take(n) {
         let recs = simulate(&ir, 25.0, 0.0, seed);
-        let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
+        let id = common::identify_with(&ir, &recs, &IdentifyOptions::instrument_rows())
             .expect("25 s records identify");
         let case = format!("SI rig, 3 × 25 s at 1 kHz, seed {}", common::seed(seed));
         match within(&case, &ir, &id, 0.02) {
@@ -178,7 +178,7 @@ fn free_mass_25_s_at_1_khz_within_five_percent() {
     let mut residual = 0.0f64;
     for seed in [33, 34, 35] {
         let recs = simulate(&ir, 25.0, 0.0, seed);
-        let id = common::identify_with(&ir, &recs, &IdentifyOptions::default())
+        let id = common::identify_with(&ir, &recs, &IdentifyOptions::instrument_rows())
             .expect("25 s records identify");
         println!("seed {seed}: largest residual {:.3}", largest_residual(&id));
         residual = residual.max(largest_residual(&id));
@@ -251,7 +251,7 @@ fn a_record_too_short_for_any_corner_says_how_long_it_must_be() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/sdof_cubic_coulomb.dyn");
     let ir = dsl_parser::compile_file(&path).unwrap();
     let recs = simulate(&ir, 0.15, 0.0, 35);
-    let err = common::identify_with(&ir, &recs, &IdentifyOptions::default()).unwrap_err();
+    let err = common::identify_with(&ir, &recs, &IdentifyOptions::instrument_rows()).unwrap_err();
     let IdentifyError::TooShort { advice, need, .. } = &err else {
         panic!("expected TooShort, got {err:?}");
     };

@@ -1390,6 +1390,7 @@ class Model:
         filtered_equation: bool = False,
         weighted_rows: bool = False,
         input_delay: bool = False,
+        instrument_rows: bool = False,
     ) -> Identification:
         """Identify the unknown parameters, all levels pooled, as ``dynid identify``.
 
@@ -1442,6 +1443,13 @@ class Model:
             one more parameter per input, ``"u.delay"`` in seconds, for a force that acts
             later than it is recorded or changes between samples in a way a straight line
             does not follow (docs/method.md §2, "The input between samples").
+        instrument_rows : bool, default False
+            Keep the instrument rows where ``identify`` would choose the filtered equation
+            with the input's delay (``--instrument-rows``): it chooses them, and says so in
+            ``filter.auto_rows`` of ``to_dict()``, on a servo axis's kind of record (friction
+            with a sign of a velocity, a measured force, velocities estimated from measured
+            positions with no noise worth a correction) when no other row, corner or noise
+            keyword is given.
 
         Returns
         -------
@@ -1491,6 +1499,7 @@ class Model:
             bool(filtered_equation),
             bool(weighted_rows),
             bool(input_delay),
+            bool(instrument_rows),
         )
         return Identification(_json.loads(js), eq, model=self, data=data)
 

@@ -202,7 +202,7 @@ impl CompiledModel {
     /// Identify the unknown parameters from all levels pooled: `(json, equations)`, the
     /// JSON that of `dynid identify --json` (with `refined` after a refinement), the corner
     /// check included unless `corner_check` is false (`--no-corner-check`).
-    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None, corner_check=true, filtered_equation=false, weighted_rows=false, input_delay=false))]
+    #[pyo3(signature = (levels, corners=None, noise_correction=true, balance=false, column_chains=false, keep_rests=false, allow_large=false, refine=None, progress=None, corner_check=true, filtered_equation=false, weighted_rows=false, input_delay=false, instrument_rows=false))]
     #[allow(clippy::too_many_arguments)]
     fn identify(
         &self,
@@ -220,6 +220,7 @@ impl CompiledModel {
         filtered_equation: bool,
         weighted_rows: bool,
         input_delay: bool,
+        instrument_rows: bool,
     ) -> PyResult<(String, String)> {
         guarded(py, || {
             let ir = &self.ir;
@@ -240,6 +241,7 @@ impl CompiledModel {
                 filtered_equation,
                 weighted_rows,
                 input_delay,
+                instrument_rows,
             }
             .options();
             let id = py
@@ -247,7 +249,7 @@ impl CompiledModel {
                     let levels = refs(&sources);
                     let mut id = identify(ir, &levels, &opts)?;
                     if corner_check {
-                        check_corners(ir, &levels, &opts, &mut id);
+                        check_corners(ir, &levels, &opts.as_identified(&id), &mut id);
                     }
                     Ok::<_, dynid::runtime::IdentifyError>(id)
                 })

@@ -117,6 +117,7 @@ pub(crate) fn moment_design(
             filtered_equation,
             weighted_rows,
             input_delay: false,
+            instrument_rows: true,
         }
         .options();
         let design = py
@@ -140,6 +141,9 @@ pub(crate) struct EstimatorKeywords {
     pub weighted_rows: bool,
     /// `--input-delay` (`identify` only: moment statistics do not carry it).
     pub input_delay: bool,
+    /// `instrument_rows` (`identify` only: moment statistics always hold the instrument
+    /// rows, or the filtered equation's without the delay).
+    pub instrument_rows: bool,
 }
 
 impl EstimatorKeywords {
@@ -155,6 +159,7 @@ impl EstimatorKeywords {
             filtered: self.filtered_equation,
             efficient: self.weighted_rows,
             input_delay: self.input_delay,
+            auto_rows: !self.instrument_rows,
             ..Default::default()
         }
     }

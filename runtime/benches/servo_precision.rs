@@ -1,6 +1,8 @@
 //! Precision side by side on the simulated servo axis: dynid's `identify` with the
-//! defaults (and with the highest corner raised to the band where the encoder stands above
-//! its noise floor, `to noise floor` and `chains 2-step nf`, capped at a fifth of the
+//! defaults (which on these records choose the rows of the filtered equation with the force's
+//! delay: row `dynid (defaults)`, the same figures as `dynid filtered + delay`), with the
+//! instrument rows (`dynid instrument rows`, `--instrument-rows`; and with the highest
+//! corner raised to the band where the encoder stands above its noise floor, `to noise floor` and `chains 2-step nf`, capped at a fifth of the
 //! Nyquist frequency) against the two classical regressions of [`dynid_runtime::baseline`] on the
 //! same records — IDIM-LS (zero-phase Butterworth at 100 Hz, order 4, decimation 5, rows
 //! at rest below 1 mm/s dropped; classical and Newey–West standard errors) and SVF-LS
@@ -23,9 +25,20 @@
 //! by about `1/√(2n)` of its value, ±20 % at twelve — enough to turn a tie into a ranking.
 //! At twelve seeds IDIM-LS's offset on the planned moves came out 0.234 % against dynid's
 //! 0.319 % (filtered rows with the delay); at forty-eight both baselines that leave the
-//! rests out and dynid's defaults and filtered rows at their designed corners lie between
+//! rests out and dynid's instrument rows and filtered rows at their designed corners lie between
 //! 0.284 and 0.302 %: a tie (the force's noise is all that differs between the seeds of a
 //! planned record).
+//!
+//! **The defaults' choice.** `identify` takes the instrument rows first and, on a record of
+//! a servo axis's kind (docs/method.md §2, "The rows `identify` chooses"), identifies again
+//! with the rows of the filtered equation and the force's delay: `dynid (defaults)` shows
+//! the same figures as `dynid filtered + delay` on all three suites, so the choice was made
+//! on every seed. It costs the instrument rows' pass on top of the filtered rows' three
+//! (the corner search): `ms/rec` 34.9, 101.3 and 122.4 on the three suites against 27.2,
+//! 77.5 and 94.5 for the filtered rows asked for and 5.1, 23.1 and 29.5 for the instrument
+//! rows alone (this run): four to seven times the instrument rows' time, for RMS errors 50
+//! to 500 times smaller on the random set points, 2.7 to 3.7 times on the planned moves
+//! (the offset level) and 17 to 160 times with the Stribeck term (the offset level).
 //!
 //! `dynid filt.+delay, v rec.` is `dynid filtered + delay` given the simulated velocity as
 //! a measured column of the same run: what is left of its error once the velocity
@@ -42,7 +55,7 @@
 //! 0.004, r 0.009, f0 0.078 % — after that change 0.0007, 0.0019, 0.0053, 0.017 %.
 //!
 //! Measured (2026-11-27; seeds 1–48; `cargo bench -p dynid-runtime --bench
-//! servo_precision`, 40 s in all — on a machine shared with other builds, so `ms/rec` is
+//! servo_precision`, 55 s in all — on a machine shared with other builds, so `ms/rec` is
 //! only roughly comparable within the table; errors and mean SE in % of the truth, `cover`
 //! the fraction of seeds with |error| < 2 SE, `e/SE` the RMS of error / SE; the planned
 //! records carry white noise of 1 % of the force's spread on the force, drawn from the
@@ -58,58 +71,62 @@
 //!
 //! random reference
 //! method                  param   RMS err  mean err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.021%    0.000%    0.024%     96%    1.09       5.6
-//! dynid (defaults)            d    0.903%   -0.239%    1.146%     96%    0.90       5.6
-//! dynid (defaults)            r    2.538%    0.463%    3.205%    100%    0.84       5.6
-//! dynid (defaults)           f0    1.463%    0.567%    1.646%     96%    1.08       5.6
-//! dynid --column-chains       m    0.035%    0.015%    0.029%     94%    1.38       5.9
-//! dynid --column-chains       d    0.343%    0.019%    0.345%     90%    1.14       5.9
-//! dynid --column-chains       r    0.879%   -0.267%    0.858%     90%    1.50       5.9
-//! dynid --column-chains      f0    1.538%    0.274%    1.175%     88%    1.29       5.9
-//! dynid chains, 2-step        m    0.013%   -0.008%    0.009%     75%    2.40       6.1
-//! dynid chains, 2-step        d    0.196%    0.022%    0.124%     71%    2.39       6.1
-//! dynid chains, 2-step        r    0.635%   -0.408%    0.320%     56%    2.73       6.1
-//! dynid chains, 2-step       f0    1.084%    0.384%    0.856%     81%    1.66       6.1
-//! dynid to noise floor        m    0.221%   -0.040%    0.149%     98%    0.89       4.7
-//! dynid to noise floor        d    1.763%   -0.299%    2.479%    100%    0.68       4.7
-//! dynid to noise floor        r    4.833%    0.559%    6.855%    100%    0.68       4.7
-//! dynid to noise floor       f0    2.668%    0.589%    3.118%     96%    0.93       4.7
-//! dynid chains 2-step nf      m    0.015%   -0.004%    0.014%     85%    1.36       5.9
-//! dynid chains 2-step nf      d    0.210%    0.040%    0.209%     94%    1.10       5.9
-//! dynid chains 2-step nf      r    0.723%   -0.466%    0.559%     83%    1.84       5.9
-//! dynid chains 2-step nf     f0    1.645%   -0.123%    1.717%     90%    1.25       5.9
-//! dynid --keep-rests          m    0.021%    0.000%    0.024%     96%    1.09       4.4
-//! dynid --keep-rests          d    0.903%   -0.239%    1.146%     96%    0.90       4.4
-//! dynid --keep-rests          r    2.538%    0.463%    3.205%    100%    0.84       4.4
-//! dynid --keep-rests         f0    1.463%    0.567%    1.646%     96%    1.08       4.4
-//! dynid --filtered-eq.        m    0.006%    0.006%    0.003%     71%    1.93       7.4
-//! dynid --filtered-eq.        d    0.154%   -0.151%    0.023%      0%    6.84       7.4
-//! dynid --filtered-eq.        r    0.098%    0.080%    0.053%     67%    1.85       7.4
-//! dynid --filtered-eq.       f0    0.103%   -0.005%    0.185%    100%    0.56       7.4
-//! dynid filtered 20 Hz        m    0.023%    0.023%    0.004%      0%    5.95       6.3
-//! dynid filtered 20 Hz        d    0.179%   -0.177%    0.023%      0%    7.86       6.3
-//! dynid filtered 20 Hz        r    0.264%    0.258%    0.056%      0%    4.72       6.3
-//! dynid filtered 20 Hz       f0    0.166%    0.021%    0.202%    100%    0.83       6.3
-//! dynid filtered 160 Hz       m    0.131%   -0.131%    0.004%      0%   32.89       7.3
-//! dynid filtered 160 Hz       d    0.125%   -0.123%    0.023%      0%    5.45       7.3
-//! dynid filtered 160 Hz       r    0.063%    0.016%    0.055%     96%    1.15       7.3
-//! dynid filtered 160 Hz      f0    0.091%   -0.010%    0.213%    100%    0.43       7.3
-//! dynid --input-delay         m    0.024%    0.015%    0.023%     85%    1.37       4.6
-//! dynid --input-delay         d    0.646%   -0.069%    0.652%     96%    0.89       4.6
-//! dynid --input-delay         r    1.822%    0.218%    1.842%     98%    0.81       4.6
-//! dynid --input-delay        f0    0.790%    0.014%    1.043%     98%    0.89       4.6
-//! dynid filtered + delay      m    0.000%    0.000%    0.000%     96%    1.15      28.1
-//! dynid filtered + delay      d    0.002%    0.000%    0.002%     94%    1.06      28.1
-//! dynid filtered + delay      r    0.005%   -0.000%    0.004%     88%    1.23      28.1
-//! dynid filtered + delay     f0    0.018%    0.003%    0.015%     96%    1.21      28.1
-//! dynid filt.+delay 4 sect.      m    0.001%   -0.000%    0.000%     69%    1.83      20.4
-//! dynid filt.+delay 4 sect.      d    0.002%    0.000%    0.002%     96%    1.05      20.4
-//! dynid filt.+delay 4 sect.      r    0.005%   -0.000%    0.005%     94%    1.18      20.4
-//! dynid filt.+delay 4 sect.     f0    0.017%   -0.000%    0.016%     90%    1.14      20.4
-//! dynid filt.+delay, v rec.      m    0.000%    0.000%    0.000%     94%    1.17      21.8
-//! dynid filt.+delay, v rec.      d    0.002%    0.000%    0.002%     94%    1.04      21.8
-//! dynid filt.+delay, v rec.      r    0.005%   -0.000%    0.004%     90%    1.19      21.8
-//! dynid filt.+delay, v rec.     f0    0.017%    0.003%    0.014%     96%    1.18      21.8
+//! dynid (defaults)            m    0.000%    0.000%    0.000%     96%    1.15      34.9
+//! dynid (defaults)            d    0.002%    0.000%    0.002%     94%    1.06      34.9
+//! dynid (defaults)            r    0.005%   -0.000%    0.004%     88%    1.23      34.9
+//! dynid (defaults)           f0    0.018%    0.003%    0.015%     96%    1.21      34.9
+//! dynid instrument rows       m    0.021%    0.000%    0.024%     96%    1.09       5.1
+//! dynid instrument rows       d    0.903%   -0.239%    1.146%     96%    0.90       5.1
+//! dynid instrument rows       r    2.538%    0.463%    3.205%    100%    0.84       5.1
+//! dynid instrument rows      f0    1.463%    0.567%    1.646%     96%    1.08       5.1
+//! dynid --column-chains       m    0.035%    0.015%    0.029%     94%    1.38       6.1
+//! dynid --column-chains       d    0.343%    0.019%    0.345%     90%    1.14       6.1
+//! dynid --column-chains       r    0.879%   -0.267%    0.858%     90%    1.50       6.1
+//! dynid --column-chains      f0    1.538%    0.274%    1.175%     88%    1.29       6.1
+//! dynid chains, 2-step        m    0.013%   -0.008%    0.009%     75%    2.40       5.9
+//! dynid chains, 2-step        d    0.196%    0.022%    0.124%     71%    2.39       5.9
+//! dynid chains, 2-step        r    0.635%   -0.408%    0.320%     56%    2.73       5.9
+//! dynid chains, 2-step       f0    1.084%    0.384%    0.856%     81%    1.66       5.9
+//! dynid to noise floor        m    0.221%   -0.040%    0.149%     98%    0.89       4.8
+//! dynid to noise floor        d    1.763%   -0.299%    2.479%    100%    0.68       4.8
+//! dynid to noise floor        r    4.833%    0.559%    6.855%    100%    0.68       4.8
+//! dynid to noise floor       f0    2.668%    0.589%    3.118%     96%    0.93       4.8
+//! dynid chains 2-step nf      m    0.015%   -0.004%    0.014%     85%    1.36       6.2
+//! dynid chains 2-step nf      d    0.210%    0.040%    0.209%     94%    1.10       6.2
+//! dynid chains 2-step nf      r    0.723%   -0.466%    0.559%     83%    1.84       6.2
+//! dynid chains 2-step nf     f0    1.645%   -0.123%    1.717%     90%    1.25       6.2
+//! dynid --keep-rests          m    0.021%    0.000%    0.024%     96%    1.09       4.6
+//! dynid --keep-rests          d    0.903%   -0.239%    1.146%     96%    0.90       4.6
+//! dynid --keep-rests          r    2.538%    0.463%    3.205%    100%    0.84       4.6
+//! dynid --keep-rests         f0    1.463%    0.567%    1.646%     96%    1.08       4.6
+//! dynid --filtered-eq.        m    0.006%    0.006%    0.003%     71%    1.93       7.7
+//! dynid --filtered-eq.        d    0.154%   -0.151%    0.023%      0%    6.84       7.7
+//! dynid --filtered-eq.        r    0.098%    0.080%    0.053%     67%    1.85       7.7
+//! dynid --filtered-eq.       f0    0.103%   -0.005%    0.185%    100%    0.56       7.7
+//! dynid filtered 20 Hz        m    0.023%    0.023%    0.004%      0%    5.95       6.8
+//! dynid filtered 20 Hz        d    0.179%   -0.177%    0.023%      0%    7.86       6.8
+//! dynid filtered 20 Hz        r    0.264%    0.258%    0.056%      0%    4.72       6.8
+//! dynid filtered 20 Hz       f0    0.166%    0.021%    0.202%    100%    0.83       6.8
+//! dynid filtered 160 Hz       m    0.131%   -0.131%    0.004%      0%   32.89       7.6
+//! dynid filtered 160 Hz       d    0.125%   -0.123%    0.023%      0%    5.45       7.6
+//! dynid filtered 160 Hz       r    0.063%    0.016%    0.055%     96%    1.15       7.6
+//! dynid filtered 160 Hz      f0    0.091%   -0.010%    0.213%    100%    0.43       7.6
+//! dynid --input-delay         m    0.024%    0.015%    0.023%     85%    1.37       4.8
+//! dynid --input-delay         d    0.646%   -0.069%    0.652%     96%    0.89       4.8
+//! dynid --input-delay         r    1.822%    0.218%    1.842%     98%    0.81       4.8
+//! dynid --input-delay        f0    0.790%    0.014%    1.043%     98%    0.89       4.8
+//! dynid filtered + delay      m    0.000%    0.000%    0.000%     96%    1.15      27.2
+//! dynid filtered + delay      d    0.002%    0.000%    0.002%     94%    1.06      27.2
+//! dynid filtered + delay      r    0.005%   -0.000%    0.004%     88%    1.23      27.2
+//! dynid filtered + delay     f0    0.018%    0.003%    0.015%     96%    1.21      27.2
+//! dynid filt.+delay 4 sect.      m    0.001%   -0.000%    0.000%     69%    1.83      20.5
+//! dynid filt.+delay 4 sect.      d    0.002%    0.000%    0.002%     96%    1.05      20.5
+//! dynid filt.+delay 4 sect.      r    0.005%   -0.000%    0.005%     94%    1.18      20.5
+//! dynid filt.+delay 4 sect.     f0    0.017%   -0.000%    0.016%     90%    1.14      20.5
+//! dynid filt.+delay, v rec.      m    0.000%    0.000%    0.000%     94%    1.17      22.1
+//! dynid filt.+delay, v rec.      d    0.002%    0.000%    0.002%     94%    1.04      22.1
+//! dynid filt.+delay, v rec.      r    0.005%   -0.000%    0.004%     90%    1.19      22.1
+//! dynid filt.+delay, v rec.     f0    0.017%    0.003%    0.014%     96%    1.18      22.1
 //! IDIM-LS, OLS errors         m    0.024%    0.021%    0.016%     83%    1.47       2.1
 //! IDIM-LS, OLS errors         d    0.156%    0.146%    0.088%     71%    1.73       2.1
 //! IDIM-LS, OLS errors         r    0.767%   -0.753%    0.196%      0%    3.88       2.1
@@ -118,81 +135,85 @@
 //! IDIM-LS, HAC errors         d    0.156%    0.146%    0.063%     35%    2.39       2.1
 //! IDIM-LS, HAC errors         r    0.767%   -0.753%    0.167%      0%    4.55       2.1
 //! IDIM-LS, HAC errors        f0    0.574%    0.055%    0.579%     96%    0.96       2.1
-//! SVF-LS 10 Hz, HAC           m    0.097%    0.095%    0.021%      0%    4.56     144.5
-//! SVF-LS 10 Hz, HAC           d    0.209%    0.100%    0.130%     90%    1.37     144.5
-//! SVF-LS 10 Hz, HAC           r    0.784%   -0.619%    0.352%     67%    1.84     144.5
-//! SVF-LS 10 Hz, HAC          f0    1.858%   -0.266%    1.619%    100%    1.00     144.5
-//! SVF-LS 80 Hz, HAC           m    0.026%    0.026%    0.006%      0%    4.18      21.0
-//! SVF-LS 80 Hz, HAC           d    0.095%   -0.088%    0.037%     33%    3.31      21.0
-//! SVF-LS 80 Hz, HAC           r    0.145%   -0.104%    0.095%     94%    1.32      21.0
-//! SVF-LS 80 Hz, HAC          f0    0.249%    0.026%    0.403%    100%    0.56      21.0
-//! SVF-LS 80 Hz, EIV comp.      m    0.033%    0.033%    0.006%      0%    5.31      21.2
-//! SVF-LS 80 Hz, EIV comp.      d    0.096%   -0.088%    0.037%     33%    3.29      21.2
-//! SVF-LS 80 Hz, EIV comp.      r    0.145%   -0.104%    0.095%     94%    1.32      21.2
-//! SVF-LS 80 Hz, EIV comp.     f0    0.250%    0.027%    0.402%    100%    0.56      21.2
-//! SVF-LS 80 Hz, rests out      m    0.008%    0.007%    0.005%     88%    1.50      19.8
-//! SVF-LS 80 Hz, rests out      d    0.143%   -0.141%    0.025%      0%    5.64      19.8
-//! SVF-LS 80 Hz, rests out      r    0.067%    0.041%    0.058%     94%    1.12      19.8
-//! SVF-LS 80 Hz, rests out     f0    0.119%   -0.004%    0.254%    100%    0.47      19.8
-//! SVF-LS 80, rests+EIV        m    0.014%    0.014%    0.005%      8%    2.90      19.9
-//! SVF-LS 80, rests+EIV        d    0.144%   -0.142%    0.025%      0%    5.68      19.9
-//! SVF-LS 80, rests+EIV        r    0.069%    0.045%    0.058%     94%    1.16      19.9
-//! SVF-LS 80, rests+EIV       f0    0.118%   -0.003%    0.253%    100%    0.46      19.9
+//! SVF-LS 10 Hz, HAC           m    0.097%    0.095%    0.021%      0%    4.56     146.0
+//! SVF-LS 10 Hz, HAC           d    0.209%    0.100%    0.130%     90%    1.37     146.0
+//! SVF-LS 10 Hz, HAC           r    0.784%   -0.619%    0.352%     67%    1.84     146.0
+//! SVF-LS 10 Hz, HAC          f0    1.858%   -0.266%    1.619%    100%    1.00     146.0
+//! SVF-LS 80 Hz, HAC           m    0.026%    0.026%    0.006%      0%    4.18      21.6
+//! SVF-LS 80 Hz, HAC           d    0.095%   -0.088%    0.037%     33%    3.31      21.6
+//! SVF-LS 80 Hz, HAC           r    0.145%   -0.104%    0.095%     94%    1.32      21.6
+//! SVF-LS 80 Hz, HAC          f0    0.249%    0.026%    0.403%    100%    0.56      21.6
+//! SVF-LS 80 Hz, EIV comp.      m    0.033%    0.033%    0.006%      0%    5.31      21.1
+//! SVF-LS 80 Hz, EIV comp.      d    0.096%   -0.088%    0.037%     33%    3.29      21.1
+//! SVF-LS 80 Hz, EIV comp.      r    0.145%   -0.104%    0.095%     94%    1.32      21.1
+//! SVF-LS 80 Hz, EIV comp.     f0    0.250%    0.027%    0.402%    100%    0.56      21.1
+//! SVF-LS 80 Hz, rests out      m    0.008%    0.007%    0.005%     88%    1.50      20.3
+//! SVF-LS 80 Hz, rests out      d    0.143%   -0.141%    0.025%      0%    5.64      20.3
+//! SVF-LS 80 Hz, rests out      r    0.067%    0.041%    0.058%     94%    1.12      20.3
+//! SVF-LS 80 Hz, rests out     f0    0.119%   -0.004%    0.254%    100%    0.47      20.3
+//! SVF-LS 80, rests+EIV        m    0.014%    0.014%    0.005%      8%    2.90      20.2
+//! SVF-LS 80, rests+EIV        d    0.144%   -0.142%    0.025%      0%    5.68      20.2
+//! SVF-LS 80, rests+EIV        r    0.069%    0.045%    0.058%     94%    1.16      20.2
+//! SVF-LS 80, rests+EIV       f0    0.118%   -0.003%    0.253%    100%    0.46      20.2
 //!
 //! planned moves
 //! method                  param   RMS err  mean err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    0.030%    0.014%    0.038%    100%    0.81      23.5
-//! dynid (defaults)            d    0.146%    0.062%    0.165%     92%    0.95      23.5
-//! dynid (defaults)            r    0.229%   -0.136%    0.239%     92%    1.01      23.5
-//! dynid (defaults)           f0    0.286%   -0.026%    0.299%     96%    0.99      23.5
+//! dynid (defaults)            m    0.008%    0.002%    0.008%     92%    1.10     101.3
+//! dynid (defaults)            d    0.054%   -0.001%    0.048%     90%    1.15     101.3
+//! dynid (defaults)            r    0.074%   -0.003%    0.068%     90%    1.09     101.3
+//! dynid (defaults)           f0    0.287%    0.014%    0.274%     98%    1.06     101.3
+//! dynid instrument rows       m    0.030%    0.014%    0.038%    100%    0.81      23.1
+//! dynid instrument rows       d    0.146%    0.062%    0.165%     92%    0.95      23.1
+//! dynid instrument rows       r    0.229%   -0.136%    0.239%     92%    1.01      23.1
+//! dynid instrument rows      f0    0.286%   -0.026%    0.299%     96%    0.99      23.1
 //! dynid --column-chains       m    0.064%    0.057%    0.045%     90%    1.40      24.6
 //! dynid --column-chains       d    0.419%    0.390%    0.192%     50%    2.16      24.6
 //! dynid --column-chains       r    0.614%   -0.577%    0.265%     46%    2.29      24.6
 //! dynid --column-chains      f0    0.293%   -0.079%    0.382%     98%    0.84      24.6
-//! dynid chains, 2-step        m    0.069%    0.064%    0.027%     42%    2.66      25.5
-//! dynid chains, 2-step        d    0.201%    0.141%    0.142%     81%    1.69      25.5
-//! dynid chains, 2-step        r    0.283%   -0.199%    0.201%     83%    1.50      25.5
-//! dynid chains, 2-step       f0    0.332%   -0.063%    0.321%     92%    1.17      25.5
-//! dynid to noise floor        m    0.057%   -0.054%    0.014%     12%    5.51      23.2
-//! dynid to noise floor        d    0.378%   -0.361%    0.154%     29%    2.44      23.2
-//! dynid to noise floor        r    0.418%    0.386%    0.235%     77%    1.70      23.2
-//! dynid to noise floor       f0    0.288%   -0.044%    0.427%    100%    0.72      23.2
-//! dynid chains 2-step nf      m    0.030%   -0.006%    0.073%     96%    0.89      24.8
-//! dynid chains 2-step nf      d    0.453%   -0.424%    1.118%    100%    0.51      24.8
-//! dynid chains 2-step nf      r    0.536%    0.492%    1.320%    100%    0.57      24.8
-//! dynid chains 2-step nf     f0    0.482%   -0.209%    4.272%    100%    0.13      24.8
-//! dynid --keep-rests          m   23.413%   23.413%    2.847%      0%    8.22      22.9
-//! dynid --keep-rests          d   67.288%   67.288%    6.201%      0%   39.48      22.9
-//! dynid --keep-rests          r   67.251%  -67.251%   11.085%      0%    6.07      22.9
-//! dynid --keep-rests         f0    7.036%   -7.032%   20.816%    100%    0.34      22.9
-//! dynid --filtered-eq.        m    0.010%    0.007%    0.009%     94%    1.15      25.3
-//! dynid --filtered-eq.        d    0.258%   -0.254%    0.048%      0%    5.44      25.3
-//! dynid --filtered-eq.        r    0.187%    0.173%    0.071%     33%    2.65      25.3
-//! dynid --filtered-eq.       f0    0.288%    0.004%    0.298%     98%    0.98      25.3
-//! dynid filtered 20 Hz        m    0.055%    0.053%    0.015%      4%    3.66      24.3
-//! dynid filtered 20 Hz        d    0.154%   -0.144%    0.053%     25%    3.03      24.3
-//! dynid filtered 20 Hz        r    0.135%    0.109%    0.081%     75%    1.69      24.3
-//! dynid filtered 20 Hz       f0    0.344%    0.007%    0.321%     94%    1.08      24.3
-//! dynid filtered 160 Hz       m    0.170%   -0.170%    0.014%      0%   12.57      25.4
-//! dynid filtered 160 Hz       d    0.242%   -0.238%    0.052%      0%    4.67      25.4
-//! dynid filtered 160 Hz       r    0.169%    0.160%    0.073%     44%    2.34      25.4
-//! dynid filtered 160 Hz      f0    0.280%    0.032%    0.342%    100%    0.82      25.4
-//! dynid --input-delay         m    0.044%    0.038%    0.028%     75%    1.62      23.5
-//! dynid --input-delay         d    0.267%    0.214%    0.236%     85%    1.26      23.5
-//! dynid --input-delay         r    0.313%   -0.229%    0.325%     94%    1.03      23.5
-//! dynid --input-delay        f0    0.289%   -0.051%    0.317%     96%    0.94      23.5
-//! dynid filtered + delay      m    0.008%    0.002%    0.008%     92%    1.10      80.2
-//! dynid filtered + delay      d    0.054%   -0.001%    0.048%     90%    1.15      80.2
-//! dynid filtered + delay      r    0.074%   -0.003%    0.068%     90%    1.09      80.2
-//! dynid filtered + delay     f0    0.287%    0.014%    0.274%     98%    1.06      80.2
-//! dynid filt.+delay 4 sect.      m    0.008%    0.001%    0.009%     94%    1.08      75.3
-//! dynid filt.+delay 4 sect.      d    0.055%   -0.010%    0.051%     90%    1.11      75.3
-//! dynid filt.+delay 4 sect.      r    0.074%    0.015%    0.074%     94%    1.01      75.3
-//! dynid filt.+delay 4 sect.     f0    0.290%   -0.014%    0.283%     96%    1.05      75.3
-//! dynid filt.+delay, v rec.      m    0.008%    0.002%    0.008%     92%    1.09      19.5
-//! dynid filt.+delay, v rec.      d    0.054%    0.000%    0.048%     88%    1.15      19.5
-//! dynid filt.+delay, v rec.      r    0.074%   -0.005%    0.068%     90%    1.08      19.5
-//! dynid filt.+delay, v rec.     f0    0.287%    0.014%    0.274%     98%    1.06      19.5
+//! dynid chains, 2-step        m    0.069%    0.064%    0.027%     42%    2.66      24.6
+//! dynid chains, 2-step        d    0.201%    0.141%    0.142%     81%    1.69      24.6
+//! dynid chains, 2-step        r    0.283%   -0.199%    0.201%     83%    1.50      24.6
+//! dynid chains, 2-step       f0    0.332%   -0.063%    0.321%     92%    1.17      24.6
+//! dynid to noise floor        m    0.057%   -0.054%    0.014%     12%    5.51      23.0
+//! dynid to noise floor        d    0.378%   -0.361%    0.154%     29%    2.44      23.0
+//! dynid to noise floor        r    0.418%    0.386%    0.235%     77%    1.70      23.0
+//! dynid to noise floor       f0    0.288%   -0.044%    0.427%    100%    0.72      23.0
+//! dynid chains 2-step nf      m    0.030%   -0.006%    0.073%     96%    0.89      25.3
+//! dynid chains 2-step nf      d    0.453%   -0.424%    1.118%    100%    0.51      25.3
+//! dynid chains 2-step nf      r    0.536%    0.492%    1.320%    100%    0.57      25.3
+//! dynid chains 2-step nf     f0    0.482%   -0.209%    4.272%    100%    0.13      25.3
+//! dynid --keep-rests          m   23.413%   23.413%    2.847%      0%    8.22      23.0
+//! dynid --keep-rests          d   67.288%   67.288%    6.201%      0%   39.48      23.0
+//! dynid --keep-rests          r   67.251%  -67.251%   11.085%      0%    6.07      23.0
+//! dynid --keep-rests         f0    7.036%   -7.032%   20.816%    100%    0.34      23.0
+//! dynid --filtered-eq.        m    0.010%    0.007%    0.009%     94%    1.15      25.0
+//! dynid --filtered-eq.        d    0.258%   -0.254%    0.048%      0%    5.44      25.0
+//! dynid --filtered-eq.        r    0.187%    0.173%    0.071%     33%    2.65      25.0
+//! dynid --filtered-eq.       f0    0.288%    0.004%    0.298%     98%    0.98      25.0
+//! dynid filtered 20 Hz        m    0.055%    0.053%    0.015%      4%    3.66      23.9
+//! dynid filtered 20 Hz        d    0.154%   -0.144%    0.053%     25%    3.03      23.9
+//! dynid filtered 20 Hz        r    0.135%    0.109%    0.081%     75%    1.69      23.9
+//! dynid filtered 20 Hz       f0    0.344%    0.007%    0.321%     94%    1.08      23.9
+//! dynid filtered 160 Hz       m    0.170%   -0.170%    0.014%      0%   12.57      25.0
+//! dynid filtered 160 Hz       d    0.242%   -0.238%    0.052%      0%    4.67      25.0
+//! dynid filtered 160 Hz       r    0.169%    0.160%    0.073%     44%    2.34      25.0
+//! dynid filtered 160 Hz      f0    0.280%    0.032%    0.342%    100%    0.82      25.0
+//! dynid --input-delay         m    0.044%    0.038%    0.028%     75%    1.62      23.0
+//! dynid --input-delay         d    0.267%    0.214%    0.236%     85%    1.26      23.0
+//! dynid --input-delay         r    0.313%   -0.229%    0.325%     94%    1.03      23.0
+//! dynid --input-delay        f0    0.289%   -0.051%    0.317%     96%    0.94      23.0
+//! dynid filtered + delay      m    0.008%    0.002%    0.008%     92%    1.10      77.5
+//! dynid filtered + delay      d    0.054%   -0.001%    0.048%     90%    1.15      77.5
+//! dynid filtered + delay      r    0.074%   -0.003%    0.068%     90%    1.09      77.5
+//! dynid filtered + delay     f0    0.287%    0.014%    0.274%     98%    1.06      77.5
+//! dynid filt.+delay 4 sect.      m    0.008%    0.001%    0.009%     94%    1.08      74.4
+//! dynid filt.+delay 4 sect.      d    0.055%   -0.010%    0.051%     90%    1.11      74.4
+//! dynid filt.+delay 4 sect.      r    0.074%    0.015%    0.074%     94%    1.01      74.4
+//! dynid filt.+delay 4 sect.     f0    0.290%   -0.014%    0.283%     96%    1.05      74.4
+//! dynid filt.+delay, v rec.      m    0.008%    0.002%    0.008%     92%    1.09      18.3
+//! dynid filt.+delay, v rec.      d    0.054%    0.000%    0.048%     88%    1.15      18.3
+//! dynid filt.+delay, v rec.      r    0.074%   -0.005%    0.068%     90%    1.08      18.3
+//! dynid filt.+delay, v rec.     f0    0.287%    0.014%    0.274%     98%    1.06      18.3
 //! IDIM-LS, OLS errors         m    0.026%    0.026%    0.025%    100%    1.05       1.8
 //! IDIM-LS, OLS errors         d    0.074%    0.061%    0.148%    100%    0.50       1.8
 //! IDIM-LS, OLS errors         r    0.368%   -0.365%    0.200%     71%    1.85       1.8
@@ -201,81 +222,85 @@
 //! IDIM-LS, HAC errors         d    0.074%    0.061%    0.100%    100%    0.74       1.8
 //! IDIM-LS, HAC errors         r    0.368%   -0.365%    0.158%     21%    2.33       1.8
 //! IDIM-LS, HAC errors        f0    0.302%   -0.127%    0.525%    100%    0.58       1.8
-//! SVF-LS 10 Hz, HAC           m    0.283%    0.283%    0.098%      0%    2.90     145.4
-//! SVF-LS 10 Hz, HAC           d   15.829%   15.829%    2.444%      0%    6.48     145.4
-//! SVF-LS 10 Hz, HAC           r   26.562%  -26.562%    2.927%      0%    9.07     145.4
-//! SVF-LS 10 Hz, HAC          f0    2.840%   -2.832%   27.673%    100%    0.10     145.4
-//! SVF-LS 80 Hz, HAC           m    0.016%    0.014%    0.225%    100%    0.07      21.5
-//! SVF-LS 80 Hz, HAC           d   27.559%   27.559%    2.602%      0%   10.59      21.5
-//! SVF-LS 80 Hz, HAC           r   47.356%  -47.356%    3.752%      0%   12.62      21.5
-//! SVF-LS 80 Hz, HAC          f0    9.917%   -9.915%   17.156%    100%    0.58      21.5
-//! SVF-LS 80 Hz, EIV comp.      m    0.036%    0.036%    0.225%    100%    0.16      21.0
-//! SVF-LS 80 Hz, EIV comp.      d   27.559%   27.559%    2.602%      0%   10.59      21.0
-//! SVF-LS 80 Hz, EIV comp.      r   47.356%  -47.356%    3.752%      0%   12.62      21.0
-//! SVF-LS 80 Hz, EIV comp.     f0    9.917%   -9.915%   17.155%    100%    0.58      21.0
-//! SVF-LS 80 Hz, rests out      m    0.007%   -0.003%    0.011%     98%    0.67      15.0
-//! SVF-LS 80 Hz, rests out      d    0.218%   -0.214%    0.056%      2%    3.95      15.0
-//! SVF-LS 80 Hz, rests out      r    0.114%    0.100%    0.077%     77%    1.48      15.0
-//! SVF-LS 80 Hz, rests out     f0    0.284%    0.054%    0.339%    100%    0.84      15.0
-//! SVF-LS 80, rests+EIV        m    0.014%    0.013%    0.010%     90%    1.36      14.9
-//! SVF-LS 80, rests+EIV        d    0.221%   -0.216%    0.056%      2%    3.97      14.9
-//! SVF-LS 80, rests+EIV        r    0.118%    0.104%    0.077%     77%    1.53      14.9
-//! SVF-LS 80, rests+EIV       f0    0.284%    0.054%    0.339%    100%    0.84      14.9
+//! SVF-LS 10 Hz, HAC           m    0.283%    0.283%    0.098%      0%    2.90     144.9
+//! SVF-LS 10 Hz, HAC           d   15.829%   15.829%    2.444%      0%    6.48     144.9
+//! SVF-LS 10 Hz, HAC           r   26.562%  -26.562%    2.927%      0%    9.07     144.9
+//! SVF-LS 10 Hz, HAC          f0    2.840%   -2.832%   27.673%    100%    0.10     144.9
+//! SVF-LS 80 Hz, HAC           m    0.016%    0.014%    0.225%    100%    0.07      22.0
+//! SVF-LS 80 Hz, HAC           d   27.559%   27.559%    2.602%      0%   10.59      22.0
+//! SVF-LS 80 Hz, HAC           r   47.356%  -47.356%    3.752%      0%   12.62      22.0
+//! SVF-LS 80 Hz, HAC          f0    9.917%   -9.915%   17.156%    100%    0.58      22.0
+//! SVF-LS 80 Hz, EIV comp.      m    0.036%    0.036%    0.225%    100%    0.16      20.9
+//! SVF-LS 80 Hz, EIV comp.      d   27.559%   27.559%    2.602%      0%   10.59      20.9
+//! SVF-LS 80 Hz, EIV comp.      r   47.356%  -47.356%    3.752%      0%   12.62      20.9
+//! SVF-LS 80 Hz, EIV comp.     f0    9.917%   -9.915%   17.155%    100%    0.58      20.9
+//! SVF-LS 80 Hz, rests out      m    0.007%   -0.003%    0.011%     98%    0.67      14.9
+//! SVF-LS 80 Hz, rests out      d    0.218%   -0.214%    0.056%      2%    3.95      14.9
+//! SVF-LS 80 Hz, rests out      r    0.114%    0.100%    0.077%     77%    1.48      14.9
+//! SVF-LS 80 Hz, rests out     f0    0.284%    0.054%    0.339%    100%    0.84      14.9
+//! SVF-LS 80, rests+EIV        m    0.014%    0.013%    0.010%     90%    1.36      14.8
+//! SVF-LS 80, rests+EIV        d    0.221%   -0.216%    0.056%      2%    3.97      14.8
+//! SVF-LS 80, rests+EIV        r    0.118%    0.104%    0.077%     77%    1.53      14.8
+//! SVF-LS 80, rests+EIV       f0    0.284%    0.054%    0.339%    100%    0.84      14.8
 //!
 //! planned moves, Stribeck friction not in the model
 //! method                  param   RMS err  mean err   mean SE   cover    e/SE    ms/rec
-//! dynid (defaults)            m    2.039%    2.039%    0.151%      0%   13.50      28.6
-//! dynid (defaults)            d    4.440%    4.438%    1.265%      0%    3.51      28.6
-//! dynid (defaults)            r    5.280%   -5.277%    2.458%      0%    2.15      28.6
-//! dynid (defaults)           f0    0.305%   -0.101%    3.033%    100%    0.10      28.6
-//! dynid --column-chains       m    1.973%    1.973%    0.193%      0%   10.22      29.8
-//! dynid --column-chains       d    4.058%    4.056%    1.178%      0%    3.45      29.8
-//! dynid --column-chains       r    4.929%   -4.926%    1.995%      0%    2.47      29.8
-//! dynid --column-chains      f0    0.286%   -0.019%    2.799%    100%    0.10      29.8
-//! dynid chains, 2-step        m    2.147%    2.147%    0.138%      0%   15.59      30.1
-//! dynid chains, 2-step        d    6.500%    6.498%    1.387%      0%    4.69      30.1
-//! dynid chains, 2-step        r    8.035%   -8.032%    0.920%      0%    9.59      30.1
-//! dynid chains, 2-step       f0    3.467%   -3.446%    3.694%    100%    0.94      30.1
-//! dynid to noise floor        m    1.103%    1.102%    0.118%      0%    9.34      28.5
-//! dynid to noise floor        d    2.274%    2.271%    0.629%      0%    3.65      28.5
-//! dynid to noise floor        r    3.115%   -3.109%    1.362%      0%    2.29      28.5
-//! dynid to noise floor       f0    0.671%    0.609%    1.953%    100%    0.35      28.5
-//! dynid chains 2-step nf      m    2.078%    2.077%    0.125%      0%   28.44      29.7
-//! dynid chains 2-step nf      d    4.101%    4.081%    0.803%      0%    5.07      29.7
-//! dynid chains 2-step nf      r    4.704%   -4.672%    1.094%      0%    6.85      29.7
-//! dynid chains 2-step nf     f0    2.777%   -2.746%    2.268%    100%    1.24      29.7
-//! dynid --keep-rests          m   33.780%   33.780%    3.273%      0%   10.32      27.8
-//! dynid --keep-rests          d   96.464%   96.463%    8.996%      0%   10.73      27.8
-//! dynid --keep-rests          r  100.914% -100.913%   14.329%      0%    7.04      27.8
-//! dynid --keep-rests         f0    3.214%    3.206%   12.608%    100%    0.25      27.8
-//! dynid --filtered-eq.        m    0.022%    0.020%    0.013%     79%    1.74      28.7
-//! dynid --filtered-eq.        d    1.238%   -1.174%    0.242%      0%    4.84      28.7
-//! dynid --filtered-eq.        r    1.955%    1.829%    0.380%      8%    4.64      28.7
-//! dynid --filtered-eq.       f0    0.293%   -0.016%    0.996%    100%    0.54      28.7
-//! dynid filtered 20 Hz        m    0.056%    0.055%    0.015%      4%    3.76      29.8
-//! dynid filtered 20 Hz        d    0.145%   -0.134%    0.053%     29%    2.82      29.8
-//! dynid filtered 20 Hz        r    0.126%    0.097%    0.082%     79%    1.57      29.8
-//! dynid filtered 20 Hz       f0    0.345%   -0.004%    0.321%     94%    1.09      29.8
-//! dynid filtered 160 Hz       m    0.198%   -0.198%    0.024%      0%    8.11      30.2
-//! dynid filtered 160 Hz       d    2.405%   -2.405%    0.448%      0%    5.37      30.2
-//! dynid filtered 160 Hz       r    3.938%    3.938%    0.666%      0%    5.92      30.2
-//! dynid filtered 160 Hz      f0    0.283%   -0.018%    2.006%    100%    0.14      30.2
-//! dynid --input-delay         m    1.599%    1.599%    0.098%      0%   16.44      28.5
-//! dynid --input-delay         d    2.281%    2.276%    1.501%    100%    1.52      28.5
-//! dynid --input-delay         r    3.488%   -3.481%    2.083%    100%    1.67      28.5
-//! dynid --input-delay        f0    0.468%    0.369%    1.891%    100%    0.25      28.5
-//! dynid filtered + delay      m    0.013%    0.004%    0.011%     90%    1.24      92.4
-//! dynid filtered + delay      d    0.185%   -0.103%    0.069%     58%    2.05      92.4
-//! dynid filtered + delay      r    0.309%    0.178%    0.107%     58%    2.07      92.4
-//! dynid filtered + delay     f0    0.314%   -0.020%    0.343%    100%    0.98      92.4
-//! dynid filt.+delay 4 sect.      m    0.014%    0.004%    0.012%     94%    1.19      88.6
-//! dynid filt.+delay 4 sect.      d    0.060%   -0.005%    0.055%     92%    1.16      88.6
-//! dynid filt.+delay 4 sect.      r    0.083%    0.003%    0.081%     90%    1.05      88.6
-//! dynid filt.+delay 4 sect.     f0    0.343%   -0.008%    0.306%     94%    1.14      88.6
-//! dynid filt.+delay, v rec.      m    0.013%    0.004%    0.011%     90%    1.23      16.3
-//! dynid filt.+delay, v rec.      d    0.181%   -0.111%    0.070%     56%    2.08      16.3
-//! dynid filt.+delay, v rec.      r    0.300%    0.190%    0.109%     56%    2.06      16.3
-//! dynid filt.+delay, v rec.     f0    0.317%   -0.023%    0.345%     98%    0.99      16.3
+//! dynid (defaults)            m    0.013%    0.004%    0.011%     90%    1.24     122.4
+//! dynid (defaults)            d    0.185%   -0.103%    0.069%     58%    2.05     122.4
+//! dynid (defaults)            r    0.309%    0.178%    0.107%     58%    2.07     122.4
+//! dynid (defaults)           f0    0.314%   -0.020%    0.343%    100%    0.98     122.4
+//! dynid instrument rows       m    2.039%    2.039%    0.151%      0%   13.50      29.5
+//! dynid instrument rows       d    4.440%    4.438%    1.265%      0%    3.51      29.5
+//! dynid instrument rows       r    5.280%   -5.277%    2.458%      0%    2.15      29.5
+//! dynid instrument rows      f0    0.305%   -0.101%    3.033%    100%    0.10      29.5
+//! dynid --column-chains       m    1.973%    1.973%    0.193%      0%   10.22      30.8
+//! dynid --column-chains       d    4.058%    4.056%    1.178%      0%    3.45      30.8
+//! dynid --column-chains       r    4.929%   -4.926%    1.995%      0%    2.47      30.8
+//! dynid --column-chains      f0    0.286%   -0.019%    2.799%    100%    0.10      30.8
+//! dynid chains, 2-step        m    2.147%    2.147%    0.138%      0%   15.59      30.6
+//! dynid chains, 2-step        d    6.500%    6.498%    1.387%      0%    4.69      30.6
+//! dynid chains, 2-step        r    8.035%   -8.032%    0.920%      0%    9.59      30.6
+//! dynid chains, 2-step       f0    3.467%   -3.446%    3.694%    100%    0.94      30.6
+//! dynid to noise floor        m    1.103%    1.102%    0.118%      0%    9.34      28.8
+//! dynid to noise floor        d    2.274%    2.271%    0.629%      0%    3.65      28.8
+//! dynid to noise floor        r    3.115%   -3.109%    1.362%      0%    2.29      28.8
+//! dynid to noise floor       f0    0.671%    0.609%    1.953%    100%    0.35      28.8
+//! dynid chains 2-step nf      m    2.078%    2.077%    0.125%      0%   28.44      30.7
+//! dynid chains 2-step nf      d    4.101%    4.081%    0.803%      0%    5.07      30.7
+//! dynid chains 2-step nf      r    4.704%   -4.672%    1.094%      0%    6.85      30.7
+//! dynid chains 2-step nf     f0    2.777%   -2.746%    2.268%    100%    1.24      30.7
+//! dynid --keep-rests          m   33.780%   33.780%    3.273%      0%   10.32      28.3
+//! dynid --keep-rests          d   96.464%   96.463%    8.996%      0%   10.73      28.3
+//! dynid --keep-rests          r  100.914% -100.913%   14.329%      0%    7.04      28.3
+//! dynid --keep-rests         f0    3.214%    3.206%   12.608%    100%    0.25      28.3
+//! dynid --filtered-eq.        m    0.022%    0.020%    0.013%     79%    1.74      29.4
+//! dynid --filtered-eq.        d    1.238%   -1.174%    0.242%      0%    4.84      29.4
+//! dynid --filtered-eq.        r    1.955%    1.829%    0.380%      8%    4.64      29.4
+//! dynid --filtered-eq.       f0    0.293%   -0.016%    0.996%    100%    0.54      29.4
+//! dynid filtered 20 Hz        m    0.056%    0.055%    0.015%      4%    3.76      30.1
+//! dynid filtered 20 Hz        d    0.145%   -0.134%    0.053%     29%    2.82      30.1
+//! dynid filtered 20 Hz        r    0.126%    0.097%    0.082%     79%    1.57      30.1
+//! dynid filtered 20 Hz       f0    0.345%   -0.004%    0.321%     94%    1.09      30.1
+//! dynid filtered 160 Hz       m    0.198%   -0.198%    0.024%      0%    8.11      31.1
+//! dynid filtered 160 Hz       d    2.405%   -2.405%    0.448%      0%    5.37      31.1
+//! dynid filtered 160 Hz       r    3.938%    3.938%    0.666%      0%    5.92      31.1
+//! dynid filtered 160 Hz      f0    0.283%   -0.018%    2.006%    100%    0.14      31.1
+//! dynid --input-delay         m    1.599%    1.599%    0.098%      0%   16.44      28.7
+//! dynid --input-delay         d    2.281%    2.276%    1.501%    100%    1.52      28.7
+//! dynid --input-delay         r    3.488%   -3.481%    2.083%    100%    1.67      28.7
+//! dynid --input-delay        f0    0.468%    0.369%    1.891%    100%    0.25      28.7
+//! dynid filtered + delay      m    0.013%    0.004%    0.011%     90%    1.24      94.5
+//! dynid filtered + delay      d    0.185%   -0.103%    0.069%     58%    2.05      94.5
+//! dynid filtered + delay      r    0.309%    0.178%    0.107%     58%    2.07      94.5
+//! dynid filtered + delay     f0    0.314%   -0.020%    0.343%    100%    0.98      94.5
+//! dynid filt.+delay 4 sect.      m    0.014%    0.004%    0.012%     94%    1.19      90.4
+//! dynid filt.+delay 4 sect.      d    0.060%   -0.005%    0.055%     92%    1.16      90.4
+//! dynid filt.+delay 4 sect.      r    0.083%    0.003%    0.081%     90%    1.05      90.4
+//! dynid filt.+delay 4 sect.     f0    0.343%   -0.008%    0.306%     94%    1.14      90.4
+//! dynid filt.+delay, v rec.      m    0.013%    0.004%    0.011%     90%    1.23      17.1
+//! dynid filt.+delay, v rec.      d    0.181%   -0.111%    0.070%     56%    2.08      17.1
+//! dynid filt.+delay, v rec.      r    0.300%    0.190%    0.109%     56%    2.06      17.1
+//! dynid filt.+delay, v rec.     f0    0.317%   -0.023%    0.345%     98%    0.99      17.1
 //! IDIM-LS, OLS errors         m    0.048%    0.047%    0.032%    100%    1.48       1.4
 //! IDIM-LS, OLS errors         d    3.373%   -3.373%    0.191%      0%   17.65       1.4
 //! IDIM-LS, OLS errors         r    5.597%    5.596%    0.260%      0%   21.56       1.4
@@ -284,40 +309,37 @@
 //! IDIM-LS, HAC errors         d    3.373%   -3.373%    0.404%      0%    8.35       1.4
 //! IDIM-LS, HAC errors         r    5.597%    5.596%    0.627%      0%    8.92       1.4
 //! IDIM-LS, HAC errors        f0    0.325%   -0.171%    2.025%    100%    0.16       1.4
-//! SVF-LS 10 Hz, HAC           m    0.316%    0.316%    0.092%      0%    3.45     141.7
-//! SVF-LS 10 Hz, HAC           d   13.452%   13.452%    2.389%      0%    5.63     141.7
-//! SVF-LS 10 Hz, HAC           r   22.594%  -22.594%    3.045%      0%    7.42     141.7
-//! SVF-LS 10 Hz, HAC          f0    4.775%   -4.770%   37.100%    100%    0.13     141.7
-//! SVF-LS 80 Hz, HAC           m    0.033%    0.032%    0.176%    100%    0.19      20.9
-//! SVF-LS 80 Hz, HAC           d   20.549%   20.549%    2.281%      0%    9.01      20.9
-//! SVF-LS 80 Hz, HAC           r   35.296%  -35.296%    3.466%      0%   10.18      20.9
-//! SVF-LS 80 Hz, HAC          f0   19.466%  -19.465%   18.476%    100%    1.05      20.9
-//! SVF-LS 80 Hz, EIV comp.      m    0.054%    0.054%    0.176%    100%    0.31      20.6
-//! SVF-LS 80 Hz, EIV comp.      d   20.549%   20.549%    2.281%      0%    9.01      20.6
-//! SVF-LS 80 Hz, EIV comp.      r   35.296%  -35.296%    3.466%      0%   10.18      20.6
-//! SVF-LS 80 Hz, EIV comp.     f0   19.466%  -19.465%   18.475%    100%    1.05      20.6
-//! SVF-LS 80 Hz, rests out      m    0.026%   -0.025%    0.021%     98%    1.24      14.5
-//! SVF-LS 80 Hz, rests out      d    2.500%   -2.499%    0.339%      0%    7.37      14.5
-//! SVF-LS 80 Hz, rests out      r    4.084%    4.084%    0.533%      0%    7.67      14.5
-//! SVF-LS 80 Hz, rests out     f0    0.283%   -0.024%    1.507%    100%    0.19      14.5
-//! SVF-LS 80, rests+EIV        m    0.012%   -0.010%    0.021%    100%    0.57      14.4
-//! SVF-LS 80, rests+EIV        d    2.502%   -2.502%    0.339%      0%    7.38      14.4
-//! SVF-LS 80, rests+EIV        r    4.089%    4.089%    0.532%      0%    7.68      14.4
-//! SVF-LS 80, rests+EIV       f0    0.283%   -0.024%    1.502%    100%    0.19      14.4
-//!
-//! row for docs/performance.md:
-//! | `servo_precision` | random reference, d: RMS error 5.8× IDIM-LS's, RMS error / SE 0.90 (IDIM-LS 2.39); planned moves, d: RMS error 2.0× IDIM-LS's, RMS error / SE 0.95 (IDIM-LS 0.74); planned moves, Stribeck friction not in the model, d: RMS error 1.3× IDIM-LS's, RMS error / SE 3.51 (IDIM-LS 8.35) | IDIM-LS and SVF-LS (`baseline`) on the same records | 2026-11-27 | 79b7565+ | AMD EPYC, 2 threads | `cargo bench -p dynid-runtime --bench servo_precision` |
+//! SVF-LS 10 Hz, HAC           m    0.316%    0.316%    0.092%      0%    3.45     144.1
+//! SVF-LS 10 Hz, HAC           d   13.452%   13.452%    2.389%      0%    5.63     144.1
+//! SVF-LS 10 Hz, HAC           r   22.594%  -22.594%    3.045%      0%    7.42     144.1
+//! SVF-LS 10 Hz, HAC          f0    4.775%   -4.770%   37.100%    100%    0.13     144.1
+//! SVF-LS 80 Hz, HAC           m    0.033%    0.032%    0.176%    100%    0.19      21.0
+//! SVF-LS 80 Hz, HAC           d   20.549%   20.549%    2.281%      0%    9.01      21.0
+//! SVF-LS 80 Hz, HAC           r   35.296%  -35.296%    3.466%      0%   10.18      21.0
+//! SVF-LS 80 Hz, HAC          f0   19.466%  -19.465%   18.476%    100%    1.05      21.0
+//! SVF-LS 80 Hz, EIV comp.      m    0.054%    0.054%    0.176%    100%    0.31      20.9
+//! SVF-LS 80 Hz, EIV comp.      d   20.549%   20.549%    2.281%      0%    9.01      20.9
+//! SVF-LS 80 Hz, EIV comp.      r   35.296%  -35.296%    3.466%      0%   10.18      20.9
+//! SVF-LS 80 Hz, EIV comp.     f0   19.466%  -19.465%   18.475%    100%    1.05      20.9
+//! SVF-LS 80 Hz, rests out      m    0.026%   -0.025%    0.021%     98%    1.24      14.6
+//! SVF-LS 80 Hz, rests out      d    2.500%   -2.499%    0.339%      0%    7.37      14.6
+//! SVF-LS 80 Hz, rests out      r    4.084%    4.084%    0.533%      0%    7.67      14.6
+//! SVF-LS 80 Hz, rests out     f0    0.283%   -0.024%    1.507%    100%    0.19      14.6
+//! SVF-LS 80, rests+EIV        m    0.012%   -0.010%    0.021%    100%    0.57      14.7
+//! SVF-LS 80, rests+EIV        d    2.502%   -2.502%    0.339%      0%    7.38      14.7
+//! SVF-LS 80, rests+EIV        r    4.089%    4.089%    0.532%      0%    7.68      14.7
+//! SVF-LS 80, rests+EIV       f0    0.283%   -0.024%    1.502%    100%    0.19      14.7
 //! ```
 //!
 //! **Rows of the filtered equation** (`--filtered-eq.`: `IdentifyOptions::filtered`, one
 //! corner designed as the encoder's information bandwidth capped at 0.5/Ts = 500 rad/s;
 //! `filtered 20 Hz`, `160 Hz`: the corner given as 126 and 1005 rad/s; docs/method.md §2;
 //! every slow sample left out with the filter's memory after it). On random references
-//! m 0.006 %, d 0.154 %, r 0.098 %, f0 0.103 % — against the defaults 3.5×, 6×, 26× and
+//! m 0.006 %, d 0.154 %, r 0.098 %, f0 0.103 % — against the instrument rows 3.5×, 6×, 26× and
 //! 14× smaller, beside SVF-LS 80 Hz with its rows near rest dropped (0.008, 0.143, 0.067,
 //! 0.119 %); on planned moves m 0.010 % and r 0.187 % (below IDIM-LS's 0.026 and 0.368 %),
 //! d 0.258 % (IDIM-LS 0.074 %) and f0 0.288 % (level with both baselines); with the
-//! Stribeck term the model lacks it moves less than the defaults and both baselines (m
+//! Stribeck term the model lacks it moves less than the instrument rows and both baselines (m
 //! 0.022, d 1.2, r 2.0 %). Its damping errors are a bias the standard errors do not cover
 //! (mean error −0.151 % random, −0.254 % planned, coverage 0 % on both suites), like
 //! SVF-LS rests out's: the force's path between samples. With
@@ -371,22 +393,22 @@
 //! baseline here — but d 0.143 % with a standard error 6× too small (coverage 0 %); on
 //! planned moves it removes SVF-LS's failure at the rests (d 27.6 → 0.22 %, r 47 → 0.11 %,
 //! m 0.007 %, f0 0.28 %), d again with errors 4× too small; with the Stribeck term d and r
-//! move by 2.5 and 4.1 % (IDIM-LS 3.4, 5.6 %; dynid's defaults 4.4, 5.3 %).
+//! move by 2.5 and 4.1 % (IDIM-LS 3.4, 5.6 %; dynid's instrument rows 4.4, 5.3 %).
 //!
-//! **Random reference.** dynid's defaults give honest errors (coverage 96–100 %, e/SE
+//! **Random reference.** dynid's instrument rows give honest errors (coverage 96–100 %, e/SE
 //! 0.84–1.09) and a mass error (0.021 %) level with IDIM-LS's (0.024 %); IDIM-LS's RMS
 //! errors of d, r and f0 are 5.8×, 3.3× and 2.5× smaller, SVF-LS's at 80 Hz 9.5×, 17× and
 //! 5.9×, but both baselines carry biases their standard errors do not cover (IDIM-LS r
 //! −0.75 % on the mean, its classical and HAC coverage of r 0 %; measured without
 //! quantisation in `baseline::tests::noise_free_servo_axis_is_recovered`).
-//! `--column-chains` cuts the defaults' d and r errors by 62 and 65 % and leaves f0 where it
+//! `--column-chains` cuts the instrument rows' d and r errors by 62 and 65 % and leaves f0 where it
 //! is (1.54 %), at a larger mass error (0.035 %; docs/method.md §2). The two-step weighting
 //! on top of the chains (`chains, 2-step`: `IdentifyOptions { column_chains, efficient }`,
 //! opt-in, docs/method.md §5) brings the mass to 0.013 % and d and r to 0.196 and 0.635 %,
 //! but every standard error comes out 1.7–2.7 times too small (coverage 56–81 %): not
 //! honest, hence not the default. Rests are left out only where they hold 5 % of a level's
-//! samples or more: no random record reaches that, so the defaults and `--keep-rests` give
-//! the same estimates there; the defaults' `ms/rec` includes the two passes that look for
+//! samples or more: no random record reaches that, so the instrument rows and `--keep-rests` give
+//! the same estimates there; the instrument rows' `ms/rec` includes the two passes that look for
 //! rests (5.5 against 4.3 ms per record in this run).
 //!
 //! **Corners to the noise floor** (`to noise floor`: the highest corner raised to where the
@@ -396,11 +418,11 @@
 //! 0.90 → 1.76 %, r 2.54 → 4.83 %), with honest errors; with chains and two steps the
 //! errors come out nearly honest (coverage 83–94 %, e/SE 1.10–1.84; m 0.015, d 0.210, r
 //! 0.723, f0 1.645 %), still above SVF-LS 80 Hz's d and r. On planned moves the raised
-//! corner makes m, d and r worse than the defaults (0.057, 0.38, 0.42 % against 0.030,
+//! corner makes m, d and r worse than the instrument rows (0.057, 0.38, 0.42 % against 0.030,
 //! 0.15, 0.23 %) with errors that do not cover them; with the Stribeck term the model lacks
-//! it moves every estimate less than the defaults (m 1.1, d 2.3, r 3.1 % against 2.0, 4.4,
+//! it moves every estimate less than the instrument rows (m 1.1, d 2.3, r 3.1 % against 2.0, 4.4,
 //! 5.3 %; IDIM-LS d 3.4, r 5.6 %). No one corner rule wins on all three suites: the
-//! defaults stay.
+//! instrument rows' designed corners stay.
 //!
 //! **Planned moves** (a third of every cycle at rest). dynid leaves the rests out of its
 //! moments (docs/method.md §7): RMS errors m 0.030 %, d 0.146 %, r 0.229 %, f0 0.286 %,
@@ -566,8 +588,9 @@ fn given_chain() -> (usize, Option<f64>) {
 type Estimate = Vec<Option<(f64, f64)>>;
 
 /// The methods compared, by name.
-const METHODS: [&str; 20] = [
+const METHODS: [&str; 21] = [
     "dynid (defaults)",
+    "dynid instrument rows",
     "dynid --column-chains",
     "dynid chains, 2-step",
     "dynid to noise floor",
@@ -638,28 +661,31 @@ fn run_all(records: &Records, selected: &[bool]) -> Vec<(Estimate, f64)> {
     let to_floor = |opts: IdentifyOptions| {
         let src = RecordSource::new(rec, ir, "servo").expect("invariant: a simulated record");
         let levels: Vec<&dyn LevelSource> = vec![&src];
-        let corners: Option<Vec<f64>> =
-            dynid_runtime::identify(ir, &levels, &IdentifyOptions::default())
-                .ok()
-                .and_then(|id| {
-                    let lo = id
-                        .filter
-                        .corners
-                        .iter()
-                        .copied()
-                        .fold(f64::INFINITY, f64::min);
-                    let ts = id.levels[0].ts;
-                    let top = id
-                        .filter
-                        .corners_from
-                        .info_bandwidth?
-                        .min(std::f64::consts::PI / ts / 5.0);
-                    Some(
-                        (0..6)
-                            .map(|i| lo * (top / lo).powf(i as f64 / 5.0))
-                            .collect(),
-                    )
-                });
+        let designed = IdentifyOptions {
+            auto_rows: false,
+            ..Default::default()
+        };
+        let corners: Option<Vec<f64>> = dynid_runtime::identify(ir, &levels, &designed)
+            .ok()
+            .and_then(|id| {
+                let lo = id
+                    .filter
+                    .corners
+                    .iter()
+                    .copied()
+                    .fold(f64::INFINITY, f64::min);
+                let ts = id.levels[0].ts;
+                let top = id
+                    .filter
+                    .corners_from
+                    .info_bandwidth?
+                    .min(std::f64::consts::PI / ts / 5.0);
+                Some(
+                    (0..6)
+                        .map(|i| lo * (top / lo).powf(i as f64 / 5.0))
+                        .collect(),
+                )
+            });
         dynid(IdentifyOptions { corners, ..opts })
     };
     // IDIM-LS once per record (two rows read it), timed, and only if a row is selected.
@@ -688,8 +714,14 @@ fn run_all(records: &Records, selected: &[bool]) -> Vec<(Estimate, f64)> {
         ..Default::default()
     };
     type Method<'a> = Box<dyn Fn() -> (Estimate, f64) + 'a>;
+    // The instrument rows: the defaults without the choice of rows (`--instrument-rows`).
+    let instruments = IdentifyOptions {
+        auto_rows: false,
+        ..Default::default()
+    };
     let methods: Vec<Method> = vec![
         Box::new(|| dynid(IdentifyOptions::default())),
+        Box::new(|| dynid(instruments.clone())),
         Box::new(|| {
             dynid(IdentifyOptions {
                 column_chains: true,
@@ -703,7 +735,7 @@ fn run_all(records: &Records, selected: &[bool]) -> Vec<(Estimate, f64)> {
                 ..Default::default()
             })
         }),
-        Box::new(|| to_floor(IdentifyOptions::default())),
+        Box::new(|| to_floor(instruments.clone())),
         Box::new(|| {
             to_floor(IdentifyOptions {
                 column_chains: true,
@@ -889,7 +921,8 @@ fn main() {
             );
         }
     }
-    // The row of docs/performance.md: dynid's defaults against IDIM-LS (HAC errors) on d.
+    // The row of docs/performance.md: dynid's defaults (the rows it chooses on these
+    // records) against IDIM-LS (HAC errors) on d.
     let find = |kind: Trajectory, method: &str| {
         rows.iter()
             .find(|r| r.trajectory == kind.label() && r.method == method && r.param == "d")
@@ -899,7 +932,7 @@ fn main() {
         .filter_map(|&kind| {
             let (ours, idim) = (find(kind, METHODS[0])?, find(kind, "IDIM-LS, HAC errors")?);
             Some(format!(
-                "{}, d: RMS error {:.1}× IDIM-LS's, RMS error / SE {:.2} (IDIM-LS {:.2})",
+                "{}, d: RMS error {:.3}× IDIM-LS's, RMS error / SE {:.2} (IDIM-LS {:.2})",
                 kind.label(),
                 ours.rms_error / idim.rms_error,
                 ours.rms_z,

@@ -132,6 +132,15 @@ pub struct EstimatorArgs {
     /// data; docs/method.md §2, "The input between samples"). Not with `moments` or --from
     #[arg(long = "input-delay")]
     pub input_delay: bool,
+    /// Keep the instrument rows where `identify` would choose the rows of the filtered
+    /// equation with the input's delay. It chooses them (and says so) on a servo axis's
+    /// kind of record — friction with a sign of a velocity, a measured force, velocities
+    /// estimated from measured positions with no noise worth a correction — when no other
+    /// row, corner or noise flag is given: on the simulated servo axis they are 50–500
+    /// times more precise on random set points and about 3 times on planned moves (bench
+    /// `servo_precision`, docs/method.md §2). `moments` always takes the instrument rows
+    #[arg(long = "instrument-rows")]
+    pub instrument_rows: bool,
 }
 
 impl EstimatorArgs {
@@ -146,6 +155,7 @@ impl EstimatorArgs {
             filtered: self.filtered_equation,
             efficient: self.weighted_rows,
             input_delay: self.input_delay,
+            auto_rows: !self.instrument_rows,
             allow_large,
             ..Default::default()
         }

@@ -18,12 +18,12 @@ pub const CORNER_CHECK_MIN_REL: f64 = 0.01;
 
 impl CornerMove {
     /// The estimate moves by more than the standard error of either estimate it is
-    /// compared with, and by more than [`CORNER_CHECK_MIN_REL`] of its value.
+    /// compared with, and by more than [`CornerMove::min_move`] ([`CORNER_CHECK_MIN_REL`]
+    /// of its value; of the sample interval for an input's delay: a delay of 50 µs that
+    /// moves by 1 µs at 1 kHz is no model error worth a warning).
     pub fn moved(&self) -> bool {
         (0..3).step_by(2).any(|k| {
-            let tol = self.stderrs[1]
-                .max(self.stderrs[k])
-                .max(CORNER_CHECK_MIN_REL * self.values[1].abs());
+            let tol = self.stderrs[1].max(self.stderrs[k]).max(self.min_move);
             (self.values[k] - self.values[1]).abs() > tol
         })
     }
@@ -130,7 +130,12 @@ pub fn corner_moves(
         .iter()
         .filter_map(|p| {
             let (pa, pb) = (a.param(&p.name)?, b.param(&p.name)?);
+            let scale = match super::input_delay::is_delay(&p.name) {
+                true => ts,
+                false => p.value.abs(),
+            };
             Some(CornerMove {
+                min_move: CORNER_CHECK_MIN_REL * scale,
                 param: p.name.clone(),
                 values: [pa.value, p.value, pb.value],
                 stderrs: [pa.stderr, p.stderr, pb.stderr],

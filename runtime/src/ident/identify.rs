@@ -20,12 +20,92 @@ pub fn identify(
     levels: &[&dyn LevelSource],
     opts: &IdentifyOptions,
 ) -> Result<Identification, IdentifyError> {
-    let ir = &*input_delay::model(ir, opts)?;
-    if !ir.shapes.is_empty() {
-        return Ok(shape::profile(ir, levels, opts)?.1);
+    let model = &*input_delay::model(ir, opts)?;
+    if !model.shapes.is_empty() {
+        return Ok(shape::profile(model, levels, opts)?.1);
     }
-    let tape = Tape::compile(ir, &ir.eval_roots());
-    pooled(ir, &tape, levels, opts)
+    let tape = Tape::compile(model, &model.eval_roots());
+    let id = pooled(model, &tape, levels, opts)?;
+    Ok(match servo_rows(model, &id, opts) {
+        Some(o) => chosen(id, identify(ir, levels, &o)),
+        None => id,
+    })
+}
+
+/// The options of the rows of the filtered equation with the inputs' delays where
+/// [`IdentifyOptions::auto_rows`] leaves the choice to `identify` and `id` (identified with
+/// the instrument rows) shows a record of a servo axis's kind: a `sign` of a velocity
+/// whose rests were looked for, a measured input, velocities estimated from measured
+/// positions whose noise is below [`super::noise::SIGNIFICANT`] of their spread, no term
+/// left to a noise correction, a model that holds (no equation's residual large at every
+/// level), corners not given (neither by the options nor by the model's filter block).
+/// `None` otherwise.
+pub fn servo_rows(
+    ir: &ModelIr,
+    id: &Identification,
+    opts: &IdentifyOptions,
+) -> Option<IdentifyOptions> {
+    let open = opts.auto_rows
+        && opts.corners.is_none()
+        && opts.order.is_none()
+        && opts.drivers.is_none()
+        && opts.noise_correction
+        && opts.hold == super::filter::Hold::FirstOrder
+        && !(opts.balance
+            || opts.column_chains
+            || opts.keep_rests
+            || opts.efficient
+            || opts.filtered
+            || opts.input_delay);
+    let coulomb = id.levels.iter().any(|l| l.rests.is_some());
+    let from_positions = id
+        .estimated
+        .iter()
+        .any(|e| e.method == super::velocity::METHOD);
+    let input = (0..ir.inputs.len()).any(|i| {
+        let s = ir.input_signal(dynid_ir::ir::InputId(i as u32));
+        ir.signal(s).measured
+    });
+    // Positions with noise below what the noise correction counts as significant (the
+    // filtered rows correct no term for noise), and no term left to a correction.
+    let quiet_positions = ir.signals.iter().all(|s| {
+        !(s.measured && matches!(s.kind, dynid_ir::ir::SignalKind::Position(_)))
+            || id
+                .noise
+                .fraction
+                .get(&s.name)
+                .is_some_and(|f| *f < super::noise::SIGNIFICANT)
+    });
+    let quiet = quiet_positions && id.noise.corrected.is_empty() && id.noise.uncorrected.is_empty();
+    // A model the instrument rows find does not hold (an equation's residual large at every
+    // level): their guard names the likely cause, which the filtered rows, with as many
+    // rows as unknowns per level, cannot see.
+    let holds = !id
+        .fit_warnings
+        .iter()
+        .any(|w| w.check == super::types::FitCheck::LargeResidual);
+    let given = id.filter.corners_from.given;
+    (open && coulomb && from_positions && input && quiet && holds && !given).then(|| {
+        IdentifyOptions {
+            filtered: true,
+            input_delay: true,
+            auto_rows: false,
+            ..opts.clone()
+        }
+    })
+}
+
+/// The identification by the rows [`servo_rows`] chose, marked as chosen; the instrument
+/// rows' `id` where those rows cannot be formed or leave a parameter unidentified that the
+/// instrument rows identified.
+fn chosen(id: Identification, alt: Result<Identification, IdentifyError>) -> Identification {
+    match alt {
+        Ok(mut alt) if alt.unidentifiable.len() <= id.unidentifiable.len() => {
+            alt.filter.auto_rows = true;
+            alt
+        }
+        _ => id,
+    }
 }
 
 /// Factors below the designed corner of the filtered equation with the inputs' delays
@@ -149,8 +229,12 @@ pub fn identify_with(
     levels: &[&dyn LevelSource],
     opts: &IdentifyOptions,
 ) -> Result<Identification, IdentifyError> {
-    let ir = &*input_delay::model(ir, opts)?;
-    pooled(ir, eval, levels, opts)
+    let model = &*input_delay::model(ir, opts)?;
+    let id = pooled(model, eval, levels, opts)?;
+    Ok(match servo_rows(model, &id, opts) {
+        Some(o) => chosen(id, identify_with(ir, eval, levels, &o)),
+        None => id,
+    })
 }
 
 /// Identify separately at each level (for detection: an equivalent-linear parameter that

@@ -26,6 +26,11 @@ pub(crate) fn name(input: &str) -> String {
     format!("{input}{SUFFIX}")
 }
 
+/// Whether `param` names an input's delay (`u.delay`).
+pub(crate) fn is_delay(param: &str) -> bool {
+    param.ends_with(SUFFIX)
+}
+
 /// The model identification solves: `ir` itself, or with the inputs' delays where
 /// [`IdentifyOptions::input_delay`] asks for them; refused where that leaves no input
 /// with a delay (none is measured).

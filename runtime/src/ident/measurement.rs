@@ -79,6 +79,7 @@ impl<'m> Measurement<'m> {
             corners: self.plan.corners.clone(),
             corners_from: self.plan.corner_source.clone(),
             corners_tried: Vec::new(),
+            auto_rows: false,
             corner_moves: Vec::new(),
             order: self.plan.order,
             drivers: self

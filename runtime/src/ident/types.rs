@@ -93,6 +93,18 @@ pub struct IdentifyOptions {
     /// quartered (`identify`'s corner search, reported in
     /// [`FilterSummary::corners_tried`]).
     pub input_delay: bool,
+    /// Let `identify` choose the rows where the options leave them open (none of the
+    /// row choices above set, corners, order and drivers not given): on a record of a servo
+    /// axis's kind — a `sign` of a velocity (rests looked for), a measured input,
+    /// velocities estimated from measured positions, no noise worth a correction in any
+    /// term — the rows of the filtered equation with the inputs' delays (`filtered` and
+    /// `input_delay`). On the servo bench (`servo_precision`, 48 seeds) they are 50–500
+    /// times more precise than the instrument rows on random set points, 2.7–3.7 times on
+    /// planned moves (the offset level), and 17–160 times for mass, damping and friction where the
+    /// model lacks a Stribeck term ([`super::identify::servo_rows`]). Said in
+    /// [`FilterSummary::auto_rows`]. Off: the instrument rows unless asked otherwise (the
+    /// CLI's `--instrument-rows`). On by default.
+    pub auto_rows: bool,
 }
 
 impl Default for IdentifyOptions {
@@ -114,6 +126,30 @@ impl Default for IdentifyOptions {
             efficient: false,
             filtered: false,
             input_delay: false,
+            auto_rows: true,
+        }
+    }
+}
+
+impl IdentifyOptions {
+    /// The defaults with the instrument rows kept wherever `identify` would choose others
+    /// ([`IdentifyOptions::auto_rows`] off; the CLI's `--instrument-rows`).
+    pub fn instrument_rows() -> IdentifyOptions {
+        IdentifyOptions {
+            auto_rows: false,
+            ..IdentifyOptions::default()
+        }
+    }
+
+    /// The options `id` was identified with: these, or the rows of the filtered equation
+    /// with the inputs' delays where `identify` chose them ([`FilterSummary::auto_rows`]).
+    /// For further identifications of the same records (the corner check, a refinement).
+    pub fn as_identified(&self, id: &Identification) -> IdentifyOptions {
+        IdentifyOptions {
+            filtered: self.filtered || id.filter.auto_rows,
+            input_delay: self.input_delay || id.filter.auto_rows,
+            auto_rows: self.auto_rows && !id.filter.auto_rows,
+            ..self.clone()
         }
     }
 }
@@ -422,6 +458,9 @@ pub struct FilterSummary {
     /// [`super::identify::FILTERED_CORNER_STEPS`]).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub corners_tried: Vec<CornerTry>,
+    /// The rows of the filtered equation with the inputs' delays were chosen by `identify`
+    /// for a record of a servo axis's kind ([`IdentifyOptions::auto_rows`]), not asked for.
+    pub auto_rows: bool,
     /// Parameters whose estimates move by more than their standard errors when the highest
     /// corner is moved a factor 4 down or up ([`super::corner_moves`]; filled in by the
     /// command line, empty otherwise).
@@ -652,4 +691,9 @@ pub struct CornerMove {
     pub stderrs: [f64; 3],
     /// The highest corner of each (rad/s).
     pub upper: [f64; 3],
+    /// The smallest move that counts ([`CornerMove::moved`]):
+    /// [`super::CORNER_CHECK_MIN_REL`] of the value, or for an input's delay (whose value
+    /// may be near zero) of the sample interval.
+    #[serde(skip)]
+    pub min_move: f64,
 }

@@ -29,6 +29,12 @@ in the output. Accelerations never need to be measured. The default filter corne
 band of the data and the record length; a record too short for given corners is refused
 with corners that fit it.
 
+On a servo axis's kind of record — Coulomb friction (`sign(v)`), a measured force,
+velocities estimated from an encoder's quiet positions, a model that holds — identify
+chooses the rows of the filtered equation with an unknown delay of the force (`u.delay`,
+seconds) and says so (`rows: …`): on the simulated servo axis far more precise than the
+default instrument rows (docs/method.md §2). --instrument-rows keeps those.
+
 Example:
   dynid simulate models/two_mass.dyn --out data/
   dynid identify models/two_mass.dyn data/level_1.csv data/level_2.csv data/level_3.csv \\
@@ -217,6 +223,9 @@ fn identify_from(args: &Args) -> miette::Result<()> {
     for w in &id.fit_warnings {
         eprintln!("warning: {w}");
     }
+    if let Some(h) = filtered_hint(&ir, &id) {
+        println!("\nNote: {h}");
+    }
     if let Some(out) = &args.json {
         let text = json::document(&id, None, None)?;
         write_atomically(out, text.as_bytes())?;
@@ -225,38 +234,22 @@ fn identify_from(args: &Args) -> miette::Result<()> {
 }
 
 /// The note pointing at the rows of the filtered equation with the input's delay where the
-/// record is of a servo axis's kind — Coulomb friction (rests were looked for), a measured
-/// input, velocities estimated from positions, no noise worth a correction — identified
-/// with the default rows, and the model can form those rows.
+/// record is of a servo axis's kind ([`dynid_runtime::ident::servo_rows`]) but
+/// the instrument rows were kept: asked for (`--instrument-rows`, or another row flag), or
+/// identified from moments (`--from`), and the model can form those rows.
 fn filtered_hint(ir: &ModelIr, id: &Identification) -> Option<String> {
-    let coulomb = id.levels.iter().any(|l| l.rests.is_some());
-    // Velocities estimated from positions: what a drive records (encoder and force).
-    let from_positions = id
-        .estimated
-        .iter()
-        .any(|e| e.method == dynid_runtime::ident::velocity::METHOD);
-    let input = (0..ir.inputs.len()).any(|i| {
-        let s = ir.input_signal(dsl_parser::ir::InputId(i as u32));
-        ir.signal(s).measured
-    });
-    if id.filter.corners_from.filtered
-        || !coulomb
-        || !input
-        || !from_positions
-        || !id.noise.corrected.is_empty()
-    {
+    if id.filter.corners_from.filtered || id.filter.auto_rows {
         return None;
     }
-    let opts = dynid_runtime::IdentifyOptions {
-        filtered: true,
-        input_delay: true,
-        ..Default::default()
-    };
+    let opts =
+        dynid_runtime::ident::servo_rows(ir, id, &dynid_runtime::IdentifyOptions::default())?;
     dynid_runtime::ident::memory::estimate(ir, id.levels.len(), &opts).ok()?;
     Some(
         "Coulomb friction, a measured force and positions without noise worth a correction \
-         (velocities estimated from them), as on a servo axis: there --filtered-equation --input-delay may be far more precise \
-         (on the simulated servo axis, bench `servo_precision`: RMS errors about 50–500 \
+         (velocities estimated from them), as on a servo axis: there the rows of the filtered \
+         equation with the input's delay, which `identify` chooses for such records from \
+         their files unless another row flag or --instrument-rows is given, may be far more \
+         precise (on the simulated servo axis, bench `servo_precision`: RMS errors 50–500 \
          times smaller on random set points, about 3 times on planned moves, the offset \
          level; docs/method.md §2, \"The input between samples\")"
             .into(),
@@ -479,7 +472,7 @@ pub fn identify_files(ir: &ModelIr, args: &Args) -> miette::Result<Identificatio
     let mut id = identify(ir, &levels, &opts)?;
     // Estimates that move with the corners: two further identifications.
     if !args.no_corner_check {
-        check_corners(ir, &levels, &opts, &mut id);
+        check_corners(ir, &levels, &opts.as_identified(&id), &mut id);
     }
     Ok(id)
 }

@@ -134,6 +134,14 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
         "corners chosen by: {}\n",
         id.filter.describe_corners()
     ));
+    if id.filter.auto_rows {
+        s.push_str(
+            "rows: the filtered equation with the input's delay, chosen for this record \
+             (friction with a sign of a velocity, a measured force, velocities estimated from \
+             positions with no noise worth a correction: a servo axis's record, where they are \
+             far more precise than the instrument rows; --instrument-rows for those)\n",
+        );
+    }
     for r in &id.residual {
         let lv: Vec<String> = r.per_level.iter().map(|v| format!("{v:.2e}")).collect();
         s.push_str(&format!("residual {}: {}\n", r.equation, lv.join(" / ")));

@@ -228,6 +228,9 @@ impl MomentDesign {
             // Not a design choice: `moments` refuses it (the pieces' sums are of the
             // model's own columns).
             input_delay: false,
+            // The moments are the instrument rows' (or the filtered equation's without
+            // the delay), as designed: no choice left (the corners are given anyway).
+            auto_rows: false,
         }
     }
 
