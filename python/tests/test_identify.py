@@ -88,11 +88,11 @@ def test_a_sensor_offset_is_warned_about_and_named(models):
 def test_identify_keywords_are_the_commands_flags(models):
     # Planned moves with dwells (a third of every cycle at rest): by default the rests
     # are left out of the moments; `keep_rests` keeps them and the mass goes off. Seed 1,
-    # 25 s at 1 kHz: m −0.002 % by default, +2.9 % with the rests kept (the servo bench
-    # over 12 seeds: RMS 0.094 % and 23 %).
+    # 25 s at 1 kHz, the instrument rows: m −0.002 % by default, +2.9 % with the rests kept
+    # (the servo bench over 12 seeds: RMS 0.094 % and 23 %).
     model = dynid.Model.from_file(models / "servo_axis_planned.dyn")
     data = model.simulate(duration=25, seed=1, sample=0.001)
-    default = model.identify(data)
+    default = model.identify(data, instrument_rows=True)
     rests = [level["rests"] for level in default.to_dict()["levels"]]
     assert all(r["intervals"] > 0 and r["samples"] > 0 for r in rests), rests
     assert abs(default["m"] / 50 - 1) < 3e-3, default["m"]
@@ -142,3 +142,22 @@ def test_input_delay_keyword(models):
     result = model.identify(data, filtered_equation=True, input_delay=True, corner_check=False)
     assert 3e-4 < result["u.delay"] < 6e-4, result["u.delay"]
     assert "u(t − " in result.equations, result.equations
+
+
+def test_instrument_rows_keyword(models):
+    # On a servo axis's kind of record (Coulomb friction, a measured force, velocities
+    # estimated from an encoder's positions) `identify` chooses the rows of the filtered
+    # equation with the force's delay and says so in `filter.auto_rows`: the same estimates
+    # as asking for them. `instrument_rows` is `--instrument-rows`: the instrument rows,
+    # no delay (docs/method.md §2, "The rows `identify` chooses").
+    model = dynid.Model.from_file(models / "servo_axis_planned.dyn")
+    data = model.simulate(duration=25, seed=1, sample=0.001)
+    chosen = model.identify(data, corner_check=False)
+    assert chosen.to_dict()["filter"]["auto_rows"] is True
+    asked = model.identify(data, filtered_equation=True, input_delay=True, corner_check=False)
+    assert asked.to_dict()["filter"]["auto_rows"] is False
+    assert chosen["m"] == asked["m"] and chosen["u.delay"] == asked["u.delay"]
+    kept = model.identify(data, instrument_rows=True, corner_check=False)
+    assert kept.to_dict()["filter"]["auto_rows"] is False
+    assert "u.delay" not in kept.to_dict()["parameters"]
+    assert abs(kept["m"] / 50 - 1) < 3e-3, kept["m"]

@@ -130,12 +130,8 @@ pub fn corner_moves(
         .iter()
         .filter_map(|p| {
             let (pa, pb) = (a.param(&p.name)?, b.param(&p.name)?);
-            let scale = match super::input_delay::is_delay(&p.name) {
-                true => ts,
-                false => p.value.abs(),
-            };
             Some(CornerMove {
-                min_move: CORNER_CHECK_MIN_REL * scale,
+                min_move: min_move(&p.name, p.value, ts),
                 param: p.name.clone(),
                 values: [pa.value, p.value, pb.value],
                 stderrs: [pa.stderr, p.stderr, pb.stderr],
@@ -143,4 +139,39 @@ pub fn corner_moves(
             })
         })
         .collect())
+}
+
+/// The smallest move of parameter `name` (estimated `value`) that [`CornerMove::moved`]
+/// counts: [`CORNER_CHECK_MIN_REL`] of the value, or of the sample interval `ts` for an
+/// input's delay, whose value may be near zero and whose scale is the sample interval.
+fn min_move(name: &str, value: f64, ts: f64) -> f64 {
+    let scale = match super::input_delay::is_delay(name) {
+        true => ts,
+        false => value.abs(),
+    };
+    CORNER_CHECK_MIN_REL * scale
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The delay of the README's servo record (1 kHz): 5.007e-5 s ± 1.9e-7 s at the
+    /// designed corner, 5.085e-5 s with it raised — 1.6 % of its value, 0.08 % of the
+    /// sample interval: no warning; a friction coefficient that moves 1.6 % beyond its
+    /// standard error is one.
+    #[test]
+    fn a_delay_moves_on_the_scale_of_the_sample_interval() {
+        let mv = |name: &str, values: [f64; 3], se: f64| CornerMove {
+            param: name.into(),
+            values,
+            stderrs: [se; 3],
+            upper: [62.5, 250.0, 500.0],
+            min_move: min_move(name, values[1], 1e-3),
+        };
+        assert!(!mv("u.delay", [5.0e-5, 5.007e-5, 5.085e-5], 1.9e-7).moved());
+        assert!(mv("u.delay", [5.0e-5, 5.007e-5, 2.5e-4], 1.9e-7).moved());
+        assert!(mv("r", [15.0, 15.0, 15.24], 0.01).moved());
+        assert!(!mv("r", [15.0, 15.0, 15.1], 0.01).moved());
+    }
 }
