@@ -671,49 +671,95 @@ fn planned_cycles_agree_within_their_errors() {
 /// lowered one (about 30 rad/s) by 0.4–2.1.
 /// The corner check of `dynid identify` on one record: the parameters at the highest corner
 /// a factor 4 below, as designed, and a factor 4 above.
-fn corner_check(ir: &ModelIr, rec: &Record) -> Vec<dynid::runtime::ident::CornerMove> {
+fn corner_check(
+    ir: &ModelIr,
+    rec: &Record,
+    opts: &IdentifyOptions,
+) -> Vec<dynid::runtime::ident::CornerMove> {
     let src = RecordSource::new(rec, ir, "servo").expect("record");
     let levels: Vec<&dyn LevelSource> = vec![&src];
-    let opts = IdentifyOptions::instrument_rows();
-    let id = identify(ir, &levels, &opts).expect("identification");
-    dynid::runtime::ident::corner_moves(ir, &levels, &opts, &id)
+    let id = identify(ir, &levels, opts).expect("identification");
+    dynid::runtime::ident::corner_moves(ir, &levels, &opts.as_identified(&id), &id)
         .expect("identification at the moved corners")
 }
 
 #[test]
 fn estimates_hold_over_corners_a_factor_four_either_side() {
+    let worst = corners_hold(&IdentifyOptions::instrument_rows(), 2.7);
+    // docs/method.md quotes the largest move, the same over the suite's four seeds and
+    // over the long form's twelve.
+    let seeds = common::seed_count(4);
+    if common::seeds_as_documented() && (seeds == 4 || seeds == 12) {
+        figures::check("docs/method.md", "servo.corners.worst", worst);
+    }
+}
+
+/// As [`estimates_hold_over_corners_a_factor_four_either_side`] with the defaults, which
+/// on this record choose the rows of the filtered equation with the force's delay: their
+/// one corner (the one the search kept, 125–250 rad/s) a factor 4 below and above (capped
+/// at 0.5/Ts = 500 rad/s). Measured over seeds 1–12 (`DYNID_SEEDS=12 cargo test --release
+/// --test servo chosen_rows_hold -- --nocapture`): no parameter flagged, the largest move
+/// 2.49 standard errors (the offset on seed 2, 0.043 %; their standard errors are 60 to 600
+/// times smaller than the instrument rows', so a move of a few hundredths of a per cent is
+/// several of them); on
+/// seed 6 the corner lowered to 31 rad/s no longer tells the offset from the friction (the
+/// friction took it up, 13.0 for 15.0), and the check leaves that side out.
+#[test]
+fn chosen_rows_hold_over_corners_a_factor_four_either_side() {
+    let worst = corners_hold(&IdentifyOptions::default(), 5.0);
+    if common::seeds_as_documented() && common::seed_count(4) == 12 {
+        figures::check("docs/method.md", "servo.corners.chosen_worst", worst);
+    }
+}
+
+/// The corner check on the random servo records of the seeds: no parameter flagged, no
+/// move of more than `bound` standard errors (the larger of the two compared); the
+/// largest move.
+fn corners_hold(opts: &IdentifyOptions, bound: f64) -> f64 {
     let seeds = common::seed_count(4) as u64;
     let mut flagged = Vec::new();
     let mut worst: f64 = 0.0;
     for seed in 1..=seeds {
         let (ir, rec) = record(0.1, common::seed(seed), false);
-        let moves = corner_check(&ir, &rec);
-        assert_eq!(moves.len(), TRUTH.len(), "every parameter in all three");
+        let moves = corner_check(&ir, &rec, opts);
+        let own: Vec<_> = moves.iter().filter(|m| !m.param.contains('.')).collect();
+        assert_eq!(
+            own.len(),
+            TRUTH.len(),
+            "seed {seed}: every parameter in all three: {moves:?}"
+        );
+        // The model's parameters; an input's delay (`u.delay`, with the filtered rows)
+        // only in the check's verdict.
         for m in &moves {
             let ratio = [0, 2]
                 .iter()
                 .map(|&k| (m.values[k] - m.values[1]).abs() / m.stderrs[1].max(m.stderrs[k]))
                 .fold(0.0, f64::max);
+            let rel = [0, 2]
+                .iter()
+                .map(|&k| ((m.values[k] - m.values[1]) / m.values[1]).abs())
+                .fold(0.0, f64::max);
             eprintln!(
-                "seed {seed} {}: moves {ratio:.2} SE over the highest corner {:.0} … {:.0} rad/s",
-                m.param, m.upper[0], m.upper[2]
+                "seed {seed} {}: moves {ratio:.2} SE ({:.4} %) over the highest corner {:.0} … {:.0} rad/s",
+                m.param,
+                100.0 * rel,
+                m.upper[0],
+                m.upper[2]
             );
-            worst = worst.max(ratio);
+            if !m.param.contains('.') {
+                worst = worst.max(ratio);
+            }
             if m.moved() {
                 flagged.push((seed, m.param.clone()));
                 assert!(m.describe().contains(&m.param), "{}", m.describe());
             }
         }
     }
-    // Tolerance twice the largest ratio measured over 12 seeds (1.30, `DYNID_SEEDS=12 cargo
-    // test --test servo corners -- --nocapture`).
-    assert!(worst < 2.7, "largest move {worst:.2} standard errors");
+    // Tolerance about twice the largest ratio measured over 12 seeds (the instrument rows
+    // 1.30, `DYNID_SEEDS=12 cargo test --test servo corners -- --nocapture`).
+    assert!(worst < bound, "largest move {worst:.2} standard errors");
     assert!(flagged.is_empty(), "flagged: {flagged:?}");
-    // docs/method.md quotes the largest move, the same over the suite's four seeds and
-    // over the long form's twelve.
-    if common::seeds_as_documented() && (seeds == 4 || seeds == 12) {
-        figures::check("docs/method.md", "servo.corners.worst", worst);
-    }
+    worst
 }
 
 /// The corner check where the model is wrong: the axis simulated with a Stribeck excess
@@ -729,7 +775,11 @@ fn the_corner_check_names_friction_that_moves_with_a_missing_stribeck_term() {
     let mut cfg = axis.config(common::seed(1));
     cfg.input_oversample = 10;
     let out = sim::simulate(&axis.true_model(), &cfg).expect("closed-loop simulation");
-    let moves = corner_check(&axis.model(), &out.records[0]);
+    let moves = corner_check(
+        &axis.model(),
+        &out.records[0],
+        &IdentifyOptions::instrument_rows(),
+    );
     for m in &moves {
         eprintln!(
             "{}: {:?} ± {:?} over {:?} rad/s",

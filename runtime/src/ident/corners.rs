@@ -123,8 +123,13 @@ pub fn corner_moves(
         }
     };
     let (a, b) = (moved(&down)?, moved(&up)?);
-    let (a, b) = (a.as_ref().unwrap_or(id), b.as_ref().unwrap_or(id));
+    // A moved corner at which a parameter that `id` identified is not identifiable (the
+    // filtered equation's one corner lowered until an offset and a Coulomb friction are no
+    // longer told apart, the friction then taking up the offset) compares other models:
+    // that side is left out, as a corner that does not move.
     let top = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    let (a, lo_top) = side(id, &a, top(&down), hi);
+    let (b, hi_top) = side(id, &b, top(&up), hi);
     Ok(id
         .params
         .iter()
@@ -135,10 +140,25 @@ pub fn corner_moves(
                 param: p.name.clone(),
                 values: [pa.value, p.value, pb.value],
                 stderrs: [pa.stderr, p.stderr, pb.stderr],
-                upper: [top(&down), hi, top(&up)],
+                upper: [lo_top, hi, hi_top],
             })
         })
         .collect())
+}
+
+/// One side of the corner check: the identification at the moved corner (highest corner
+/// `top`) where it identifies at least what `id` did, else `id` itself at its own highest
+/// corner `hi` (a corner that did not move, or one that compares another model).
+fn side<'a>(
+    id: &'a Identification,
+    alt: &'a Option<Identification>,
+    top: f64,
+    hi: f64,
+) -> (&'a Identification, f64) {
+    match alt {
+        Some(a) if a.unidentifiable.len() <= id.unidentifiable.len() => (a, top),
+        _ => (id, hi),
+    }
 }
 
 /// The smallest move of parameter `name` (estimated `value`) that [`CornerMove::moved`]
