@@ -100,7 +100,7 @@ pub struct IdentifyOptions {
     /// term — the rows of the filtered equation with the inputs' delays (`filtered` and
     /// `input_delay`). On the servo bench (`servo_precision`, 48 seeds) they are 50–500
     /// times more precise than the instrument rows on random set points, 2.7–3.7 times on
-    /// planned moves (the offset level), and 17–160 times for mass, damping and friction where the
+    /// planned moves (the offset level), and 10–200 times for mass, damping and friction where the
     /// model lacks a Stribeck term ([`super::identify::servo_rows`]). Said in
     /// [`FilterSummary::auto_rows`]. Off: the instrument rows unless asked otherwise (the
     /// CLI's `--instrument-rows`). On by default.
@@ -382,9 +382,11 @@ impl FilterSummary {
             .collect();
         format!(
             "{rule}; tried {} (the geometric mean of the standard errors against the kept \
-             corner's; a lower corner is kept where they are {}× smaller)",
+             corner's; a lower corner is kept where they are {}× smaller and its estimates \
+             lie within {} standard errors of the designed corner's)",
             tried.join(", "),
-            super::identify::FILTERED_CORNER_GAIN
+            super::identify::FILTERED_CORNER_GAIN,
+            super::identify::FILTERED_CORNER_AGREE
         )
     }
 }
