@@ -22,6 +22,17 @@ use std::path::{Path, PathBuf};
 const OPEN_LOOP: &str = "model axis {\n    body m ~ 50\n    input u on m\n    measure m.x, u\n    \
      damper d (ground, m) ~ 120\n}\n";
 
+/// A rig's record for `dynid simulate`: 25 s at 1 kHz, the drive's force updated ten
+/// times per sample.
+const RIG: [&str; 6] = [
+    "--duration",
+    "25",
+    "--sample",
+    "0.001",
+    "--input-oversample",
+    "10",
+];
+
 /// `dynid simulate models/servo_axis_planned.dyn` for `duration` s at 1 kHz with a 1 µm
 /// encoder (seed 3) into `dir/data`: the three level files (`t, m.x, u, xr`).
 fn simulate(dir: &Path, duration: f64) -> Vec<PathBuf> {
@@ -254,14 +265,7 @@ fn the_plant_of_a_closed_loop_record_refines_in_sub_records() {
     let o = dynid()
         .arg("simulate")
         .arg(model_path("servo_axis_planned_offset.dyn"))
-        .args([
-            "--duration",
-            "25",
-            "--sample",
-            "0.001",
-            "--input-oversample",
-            "10",
-        ])
+        .args(RIG)
         .args(["--quantise", "1e-6", "--out"])
         .arg(&rig)
         .output()
@@ -490,14 +494,7 @@ fn identify_keeps_a_lower_corner_only_where_its_estimates_agree() {
     let o = dynid()
         .arg("simulate")
         .arg(&model)
-        .args([
-            "--duration",
-            "25",
-            "--sample",
-            "0.001",
-            "--input-oversample",
-            "10",
-        ])
+        .args(RIG)
         .args([
             "--quantise",
             "2e-5",
