@@ -156,7 +156,7 @@ fn side<'a>(
     hi: f64,
 ) -> (&'a Identification, f64) {
     match alt {
-        Some(a) if a.unidentifiable.len() <= id.unidentifiable.len() => (a, top),
+        Some(a) if a.identifies_as_much_as(id) => (a, top),
         _ => (id, hi),
     }
 }

@@ -50,14 +50,23 @@ pub(crate) fn model<'a>(
     Ok(Cow::Owned(out))
 }
 
+/// Whether input `i` is measured: an input that can be given a delay ([`extend`]).
+fn delayable(ir: &ModelIr, i: usize) -> bool {
+    ir.signal(ir.input_signal(InputId(i as u32))).measured
+}
+
+/// Whether `ir` has an input that can be given a delay (a measured one).
+pub(crate) fn any_delayable(ir: &ModelIr) -> bool {
+    (0..ir.inputs.len()).any(|i| delayable(ir, i))
+}
+
 /// The model with an unknown delay `u.delay` (seconds) for each measured input that has
 /// none yet, appended after the model's own parameters (their columns keep their order).
 pub(crate) fn extend(ir: &ModelIr) -> ModelIr {
     let mut out = ir.clone();
     for (i, input) in ir.inputs.iter().enumerate() {
-        let signal = ir.input_signal(InputId(i as u32));
         let name = name(&input.name);
-        if ir.signal(signal).measured && !out.params.iter().any(|p| p.name == name) {
+        if delayable(ir, i) && !out.params.iter().any(|p| p.name == name) {
             out.params.push(ParamIr {
                 name,
                 kind: ParamKind::Unknown { nominal: None },

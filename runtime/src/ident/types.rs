@@ -539,6 +539,12 @@ pub struct ShapeEstimate {
 }
 
 impl Identification {
+    /// Whether this identification leaves no more parameters unidentified than `other`
+    /// (the same model, other rows or corners: a comparison of like with like).
+    pub(crate) fn identifies_as_much_as(&self, other: &Identification) -> bool {
+        self.unidentifiable.len() <= other.unidentifiable.len()
+    }
+
     pub fn param(&self, name: &str) -> Option<&ParamEstimate> {
         self.params.iter().find(|p| p.name == name)
     }
