@@ -491,14 +491,7 @@ fn planned_axis_workflow_names_a_withheld_offset_friction_or_both() {
     let out = common::dynid()
         .args(["simulate"])
         .arg(&truth)
-        .args([
-            "--duration",
-            "25",
-            "--sample",
-            "0.001",
-            "--input-oversample",
-            "10",
-        ])
+        .args(common::RIG)
         .args(["--quantise", "1e-6", "--seed", "1", "--out"])
         .arg(dir.path().join("rig"))
         .output()

@@ -22,17 +22,6 @@ use std::path::{Path, PathBuf};
 const OPEN_LOOP: &str = "model axis {\n    body m ~ 50\n    input u on m\n    measure m.x, u\n    \
      damper d (ground, m) ~ 120\n}\n";
 
-/// A rig's record for `dynid simulate`: 25 s at 1 kHz, the drive's force updated ten
-/// times per sample.
-const RIG: [&str; 6] = [
-    "--duration",
-    "25",
-    "--sample",
-    "0.001",
-    "--input-oversample",
-    "10",
-];
-
 /// `dynid simulate models/servo_axis_planned.dyn` for `duration` s at 1 kHz with a 1 µm
 /// encoder (seed 3) into `dir/data`: the three level files (`t, m.x, u, xr`).
 fn simulate(dir: &Path, duration: f64) -> Vec<PathBuf> {
@@ -265,7 +254,7 @@ fn the_plant_of_a_closed_loop_record_refines_in_sub_records() {
     let o = dynid()
         .arg("simulate")
         .arg(model_path("servo_axis_planned_offset.dyn"))
-        .args(RIG)
+        .args(common::RIG)
         .args(["--quantise", "1e-6", "--out"])
         .arg(&rig)
         .output()
@@ -475,7 +464,8 @@ fn identify_chooses_the_filtered_rows_for_a_servo_record() {
 /// The README's servo axis (random set points, closed loop) with a 20 µm encoder, seed 1:
 /// `identify` chooses the filtered rows with the force's delay, whose corner search finds
 /// standard errors 2.5 times smaller at the corner quartered (24.6 rad/s) — where the
-/// damping came out 0.33 % off, 19 of those errors — and keeps the designed 98.5 rad/s,
+/// damping came out 0.33 % off, 19 of those errors (measured once, before the corners had
+/// to agree) — and keeps the designed 98.5 rad/s,
 /// since the quartered corner's estimates do not agree with it
 /// (`ident::identify::FILTERED_CORNER_AGREE`). Measured at the designed corner: m −0.002 %,
 /// d +0.057 %, r −0.062 %, f0 −0.44 %, at −0.4, 2.0, −0.9 and 2.1 standard errors; the
@@ -494,7 +484,7 @@ fn identify_keeps_a_lower_corner_only_where_its_estimates_agree() {
     let o = dynid()
         .arg("simulate")
         .arg(&model)
-        .args(RIG)
+        .args(common::RIG)
         .args([
             "--quantise",
             "2e-5",

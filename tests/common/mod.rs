@@ -129,6 +129,17 @@ pub fn assert_within(case: &str, errs: &[(String, f64)], tol: &[(&str, f64)]) {
     }
 }
 
+/// A servo rig's record for `dynid simulate`: 25 s at 1 kHz, the drive's force updated
+/// ten times per sample.
+pub const RIG: [&str; 6] = [
+    "--duration",
+    "25",
+    "--sample",
+    "0.001",
+    "--input-oversample",
+    "10",
+];
+
 /// The `dynid` binary of this build.
 pub fn dynid() -> std::process::Command {
     std::process::Command::new(env!("CARGO_BIN_EXE_dynid"))
