@@ -14,21 +14,24 @@
 //! - detection from the accelerations and the force, 5 % noise on every channel, flags the
 //!   joint's element and leaves every other element linear, the mount included, on seed 1
 //!   (`detection_flags_the_joint_and_nothing_else`); over seeds 1–12 the joint on every
-//!   seed and another element too on 5, with `--weighted-rows` the joint's pair of effects
-//!   named on 10 (`detection_over_seeds`, opt-in);
-//! - lumped models with fewer bodies do not find the joint from accelerations (the
-//!   four-body model flags the mount instead); from positions the four-body model still
-//!   does (`detection_by_model_size`, opt-in: `DYNID_STRUCTURE_LONG=1`);
+//!   seed and another element too on 5, with `--weighted-rows` another element on 3 and
+//!   the joint's pair of effects named on 9 (`detection_over_seeds`, opt-in);
+//! - lumped models with fewer bodies do not find the joint from accelerations with the
+//!   default rows (the four-body model flags the mount instead); from positions the
+//!   four-body model still does (`detection_by_model_size`, opt-in:
+//!   `DYNID_STRUCTURE_LONG=1`);
+//! - `identify` weights the rows where every accelerometer is noisy
+//!   (`accel_rows_from_the_noise_up`: from 0.5 % of noise on);
 //! - diagnosis against the linear model names Coulomb friction at the joint; the joint's
 //!   parameters from accelerations, with the right model, come out tens of per cent low
-//!   with the default rows and within 5 % with `--weighted-rows`
-//!   (`joint_from_accelerations`, opt-in);
+//!   with unit-norm rows and within 7 % with the defaults (`joint_from_accelerations`,
+//!   opt-in);
 //! - a log sine sweep instead of the multisine: noiseless, the joint and every mass and
 //!   spring within 1.8 % (r +8.8 %; the multisine's within 0.6 %, `joint_from_a_sweep`);
 //!   with 5 % noise all of them
 //!   5–34 % low (`joint_from_a_noisy_sweep`, opt-in, pinned as measured);
-//! - with 5 % noise on every channel the default unit-norm rows shrink every mass and
-//!   stiffness by about half; the two-step weighted solve removes it
+//! - with 5 % noise on every channel the unit-norm rows shrink every mass and stiffness
+//!   by about half; the two-step weighted solve removes it
 //!   (`noise_on_a_structure_needs_the_weighted_step`, opt-in);
 //! - the clearance alone, on noiseless records of 1000 s: the right model recovers its
 //!   contact stiffness from accelerations as from positions
@@ -40,6 +43,7 @@ mod figures;
 use dynid::dsl_parser::ir::ModelIr;
 use dynid::runtime::record::Record;
 use dynid::runtime::sim::{self, Grid, Phases, TestSignal};
+use dynid::runtime::IdentifyOptions;
 
 /// The multisine of the case: 0.2–10 Hz, 4 periods of 50 s, random phases.
 fn multisine() -> TestSignal {
@@ -85,6 +89,64 @@ fn largest(errs: &[(String, f64)]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The rows `identify` chooses for accelerations (`dynid::runtime::ident::accel_rows`), on the
+/// linear structure's four multisine levels of 200 s (seed 1) from noiseless to 5 % noise
+/// on every channel: below [`dynid::runtime::ident::ACCEL_WEIGHTED_NOISE`] (0.5 %) of
+/// estimated noise on every accelerometer the defaults keep the unit-norm rows, from it on
+/// they weight each row by its own estimated error, and there they beat the unit-norm rows
+/// on the masses and stiffnesses by a factor two at least. The mean |error| of the masses
+/// and stiffnesses at each noise, unit-norm rows and defaults, is the table of
+/// docs/method.md §5 ("Rows for noisy accelerations").
+#[test]
+fn accel_rows_from_the_noise_up() {
+    let (acc, _) = common::model_and_source("structure5_linear_accel");
+    let mean_abs = |id: &dynid::runtime::ident::Identification, what: &str| {
+        let errs = inertia_and_springs(&common::error_row(what, &acc, id));
+        100.0 * errs.iter().map(|(_, e)| e.abs()).sum::<f64>() / errs.len() as f64
+    };
+    let cases = [
+        (0.0, "0", false),
+        (0.002, "0_2", false),
+        (0.005, "0_5", true),
+        (0.01, "1", true),
+        (0.05, "5", true),
+    ];
+    let measured: Vec<_> = cases
+        .iter()
+        .map(|&(noise, _, _)| {
+            let recs = records(&acc, noise, 1);
+            let unit = common::identify_with(&acc, &recs, &IdentifyOptions::instrument_rows())
+                .expect("identification");
+            let id = common::identify_records(&acc, &recs);
+            let (e_unit, e_id) = (
+                mean_abs(&unit, &format!("structure5, {noise} noise, unit")),
+                mean_abs(&id, &format!("structure5, {noise} noise, defaults")),
+            );
+            println!("noise {noise}: unit-norm rows {e_unit:.3} %, defaults {e_id:.3} %");
+            (id, e_unit, e_id)
+        })
+        .collect();
+    for (&(noise, key, chosen), (id, e_unit, e_id)) in cases.iter().zip(measured) {
+        assert_eq!(
+            (id.filter.auto_rows, id.filter.weighted_rows),
+            (chosen, chosen),
+            "noise {noise}: {:?}",
+            id.noise.fraction
+        );
+        if chosen {
+            assert!(
+                e_id < 0.5 * e_unit,
+                "noise {noise}: {e_id} against {e_unit}"
+            );
+        }
+        if common::seeds_as_documented() {
+            const DOC: &str = "docs/method.md";
+            figures::check(DOC, &format!("accel.rows.unit.{key}"), e_unit);
+            figures::check(DOC, &format!("accel.rows.chosen.{key}"), e_id);
+        }
+    }
+}
+
 /// The linear structure from accelerations against positions, on noiseless records of the
 /// same seed (four levels of 200 s): both recover every mass and stiffness. From
 /// accelerations this needs the rows freed of the unmeasured ends (`runtime/src/ident/
@@ -124,7 +186,7 @@ fn linear_structure_from_accelerations_as_from_positions() {
 /// The masses and stiffnesses of the linear structure from accelerations, on four
 /// multisine levels of `duration` seconds with `noise` (seed 1): their mean relative error
 /// and the largest.
-fn structure_errors(duration: f64, noise: f64, efficient: bool) -> (f64, f64) {
+fn structure_errors(duration: f64, noise: f64, opts: &IdentifyOptions) -> (f64, f64) {
     let (acc, _) = common::model_and_source("structure5_linear_accel");
     let cfg = sim::SimConfig {
         duration,
@@ -138,13 +200,14 @@ fn structure_errors(duration: f64, noise: f64, efficient: bool) -> (f64, f64) {
     let recs = sim::simulate_signal(&acc, &cfg, &multisine())
         .expect("simulation")
         .records;
-    let opts = dynid::runtime::ident::IdentifyOptions {
-        efficient,
-        ..Default::default()
+    let id = common::identify_with(&acc, &recs, opts).expect("identification");
+    let rows = match (id.filter.weighted_rows, id.filter.auto_rows) {
+        (false, _) => "unit-norm rows",
+        (true, false) => "weighted rows",
+        (true, true) => "defaults (weighted rows chosen)",
     };
-    let id = common::identify_with(&acc, &recs, &opts).expect("identification");
     let errs = common::error_row(
-        &format!("structure5, accelerations, {duration} s, noise {noise}, efficient {efficient}"),
+        &format!("structure5, accelerations, {duration} s, noise {noise}, {rows}"),
         &acc,
         &id,
     );
@@ -155,12 +218,13 @@ fn structure_errors(duration: f64, noise: f64, efficient: bool) -> (f64, f64) {
 
 /// Noise on a many-body structure (opt-in, `DYNID_STRUCTURE_LONG=1`, about a minute):
 /// noiseless records give the masses and stiffnesses from accelerations within a fraction
-/// of a per cent at 200 s and at 1000 s; with 5 % noise on every channel the default
-/// unit-norm rows shrink every one of them by the same large factor, and the two-step
-/// weighted solve (`IdentifyOptions::efficient`) removes it. Seed 1, mean error of the
-/// masses and stiffnesses: noiseless +0.04 % at 200 s and +0.03 % at 1000 s (largest
-/// 0.12 %); 5 % noise at 1000 s −47 % with the default rows, −0.35 % with the weighted
-/// step (largest 0.50 %).
+/// of a per cent at 200 s and at 1000 s; with 5 % noise on every channel the unit-norm
+/// rows shrink every one of them by the same large factor, and the two-step weighted solve
+/// (`IdentifyOptions::efficient`) removes it. Seed 1, mean error of the masses and
+/// stiffnesses: noiseless +0.04 % at 200 s and +0.03 % at 1000 s (largest 0.12 %); 5 %
+/// noise at 1000 s −47 % with the unit-norm rows, −0.35 % with the weighted step
+/// (largest 0.50 %), −1.30 % (largest 2.0 %) with the defaults, which weight each row by
+/// its own estimated error there (`accel_rows`).
 ///
 /// Why: bodies without an input and of unknown mass give equations with a zero right-hand
 /// side, `C θ = 0`. Their rows, each scaled to unit norm, weigh the band-pass instruments
@@ -173,14 +237,20 @@ fn noise_on_a_structure_needs_the_weighted_step() {
     if std::env::var("DYNID_STRUCTURE_LONG").is_err() {
         return;
     }
-    let (short, short_max) = structure_errors(200.0, 0.0, false);
-    let (long, long_max) = structure_errors(1000.0, 0.0, false);
-    let (noisy, _) = structure_errors(1000.0, 0.05, false);
-    let (weighted, weighted_max) = structure_errors(1000.0, 0.05, true);
+    let unit = IdentifyOptions::instrument_rows();
+    let asked = IdentifyOptions {
+        efficient: true,
+        ..Default::default()
+    };
+    let (short, short_max) = structure_errors(200.0, 0.0, &IdentifyOptions::default());
+    let (long, long_max) = structure_errors(1000.0, 0.0, &IdentifyOptions::default());
+    let (noisy, _) = structure_errors(1000.0, 0.05, &unit);
+    let (weighted, weighted_max) = structure_errors(1000.0, 0.05, &asked);
+    let (chosen, chosen_max) = structure_errors(1000.0, 0.05, &IdentifyOptions::default());
     println!(
         "mean error: 200 s {short:+.4} (largest {short_max:.3} %), 1000 s {long:+.4} \
          (largest {long_max:.3} %), 1000 s noisy {noisy:+.3}, weighted {weighted:+.4} \
-         (largest {weighted_max:.2} %)"
+         (largest {weighted_max:.2} %), defaults {chosen:+.4} (largest {chosen_max:.2} %)"
     );
     if common::seeds_as_documented() {
         const DOC: &str = "docs/method.md";
@@ -188,6 +258,9 @@ fn noise_on_a_structure_needs_the_weighted_step() {
         figures::check(DOC, "accel.structure5.bias.long", 100.0 * long);
         figures::check(DOC, "accel.structure5.bias.noisy", 100.0 * noisy);
         figures::check(DOC, "accel.structure5.bias.weighted", 100.0 * weighted);
+        figures::check(DOC, "accel.structure5.bias.chosen", 100.0 * chosen);
+        figures::check(DOC, "accel.structure5.bias.chosen_max", chosen_max);
+        figures::check("README.md", "accel.structure5.bias.chosen", 100.0 * chosen);
         figures::check(
             "README.md",
             "accel.structure5.bias.weighted",
@@ -202,6 +275,10 @@ fn noise_on_a_structure_needs_the_weighted_step() {
     assert!(
         weighted.abs() < 0.01 && weighted_max < 1.5,
         "{weighted} {weighted_max}"
+    );
+    assert!(
+        chosen.abs() < 0.03 && chosen_max < 5.0,
+        "{chosen} {chosen_max}"
     );
 }
 
@@ -338,12 +415,13 @@ fn detection_flags_the_joint_and_nothing_else() {
 /// Detection of the joint over seeds (opt-in, `DYNID_STRUCTURE_LONG=1`; `DYNID_SEEDS=N` for
 /// N seeds from 1, default 12; about three minutes with `--release`): the records of
 /// `detection_flags_the_joint_and_nothing_else` with seeds 1–12, detected with the default
-/// rows and with `--weighted-rows`. What it measured is in docs/detection.md ("Noisy
-/// accelerations"), every figure checked here: with either rows the joint is flagged on
-/// every seed, but another element too on about half of them; the weighted rows name the
-/// joint's pair of effects, and the curves of the elements away from the joint scatter
-/// about their means by more than their standard errors allow. Bounds: the rates
-/// measured, less one seed in twelve.
+/// (unit-norm) rows and with `--weighted-rows` (each row weighted by its own estimated
+/// error). What it measured is in docs/detection.md ("Noisy accelerations"), every figure
+/// checked here: with either rows the joint is flagged on every seed; with the default rows
+/// another element too on 5 seeds and the joint's pair of effects named on none, weighted
+/// another element on 3 and the pair on 9, and the curves of the elements away from the
+/// joint scatter about their means as their standard errors allow (χ²/dof about 1).
+/// Bounds: the rates measured, less one seed in twelve.
 #[test]
 fn detection_over_seeds() {
     if std::env::var("DYNID_STRUCTURE_LONG").is_err() {
@@ -391,6 +469,8 @@ fn detection_over_seeds() {
             counts[k][2] += usize::from(on_joint == "nonlinear: backlash + Coulomb friction");
             let doc: serde_json::Value =
                 serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+            let asked = ["unit_norm", "weighted"][k];
+            assert_eq!(doc["detection"]["rows"], asked, "seed {seed}");
             leaks[k] += doc["detection"]["elements"]
                 .as_array()
                 .unwrap()
@@ -409,21 +489,21 @@ fn detection_over_seeds() {
     let [d, w] = counts;
     let (chi_d, chi_w) = (mean(&chi2[0]), mean(&chi2[1]));
     println!(
-        "over {n} seeds, [joint flagged, nothing else, pair named]: default {d:?}, \
+        "over {n} seeds, [joint flagged, nothing else, pair named]: default rows {d:?}, \
          weighted {w:?}; mean χ²/dof away from the joint: default {chi_d:.2}, weighted \
          {chi_w:.2}; reported as a leak: default {}, weighted {}",
         leaks[0], leaks[1]
     );
     if common::seeds_as_documented() && seeds.len() == 12 {
-        figures::check(DOC, "detect.structure5.default.joint", d[0] as f64);
-        figures::check(DOC, "detect.structure5.default.clean", d[1] as f64);
-        figures::check(DOC, "detect.structure5.default.pair", d[2] as f64);
+        figures::check(DOC, "detect.structure5.unit.joint", d[0] as f64);
+        figures::check(DOC, "detect.structure5.unit.clean", d[1] as f64);
+        figures::check(DOC, "detect.structure5.unit.pair", d[2] as f64);
         figures::check(DOC, "detect.structure5.weighted.joint", w[0] as f64);
         figures::check(DOC, "detect.structure5.weighted.clean", w[1] as f64);
         figures::check(DOC, "detect.structure5.weighted.pair", w[2] as f64);
-        figures::check(DOC, "detect.structure5.default.leaks", leaks[0] as f64);
+        figures::check(DOC, "detect.structure5.unit.leaks", leaks[0] as f64);
         figures::check(DOC, "detect.structure5.weighted.leaks", leaks[1] as f64);
-        figures::check(DOC, "detect.structure5.default.chi2_away", chi_d);
+        figures::check(DOC, "detect.structure5.unit.chi2_away", chi_d);
         figures::check(DOC, "detect.structure5.weighted.chi2_away", chi_w);
     }
     let at_least = |count: usize, of_twelve: f64| count as f64 >= (of_twelve - 1.0) / 12.0 * n;
@@ -431,9 +511,13 @@ fn detection_over_seeds() {
         at_least(d[0], 12.0) && at_least(w[0], 12.0),
         "joint flagged: {d:?} {w:?}"
     );
-    assert!(at_least(d[1], 7.0), "default rows, nothing else: {d:?}");
-    assert!(at_least(w[1], 6.0), "weighted rows, nothing else: {w:?}");
-    assert!(at_least(w[2], 10.0), "weighted rows, the pair named: {w:?}");
+    assert!(at_least(d[1], 7.0), "unit-norm rows, nothing else: {d:?}");
+    assert!(at_least(w[1], 9.0), "defaults, nothing else: {w:?}");
+    assert!(at_least(w[2], 9.0), "defaults, the pair named: {w:?}");
+    assert!(
+        chi_w < 1.5,
+        "defaults' curves away from the joint: χ²/dof {chi_w}"
+    );
 }
 
 /// The study of model size (`DYNID_STRUCTURE_LONG=1 cargo test --test accel_structure --
@@ -507,10 +591,12 @@ fn joint_errors(levels: &[std::path::PathBuf], flags: &[&str]) -> (f64, f64) {
 /// Identification of the joint with the right model, and diagnosis against the linear one,
 /// from the accelerations of `detection_flags_the_joint_and_nothing_else` (opt-in,
 /// `DYNID_STRUCTURE_LONG=1`). Seed 1: diagnosis names Coulomb friction at the joint
-/// (m2, m3). Identification with the right model and the default rows gives the contact
-/// stiffness kb −46 % and the friction r −44 % off (the shrinkage of
-/// `noise_on_a_structure_needs_the_weighted_step`, pinned as measured); with
-/// `--weighted-rows` kb −4.6 % (±1.5 %) and r −0.6 % (±1.7 %). Bounds about twice those.
+/// (m2, m3). Identification with the right model and the unit-norm rows
+/// (`--instrument-rows`) gives the contact stiffness kb −46 % and the friction r −44 % off
+/// (the shrinkage of `noise_on_a_structure_needs_the_weighted_step`, pinned as measured);
+/// with the defaults, which weight each row by its own estimated error on these records,
+/// kb −6.2 % (±2.4 %) and r −5.2 % (±3.7 %); with `--weighted-rows` (the covariance
+/// shrunk halfway) kb −4.6 % (±1.5 %) and r −0.6 % (±1.7 %). Bounds about twice those.
 #[test]
 fn joint_from_accelerations() {
     if std::env::var("DYNID_STRUCTURE_LONG").is_err() {
@@ -518,8 +604,9 @@ fn joint_from_accelerations() {
     }
     let dir = tempfile::tempdir().unwrap();
     let levels = joint_levels(dir.path(), false);
-    let (kb, r) = joint_errors(&levels, &[]);
+    let (kb, r) = joint_errors(&levels, &["--instrument-rows"]);
     let (kb_w, r_w) = joint_errors(&levels, &["--weighted-rows"]);
+    let (kb_d, r_d) = joint_errors(&levels, &[]);
     if common::seeds_as_documented() {
         figures::check("README.md", "accel.structure5.joint.kb", 100.0 * kb);
         figures::check("README.md", "accel.structure5.joint.r", 100.0 * r);
@@ -533,11 +620,21 @@ fn joint_from_accelerations() {
             "accel.structure5.joint.r_weighted",
             100.0 * r_w,
         );
+        figures::check(
+            "README.md",
+            "accel.structure5.joint.kb_default",
+            100.0 * kb_d,
+        );
+        figures::check("README.md", "accel.structure5.joint.r_default", 100.0 * r_d);
     }
     assert!(kb < -0.2 && r < -0.2, "kb {kb:+.3}, r {r:+.3}");
     assert!(
         kb_w.abs() < 0.1 && r_w.abs() < 0.04,
         "kb {kb_w:+.3}, r {r_w:+.3}"
+    );
+    assert!(
+        kb_d.abs() < 0.12 && r_d.abs() < 0.1,
+        "kb {kb_d:+.3}, r {r_d:+.3}"
     );
     let out = common::dynid()
         .arg("diagnose")
@@ -642,6 +739,8 @@ fn joint_from_a_noisy_sweep() {
         let levels = sweep_levels(dir.path(), 0.05, seed);
         let errs = all_errors(&levels, &["--weighted-rows"]);
         println!("joint from a noisy sweep, seed {seed}: {errs:.3?}");
+        let defaults = all_errors(&levels, &[]);
+        println!("joint from a noisy sweep, seed {seed}, defaults: {defaults:.3?}");
         for (name, e) in &errs {
             if name != "r" {
                 assert!((-0.45..0.0).contains(e), "seed {seed}, {name} {e:+.3}");

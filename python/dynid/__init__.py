@@ -1435,21 +1435,26 @@ class Model:
             smooth between samples.
         weighted_rows : bool, default False
             Solve a second time with each level's rows weighted by their estimated
-            covariance (``--weighted-rows``): on a many-body structure measured by noisy
-            accelerometers it removes the shrinkage of the unit-norm rows, but its standard
-            errors come out smaller than the spread they stand for (docs/method.md §2).
+            covariance, shrunk halfway to its diagonal (``--weighted-rows``): on a many-body
+            structure measured by noisy accelerometers it removes the shrinkage of the
+            unit-norm rows, but its standard errors come out smaller than the spread they
+            stand for (docs/method.md §2). Without it such records get each row weighted by
+            its own estimated error (see ``instrument_rows``).
         input_delay : bool, default False
             Estimate a delay of each measured input against its record (``--input-delay``):
             one more parameter per input, ``"u.delay"`` in seconds, for a force that acts
             later than it is recorded or changes between samples in a way a straight line
             does not follow (docs/method.md §2, "The input between samples").
         instrument_rows : bool, default False
-            Keep the instrument rows where ``identify`` would choose the filtered equation
-            with the input's delay (``--instrument-rows``): it chooses them, and says so in
-            ``filter.auto_rows`` of ``to_dict()``, on a servo axis's kind of record (friction
-            with a sign of a velocity, a measured force, velocities estimated from measured
-            positions with no noise worth a correction) when no other row, corner or noise
-            keyword is given.
+            Keep the instrument rows, each at unit norm, where ``identify`` would choose
+            others (``--instrument-rows``). It chooses, and says so in ``filter.auto_rows``
+            of ``to_dict()``, when no other row, corner or noise keyword is given: on a servo
+            axis's kind of record (friction with a sign of a velocity, a measured force,
+            velocities estimated from measured positions with no noise worth a correction)
+            the filtered equation with the input's delay; on records whose every measured
+            acceleration carries noise of 0.5 % of its spread or more, each row weighted by
+            its own estimated error (``filter.weighted_rows``; docs/method.md §2, "Rows for
+            noisy accelerations").
 
         Returns
         -------
@@ -1695,10 +1700,11 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
         Each record holds this many periods of a periodic excitation (``--frf-periods``).
     SPLIT_PARAMETERS
     weighted_rows : bool, default False
-        Fit each level with its rows weighted by their estimated covariance
+        Fit each level with each row weighted by its own estimated error
         (``--weighted-rows``): per-level values free of the shrinkage that noise on
-        accelerations gives the default rows, but standard errors smaller than their
-        spread (docs/detection.md, "Noisy accelerations").
+        accelerations gives the default rows; not the default, since weights estimated from
+        the misfit of a model that lacks the nonlinearity can pull the fits far off
+        (docs/detection.md, "Noisy accelerations").
 
     Returns
     -------

@@ -114,12 +114,14 @@ pub struct EstimatorArgs {
     /// the filtered equation")
     #[arg(long = "filtered-equation")]
     pub filtered_equation: bool,
-    /// Solve a second time with each level's rows weighted by their estimated covariance
-    /// (two-step weighting) instead of each at unit norm. On a structure measured by
-    /// accelerometers with noise on every channel it removes a large shrinkage of the
-    /// masses and stiffnesses that the default rows give (five bodies, 5 % noise: −47 % →
-    /// −0.35 %), but its standard errors come out smaller than the spread they stand for
-    /// (docs/method.md §2, "Noise on such a structure")
+    /// Solve a second time with each level's rows weighted by their estimated covariance,
+    /// shrunk halfway to its diagonal (two-step weighting), instead of each at unit norm. On
+    /// a structure measured by accelerometers with noise on every channel it removes a
+    /// large shrinkage of the masses and stiffnesses that unit-norm rows give (five bodies,
+    /// 5 % noise: −47 % → −0.35 %), but its standard errors come out smaller than the
+    /// spread they stand for, 2–10 times on smaller records; without the flag `identify`
+    /// weights each row by its own estimated error alone on such records (docs/method.md
+    /// §2, "Rows for noisy accelerations")
     #[arg(long = "weighted-rows")]
     pub weighted_rows: bool,
     /// Estimate a delay of each measured input (force) against its record: one more
@@ -132,13 +134,17 @@ pub struct EstimatorArgs {
     /// data; docs/method.md §2, "The input between samples"). Not with `moments` or --from
     #[arg(long = "input-delay")]
     pub input_delay: bool,
-    /// Keep the instrument rows where `identify` would choose the rows of the filtered
-    /// equation with the input's delay. It chooses them (and says so) on a servo axis's
+    /// Keep the instrument rows, each at unit norm, where `identify` would choose others
+    /// (and say so) when no other row, corner or noise flag is given: on a servo axis's
     /// kind of record — friction with a sign of a velocity, a measured force, velocities
-    /// estimated from measured positions with no noise worth a correction — when no other
-    /// row, corner or noise flag is given: on the simulated servo axis they are 50–500
-    /// times more precise on random set points and about 3 times on planned moves (bench
-    /// `servo_precision`, docs/method.md §2). `moments` always takes the instrument rows
+    /// estimated from measured positions with no noise worth a correction — the rows of the
+    /// filtered equation with the input's delay, 50–500 times more precise on random set
+    /// points and about 3 times on planned moves of the simulated servo axis (bench
+    /// `servo_precision`, docs/method.md §2); on records whose every measured acceleration
+    /// carries noise of 0.5 % of its spread or more, the rows each weighted by its own
+    /// estimated error, which keep a many-body structure's masses and stiffnesses from
+    /// shrinking by tens of per cent (docs/method.md §2, "Rows for noisy accelerations").
+    /// `moments` always takes the instrument rows
     #[arg(long = "instrument-rows")]
     pub instrument_rows: bool,
 }

@@ -81,14 +81,15 @@ pub struct Args {
     /// limit (8 GB).
     #[arg(long)]
     pub allow_large: bool,
-    /// Fit each level with its rows weighted by their estimated covariance (the two-step
-    /// solve of `identify --weighted-rows`) instead of each row at unit norm. On noisy
-    /// accelerations of a many-body structure the default rows shrink each level's fit by
-    /// a different share and misname a joint's effect; weighted, the per-level values lie
-    /// near the truth and the joint's clearance and friction are named (10 of 12 seeds
-    /// against 0), but linear elements are flagged about as often (on 6 of 12 seeds
-    /// against 5): the weighted fits' standard errors are smaller than their spread
-    /// (docs/detection.md, "Noisy accelerations")
+    /// Fit each level with each row weighted by its own estimated error (the rows'
+    /// estimated covariance shrunk to its diagonal, in a two-step solve) instead of each row
+    /// at unit norm. On noisy accelerations of a many-body structure the unit-norm rows
+    /// shrink each level's fit by a different share, which draws spurious drift and misnames
+    /// a joint's effect; weighted, the joint's clearance and friction are named on 9 of 12
+    /// seeds (against none) and another element flagged on 3 (against 5). Not the default:
+    /// weights estimated from the misfit of a model that lacks the nonlinearity can pull the
+    /// fits far off, as on a two-body record with friction (docs/detection.md, "Noisy
+    /// accelerations")
     #[arg(long = "weighted-rows")]
     pub weighted_rows: bool,
     /// Hide the progress bar of the template simulations (shown on a terminal only).

@@ -45,7 +45,9 @@ mod tests;
 
 pub use candidate::{Candidate, Dependence, Distribution, ShapeParam};
 pub use format::{fmt_g, fmt_pm};
-pub use from_data::{held_inertia, level_fits, LevelFits, SigmaVSource};
+pub use from_data::{
+    held_inertia, level_fits, DetectRows, LevelFits, SigmaVSource, DETECT_SHRINKAGE,
+};
 pub use offset::unexplained_means;
 pub use quad::NormalRule;
 pub use resolution::{levels_too_alike, levels_too_alike_in, LevelsTooAlike};
@@ -268,6 +270,7 @@ pub fn detect(
     Ok(Detection {
         n_levels,
         level_labels,
+        rows: Default::default(),
         elements,
         params,
         held: input.held.clone(),
@@ -545,6 +548,7 @@ pub fn detect_from_data_with_progress(
         opts.se_dof = Some(fits.n_blocks as f64 - 1.0);
     }
     let mut det = detect(&fits.input, extra, &opts)?;
+    det.rows = fits.rows;
     estimator::refine(ir, levels, ident_opts, &opts, &fits, &mut det, progress);
     det.constant_forces = unexplained_means(ir, levels, ident_opts)?;
     Ok((det, fits))

@@ -11,6 +11,9 @@ impl Detection {
         use std::fmt::Write;
         let mut out = String::new();
         let _ = writeln!(out, "Parameter curves over {} levels", self.n_levels);
+        if let Some(line) = self.rows.describe() {
+            let _ = writeln!(out, "{line}");
+        }
         let mut rows = vec![vec![
             "param".to_string(),
             "element".into(),

@@ -450,6 +450,10 @@ pub struct Suspected {
 pub struct Detection {
     pub n_levels: usize,
     pub level_labels: Vec<String>,
+    /// How the per-level fits weighted their rows (filled by
+    /// [`super::detect_from_data`]; unit norm for curves given directly).
+    #[serde(default)]
+    pub rows: super::from_data::DetectRows,
     pub elements: Vec<ElementFinding>,
     pub params: Vec<ParamCurveResult>,
     /// Parameters held fixed over the levels ([`DetectionInput::held`]).

@@ -47,6 +47,9 @@ pub struct Measurement<'m> {
     /// Solve twice: the second time with every level's rows whitened by their estimated
     /// covariance ([`stats::efficient_mix`]).
     pub(super) efficient: bool,
+    /// The shrinkage of that covariance towards its diagonal ([`stats::SHRINKAGE`] unless
+    /// [`Self::weigh_rows`] set another).
+    pub(super) shrinkage: f64,
 }
 impl<'m> Measurement<'m> {
     /// Information on the levels that were read.
@@ -69,6 +72,14 @@ impl<'m> Measurement<'m> {
         self.prune_t = t.max(0.0);
     }
 
+    /// Solve with every level's rows whitened by their estimated covariance shrunk by
+    /// `shrinkage` towards its diagonal (the efficient step, [`stats::efficient_mix`]; 1:
+    /// the diagonal alone, each row scaled by its own estimated error).
+    pub fn weigh_rows(&mut self, shrinkage: f64) {
+        self.efficient = true;
+        self.shrinkage = shrinkage.clamp(0.0, 1.0);
+    }
+
     /// Time spent so far, by phase.
     pub fn times(&self) -> PhaseTimes {
         self.times
@@ -80,6 +91,7 @@ impl<'m> Measurement<'m> {
             corners_from: self.plan.corner_source.clone(),
             corners_tried: Vec::new(),
             auto_rows: false,
+            weighted_rows: false,
             corner_moves: Vec::new(),
             order: self.plan.order,
             drivers: self
@@ -218,7 +230,7 @@ impl<'m> Measurement<'m> {
         let first_windows = stats::level_windows(
             &first.x, active, held, nr, weights, None, columns, which, levels,
         );
-        let alpha = stats::SHRINKAGE;
+        let alpha = self.shrinkage;
         let mixes: Vec<Vec<f64>> = first_windows
             .iter()
             .map(|lw| stats::efficient_mix(lw, nr, alpha))
@@ -478,9 +490,9 @@ impl<'m> Measurement<'m> {
             }
             break (sol, se);
         };
-        let (sol, se) = match self.efficient && !active.is_empty() {
-            true => self
-                .efficient_step(
+        let second = (self.efficient && !active.is_empty())
+            .then(|| {
+                self.efficient_step(
                     &sol,
                     &active,
                     held,
@@ -489,9 +501,10 @@ impl<'m> Measurement<'m> {
                     &columns,
                     which,
                 )
-                .unwrap_or((sol, se)),
-            false => (sol, se),
-        };
+            })
+            .flatten();
+        let weighted_rows = second.is_some();
+        let (sol, se) = second.unwrap_or((sol, se));
 
         let mut p_full = vec![0.0; ncol];
         for &(j, v) in held {
@@ -526,7 +539,10 @@ impl<'m> Measurement<'m> {
             condition: sol.condition(),
             residual,
             levels: which.iter().map(|&i| self.infos[i].clone()).collect(),
-            filter: self.filter_summary(),
+            filter: FilterSummary {
+                weighted_rows,
+                ..self.filter_summary()
+            },
             estimated: self.estimated.clone(),
             rows,
             noise: self.noise.clone(),

@@ -159,6 +159,7 @@ impl<'m> Measurement<'m> {
             prune_t: self.prune_t,
             noise: self.noise.clone(),
             efficient: self.efficient,
+            shrinkage: self.shrinkage,
         })
     }
 }

@@ -75,6 +75,13 @@ pub struct IdentifyOptions {
     /// many-body structure measured by noisy accelerometers it removes the shrinkage the
     /// unit-norm rows give (`tests/accel_structure.rs`).
     pub efficient: bool,
+    /// With `efficient`: weight each row by its own estimated error alone (the rows'
+    /// estimated covariance shrunk fully to its diagonal) instead of by the covariance
+    /// shrunk halfway ([`super::stats::SHRINKAGE`]). What `identify` chooses for noisy
+    /// accelerations ([`super::identify::accel_rows`]): halfway is more precise on the
+    /// five-body structure at 5 % noise but its standard errors come out 2–10 times too
+    /// small on the SDOF and two-mass records and at lower noise (docs/method.md §5).
+    pub diagonal_weights: bool,
     /// Rows of the filtered equation instead of the instrument rows: at one corner, the
     /// equation passed through the bank's low-pass chain `F` is multiplied by each filtered
     /// regressor `F φⱼ` and averaged (the normal equations of regressing the filtered
@@ -124,6 +131,7 @@ impl Default for IdentifyOptions {
             keep_rests: false,
             allow_large: false,
             efficient: false,
+            diagonal_weights: false,
             filtered: false,
             input_delay: false,
             auto_rows: true,
@@ -141,14 +149,19 @@ impl IdentifyOptions {
         }
     }
 
-    /// The options `id` was identified with: these, or the rows of the filtered equation
-    /// with the inputs' delays where `identify` chose them ([`FilterSummary::auto_rows`]).
-    /// For further identifications of the same records (the corner check, a refinement).
+    /// The options `id` was identified with: these, or the rows `identify` chose
+    /// ([`FilterSummary::auto_rows`]: the filtered equation with the inputs' delays, or the
+    /// weighted rows). For further identifications of the same records (the corner check, a
+    /// refinement).
     pub fn as_identified(&self, id: &Identification) -> IdentifyOptions {
+        let chosen = id.filter.auto_rows;
+        let filtered = chosen && id.filter.corners_from.filtered;
         IdentifyOptions {
-            filtered: self.filtered || id.filter.auto_rows,
-            input_delay: self.input_delay || id.filter.auto_rows,
-            auto_rows: self.auto_rows && !id.filter.auto_rows,
+            filtered: self.filtered || filtered,
+            input_delay: self.input_delay || filtered,
+            efficient: self.efficient || (chosen && id.filter.weighted_rows),
+            diagonal_weights: self.diagonal_weights || (chosen && id.filter.weighted_rows),
+            auto_rows: self.auto_rows && !chosen,
             ..self.clone()
         }
     }
@@ -460,9 +473,17 @@ pub struct FilterSummary {
     /// [`super::identify::FILTERED_CORNER_STEPS`]).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub corners_tried: Vec<CornerTry>,
-    /// The rows of the filtered equation with the inputs' delays were chosen by `identify`
-    /// for a record of a servo axis's kind ([`IdentifyOptions::auto_rows`]), not asked for.
+    /// The rows were chosen by `identify` ([`IdentifyOptions::auto_rows`]), not asked for:
+    /// those of the filtered equation with the inputs' delays for a record of a servo
+    /// axis's kind ([`super::identify::servo_rows`]; `corners_from.filtered` set), the
+    /// instrument rows weighted by their estimated covariance for noisy accelerations
+    /// ([`super::identify::accel_rows`]; `weighted_rows` set).
     pub auto_rows: bool,
+    /// The rows were weighted by their estimated covariance (the efficient two-step solve,
+    /// [`IdentifyOptions::efficient`]); false where it was not asked for or could not be
+    /// formed (the unit-norm rows' solve is kept then).
+    #[serde(default)]
+    pub weighted_rows: bool,
     /// Parameters whose estimates move by more than their standard errors when the highest
     /// corner is moved a factor 4 down or up ([`super::corner_moves`]; filled in by the
     /// command line, empty otherwise).

@@ -134,7 +134,15 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
         "corners chosen by: {}\n",
         id.filter.describe_corners()
     ));
-    if id.filter.auto_rows {
+    if id.filter.auto_rows && id.filter.weighted_rows {
+        s.push_str(&format!(
+            "rows: the instrument rows, each weighted by its own estimated error (two-step), \
+             chosen for this record (every measured acceleration with noise of {} % of its \
+             spread or more, where the unit-norm rows shrink the estimates; \
+             --instrument-rows for those)\n",
+            100.0 * dynid_runtime::ident::ACCEL_WEIGHTED_NOISE
+        ));
+    } else if id.filter.auto_rows {
         s.push_str(
             "rows: the filtered equation with the input's delay, chosen for this record \
              (friction with a sign of a velocity, a measured force, velocities estimated from \

@@ -276,6 +276,11 @@ pub(crate) fn measurement_of<'m>(
         prune_t: 0.0,
         noise,
         efficient: opts.efficient,
+        shrinkage: if opts.diagonal_weights {
+            1.0
+        } else {
+            super::stats::SHRINKAGE
+        },
     })
 }
 

@@ -71,6 +71,11 @@ pub struct DesignOptions {
     pub column_chains: bool,
     pub keep_rests: bool,
     pub efficient: bool,
+    /// With `efficient`, each row weighted by its own estimated error alone
+    /// ([`IdentifyOptions::diagonal_weights`]; absent in files written before it existed:
+    /// `false`).
+    #[serde(default)]
+    pub diagonal_weights: bool,
     /// Rows of the filtered equation (absent in files written before it existed: `false`).
     #[serde(default)]
     pub filtered: bool,
@@ -180,6 +185,7 @@ impl MomentDesign {
                 column_chains: opts.column_chains,
                 keep_rests: opts.keep_rests,
                 efficient: opts.efficient,
+                diagonal_weights: opts.diagonal_weights,
                 filtered: opts.filtered,
             },
         }
@@ -224,6 +230,7 @@ impl MomentDesign {
             keep_rests: o.keep_rests,
             allow_large: false,
             efficient: o.efficient,
+            diagonal_weights: o.diagonal_weights,
             filtered: o.filtered,
             // Not a design choice: `moments` refuses it (the pieces' sums are of the
             // model's own columns).
