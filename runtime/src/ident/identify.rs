@@ -110,7 +110,7 @@ pub const ACCEL_WEIGHTED_NOISE: f64 = 0.005;
 /// Whether `ir` measures accelerations and every one of them carries estimated noise of
 /// at least [`ACCEL_WEIGHTED_NOISE`] of its spread (`noise`: the fractions of the
 /// identification's [`super::noise::NoiseSummary`]).
-fn noisy_accelerations(ir: &ModelIr, noise: &super::noise::NoiseSummary) -> bool {
+pub(crate) fn noisy_accelerations(ir: &ModelIr, noise: &super::noise::NoiseSummary) -> bool {
     let mut accelerations = ir
         .signals
         .iter()

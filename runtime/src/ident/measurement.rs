@@ -376,15 +376,24 @@ impl<'m> Measurement<'m> {
         c_full: &[f64],
         r_full: &[f64],
         p_full: &[f64],
+        windows: &[stats::LevelWindows],
     ) -> Vec<EquationResidual> {
         let plan = &self.plan;
         let nr = plan.rows.len();
+        // Per level and row: the estimated variance of the weighted residual row.
+        let variances: Vec<Vec<f64>> = if windows.len() == n_levels {
+            windows.iter().map(|lw| lw.row_variances(nr)).collect()
+        } else {
+            Vec::new()
+        };
         (0..self.ir.equations.len())
-            .map(|l| EquationResidual {
-                equation: self.ir.bodies[l].name.clone(),
-                per_level: (0..n_levels)
+            .map(|l| {
+                let (per_level, noise) = (0..n_levels)
                     .map(|pos| {
+                        let ncol = p_full.len();
                         let (mut num, mut den) = (0.0, 0.0);
+                        // Per unknown: the norm² of its term in this equation's rows.
+                        let mut terms = vec![0.0; ncol];
                         for (r, &(_, eq)) in plan.rows.iter().enumerate() {
                             if eq != l {
                                 continue;
@@ -395,14 +404,34 @@ impl<'m> Measurement<'m> {
                             }
                             num += weighted_residual(c_full, r_full, weights[i], p_full, i).powi(2);
                             den += (weights[i] * r_full[i]).powi(2);
+                            for (j, t) in terms.iter_mut().enumerate() {
+                                *t += (weights[i] * c_full[i * ncol + j] * p_full[j]).powi(2);
+                            }
                         }
-                        if den > 0.0 {
-                            (num / den).sqrt()
-                        } else {
-                            num.sqrt()
+                        // An equation without a known term (no input, an unknown mass):
+                        // against its largest term instead.
+                        if den == 0.0 {
+                            den = terms.iter().copied().fold(0.0, f64::max);
                         }
+                        let scale = if den > 0.0 { den } else { 1.0 };
+                        let noise = variances.get(pos).map(|v| {
+                            let s: f64 = plan
+                                .rows
+                                .iter()
+                                .enumerate()
+                                .filter(|(_, &(_, eq))| eq == l)
+                                .map(|(r, _)| v[r])
+                                .sum();
+                            (s / scale).sqrt()
+                        });
+                        ((num / scale).sqrt(), noise)
                     })
-                    .collect(),
+                    .unzip::<_, _, Vec<f64>, Vec<Option<f64>>>();
+                EquationResidual {
+                    equation: self.ir.bodies[l].name.clone(),
+                    per_level,
+                    noise: noise.into_iter().flatten().collect(),
+                }
             })
             .collect()
     }
@@ -436,7 +465,7 @@ impl<'m> Measurement<'m> {
         // Every pass either ends the loop or removes one column from `active`, so it runs at
         // most `ncol + 1` times; the count below makes that bound explicit.
         let mut passes = 0;
-        let (sol, se) = loop {
+        let (sol, se, windows) = loop {
             passes += 1;
             let (a, b) = weighted(&c_full, &r_full, &active);
             let solved = if passes > ncol + 1 {
@@ -454,11 +483,15 @@ impl<'m> Measurement<'m> {
                             "{why}: check the data for values far outside the physical range"
                         ),
                     }));
-                    break (super::solve::LsSolution::empty(), stats::Spread::none());
+                    break (
+                        super::solve::LsSolution::empty(),
+                        stats::Spread::none(),
+                        Vec::new(),
+                    );
                 }
             };
             if active.is_empty() {
-                break (sol, stats::Spread::none());
+                break (sol, stats::Spread::none(), Vec::new());
             }
             if let Some((j, reason)) = self.rank_loss(&sol, &active, &names, &meanless) {
                 unident.push(Unidentifiable {
@@ -488,7 +521,7 @@ impl<'m> Measurement<'m> {
                 active.remove(j);
                 continue;
             }
-            break (sol, se);
+            break (sol, se, windows);
         };
         let second = (self.efficient && !active.is_empty())
             .then(|| {
@@ -524,7 +557,8 @@ impl<'m> Measurement<'m> {
             })
             .collect::<Vec<_>>();
         // Residuals per equation and level, on the weighted rows.
-        let residual = self.equation_residuals(which.len(), &weights, &c_full, &r_full, &p_full);
+        let residual =
+            self.equation_residuals(which.len(), &weights, &c_full, &r_full, &p_full, &windows);
         let ssr = weighted_ssr(&weights, &c_full, &r_full, &p_full);
         let mut times = self.times;
         times.solve = t0.elapsed();

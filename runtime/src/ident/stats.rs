@@ -52,6 +52,21 @@ pub(crate) struct LevelWindows {
 }
 
 impl LevelWindows {
+    /// The estimated variance of each of the level's `nr` rows, `B/(B−1) Σ_j (d_jr² +
+    /// d_jr d_(j+1)r)`: the unbiased lag-one weight of the batch-means sandwich (module
+    /// doc), at least zero.
+    pub fn row_variances(&self, nr: usize) -> Vec<f64> {
+        // shape: `d` holds `nh × nr` entries (see `covariance`).
+        (0..nr)
+            .map(|r| {
+                let at = |j: usize| self.d[j * nr + r];
+                let s0: f64 = (0..self.nh).map(|j| at(j) * at(j)).sum();
+                let s1: f64 = (1..self.nh).map(|j| at(j - 1) * at(j)).sum();
+                self.dof * (s0 + s1).max(0.0)
+            })
+            .collect()
+    }
+
     /// The long-run covariance of the level's rows, `B/(B−1) Σ_j (d_j d_jᵀ + ½ (d_j
     /// d_{j+1}ᵀ + d_{j+1} d_jᵀ))` (`nr × nr`): the Bartlett weight ½ on the lag-one terms
     /// keeps it positive semi-definite, as a weighting matrix must be.

@@ -325,11 +325,19 @@ pub struct Unidentifiable {
     pub reason: String,
 }
 
-/// Relative residual `‖W (C p − c)‖ / ‖W c‖` over the rows of one equation, per level.
+/// Relative residual `‖W (C p − c)‖ / ‖W c‖` over the rows of one equation, per level
+/// (against the norm of its largest term where the equation has no known term, `c = 0`:
+/// a body without an input and of unknown mass).
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct EquationResidual {
     pub equation: String,
     pub per_level: Vec<f64>,
+    /// Per level, what the noise of the data alone would leave in the same measure: the
+    /// square root of the summed variances of the equation's residual rows, estimated
+    /// from the hat windows at the estimate (§6 of docs/method.md), over the same
+    /// denominator. A residual near it is noise; well above it, a misfit. Empty where the
+    /// windows were not formed (a failed solve).
+    pub noise: Vec<f64>,
 }
 
 /// What was seen of one level.

@@ -22,6 +22,10 @@ pub struct IdentifyDoc<'a, R: Serialize = NoRefinement> {
     pub rows: usize,
     #[serde(serialize_with = "residual")]
     pub residual: &'a [EquationResidual],
+    /// `{equation: [what noise alone would leave, per level]}` (added within version 2: a
+    /// new key, which readers that do not know it ignore).
+    #[serde(serialize_with = "residual_noise")]
+    pub residual_noise: &'a [EquationResidual],
     pub levels: &'a [LevelInfo],
     pub unidentifiable: &'a [Unidentifiable],
     pub warnings: &'a [Warning],
@@ -47,6 +51,7 @@ impl<'a> IdentifyDoc<'a, NoRefinement> {
             condition: id.condition,
             rows: id.rows,
             residual: &id.residual,
+            residual_noise: &id.residual,
             levels: &id.levels,
             unidentifiable: &id.unidentifiable,
             warnings: &id.warnings,
@@ -70,6 +75,7 @@ impl<'a, R: Serialize> IdentifyDoc<'a, R> {
             condition: self.condition,
             rows: self.rows,
             residual: self.residual,
+            residual_noise: self.residual_noise,
             levels: self.levels,
             unidentifiable: self.unidentifiable,
             warnings: self.warnings,
@@ -110,6 +116,16 @@ fn residual<S: Serializer>(rs: &&[EquationResidual], s: S) -> Result<S::Ok, S::E
     let mut m = s.serialize_map(Some(rs.len()))?;
     for r in rs.iter() {
         m.serialize_entry(&r.equation, &r.per_level)?;
+    }
+    m.end()
+}
+
+/// `{equation: [noise share per level]}` ([`EquationResidual::noise`]; an empty list where
+/// it was not estimated).
+fn residual_noise<S: Serializer>(rs: &&[EquationResidual], s: S) -> Result<S::Ok, S::Error> {
+    let mut m = s.serialize_map(Some(rs.len()))?;
+    for r in rs.iter() {
+        m.serialize_entry(&r.equation, &r.noise)?;
     }
     m.end()
 }

@@ -54,6 +54,7 @@ fn identify_document_keys_parameters_by_name_in_the_models_order() {
             "levels",
             "parameters",
             "residual",
+            "residual_noise",
             "rows",
             "schema_version",
             "shapes",

@@ -152,7 +152,17 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
     }
     for r in &id.residual {
         let lv: Vec<String> = r.per_level.iter().map(|v| format!("{v:.2e}")).collect();
-        s.push_str(&format!("residual {}: {}\n", r.equation, lv.join(" / ")));
+        let noise: Vec<String> = r.noise.iter().map(|v| format!("{v:.2e}")).collect();
+        let alone = if noise.is_empty() {
+            String::new()
+        } else {
+            format!(" (noise alone {})", noise.join(" / "))
+        };
+        s.push_str(&format!(
+            "residual {}: {}{alone}\n",
+            r.equation,
+            lv.join(" / ")
+        ));
     }
     for e in &id.estimated {
         if e.method != dynid_runtime::ident::velocity::METHOD {
