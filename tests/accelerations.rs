@@ -266,3 +266,43 @@ fn nonlinear_term_of_an_acceleration_only_body_from_json_reads_the_integrated_di
     assert!(e.method.contains("integration"), "{}", e.method);
     assert!(id.param("k3").is_some());
 }
+
+/// The command line says which rows it chose for noisy accelerations, and where they were
+/// not chosen (`--instrument-rows`) it says what they would do: two-mass records of 200 s
+/// with 5 % noise on every channel (seed 2).
+#[test]
+fn identify_says_it_weighted_the_rows_and_how_to_keep_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = common::simulate_levels(
+        &common::model_path("two_mass_linear_accel.dyn"),
+        ["--duration", "200", "--noise", "0.05", "--seed", "2"],
+        &dir.path().join("shaker"),
+        3,
+    );
+    let run = |flags: &[&str]| {
+        let out = common::dynid()
+            .arg("identify")
+            .arg(common::model_path("two_mass_linear_accel.dyn"))
+            .args(&levels)
+            .args(flags)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", common::stderr(&out));
+        String::from_utf8_lossy(&out.stdout).to_string()
+    };
+    let chosen = run(&[]);
+    assert!(
+        chosen.contains("rows: the instrument rows, each weighted by its own estimated error"),
+        "{chosen}"
+    );
+    assert!(
+        !chosen.contains("Note: every measured acceleration"),
+        "{chosen}"
+    );
+    let kept = run(&["--instrument-rows"]);
+    assert!(!kept.contains("rows: the instrument rows"), "{kept}");
+    assert!(
+        kept.contains("Note: every measured acceleration carries noise of 0.5 %"),
+        "{kept}"
+    );
+}

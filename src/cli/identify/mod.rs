@@ -186,7 +186,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     if let Some(h) = &hint {
         println!("\nNote: {h}");
     }
-    if let Some(h) = filtered_hint(&ir, &id) {
+    if let Some(h) = rows_hint(&ir, &id) {
         println!("\nNote: {h}");
     }
     let refined = match &opts {
@@ -223,7 +223,7 @@ fn identify_from(args: &Args) -> miette::Result<()> {
     for w in &id.fit_warnings {
         eprintln!("warning: {w}");
     }
-    if let Some(h) = filtered_hint(&ir, &id) {
+    if let Some(h) = rows_hint(&ir, &id) {
         println!("\nNote: {h}");
     }
     if let Some(out) = &args.json {
@@ -233,16 +233,28 @@ fn identify_from(args: &Args) -> miette::Result<()> {
     Ok(())
 }
 
-/// The note pointing at the rows of the filtered equation with the input's delay where the
-/// record is of a servo axis's kind ([`dynid_runtime::ident::servo_rows`]) but
-/// the instrument rows were kept: asked for (`--instrument-rows`, or another row flag), or
-/// identified from moments (`--from`), and the model can form those rows.
-fn filtered_hint(ir: &ModelIr, id: &Identification) -> Option<String> {
+/// The note pointing at the rows `identify` chooses where it did not choose them: asked for
+/// other rows (`--instrument-rows`, or another row flag), or identified from moments
+/// (`--from`). The rows of the filtered equation with the input's delay where the record
+/// is of a servo axis's kind ([`dynid_runtime::ident::servo_rows`]) and the model can form
+/// them; the rows each weighted by its own estimated error where every accelerometer is
+/// noisy ([`dynid_runtime::ident::accel_rows`]).
+fn rows_hint(ir: &ModelIr, id: &Identification) -> Option<String> {
     if id.filter.corners_from.filtered || id.filter.auto_rows {
         return None;
     }
-    let opts =
-        dynid_runtime::ident::servo_rows(ir, id, &dynid_runtime::IdentifyOptions::default())?;
+    let defaults = dynid_runtime::IdentifyOptions::default();
+    if !id.filter.weighted_rows && dynid_runtime::ident::accel_rows(ir, id, &defaults).is_some() {
+        return Some(format!(
+            "every measured acceleration carries noise of {} % of its spread or more: there \
+             the rows each weighted by its own estimated error, which `identify` chooses for \
+             such records from their files unless another row flag or --instrument-rows is \
+             given, keep a many-body structure's masses and stiffnesses from shrinking with \
+             the noise (docs/method.md §2, \"Rows for noisy accelerations\")",
+            100.0 * dynid_runtime::ident::ACCEL_WEIGHTED_NOISE
+        ));
+    }
+    let opts = dynid_runtime::ident::servo_rows(ir, id, &defaults)?;
     dynid_runtime::ident::memory::estimate(ir, id.levels.len(), &opts).ok()?;
     Some(
         "Coulomb friction, a measured force and positions without noise worth a correction \
