@@ -129,7 +129,7 @@ pub(crate) fn noisy_accelerations(ir: &ModelIr, noise: &super::noise::NoiseSumma
 /// efficient two-step solve, [`IdentifyOptions::efficient`], with
 /// [`IdentifyOptions::diagonal_weights`]) where
 /// [`IdentifyOptions::auto_rows`] leaves the choice to `identify` and `id` (identified
-/// with the unit-norm rows) shows noisy accelerations ([`noisy_accelerations`]). From
+/// with the unit-norm rows) shows noisy accelerations (`noisy_accelerations`). From
 /// accelerations every unit-norm row weighs its instruments alike, many of them nearly
 /// pure noise, and the bodies whose equations have no right-hand side (no input, an
 /// unknown mass) are shrunk towards zero like a regression on noisy regressors (on the

@@ -73,7 +73,7 @@ impl<'m> Measurement<'m> {
     }
 
     /// Solve with every level's rows whitened by their estimated covariance shrunk by
-    /// `shrinkage` towards its diagonal (the efficient step, [`stats::efficient_mix`]; 1:
+    /// `shrinkage` towards its diagonal (the efficient step, `stats::efficient_mix`; 1:
     /// the diagonal alone, each row scaled by its own estimated error).
     pub fn weigh_rows(&mut self, shrinkage: f64) {
         self.efficient = true;
