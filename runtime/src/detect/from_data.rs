@@ -73,7 +73,13 @@ pub enum DetectRows {
     #[default]
     UnitNorm,
     /// Every row weighted by its own estimated error (the rows' estimated covariance shrunk
-    /// to its diagonal, [`DETECT_SHRINKAGE`]), as asked ([`IdentifyOptions::efficient`]).
+    /// to its diagonal, [`IdentifyOptions::diagonal_weights`]), as asked
+    /// ([`IdentifyOptions::efficient`]). The diagonal, not the halfway shrinkage of
+    /// `identify --weighted-rows`: the constancy test weighs each level's point by its
+    /// standard error, so those must be honest; on the five-body structure of
+    /// `tests/accel_structure.rs` (5 % noise, seeds 1–12) the covariance shrunk halfway
+    /// left the curves of linear elements scattering with χ²/dof 2.3 about their means (measured
+    /// once), the diagonal 0.91 (docs/detection.md, "Noisy accelerations").
     /// Never chosen by detection itself, unlike `identify`'s rows for noisy accelerations
     /// ([`crate::ident::accel_rows`]): the per-level fits are of a model that lacks the
     /// nonlinearity, and weights estimated from its misfit can pull them far off. On the
@@ -97,15 +103,6 @@ impl DetectRows {
         }
     }
 }
-
-/// The shrinkage of the rows' estimated covariance in detection's weighted per-level
-/// fits: all the way to the diagonal. The constancy test weighs each level's point by its
-/// standard error, so those must be honest; on the five-body structure of
-/// `tests/accel_structure.rs` (5 % noise, seeds 1–12) the covariance shrunk halfway, as
-/// `identify --weighted-rows` does, left the curves of linear elements scattering with
-/// χ²/dof 2.3 about their means, the diagonal 0.91 (docs/detection.md, "Noisy
-/// accelerations").
-pub const DETECT_SHRINKAGE: f64 = 1.0;
 
 /// One grouped element: the IR elements between the same two nodes.
 pub(super) struct Group {
@@ -477,13 +474,17 @@ pub fn level_fits(
         integrated.iter().map(|m| m as &dyn LevelSource).collect()
     };
     let tape = Tape::compile(ir, &ir.eval_roots());
-    let mut moments = measure(ir, &tape, levels, opts)?;
-    let rows = if opts.efficient {
-        moments.weigh_rows(DETECT_SHRINKAGE);
-        DetectRows::Weighted
+    let (rows, opts) = if opts.efficient {
+        let diagonal = IdentifyOptions {
+            diagonal_weights: true,
+            ..opts.clone()
+        };
+        (DetectRows::Weighted, diagonal)
     } else {
-        DetectRows::UnitNorm
+        (DetectRows::UnitNorm, opts.clone())
     };
+    let opts = &opts;
+    let moments = measure(ir, &tape, levels, opts)?;
     // Inertia is not a force element: statistical linearisation turns a nonlinear force
     // into an equivalent stiffness and damping, never into a mass. Fitted freely per
     // level, an unknown mass trades off against the stiffness (on a short level both

@@ -45,9 +45,7 @@ mod tests;
 
 pub use candidate::{Candidate, Dependence, Distribution, ShapeParam};
 pub use format::{fmt_g, fmt_pm};
-pub use from_data::{
-    held_inertia, level_fits, DetectRows, LevelFits, SigmaVSource, DETECT_SHRINKAGE,
-};
+pub use from_data::{held_inertia, level_fits, DetectRows, LevelFits, SigmaVSource};
 pub use offset::unexplained_means;
 pub use quad::NormalRule;
 pub use resolution::{levels_too_alike, levels_too_alike_in, LevelsTooAlike};

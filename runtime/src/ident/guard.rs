@@ -20,14 +20,17 @@
 //!   ([`EquationResidual::noise`]): at most [`NOISE_MARGIN`] times that and not below a
 //!   [`NOISE_BELOW`]th of it. There many instrument rows are mostly noise, and a model that
 //!   holds left 2.5–5.2 times the input's norm on the shaker's body of a five-body
-//!   structure at 5 % noise (noise alone: 1.7–4.4), which read as a missing body
-//!   (`noisy_accelerations_are_no_missing_body` in `tests/accel_structure.rs`). A residual
+//!   structure at 5 % noise (noise alone: 1.7–4.4, printed by
+//!   `noisy_accelerations_are_no_missing_body` in `tests/accel_structure.rs`), which read
+//!   as a missing body. A residual
 //!   far below its noise is no such excuse: the estimate then cancels within the whole
 //!   record what it does not within its windows (the three-body model of the same
-//!   structure: 0.6–1.1 against noise of 100–1000). Nor is the excuse taken elsewhere:
-//!   the windows' scatter at a wrong estimate carries the misfit too (the servo axis with
-//!   its constant force withheld, one record of 25 s: residual 0.88, noise alone 2.4,
-//!   `identify_warns_of_a_withheld_constant_force` in `tests/servo_offset.rs`).
+//!   records: 0.6–1.1 against noise of 100–1000, measured once with the CLI). Nor is the
+//!   excuse taken elsewhere: the windows' scatter at a wrong estimate carries the misfit
+//!   too (the servo axis with its constant force withheld, one record of 25 s: residual
+//!   0.88, noise alone 2.4, measured once on the records of
+//!   `identify_warns_of_a_withheld_constant_force` in `tests/servo_offset.rs`, which
+//!   fails when that warning is lost).
 //! - **Levels that disagree**: a pooled estimate outside every level's own estimate by more
 //!   than [`LEVEL_SPREAD_T`] of that level's standard errors. Pooling averages the levels'
 //!   equations, so for a model that holds it lies among them; outside all of them, no

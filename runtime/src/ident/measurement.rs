@@ -47,8 +47,8 @@ pub struct Measurement<'m> {
     /// Solve twice: the second time with every level's rows whitened by their estimated
     /// covariance ([`stats::efficient_mix`]).
     pub(super) efficient: bool,
-    /// The shrinkage of that covariance towards its diagonal ([`stats::SHRINKAGE`] unless
-    /// [`Self::weigh_rows`] set another).
+    /// The shrinkage of that covariance towards its diagonal: [`stats::SHRINKAGE`], or 1
+    /// with [`super::IdentifyOptions::diagonal_weights`].
     pub(super) shrinkage: f64,
 }
 impl<'m> Measurement<'m> {
@@ -70,14 +70,6 @@ impl<'m> Measurement<'m> {
     /// structure search that keeps only significant terms uses [`SIGNIFICANCE_T`].
     pub fn prune_below(&mut self, t: f64) {
         self.prune_t = t.max(0.0);
-    }
-
-    /// Solve with every level's rows whitened by their estimated covariance shrunk by
-    /// `shrinkage` towards its diagonal (the efficient step, `stats::efficient_mix`; 1:
-    /// the diagonal alone, each row scaled by its own estimated error).
-    pub fn weigh_rows(&mut self, shrinkage: f64) {
-        self.efficient = true;
-        self.shrinkage = shrinkage.clamp(0.0, 1.0);
     }
 
     /// Time spent so far, by phase.
