@@ -204,14 +204,15 @@ fn duffing_from_accelerations_multisine() {
             ("measure m.a, u", "measure m.x, u"),
         );
         assert_reported(&id, &[("m.x", "m.a")], Data::Multisine, 0.0);
-        // Seeds 71–75 (rows weighted), largest errors: accelerations k +0.43 %, d +0.72 %,
-        // k3 +0.43 % (with unit-norm rows k +1.02 %, d +2.3 %, k3 −2.2 %: the rows freed of
-        // the record's ends cost the lowest-corner rows' information, which the weights
+        // Seeds 71–75 (rows weighted, the weighting iterated until it settles), largest
+        // errors: accelerations k +0.43 %, d +0.71 %, k3 +0.80 % (weights read once:
+        // k3 +0.43 %; with unit-norm rows k +1.02 %, d +2.3 %, k3 −2.2 %: the rows freed
+        // of the record's ends cost the lowest-corner rows' information, which the weights
         // give back); positions k +0.17 %, d −0.74 %, k3 −0.50 %.
         common::assert_within(
             "duffing accelerations, multisine",
             &e_a,
-            &[("k", 0.01), ("d", 0.015), ("k3", 0.01)],
+            &[("k", 0.01), ("d", 0.015), ("k3", 0.016)],
         );
         common::assert_within(
             "duffing positions, multisine",

@@ -1453,8 +1453,10 @@ class Model:
             velocities estimated from measured positions with no noise worth a correction)
             the filtered equation with the input's delay; on records whose every measured
             acceleration carries noise of 0.5 % of its spread or more, each row weighted by
-            its own estimated error (``filter.weighted_rows``; docs/method.md §2, "Rows for
-            noisy accelerations").
+            its own estimated error, the weights re-estimated until the estimate settles
+            (``filter.weighted_rows``, ``filter.weight_steps``, ``filter.weights_settled``;
+            docs/method.md §2, "Rows for noisy accelerations", and §5, "Iterated
+            weighting").
 
         Returns
         -------

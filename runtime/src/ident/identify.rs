@@ -100,8 +100,8 @@ fn rows_open(opts: &IdentifyOptions) -> bool {
 /// error ([`accel_rows`]). On the five-body structure of `tests/accel_structure.rs` (four
 /// multisine levels of 200 s, seed 1; masses and stiffnesses, mean |error|) the unit-norm
 /// rows give 0.05 % on the noiseless record, 0.20 % at 0.2 % noise, 0.82 % at 0.5 %, 3.3 %
-/// at 1 % and 43 % at 5 %; the rows chosen from 0.5 % on give 0.25, 0.20 and 2.1 %
-/// (`accel_rows_from_the_noise_up`, which checks these and the choice on both sides). On
+/// at 1 % and 43 % at 5 %; the rows chosen from 0.5 % on give 0.23, 0.15 and 0.18 %
+/// (the weighting iterated; read once, 0.25, 0.20 and 2.1 %; `accel_rows_from_the_noise_up`, which checks these and the choice on both sides). On
 /// the noiseless record the weighted rows gave 0.31 % (measured once): they lose below a
 /// few tenths of a per cent of noise, where the small systematic errors of a sampled
 /// record are what their weights rank. Also said in `identify --help` (`--instrument-rows`).
@@ -137,7 +137,10 @@ pub(crate) fn noisy_accelerations(ir: &ModelIr, noise: &super::noise::NoiseSumma
 /// the noisy rows get the little weight they deserve (docs/method.md §2, "Rows for noisy
 /// accelerations"). Each row by its own error ([`IdentifyOptions::diagonal_weights`]):
 /// the covariance shrunk halfway gives standard errors 2–10 times too small on the SDOF
-/// and two-mass records. `None` otherwise.
+/// and two-mass records. The weighting iterated until the estimate settles
+/// ([`IdentifyOptions::iterate_weights`]): read once at the unit-norm rows' estimate it
+/// left a log sweep's jointed structure 10–29 % low (docs/method.md §5, "Iterated
+/// weighting"). `None` otherwise.
 pub fn accel_rows(
     ir: &ModelIr,
     id: &Identification,
@@ -146,6 +149,7 @@ pub fn accel_rows(
     (rows_open(opts) && noisy_accelerations(ir, &id.noise)).then(|| IdentifyOptions {
         efficient: true,
         diagonal_weights: true,
+        iterate_weights: true,
         auto_rows: false,
         ..opts.clone()
     })

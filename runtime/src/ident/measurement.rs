@@ -50,6 +50,9 @@ pub struct Measurement<'m> {
     /// The shrinkage of that covariance towards its diagonal: [`stats::SHRINKAGE`], or 1
     /// with [`super::IdentifyOptions::diagonal_weights`].
     pub(super) shrinkage: f64,
+    /// Re-estimate the weighting at each new estimate until it settles
+    /// ([`super::IdentifyOptions::iterate_weights`]); else the two-step estimate.
+    pub(super) iterate_weights: bool,
 }
 impl<'m> Measurement<'m> {
     /// Information on the levels that were read.
@@ -84,6 +87,8 @@ impl<'m> Measurement<'m> {
             corners_tried: Vec::new(),
             auto_rows: false,
             weighted_rows: false,
+            weight_steps: 0,
+            weights_settled: false,
             corner_moves: Vec::new(),
             order: self.plan.order,
             drivers: self
@@ -199,96 +204,121 @@ impl<'m> Measurement<'m> {
             .collect()
     }
 
-    /// The efficient (two-step) solve: each level's weighted rows `(a, b)` of the first
-    /// step's solution `first` are whitened by the long-run covariance of its rows,
-    /// estimated from the window contributions at the first estimate and shrunk towards its
-    /// diagonal ([`stats::efficient_mix`]), and solved again; the standard errors are the
-    /// sandwich of the whitened rows. `None` (keep the first step) where a level's
+    /// The efficient solve: each level's weighted rows `(a, b)` are whitened by the
+    /// long-run covariance of its rows, estimated from the window contributions at an
+    /// estimate and shrunk towards its diagonal ([`stats::efficient_mix`]), and solved
+    /// again — first at the first step's solution `first` (the two-step estimate), then at
+    /// each new estimate until no parameter moves by more than [`WEIGHTS_SETTLED`] of its
+    /// first-step standard error `first_se` (iterated weighting, at most
+    /// [`MAX_WEIGHT_STEPS`] solves). Where the estimate does not settle the two-step
+    /// estimate is kept. The standard errors are the sandwich of the last whitened rows,
+    /// corrected for a weighting estimated at the estimate before it
+    /// ([`stats::efficient_stderr`]). `None` (keep the first step) where a level's
     /// covariance cannot be whitened or the second solve fails.
     #[allow(clippy::too_many_arguments)]
     fn efficient_step(
         &self,
         first: &super::solve::LsSolution,
+        first_se: &[f64],
         active: &[usize],
         held: &[(usize, f64)],
         (a, b): &(Vec<f64>, Vec<f64>),
         weights: &[f64],
         columns: &[Arc<Column>],
         which: &[usize],
-    ) -> Option<(super::solve::LsSolution, stats::Spread)> {
+    ) -> Option<Weighted> {
         let nr = self.plan.rows.len();
-        let na = active.len();
         let levels = &self.store.levels;
-        let first_windows = stats::level_windows(
-            &first.x, active, held, nr, weights, None, columns, which, levels,
-        );
         let alpha = self.shrinkage;
-        let mixes: Vec<Vec<f64>> = first_windows
+        let windows_at = |x: &[f64], mixes: Option<&[Vec<f64>]>| {
+            stats::level_windows(x, active, held, nr, weights, mixes, columns, which, levels)
+        };
+        let weigh = |x: &[f64]| -> Option<WeightStep> {
+            let from_windows = windows_at(x, None);
+            let mixes: Vec<Vec<f64>> = from_windows
+                .iter()
+                .map(|lw| stats::efficient_mix(lw, nr, alpha))
+                .collect::<Option<_>>()?;
+            let sol = whitened_solve(a, b, &mixes, nr, active.len(), self.rcond)?;
+            Some(WeightStep {
+                from_windows,
+                mixes,
+                sol,
+            })
+        };
+        let scale: Vec<f64> = first_se
             .iter()
-            .map(|lw| stats::efficient_mix(lw, nr, alpha))
-            .collect::<Option<_>>()?;
-        // shape: `a` holds `which.len() · nr` rows of `na` columns, `b` as many entries, and
-        // every mixing matrix is `nr × nr`: level `pos` is rows `pos · nr ..` of both.
-        let mut a2 = vec![0.0; a.len()];
-        let mut b2 = vec![0.0; b.len()];
-        for (pos, m) in mixes.iter().enumerate() {
-            let m = faer::MatRef::from_row_major_slice(&m[..], nr, nr);
-            let al =
-                faer::MatRef::from_row_major_slice(&a[pos * nr * na..(pos + 1) * nr * na], nr, na);
-            let bl = faer::MatRef::from_column_major_slice(&b[pos * nr..(pos + 1) * nr], nr, 1);
-            faer::linalg::matmul::matmul(
-                faer::MatMut::from_row_major_slice_mut(
-                    &mut a2[pos * nr * na..(pos + 1) * nr * na],
-                    nr,
-                    na,
-                ),
-                faer::Accum::Replace,
-                m,
-                al,
-                1.0,
-                faer::Par::Seq,
-            );
-            faer::linalg::matmul::matmul(
-                faer::MatMut::from_column_major_slice_mut(&mut b2[pos * nr..(pos + 1) * nr], nr, 1),
-                faer::Accum::Replace,
-                m,
-                bl,
-                1.0,
-                faer::Par::Seq,
-            );
+            .zip(&first.x)
+            .map(|(s, x)| s.max(1e-12 * x.abs()).max(f64::MIN_POSITIVE))
+            .collect();
+        // `prev`: the weighted estimate the last weighting was estimated at (`None`: the
+        // first step's).
+        let mut prev: Option<WeightStep> = None;
+        let mut cur = weigh(&first.x)?;
+        let mut steps = 1;
+        let mut settled = false;
+        let most = if self.iterate_weights {
+            MAX_WEIGHT_STEPS
+        } else {
+            1
+        };
+        while steps < most {
+            let Some(next) = weigh(&cur.sol.x) else {
+                break;
+            };
+            let change = next
+                .sol
+                .x
+                .iter()
+                .zip(&cur.sol.x)
+                .zip(&scale)
+                .map(|((n, c), s)| (n - c).abs() / s)
+                .fold(0.0, f64::max);
+            prev = Some(std::mem::replace(&mut cur, next));
+            steps += 1;
+            if change <= WEIGHTS_SETTLED {
+                settled = true;
+                break;
+            }
         }
-        let sol = super::solve::lstsq(&a2, &b2, b.len(), na, self.rcond).ok()?;
-        let windows = stats::level_windows(
-            &sol.x,
+        if !settled && steps > 1 {
+            prev = None;
+            cur = weigh(&first.x)?;
+            steps = 1;
+        }
+        let prev_windows;
+        let (from, from_cov_windows): (_, &[stats::LevelWindows]) = match &prev {
+            None => (first, &cur.from_windows),
+            Some(p) => {
+                prev_windows = windows_at(&p.sol.x, Some(&p.mixes));
+                (&p.sol, &prev_windows)
+            }
+        };
+        let windows = windows_at(&cur.sol.x, Some(&cur.mixes));
+        let se = stats::efficient_stderr(
+            from,
+            &cur.sol,
+            a,
+            b,
+            &cur.mixes,
+            alpha,
             active,
-            held,
             nr,
             weights,
-            Some(&mixes),
+            &cur.from_windows,
+            from_cov_windows,
+            &windows,
             columns,
             which,
             levels,
         );
-        let se = {
-            stats::efficient_stderr(
-                first,
-                &sol,
-                a,
-                b,
-                &mixes,
-                alpha,
-                active,
-                nr,
-                weights,
-                &first_windows,
-                &windows,
-                columns,
-                which,
-                levels,
-            )
-        };
-        let finite = sol.x.iter().chain(&se.se).all(|v| v.is_finite());
-        finite.then_some((sol, se))
+        let finite = cur.sol.x.iter().chain(&se.se).all(|v| v.is_finite());
+        finite.then_some(Weighted {
+            sol: cur.sol,
+            se,
+            steps,
+            settled,
+        })
     }
 
     /// The first active column the solve cannot value, with why: a column zero to double
@@ -519,6 +549,7 @@ impl<'m> Measurement<'m> {
             .then(|| {
                 self.efficient_step(
                     &sol,
+                    &se.se,
                     &active,
                     held,
                     &weighted(&c_full, &r_full, &active),
@@ -529,7 +560,9 @@ impl<'m> Measurement<'m> {
             })
             .flatten();
         let weighted_rows = second.is_some();
-        let (sol, se) = second.unwrap_or((sol, se));
+        let weight_steps = second.as_ref().map_or(0, |w| w.steps);
+        let weights_settled = second.as_ref().is_some_and(|w| w.settled);
+        let (sol, se) = second.map_or((sol, se), |w| (w.sol, w.se));
 
         let mut p_full = vec![0.0; ncol];
         for &(j, v) in held {
@@ -567,6 +600,8 @@ impl<'m> Measurement<'m> {
             levels: which.iter().map(|&i| self.infos[i].clone()).collect(),
             filter: FilterSummary {
                 weighted_rows,
+                weight_steps,
+                weights_settled,
                 ..self.filter_summary()
             },
             estimated: self.estimated.clone(),
@@ -575,6 +610,72 @@ impl<'m> Measurement<'m> {
             times,
         }
     }
+}
+
+/// Most solves of the iterated weighting ([`Measurement::efficient_step`]), the two-step
+/// solve included.
+const MAX_WEIGHT_STEPS: usize = 20;
+/// The iterated weighting has settled when no parameter moves by more than this fraction
+/// of its first-step standard error from one solve to the next.
+const WEIGHTS_SETTLED: f64 = 1e-3;
+
+/// One weighting step: the windows at the estimate it was estimated at, each level's
+/// whitening and the solve of the whitened rows.
+struct WeightStep {
+    from_windows: Vec<stats::LevelWindows>,
+    mixes: Vec<Vec<f64>>,
+    sol: super::solve::LsSolution,
+}
+
+/// The weighted solve kept: its solution and standard errors, how many weighting steps it
+/// took and whether they settled.
+struct Weighted {
+    sol: super::solve::LsSolution,
+    se: stats::Spread,
+    steps: usize,
+    settled: bool,
+}
+
+/// The rows `(a, b)` (row-major `a` of `na` columns; `nr` rows per level, level after
+/// level) whitened level by level by `mixes` (each `nr × nr`) and solved by SVD.
+fn whitened_solve(
+    a: &[f64],
+    b: &[f64],
+    mixes: &[Vec<f64>],
+    nr: usize,
+    na: usize,
+    rcond: f64,
+) -> Option<super::solve::LsSolution> {
+    // shape: `a` holds `mixes.len() · nr` rows of `na` columns, `b` as many entries, and
+    // every mixing matrix is `nr × nr`: level `pos` is rows `pos · nr ..` of both.
+    let mut a2 = vec![0.0; a.len()];
+    let mut b2 = vec![0.0; b.len()];
+    for (pos, m) in mixes.iter().enumerate() {
+        let m = faer::MatRef::from_row_major_slice(&m[..], nr, nr);
+        let al = faer::MatRef::from_row_major_slice(&a[pos * nr * na..(pos + 1) * nr * na], nr, na);
+        let bl = faer::MatRef::from_column_major_slice(&b[pos * nr..(pos + 1) * nr], nr, 1);
+        faer::linalg::matmul::matmul(
+            faer::MatMut::from_row_major_slice_mut(
+                &mut a2[pos * nr * na..(pos + 1) * nr * na],
+                nr,
+                na,
+            ),
+            faer::Accum::Replace,
+            m,
+            al,
+            1.0,
+            faer::Par::Seq,
+        );
+        faer::linalg::matmul::matmul(
+            faer::MatMut::from_column_major_slice_mut(&mut b2[pos * nr..(pos + 1) * nr], nr, 1),
+            faer::Accum::Replace,
+            m,
+            bl,
+            1.0,
+            faer::Par::Seq,
+        );
+    }
+    super::solve::lstsq(&a2, &b2, b.len(), na, rcond).ok()
 }
 
 /// The rows `(C, c)` of the levels `which` stacked, level after level (`per_level_c` and

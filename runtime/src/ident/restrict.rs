@@ -160,6 +160,7 @@ impl<'m> Measurement<'m> {
             noise: self.noise.clone(),
             efficient: self.efficient,
             shrinkage: self.shrinkage,
+            iterate_weights: self.iterate_weights,
         })
     }
 }

@@ -390,6 +390,10 @@ fn covariance_derivative_times(
 /// (`a`, `b`, row-major, `na` columns) and `H = (Σ A_lᵀ W_l A_l)⁻¹ = P Pᵀ` (`P` the second
 /// step's pseudo-inverse). Without the correction the standard errors come out low: the
 /// weighting is estimated from the same residuals whose noise it then down-weights.
+/// `first` is the estimate the weighting was read at: the unit-norm rows' (two-step) or,
+/// iterated, the weighted estimate before `second`; `first_windows` are its windows
+/// unweighted (for `∂S`), `first_cov_windows` its windows as it was solved (for `V₁`; the
+/// same windows for the unit-norm rows).
 ///
 /// Long: the formula above computed term by term; split, its intermediate matrices would
 /// pass between the pieces.
@@ -405,6 +409,7 @@ pub(crate) fn efficient_stderr(
     nr: usize,
     weights: &[f64],
     first_windows: &[LevelWindows],
+    first_cov_windows: &[LevelWindows],
     second_windows: &[LevelWindows],
     columns: &[Arc<Column>],
     which: &[usize],
@@ -460,7 +465,7 @@ pub(crate) fn efficient_stderr(
         1.0,
         Par::Seq,
     );
-    let (v1, _) = sandwich_cov(&first.pinv, na, nr, first_windows);
+    let (v1, _) = sandwich_cov(&first.pinv, na, nr, first_cov_windows);
     let (v2, b2) = sandwich_cov(&second.pinv, na, nr, second_windows);
     let mut v = v2.clone();
     let mut tmp = Mat::<f64>::zeros(na, na);

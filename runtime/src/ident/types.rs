@@ -82,6 +82,18 @@ pub struct IdentifyOptions {
     /// five-body structure at 5 % noise but its standard errors come out 2–10 times too
     /// small on the SDOF and two-mass records and at lower noise (docs/method.md §5).
     pub diagonal_weights: bool,
+    /// With `efficient`: re-estimate the weighting at each new estimate and solve again
+    /// until no parameter moves by more than a thousandth of its first-step standard error
+    /// (iterated weighting, docs/method.md §5). What `identify` chooses, with
+    /// `diagonal_weights`, for noisy accelerations ([`super::identify::accel_rows`]). Off
+    /// (the default): the two-step estimate, weights read once at the unit-norm rows'
+    /// estimate. Not with the covariance shrunk halfway: on the servo axis's records
+    /// (bench `servo_precision`) the iterated standard errors covered the errors less
+    /// often (mass 75 % → 46 % of the seeds) and on planned moves at the noise floor the
+    /// damping and friction errors grew 2.7-fold; nor in detection's per-level fits, whose
+    /// constancy test it made flag more (χ²/dof 1.8 against 0.91 away from the joint of
+    /// `detection_over_seeds`; docs/detection.md, "Noisy accelerations").
+    pub iterate_weights: bool,
     /// Rows of the filtered equation instead of the instrument rows: at one corner, the
     /// equation passed through the bank's low-pass chain `F` is multiplied by each filtered
     /// regressor `F φⱼ` and averaged (the normal equations of regressing the filtered
@@ -137,6 +149,7 @@ impl Default for IdentifyOptions {
             allow_large: false,
             efficient: false,
             diagonal_weights: false,
+            iterate_weights: false,
             filtered: false,
             input_delay: false,
             auto_rows: true,
@@ -166,6 +179,7 @@ impl IdentifyOptions {
             input_delay: self.input_delay || filtered,
             efficient: self.efficient || (chosen && id.filter.weighted_rows),
             diagonal_weights: self.diagonal_weights || (chosen && id.filter.weighted_rows),
+            iterate_weights: self.iterate_weights || (chosen && id.filter.weighted_rows),
             auto_rows: self.auto_rows && !chosen,
             ..self.clone()
         }
@@ -388,6 +402,20 @@ pub struct CornerSource {
 }
 
 impl FilterSummary {
+    /// How the weighted rows' estimate was reached, for reports: the weighting re-estimated
+    /// at each new estimate until it settled, or the two-step estimate where it did not
+    /// (`identify` iterates unless [`IdentifyOptions::iterate_weights`] is off).
+    pub fn describe_weighting(&self) -> String {
+        if self.weights_settled {
+            format!(
+                "weights re-estimated at each new estimate until it settled: {} solves",
+                self.weight_steps
+            )
+        } else {
+            "two-step: weights read once, at the unit-norm rows' estimate".into()
+        }
+    }
+
     /// One line for the report: how the corners were chosen
     /// ([`CornerSource::describe`]) and, after a search, the corners tried.
     pub fn describe_corners(&self) -> String {
@@ -497,6 +525,17 @@ pub struct FilterSummary {
     /// formed (the unit-norm rows' solve is kept then).
     #[serde(default)]
     pub weighted_rows: bool,
+    /// Solves of the weighted rows behind the estimate: 1 for the two-step estimate, more
+    /// where the weighting was re-estimated at each new estimate until it settled
+    /// (`weights_settled`); 0 where the rows were not weighted.
+    #[serde(default)]
+    pub weight_steps: usize,
+    /// The iterated weighting settled (no parameter moved by more than a thousandth of its
+    /// first-step standard error); false where it did not (the two-step estimate is kept),
+    /// where it was not iterated ([`IdentifyOptions::iterate_weights`] off) or the rows were
+    /// not weighted.
+    #[serde(default)]
+    pub weights_settled: bool,
     /// Parameters whose estimates move by more than their standard errors when the highest
     /// corner is moved a factor 4 down or up ([`super::corner_moves`]; filled in by the
     /// command line, empty otherwise).

@@ -281,6 +281,7 @@ pub(crate) fn measurement_of<'m>(
         } else {
             super::stats::SHRINKAGE
         },
+        iterate_weights: opts.iterate_weights,
     })
 }
 

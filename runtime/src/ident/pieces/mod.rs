@@ -76,6 +76,11 @@ pub struct DesignOptions {
     /// `false`).
     #[serde(default)]
     pub diagonal_weights: bool,
+    /// With `efficient`, the weighting re-estimated until the estimate settles
+    /// ([`IdentifyOptions::iterate_weights`]; absent in files written before it existed:
+    /// `false`).
+    #[serde(default)]
+    pub iterate_weights: bool,
     /// Rows of the filtered equation (absent in files written before it existed: `false`).
     #[serde(default)]
     pub filtered: bool,
@@ -186,6 +191,7 @@ impl MomentDesign {
                 keep_rests: opts.keep_rests,
                 efficient: opts.efficient,
                 diagonal_weights: opts.diagonal_weights,
+                iterate_weights: opts.iterate_weights,
                 filtered: opts.filtered,
             },
         }
@@ -231,6 +237,7 @@ impl MomentDesign {
             allow_large: false,
             efficient: o.efficient,
             diagonal_weights: o.diagonal_weights,
+            iterate_weights: o.iterate_weights,
             filtered: o.filtered,
             // Not a design choice: `moments` refuses it (the pieces' sums are of the
             // model's own columns).
