@@ -100,8 +100,9 @@ fn rows_open(opts: &IdentifyOptions) -> bool {
 /// error ([`accel_rows`]). On the five-body structure of `tests/accel_structure.rs` (four
 /// multisine levels of 200 s, seed 1; masses and stiffnesses, mean |error|) the unit-norm
 /// rows give 0.05 % on the noiseless record, 0.20 % at 0.2 % noise, 0.82 % at 0.5 %, 3.3 %
-/// at 1 % and 43 % at 5 %; the rows chosen from 0.5 % on give 0.23, 0.15 and 0.18 %
-/// (the weighting iterated; read once, 0.25, 0.20 and 2.1 %; `accel_rows_from_the_noise_up`, which checks these and the choice on both sides). On
+/// at 1 % and 43 % at 5 %; the rows chosen from 0.5 % on give 0.23, 0.15 and 0.18 % (the
+/// weighting iterated; read once, 0.25, 0.20 and 2.1 %; `accel_rows_from_the_noise_up`,
+/// which checks these and the choice on both sides). On
 /// the noiseless record the weighted rows gave 0.31 % (measured once): they lose below a
 /// few tenths of a per cent of noise, where the small systematic errors of a sampled
 /// record are what their weights rank. Also said in `identify --help` (`--instrument-rows`).

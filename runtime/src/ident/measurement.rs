@@ -251,70 +251,68 @@ impl<'m> Measurement<'m> {
             .zip(&first.x)
             .map(|(s, x)| s.max(1e-12 * x.abs()).max(f64::MIN_POSITIVE))
             .collect();
-        // `prev`: the weighted estimate the last weighting was estimated at (`None`: the
-        // first step's).
-        let mut prev: Option<WeightStep> = None;
-        let mut cur = weigh(&first.x)?;
+        let two_step = weigh(&first.x)?;
+        // Iterated: `cur` the last solve (`None`: the two-step one), `prev` the one its
+        // weighting was read at (`None`: the two-step one, or the first step's where `cur`
+        // is `None`).
+        let (mut prev, mut cur): (Option<WeightStep>, Option<WeightStep>) = (None, None);
         let mut steps = 1;
         let mut settled = false;
-        let most = if self.iterate_weights {
-            MAX_WEIGHT_STEPS
-        } else {
-            1
-        };
-        while steps < most {
-            let Some(next) = weigh(&cur.sol.x) else {
+        while self.iterate_weights && steps < MAX_WEIGHT_STEPS {
+            let last = cur.as_ref().unwrap_or(&two_step);
+            let Some(next) = weigh(&last.sol.x) else {
                 break;
             };
             let change = next
                 .sol
                 .x
                 .iter()
-                .zip(&cur.sol.x)
+                .zip(&last.sol.x)
                 .zip(&scale)
                 .map(|((n, c), s)| (n - c).abs() / s)
                 .fold(0.0, f64::max);
-            prev = Some(std::mem::replace(&mut cur, next));
+            prev = cur.replace(next);
             steps += 1;
             if change <= WEIGHTS_SETTLED {
                 settled = true;
                 break;
             }
         }
-        if !settled && steps > 1 {
-            prev = None;
-            cur = weigh(&first.x)?;
-            steps = 1;
+        if !settled {
+            (prev, cur, steps) = (None, None, 1);
         }
+        let last = cur.as_ref().unwrap_or(&two_step);
         let prev_windows;
-        let (from, from_cov_windows): (_, &[stats::LevelWindows]) = match &prev {
-            None => (first, &cur.from_windows),
-            Some(p) => {
+        let (from, from_cov_windows): (_, &[stats::LevelWindows]) = match (&prev, &cur) {
+            (_, None) => (first, &two_step.from_windows),
+            (p, Some(_)) => {
+                let p = p.as_ref().unwrap_or(&two_step);
                 prev_windows = windows_at(&p.sol.x, Some(&p.mixes));
                 (&p.sol, &prev_windows)
             }
         };
-        let windows = windows_at(&cur.sol.x, Some(&cur.mixes));
+        let windows = windows_at(&last.sol.x, Some(&last.mixes));
         let se = stats::efficient_stderr(
             from,
-            &cur.sol,
+            &last.sol,
             a,
             b,
-            &cur.mixes,
+            &last.mixes,
             alpha,
             active,
             nr,
             weights,
-            &cur.from_windows,
+            &last.from_windows,
             from_cov_windows,
             &windows,
             columns,
             which,
             levels,
         );
-        let finite = cur.sol.x.iter().chain(&se.se).all(|v| v.is_finite());
+        let sol = cur.map_or(two_step.sol, |c| c.sol);
+        let finite = sol.x.iter().chain(&se.se).all(|v| v.is_finite());
         finite.then_some(Weighted {
-            sol: cur.sol,
+            sol,
             se,
             steps,
             settled,

@@ -88,11 +88,12 @@ pub struct IdentifyOptions {
     /// `diagonal_weights`, for noisy accelerations ([`super::identify::accel_rows`]). Off
     /// (the default): the two-step estimate, weights read once at the unit-norm rows'
     /// estimate. Not with the covariance shrunk halfway: on the servo axis's records
-    /// (bench `servo_precision`) the iterated standard errors covered the errors less
-    /// often (mass 75 % → 46 % of the seeds) and on planned moves at the noise floor the
-    /// damping and friction errors grew 2.7-fold; nor in detection's per-level fits, whose
-    /// constancy test it made flag more (χ²/dof 1.8 against 0.91 away from the joint of
-    /// `detection_over_seeds`; docs/detection.md, "Noisy accelerations").
+    /// (bench `servo_precision`, rows `chains, 2-step`, measured once iterated) the
+    /// standard errors covered the errors less often (mass 75 % → 46 % of the seeds) and on
+    /// planned moves at the noise floor the damping and friction errors grew 2.7–2.8-fold;
+    /// nor in detection's per-level fits, whose constancy test it made flag more (χ²/dof
+    /// 1.8 against 0.91 away from the joint of `detection_over_seeds`, measured once;
+    /// docs/detection.md, "Noisy accelerations").
     pub iterate_weights: bool,
     /// Rows of the filtered equation instead of the instrument rows: at one corner, the
     /// equation passed through the bank's low-pass chain `F` is multiplied by each filtered
