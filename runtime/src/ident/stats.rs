@@ -308,13 +308,24 @@ pub(crate) const SHRINKAGE: f64 = 0.5;
 pub(crate) fn efficient_mix(lw: &LevelWindows, nr: usize, alpha: f64) -> Option<Vec<f64>> {
     // shape: `s`, `shrunk` and the eigenvectors are `nr × nr` and `lam` has `nr` entries, by
     // construction; every index below is `< nr`.
-    let s = lw.covariance(nr);
-    let diag: Vec<f64> = (0..nr).map(|i| s[(i, i)]).collect();
+    // The diagonal of `Ŝ` ([`LevelWindows::row_variances`]: a negative variance, which
+    // the floor below lifts, read as zero).
+    let diag = lw.row_variances(nr);
     let top = diag.iter().copied().fold(0.0, f64::max);
     if !(top > 0.0 && top.is_finite()) {
         return None;
     }
     let floor = top * 1e-12;
+    if alpha >= 1.0 {
+        // Shrunk all the way: `S` is its diagonal, and `M` the diagonal of its inverse
+        // square roots (no decomposition; the same floor as the eigenvalues' below).
+        let mut m = vec![0.0; nr * nr];
+        for (i, d) in diag.iter().enumerate() {
+            m[i * nr + i] = 1.0 / d.max(floor).sqrt();
+        }
+        return Some(m);
+    }
+    let s = lw.covariance(nr);
     let shrunk = Mat::<f64>::from_fn(nr, nr, |i, j| {
         if i == j {
             diag[i].max(floor)
