@@ -1,6 +1,12 @@
 //! Identification throughput on `models/two_mass.dyn` (cubic stiffness + Coulomb friction):
 //! three levels from memory and from CSV files, at two record lengths; then the scaling of
-//! the filter-and-moment pass with the number of threads on one long level.
+//! the filter-and-moment pass with the number of threads on one long level; then the cost
+//! of the rows `identify` chooses for accelerations (each weighted by its own estimated
+//! error, the weighting iterated) against the unit-norm rows on the same records: the
+//! jointed five-body structure `models/structure5_joint_accel.dyn` from its accelerations
+//! and force, four multisine levels with 5 % noise on every channel
+//! (`DYNID_BENCH_ACCEL_SECONDS=200` the seconds per level, 0 to skip), with the mean
+//! |error| of the masses and stiffnesses each gives.
 //!
 //! Run: `cargo bench -p dynid-runtime --bench identify`
 //! (`DYNID_BENCH_SAMPLES=100000,1000000` sets the samples per level of each run, 0 none,
@@ -20,10 +26,11 @@
 //! part of identification that the time-parallel filter bank speeds up; its ratio to the
 //! reference pass is what the speed targets are stated in.
 
+use dsl_parser::ir::ModelIr;
 use dynid_runtime::data::{CsvOptions, CsvSource, LevelSource, RecordSource};
 use dynid_runtime::ident::{identify, IdentifyOptions, PhaseTimes};
 use dynid_runtime::record::Record;
-use dynid_runtime::sim::{self, SimConfig};
+use dynid_runtime::sim::{self, Grid, Phases, SimConfig, TestSignal};
 use rayon::prelude::*;
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -78,6 +85,14 @@ fn csv_reference(paths: &[PathBuf]) -> f64 {
         .sum()
 }
 
+/// Every record as a level source, named `level 1`, `level 2`, …
+fn record_sources<'r>(recs: &'r [Record], ir: &ModelIr) -> Vec<RecordSource<'r>> {
+    recs.iter()
+        .enumerate()
+        .map(|(i, r)| RecordSource::new(r, ir, format!("level {}", i + 1)).unwrap())
+        .collect()
+}
+
 /// Reference for memory: stream every source and sum its values (levels in parallel).
 fn memory_reference(levels: &[&dyn LevelSource], chunk: usize) -> f64 {
     levels
@@ -127,11 +142,7 @@ fn run(n: usize) -> Ratios {
     );
     let opts = options();
 
-    let srcs: Vec<RecordSource> = recs
-        .iter()
-        .enumerate()
-        .map(|(i, r)| RecordSource::new(r, &ir, format!("level {}", i + 1)).unwrap())
-        .collect();
+    let srcs = record_sources(&recs, &ir);
     let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
     let (t_ref, _) = best_of(3, || black_box(memory_reference(&levels, opts.chunk_len)));
     let (t_mem, id) = best_of(3, || identify(&ir, &levels, &opts).unwrap());
@@ -271,6 +282,82 @@ fn scaling(n: usize, threads: &[usize]) -> String {
     speed_up
 }
 
+/// The rows `identify` chooses for accelerations against the unit-norm rows
+/// (`IdentifyOptions::instrument_rows`) on the jointed five-body structure, four multisine
+/// levels (0.2–10 Hz, 4 whole periods, random phases) of `seconds` each at Ts = 0.01 s with
+/// 5 % noise on every channel: the best of three of each identification, their ratio, and
+/// each one's mean |error| of the masses and stiffnesses against the simulated truth.
+fn accelerations(seconds: f64) -> String {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/structure5_joint_accel.dyn");
+    let ir = dsl_parser::compile_file(&path).expect("models/structure5_joint_accel.dyn");
+    let cfg = SimConfig {
+        duration: seconds,
+        sample: 0.01,
+        seed: 502,
+        noise: 0.05,
+        noise_on_inputs: true,
+        levels: Some(vec![1.0, 3.0, 10.0, 30.0]),
+        ..Default::default()
+    };
+    let signal = TestSignal::Multisine {
+        f_min_hz: 0.2,
+        f_max_hz: 10.0,
+        periods: 4,
+        grid: Grid::Full,
+        phases: Phases::Random,
+    };
+    let t = Instant::now();
+    let recs = sim::simulate_signal(&ir, &cfg, &signal)
+        .expect("simulation")
+        .records;
+    println!(
+        "\n== accelerations: structure5_joint_accel, {} levels × {} samples ({seconds:.0} s each, \
+         5 % noise; simulated in {:.1} s), {} threads",
+        recs.len(),
+        recs[0].len(),
+        t.elapsed().as_secs_f64(),
+        rayon::current_num_threads()
+    );
+    let srcs = record_sources(&recs, &ir);
+    let levels: Vec<&dyn LevelSource> = srcs.iter().map(|s| s as &dyn LevelSource).collect();
+    // Mean |error| of the masses and stiffnesses (`m…`, `k…`), per cent.
+    let error = |id: &dynid_runtime::ident::Identification| {
+        let errs: Vec<f64> = id
+            .params
+            .iter()
+            .filter(|e| e.name.starts_with('m') || e.name.starts_with('k'))
+            .filter_map(|e| {
+                let truth = ir.params.iter().find(|p| p.name == e.name)?.nominal()?;
+                Some(100.0 * (e.value / truth - 1.0).abs())
+            })
+            .collect();
+        errs.iter().sum::<f64>() / errs.len().max(1) as f64
+    };
+    let unit_opts = IdentifyOptions {
+        chunk_len: options().chunk_len,
+        ..IdentifyOptions::instrument_rows()
+    };
+    let (t_unit, unit) = best_of(3, || identify(&ir, &levels, &unit_opts).unwrap());
+    let (t_chosen, chosen) = best_of(3, || identify(&ir, &levels, &options()).unwrap());
+    assert!(chosen.filter.weighted_rows && !unit.filter.weighted_rows);
+    println!(
+        "unit-norm rows: {t_unit:.3} s, masses and stiffnesses {:.2} % off (mean |error|)\n\
+         rows chosen (each weighted by its own estimated error, {} solves): {t_chosen:.3} s \
+         = {:.2}× the unit-norm rows, {:.2} % off",
+        error(&unit),
+        chosen.filter.weight_steps,
+        t_chosen / t_unit,
+        error(&chosen)
+    );
+    format!(
+        "accelerations ({seconds:.0} s × 4 levels): the rows chosen {:.2}× the time of the \
+         unit-norm rows, mean |error| {:.2} % against {:.2} %",
+        t_chosen / t_unit,
+        error(&chosen),
+        error(&unit)
+    )
+}
+
 /// The identification's options, with `DYNID_BENCH_CHUNK` (samples per streamed chunk)
 /// where it is set.
 fn options() -> IdentifyOptions {
@@ -314,11 +401,18 @@ fn main() {
     if n > 0 {
         figures.push(scaling(n, &threads));
     }
+    let accel_seconds = env_list("DYNID_BENCH_ACCEL_SECONDS")
+        .and_then(|v| v.first().copied())
+        .unwrap_or(200);
+    if accel_seconds > 0 {
+        figures.push(accelerations(accel_seconds as f64));
+    }
     print_row(
         "identify",
         &figures.join("; "),
         "one pass that streams the same levels from memory and sums every value; \
-         one pass that splits and parses every CSV field; the pass on one thread",
+         one pass that splits and parses every CSV field; the pass on one thread; the \
+         unit-norm rows on the same accelerations",
         &format!(
             "{}cargo bench -p dynid-runtime --bench identify",
             bench_env()
