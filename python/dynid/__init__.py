@@ -1451,12 +1451,11 @@ class Model:
             of ``to_dict()``, when no other row, corner or noise keyword is given: on a servo
             axis's kind of record (friction with a sign of a velocity, a measured force,
             velocities estimated from measured positions with no noise worth a correction)
-            the filtered equation with the input's delay; on records whose every measured
-            acceleration carries noise of 0.5 % of its spread or more, each row weighted by
-            its own estimated error, the weights re-estimated until the estimate settles
-            (``filter.weighted_rows``, ``filter.weight_steps``, ``filter.weights_settled``;
-            docs/method.md §2, "Rows for noisy accelerations", and §5, "Iterated
-            weighting").
+            the filtered equation with the input's delay; on records of measured
+            accelerations, each row weighted by its own estimated error, the weights
+            re-estimated until the estimate settles (``filter.weighted_rows``,
+            ``filter.weight_steps``, ``filter.weights_settled``; docs/method.md §2, "Rows
+            for accelerations", and §5, "Iterated weighting").
 
         Returns
         -------

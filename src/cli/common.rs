@@ -120,8 +120,8 @@ pub struct EstimatorArgs {
     /// large shrinkage of the masses and stiffnesses that unit-norm rows give (five bodies,
     /// 5 % noise: −47 % → −0.35 %), but its standard errors come out smaller than the
     /// spread they stand for, 2–10 times on smaller records; without the flag `identify`
-    /// weights each row by its own estimated error alone on such records (docs/method.md
-    /// §2, "Rows for noisy accelerations")
+    /// weights each row by its own estimated error alone on records of accelerations
+    /// (docs/method.md §2, "Rows for accelerations")
     #[arg(long = "weighted-rows")]
     pub weighted_rows: bool,
     /// Estimate a delay of each measured input (force) against its record: one more
@@ -140,10 +140,11 @@ pub struct EstimatorArgs {
     /// estimated from measured positions with no noise worth a correction — the rows of the
     /// filtered equation with the input's delay, 50–500 times more precise on random set
     /// points and about 3 times on planned moves of the simulated servo axis (bench
-    /// `servo_precision`, docs/method.md §2); on records whose every measured acceleration
-    /// carries noise of 0.5 % of its spread or more, the rows each weighted by its own
-    /// estimated error, which keep a many-body structure's masses and stiffnesses from
-    /// shrinking by tens of per cent (docs/method.md §2, "Rows for noisy accelerations").
+    /// `servo_precision`, docs/method.md §2); on records of measured accelerations, the
+    /// rows each weighted by its own estimated error, which keep a many-body structure's
+    /// masses and stiffnesses from shrinking by tens of per cent with the noise or the
+    /// error of a joint's motion integrated from them (docs/method.md §2, "Rows for
+    /// accelerations").
     /// `moments` always takes the instrument rows
     #[arg(long = "instrument-rows")]
     pub instrument_rows: bool,

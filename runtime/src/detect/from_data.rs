@@ -80,7 +80,7 @@ pub enum DetectRows {
     /// `tests/accel_structure.rs` (5 % noise, seeds 1–12) the covariance shrunk halfway
     /// left the curves of linear elements scattering with χ²/dof 2.3 about their means (measured
     /// once), the diagonal 0.91 (docs/detection.md, "Noisy accelerations").
-    /// Never chosen by detection itself, unlike `identify`'s rows for noisy accelerations
+    /// Never chosen by detection itself, unlike `identify`'s rows for accelerations
     /// ([`crate::ident::accel_rows`]): the per-level fits are of a model that lacks the
     /// nonlinearity, and weights estimated from its misfit can pull them far off. On the
     /// two-mass structure with friction at its coupling (README, "Accelerometers"; 5 %

@@ -15,7 +15,7 @@
 //!   every level (0.37–0.41 for a mass fixed at half its value, 0.54–0.64 for a missing
 //!   body, 0.84–0.98 for a sensor offset, in the same tests), so the smallest residual
 //!   over the levels is what is judged. On records whose every accelerometer is noisy
-//!   (as `identify` judges for its choice of rows, [`super::identify::accel_rows`]), not
+//!   (estimated noise of [`NOISY_ACCELERATION`] of its spread or more), not
 //!   where at every level the residual is what the noise of the data alone would leave
 //!   ([`EquationResidual::noise`]): at most [`NOISE_MARGIN`] times that and not below a
 //!   [`NOISE_BELOW`]th of it. There many instrument rows are mostly noise, and a model that
@@ -75,6 +75,30 @@ pub const NOISE_MARGIN: f64 = 2.0;
 /// data), so the windows' scatter cannot vouch for it.
 pub const NOISE_BELOW: f64 = 10.0;
 
+/// The estimated noise, as a fraction of the signal's standard deviation, from which a
+/// measured acceleration counts as noisy: where every one of a record's accelerometers is,
+/// a residual within [`NOISE_MARGIN`] of what noise alone would leave is the noise's (see
+/// the module doc).
+pub const NOISY_ACCELERATION: f64 = 0.005;
+
+/// Whether `ir` measures accelerations and every one of them carries estimated noise of
+/// at least [`NOISY_ACCELERATION`] of its spread (`noise`: the fractions of the
+/// identification's [`super::noise::NoiseSummary`]).
+fn noisy_accelerations(ir: &ModelIr, noise: &super::noise::NoiseSummary) -> bool {
+    let mut accelerations = ir
+        .signals
+        .iter()
+        .filter(|s| s.measured && matches!(s.kind, SignalKind::Acceleration(_)))
+        .peekable();
+    accelerations.peek().is_some()
+        && accelerations.all(|s| {
+            noise
+                .fraction
+                .get(&s.name)
+                .is_some_and(|f| *f >= NOISY_ACCELERATION)
+        })
+}
+
 /// A pooled estimate further than this many of a level's standard errors from that level's
 /// estimate, at every level, means the levels disagree.
 pub const LEVEL_SPREAD_T: f64 = 6.0;
@@ -131,7 +155,7 @@ pub(crate) fn check(
     let mut out = duplicates(id);
     // Where every accelerometer is noisy, a residual may be the noise's (see the module
     // doc); elsewhere the windows' scatter at a wrong estimate carries the misfit too.
-    let noisy = super::identify::noisy_accelerations(m.ir, &id.noise);
+    let noisy = noisy_accelerations(m.ir, &id.noise);
     let large: Vec<(&EquationResidual, f64, f64)> = id
         .residual
         .iter()

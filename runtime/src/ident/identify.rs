@@ -95,59 +95,40 @@ fn rows_open(opts: &IdentifyOptions) -> bool {
             || opts.input_delay)
 }
 
-/// The estimated noise, as a fraction of the signal's standard deviation, from which
-/// `identify` weights each row of a record of measured accelerations by its own estimated
-/// error ([`accel_rows`]). On the five-body structure of `tests/accel_structure.rs` (four
-/// multisine levels of 200 s, seed 1; masses and stiffnesses, mean |error|) the unit-norm
-/// rows give 0.05 % on the noiseless record, 0.20 % at 0.2 % noise, 0.82 % at 0.5 %, 3.3 %
-/// at 1 % and 43 % at 5 %; the rows chosen from 0.5 % on give 0.23, 0.15 and 0.18 % (the
-/// weighting iterated; read once, 0.25, 0.20 and 2.1 %; `accel_rows_from_the_noise_up`,
-/// which checks these and the choice on both sides). On
-/// the noiseless record the weighted rows gave 0.31 % (measured once): they lose below a
-/// few tenths of a per cent of noise, where the small systematic errors of a sampled
-/// record are what their weights rank. Also said in `identify --help` (`--instrument-rows`).
-pub const ACCEL_WEIGHTED_NOISE: f64 = 0.005;
-
-/// Whether `ir` measures accelerations and every one of them carries estimated noise of
-/// at least [`ACCEL_WEIGHTED_NOISE`] of its spread (`noise`: the fractions of the
-/// identification's [`super::noise::NoiseSummary`]).
-pub(crate) fn noisy_accelerations(ir: &ModelIr, noise: &super::noise::NoiseSummary) -> bool {
-    let mut accelerations = ir
-        .signals
+/// Whether `ir` measures an acceleration.
+fn measures_accelerations(ir: &ModelIr) -> bool {
+    ir.signals
         .iter()
-        .filter(|s| s.measured && matches!(s.kind, dynid_ir::ir::SignalKind::Acceleration(_)))
-        .peekable();
-    accelerations.peek().is_some()
-        && accelerations.all(|s| {
-            noise
-                .fraction
-                .get(&s.name)
-                .is_some_and(|f| *f >= ACCEL_WEIGHTED_NOISE)
-        })
+        .any(|s| s.measured && matches!(s.kind, dynid_ir::ir::SignalKind::Acceleration(_)))
 }
 
 /// The options of the instrument rows each weighted by its own estimated error (the
-/// efficient two-step solve, [`IdentifyOptions::efficient`], with
-/// [`IdentifyOptions::diagonal_weights`]) where
-/// [`IdentifyOptions::auto_rows`] leaves the choice to `identify` and `id` (identified
-/// with the unit-norm rows) shows noisy accelerations (`noisy_accelerations`). From
-/// accelerations every unit-norm row weighs its instruments alike, many of them nearly
-/// pure noise, and the bodies whose equations have no right-hand side (no input, an
-/// unknown mass) are shrunk towards zero like a regression on noisy regressors (on the
-/// five-body structure at 5 % noise, every mass and stiffness by about 40 %); weighted,
-/// the noisy rows get the little weight they deserve (docs/method.md §2, "Rows for noisy
-/// accelerations"). Each row by its own error ([`IdentifyOptions::diagonal_weights`]):
-/// the covariance shrunk halfway gives standard errors 2–10 times too small on the SDOF
-/// and two-mass records. The weighting iterated until the estimate settles
-/// ([`IdentifyOptions::iterate_weights`]): read once at the unit-norm rows' estimate it
-/// left a log sweep's jointed structure 10–29 % low (docs/method.md §5, "Iterated
+/// efficient solve, [`IdentifyOptions::efficient`], with
+/// [`IdentifyOptions::diagonal_weights`], the weighting re-estimated until the estimate
+/// settles, [`IdentifyOptions::iterate_weights`]) where [`IdentifyOptions::auto_rows`]
+/// leaves the choice to `identify` and `ir` measures accelerations: the choice is the
+/// record's kind, not its noise.
+///
+/// From accelerations every unit-norm row weighs its instruments alike, and the bodies
+/// whose equations have no right-hand side (no input, an unknown mass) are shrunk towards
+/// zero with whatever the rows carry besides the model: the noise (on the five-body
+/// structure at 5 % noise every mass and stiffness about 40 % low, like a regression on
+/// noisy regressors) and, noiseless, the error of a nonlinear element's motion integrated
+/// from accelerations (the jointed structure's noiseless records: every mass and stiffness
+/// 21–29 % low from a log sweep, 5–11 % from a multisine). Weighted, the rows that carry
+/// such errors get the little weight they deserve (docs/method.md §2, "Rows for
+/// accelerations"): the jointed structure's masses and stiffnesses within 0.6 % (sweep)
+/// and 0.5 % (multisine) noiseless (`joint_from_a_sweep`), within 1.6 % from a noisy sweep.
+/// The price, on the linear structure's noiseless multisine, where the unit-norm rows
+/// carry nothing but the sampling's small systematic errors: 0.31 % (mean |error|) against
+/// their 0.05 %, and 0.29 against 0.20 % at 0.2 % noise (`accel_rows_from_the_noise_up`).
+/// Each row by its own error ([`IdentifyOptions::diagonal_weights`]): the covariance
+/// shrunk halfway gives standard errors 2–10 times too small on the SDOF and two-mass
+/// records. The weighting iterated: read once at the unit-norm rows' estimate it left a
+/// noisy log sweep's jointed structure 10–29 % low (docs/method.md §5, "Iterated
 /// weighting"). `None` otherwise.
-pub fn accel_rows(
-    ir: &ModelIr,
-    id: &Identification,
-    opts: &IdentifyOptions,
-) -> Option<IdentifyOptions> {
-    (rows_open(opts) && noisy_accelerations(ir, &id.noise)).then(|| IdentifyOptions {
+pub fn accel_rows(ir: &ModelIr, opts: &IdentifyOptions) -> Option<IdentifyOptions> {
+    (rows_open(opts) && measures_accelerations(ir)).then(|| IdentifyOptions {
         efficient: true,
         diagonal_weights: true,
         iterate_weights: true,
@@ -166,7 +147,7 @@ fn choose_rows(
     opts: &IdentifyOptions,
     again: impl FnOnce(&IdentifyOptions) -> Result<Identification, IdentifyError>,
 ) -> Identification {
-    let Some(o) = servo_rows(model, &id, opts).or_else(|| accel_rows(model, &id, opts)) else {
+    let Some(o) = servo_rows(model, &id, opts).or_else(|| accel_rows(model, opts)) else {
         return id;
     };
     match again(&o) {

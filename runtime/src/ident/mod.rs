@@ -94,10 +94,7 @@ pub mod velocity;
 
 pub use corners::{check_corners, corner_moves, CORNER_CHECK_FACTOR, CORNER_CHECK_MIN_REL};
 pub use filter::Hold;
-pub use identify::{
-    accel_rows, assemble, identify, identify_per_level, identify_with, servo_rows,
-    ACCEL_WEIGHTED_NOISE,
-};
+pub use identify::{accel_rows, assemble, identify, identify_per_level, identify_with, servo_rows};
 pub use measure::measure;
 pub use measurement::Measurement;
 pub use memory::MemoryEstimate;

@@ -77,7 +77,7 @@ pub struct IdentifyOptions {
     pub efficient: bool,
     /// With `efficient`: weight each row by its own estimated error alone (the rows'
     /// estimated covariance shrunk fully to its diagonal) instead of by the covariance
-    /// shrunk halfway ([`super::stats::SHRINKAGE`]). What `identify` chooses for noisy
+    /// shrunk halfway ([`super::stats::SHRINKAGE`]). What `identify` chooses for
     /// accelerations ([`super::identify::accel_rows`]): halfway is more precise on the
     /// five-body structure at 5 % noise but its standard errors come out 2–10 times too
     /// small on the SDOF and two-mass records and at lower noise (docs/method.md §5).
@@ -85,7 +85,7 @@ pub struct IdentifyOptions {
     /// With `efficient`: re-estimate the weighting at each new estimate and solve again
     /// until no parameter moves by more than a thousandth of its first-step standard error
     /// (iterated weighting, docs/method.md §5). What `identify` chooses, with
-    /// `diagonal_weights`, for noisy accelerations ([`super::identify::accel_rows`]). Off
+    /// `diagonal_weights`, for accelerations ([`super::identify::accel_rows`]). Off
     /// (the default): the two-step estimate, weights read once at the unit-norm rows'
     /// estimate. Not with the covariance shrunk halfway: on the servo axis's records
     /// (bench `servo_precision`, rows `chains, 2-step`, measured once iterated) the
@@ -121,12 +121,11 @@ pub struct IdentifyOptions {
     /// `input_delay`). On the servo bench (`servo_precision`, 48 seeds) they are 50–500
     /// times more precise than the instrument rows on random set points, 2.7–3.7 times on
     /// planned moves (the offset level), and 10–200 times for mass, damping and friction where the
-    /// model lacks a Stribeck term ([`super::identify::servo_rows`]). On a record whose
-    /// every measured acceleration carries noise of at least
-    /// [`super::identify::ACCEL_WEIGHTED_NOISE`] of its spread, the instrument rows each
-    /// weighted by its own estimated error (`efficient` with `diagonal_weights`,
+    /// model lacks a Stribeck term ([`super::identify::servo_rows`]). On a record of
+    /// measured accelerations, the instrument rows each weighted by its own estimated error
+    /// (`efficient` with `diagonal_weights` and `iterate_weights`,
     /// [`super::identify::accel_rows`]): on a five-body structure at 1 % noise its masses
-    /// and stiffnesses 0.20 % off instead of 3.3 % (docs/method.md §2, "Rows for noisy
+    /// and stiffnesses 0.15 % off instead of 3.3 % (docs/method.md §2, "Rows for
     /// accelerations"). Said in [`FilterSummary::auto_rows`]. Off: the instrument rows
     /// at unit norm unless asked otherwise (the CLI's `--instrument-rows`). On by default.
     pub auto_rows: bool,
@@ -518,7 +517,7 @@ pub struct FilterSummary {
     /// The rows were chosen by `identify` ([`IdentifyOptions::auto_rows`]), not asked for:
     /// those of the filtered equation with the inputs' delays for a record of a servo
     /// axis's kind ([`super::identify::servo_rows`]; `corners_from.filtered` set), the
-    /// instrument rows weighted by their estimated covariance for noisy accelerations
+    /// instrument rows weighted by their estimated covariance for measured accelerations
     /// ([`super::identify::accel_rows`]; `weighted_rows` set).
     pub auto_rows: bool,
     /// The rows were weighted by their estimated covariance (the efficient two-step solve,

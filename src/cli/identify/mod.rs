@@ -237,22 +237,23 @@ fn identify_from(args: &Args) -> miette::Result<()> {
 /// other rows (`--instrument-rows`, or another row flag), or identified from moments
 /// (`--from`). The rows of the filtered equation with the input's delay where the record
 /// is of a servo axis's kind ([`dynid_runtime::ident::servo_rows`]) and the model can form
-/// them; the rows each weighted by its own estimated error where every accelerometer is
-/// noisy ([`dynid_runtime::ident::accel_rows`]).
+/// them; the rows each weighted by its own estimated error where the record measures
+/// accelerations ([`dynid_runtime::ident::accel_rows`]).
 fn rows_hint(ir: &ModelIr, id: &Identification) -> Option<String> {
     if id.filter.corners_from.filtered || id.filter.auto_rows {
         return None;
     }
     let defaults = dynid_runtime::IdentifyOptions::default();
-    if !id.filter.weighted_rows && dynid_runtime::ident::accel_rows(ir, id, &defaults).is_some() {
-        return Some(format!(
-            "every measured acceleration carries noise of {} % of its spread or more: there \
-             the rows each weighted by its own estimated error, which `identify` chooses for \
-             such records from their files unless another row flag or --instrument-rows is \
-             given, keep a many-body structure's masses and stiffnesses from shrinking with \
-             the noise (docs/method.md §2, \"Rows for noisy accelerations\")",
-            100.0 * dynid_runtime::ident::ACCEL_WEIGHTED_NOISE
-        ));
+    if !id.filter.weighted_rows && dynid_runtime::ident::accel_rows(ir, &defaults).is_some() {
+        return Some(
+            "the record measures accelerations: there the rows each weighted by its own \
+             estimated error, which `identify` chooses for such records from their files \
+             unless another row flag or --instrument-rows is given, keep a many-body \
+             structure's masses and stiffnesses from shrinking with the noise and with the \
+             error of a nonlinear element's motion integrated from accelerations \
+             (docs/method.md §2, \"Rows for accelerations\")"
+                .into(),
+        );
     }
     let opts = dynid_runtime::ident::servo_rows(ir, id, &defaults)?;
     dynid_runtime::ident::memory::estimate(ir, id.levels.len(), &opts).ok()?;

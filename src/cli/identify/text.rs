@@ -137,11 +137,9 @@ pub fn render(ir: &ModelIr, id: &Identification) -> String {
     if id.filter.auto_rows && id.filter.weighted_rows {
         s.push_str(&format!(
             "rows: the instrument rows, each weighted by its own estimated error ({}), \
-             chosen for this record (every measured acceleration with noise of {} % of its \
-             spread or more, where the unit-norm rows shrink the estimates; \
-             --instrument-rows for those)\n",
+             chosen for this record (measured accelerations, where the unit-norm rows shrink \
+             the estimates; --instrument-rows for those)\n",
             id.filter.describe_weighting(),
-            100.0 * dynid_runtime::ident::ACCEL_WEIGHTED_NOISE
         ));
     } else if id.filter.weighted_rows {
         s.push_str(&format!(
