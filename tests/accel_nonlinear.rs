@@ -7,7 +7,9 @@
 //! Bounds are about twice the largest error over five seeds, the test's own and the four
 //! after it: `DYNID_SEEDS=5 cargo test --test accel_nonlinear -- --nocapture` prints one
 //! row per case and seed (the table of docs/method.md, "Accelerations instead of
-//! positions", comes from it); the suite runs the first seed of each case.
+//! positions", comes from it); the suite runs the first seed of each case. The long form
+//! also runs detection of the friction over seeds 1–6
+//! (`friction_detection_over_seeds_from_accelerations_and_positions`).
 
 mod common;
 mod figures;
@@ -324,6 +326,40 @@ fn friction_between_two_accelerometers_random() {
     );
 }
 
+/// Three levels of `truth` (300 s, 5 % noise, `seed`) written by `dynid simulate` into
+/// `out`.
+fn friction_levels(
+    truth: &std::path::Path,
+    out: &std::path::Path,
+    seed: u64,
+) -> Vec<std::path::PathBuf> {
+    common::simulate_levels(
+        truth,
+        [
+            "--duration",
+            "300",
+            "--noise",
+            "0.05",
+            "--seed",
+            &seed.to_string(),
+        ],
+        out,
+        3,
+    )
+}
+
+/// The standard output of `dynid command model levels…`, which must succeed.
+fn run_ok(command: &str, model: &std::path::Path, levels: &[std::path::PathBuf]) -> String {
+    let out = common::dynid()
+        .arg(command)
+        .arg(model)
+        .args(levels)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    String::from_utf8_lossy(&out.stdout).to_string()
+}
+
 /// Detection from accelerometers alone: the two-mass structure with friction at its
 /// coupling, measured by `m1.a`, `m2.a` and the force (5 % noise, three levels of 300 s,
 /// seed 3), checked against the linear model: the coupling is named Coulomb friction, the
@@ -333,21 +369,16 @@ fn friction_between_two_accelerometers_random() {
 #[test]
 fn detect_and_diagnose_name_the_friction_between_two_accelerometers() {
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("data");
-    let levels = common::simulate_levels(
+    let levels = friction_levels(
         &common::model_path("two_mass_friction_accel.dyn"),
-        ["--duration", "300", "--noise", "0.05", "--seed", "3"],
-        &data,
+        &dir.path().join("data"),
         3,
     );
-    let out = common::dynid()
-        .arg("detect")
-        .arg(common::model_path("two_mass_linear_accel.dyn"))
-        .args(&levels)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = run_ok(
+        "detect",
+        &common::model_path("two_mass_linear_accel.dyn"),
+        &levels,
+    );
     assert!(
         stdout.contains("Element k2/d2 (m1, m2): nonlinear: Coulomb friction"),
         "{stdout}"
@@ -392,5 +423,131 @@ fn detect_and_diagnose_name_the_friction_between_two_accelerometers() {
         doc,
         "accel.diagnose.gap_after",
         v["gap_after"].as_f64().unwrap(),
+    );
+}
+
+/// The linear model fitted to the friction records (`identify`, the model lacks the
+/// friction the data show; 300 s, 5 % noise, seed 2): the rows chosen for accelerations
+/// re-estimate their weights at each new estimate, and on these records that drove the
+/// unforced body's equation onto its trivial solution — m2, k2 and d2 at 1e-11, the
+/// iteration "settled" there (seeds 1–6 all did, measured with the CLI). The iteration now
+/// stops where an estimate loses nine tenths of a mass the unit-norm rows found
+/// significant and keeps the two-step estimate (m2 0.77–1.13 over seeds 1–6, truth 2: a
+/// model without the friction, which the guard's warnings say), and the report says why.
+#[test]
+fn weighting_does_not_collapse_a_model_without_the_friction() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = friction_levels(
+        &common::model_path("two_mass_friction_accel.dyn"),
+        &dir.path().join("data"),
+        2,
+    );
+    let stdout = run_ok(
+        "identify",
+        &common::model_path("two_mass_linear_accel.dyn"),
+        &levels,
+    );
+    let value = |name: &str| -> f64 {
+        stdout
+            .lines()
+            .find_map(|l| {
+                let mut w = l.split_whitespace();
+                (w.next() == Some(name)).then(|| w.next()?.parse().ok())?
+            })
+            .unwrap_or_else(|| panic!("no row `{name}` in:\n{stdout}"))
+    };
+    assert!(
+        stdout.contains("re-estimated, they drove a parameter to zero"),
+        "{stdout}"
+    );
+    for (name, floor) in [("m2", 0.5), ("k2", 0.5), ("d2", 0.05)] {
+        assert!(value(name) > floor, "{name} collapsed:\n{stdout}");
+    }
+    assert!(
+        stdout.contains("the model lacks a force the data show"),
+        "{stdout}"
+    );
+}
+
+/// Detection of the friction between two accelerometers over seeds 1–6 (with the long form,
+/// any `DYNID_SEEDS` of 2 or more; 20 s in release), beside positions of the same kind of record
+/// (the same model measured by `m1.x`, `m2.x`): 5 % noise, three levels of 300 s. From
+/// accelerations the coupling is flagged on every seed and named Coulomb friction on four,
+/// but the ground element is flagged too on four; from positions the coupling is named on
+/// all six and the ground element left linear (docs/detection.md, "Noisy accelerations",
+/// which quotes these counts; seed 3 is the README's and
+/// `detect_and_diagnose_name_the_friction_between_two_accelerometers`'s).
+#[test]
+fn friction_detection_over_seeds_from_accelerations_and_positions() {
+    if common::seed_count(1) < 2 {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let models = |name: &str| -> (std::path::PathBuf, std::path::PathBuf) {
+        let src = std::fs::read_to_string(common::model_path(&format!("{name}.dyn"))).unwrap();
+        let pos = src.replace("measure m1.a, m2.a, u", "measure m1.x, m2.x, u");
+        assert_ne!(pos, src);
+        let path = dir.path().join(format!("{name}_pos.dyn"));
+        std::fs::write(&path, pos).unwrap();
+        (common::model_path(&format!("{name}.dyn")), path)
+    };
+    let (truth_acc, truth_pos) = models("two_mass_friction_accel");
+    let (lin_acc, lin_pos) = models("two_mass_linear_accel");
+    // Per kind of record: [coupling flagged, coupling named Coulomb friction, ground flagged].
+    let mut counts = [[0usize; 3]; 2];
+    for seed in 1..=6u64 {
+        for (k, (truth, lin)) in [(&truth_acc, &lin_acc), (&truth_pos, &lin_pos)]
+            .into_iter()
+            .enumerate()
+        {
+            let out = dir.path().join(format!("s{seed}_{k}"));
+            let stdout = run_ok(
+                "detect",
+                lin,
+                &friction_levels(truth, &out, common::seed(seed)),
+            );
+            let verdict = |element: &str| {
+                stdout
+                    .lines()
+                    .find_map(|l| l.strip_prefix(&format!("Element {element}: ")))
+                    .unwrap_or_else(|| panic!("no verdict for {element}:\n{stdout}"))
+                    .to_string()
+            };
+            let (coupling, ground) = (verdict("k2/d2 (m1, m2)"), verdict("k1/d1 (ground, m1)"));
+            println!(
+                "seed {seed}, {}: coupling {coupling}; ground {ground}",
+                ["accelerations", "positions"][k]
+            );
+            counts[k][0] += usize::from(coupling != "linear");
+            counts[k][1] += usize::from(coupling == "nonlinear: Coulomb friction");
+            counts[k][2] += usize::from(ground != "linear");
+        }
+    }
+    println!("[coupling flagged, named friction, ground flagged]: {counts:?}");
+    if common::seeds_as_documented() {
+        const DOC: &str = "docs/detection.md";
+        let keys = [
+            [
+                "detect.two_mass_friction.acc.coupling",
+                "detect.two_mass_friction.acc.named",
+                "detect.two_mass_friction.acc.ground",
+            ],
+            [
+                "detect.two_mass_friction.pos.coupling",
+                "detect.two_mass_friction.pos.named",
+                "detect.two_mass_friction.pos.ground",
+            ],
+        ];
+        for (kind, count) in keys.iter().zip(&counts) {
+            for (key, n) in kind.iter().zip(count) {
+                figures::check(DOC, key, *n as f64);
+            }
+        }
+    }
+    assert_eq!(counts[1], [6, 6, 0], "positions");
+    assert_eq!(
+        (counts[0][0], counts[0][1] >= 3),
+        (6, true),
+        "accelerations"
     );
 }

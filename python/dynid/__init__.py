@@ -1453,9 +1453,10 @@ class Model:
             velocities estimated from measured positions with no noise worth a correction)
             the filtered equation with the input's delay; on records of measured
             accelerations, each row weighted by its own estimated error, the weights
-            re-estimated until the estimate settles (``filter.weighted_rows``,
-            ``filter.weight_steps``, ``filter.weights_settled``; docs/method.md §2, "Rows
-            for accelerations", and §5, "Iterated weighting").
+            re-estimated until the estimate settles, or read once where re-estimating them
+            would drive a mass to zero (``filter.weighted_rows``, ``filter.weight_steps``,
+            ``filter.weights_settled``, ``filter.weights_collapsed``; docs/method.md §2,
+            "Rows for accelerations", and §5, "Iterated weighting").
 
         Returns
         -------

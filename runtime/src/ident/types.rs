@@ -411,6 +411,10 @@ impl FilterSummary {
                 "weights re-estimated at each new estimate until it settled: {} solves",
                 self.weight_steps
             )
+        } else if self.weights_collapsed {
+            "two-step: weights read once, at the unit-norm rows' estimate; re-estimated, \
+             they drove a parameter to zero, as where the model lacks a force the data show"
+                .into()
         } else {
             "two-step: weights read once, at the unit-norm rows' estimate".into()
         }
@@ -536,6 +540,12 @@ pub struct FilterSummary {
     /// not weighted.
     #[serde(default)]
     pub weights_settled: bool,
+    /// The iterated weighting stopped where an estimate collapsed onto the trivial solution
+    /// of an equation without a known term (a body's mass the unit-norm rows found
+    /// significant lost more than nine tenths of its magnitude: a model that lacks a force
+    /// the data show); the two-step estimate is kept.
+    #[serde(default)]
+    pub weights_collapsed: bool,
     /// Parameters whose estimates move by more than their standard errors when the highest
     /// corner is moved a factor 4 down or up ([`super::corner_moves`]; filled in by the
     /// command line, empty otherwise).
