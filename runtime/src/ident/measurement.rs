@@ -212,11 +212,11 @@ impl<'m> Measurement<'m> {
     /// each new estimate until no parameter moves by more than [`WEIGHTS_SETTLED`] of its
     /// first-step standard error `first_se` (iterated weighting, at most
     /// [`MAX_WEIGHT_STEPS`] solves). Where the estimate does not settle, or an iterate
-    /// collapses ([`collapsed`]), the two-step estimate is kept; where the two-step
-    /// estimate itself collapses, the first step's (`None`). The standard errors are the sandwich of the last whitened rows,
-    /// corrected for a weighting estimated at the estimate before it
-    /// ([`stats::efficient_stderr`]). `None` (keep the first step) where a level's
-    /// covariance cannot be whitened or the second solve fails.
+    /// collapses ([`collapsed`]), the two-step estimate is kept. The standard errors are
+    /// the sandwich of the last whitened rows, corrected for a weighting estimated at the
+    /// estimate before it ([`stats::efficient_stderr`]). `None` (keep the first step) where
+    /// a level's covariance cannot be whitened, the second solve fails or the two-step
+    /// estimate itself collapses.
     #[allow(clippy::too_many_arguments)]
     fn efficient_step(
         &self,
