@@ -447,21 +447,15 @@ fn weighting_does_not_collapse_a_model_without_the_friction() {
         &common::model_path("two_mass_linear_accel.dyn"),
         &levels,
     );
-    let value = |name: &str| -> f64 {
-        stdout
-            .lines()
-            .find_map(|l| {
-                let mut w = l.split_whitespace();
-                (w.next() == Some(name)).then(|| w.next()?.parse().ok())?
-            })
-            .unwrap_or_else(|| panic!("no row `{name}` in:\n{stdout}"))
-    };
     assert!(
         stdout.contains("re-estimated, they drove a parameter to zero"),
         "{stdout}"
     );
     for (name, floor) in [("m2", 0.5), ("k2", 0.5), ("d2", 0.05)] {
-        assert!(value(name) > floor, "{name} collapsed:\n{stdout}");
+        assert!(
+            common::table_value(&stdout, name) > floor,
+            "{name} collapsed:\n{stdout}"
+        );
     }
     assert!(
         stdout.contains("the model lacks a force the data show"),

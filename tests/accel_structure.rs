@@ -750,14 +750,10 @@ fn all_errors(levels: &[std::path::PathBuf], flags: &[&str]) -> Vec<(String, f64
     truth
         .iter()
         .map(|&(name, t)| {
-            let v: f64 = stdout
-                .lines()
-                .find_map(|l| {
-                    let mut w = l.split_whitespace();
-                    (w.next() == Some(name)).then(|| w.next()?.parse().ok())?
-                })
-                .unwrap_or_else(|| panic!("no row `{name}` in:\n{stdout}"));
-            (name.to_string(), v / t - 1.0)
+            (
+                name.to_string(),
+                common::table_value(&stdout, name) / t - 1.0,
+            )
         })
         .collect()
 }

@@ -362,13 +362,15 @@ fn accelerations(seconds: f64) -> String {
 /// where it is set.
 fn options() -> IdentifyOptions {
     let mut opts = IdentifyOptions::default();
-    if let Some(&c) = env_list("DYNID_BENCH_CHUNK")
-        .as_deref()
-        .and_then(|v| v.first())
-    {
+    if let Some(c) = env_value("DYNID_BENCH_CHUNK") {
         opts.chunk_len = c.max(1);
     }
     opts
+}
+
+/// The first value of [`env_list`].
+fn env_value(name: &str) -> Option<usize> {
+    env_list(name)?.first().copied()
 }
 
 fn env_list(name: &str) -> Option<Vec<usize>> {
@@ -389,9 +391,7 @@ fn main() {
             r.memory, r.pass, r.csv, r.parse
         ));
     }
-    let n = env_list("DYNID_BENCH_SCALING_SAMPLES")
-        .and_then(|v| v.first().copied())
-        .unwrap_or(10_000_000);
+    let n = env_value("DYNID_BENCH_SCALING_SAMPLES").unwrap_or(10_000_000);
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let threads = env_list("DYNID_BENCH_THREADS").unwrap_or_else(|| {
         std::iter::successors(Some(1), |k| Some(k * 2))
@@ -401,9 +401,7 @@ fn main() {
     if n > 0 {
         figures.push(scaling(n, &threads));
     }
-    let accel_seconds = env_list("DYNID_BENCH_ACCEL_SECONDS")
-        .and_then(|v| v.first().copied())
-        .unwrap_or(200);
+    let accel_seconds = env_value("DYNID_BENCH_ACCEL_SECONDS").unwrap_or(200);
     if accel_seconds > 0 {
         figures.push(accelerations(accel_seconds as f64));
     }

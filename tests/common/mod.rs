@@ -178,6 +178,19 @@ pub fn two_mass_levels(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
     )
 }
 
+/// The value of parameter `name` in the parameter table of `dynid identify`'s text output
+/// (the number after the name at the start of a line); panics, showing `stdout`, where no
+/// row has it.
+pub fn table_value(stdout: &str, name: &str) -> f64 {
+    stdout
+        .lines()
+        .find_map(|l| {
+            let mut w = l.split_whitespace();
+            (w.next() == Some(name)).then(|| w.next()?.parse().ok())?
+        })
+        .unwrap_or_else(|| panic!("no row `{name}` in:\n{stdout}"))
+}
+
 /// A command's standard error with miette's line wrapping undone.
 pub fn stderr(o: &std::process::Output) -> String {
     // The report wraps lines at the terminal width and may break a word after a hyphen

@@ -58,7 +58,7 @@ use super::types::{
 use crate::data::LevelSource;
 use crate::tape::Tape;
 use dynid_ir::edit::NewTerm;
-use dynid_ir::ir::{Coef, ModelIr, ParamId, ParamIr, ParamKind, SignalKind};
+use dynid_ir::ir::{Coef, ModelIr, ParamId, ParamIr, ParamKind, SignalIr, SignalKind};
 
 /// Relative residual of an equation above which, at every level, the model does not
 /// explain the data (see the module doc for the figures it is set from).
@@ -81,15 +81,18 @@ pub const NOISE_BELOW: f64 = 10.0;
 /// the module doc).
 pub const NOISY_ACCELERATION: f64 = 0.005;
 
+/// The measured accelerations of `ir`.
+pub(super) fn measured_accelerations(ir: &ModelIr) -> impl Iterator<Item = &SignalIr> {
+    ir.signals
+        .iter()
+        .filter(|s| s.measured && matches!(s.kind, SignalKind::Acceleration(_)))
+}
+
 /// Whether `ir` measures accelerations and every one of them carries estimated noise of
 /// at least [`NOISY_ACCELERATION`] of its spread (`noise`: the fractions of the
 /// identification's [`super::noise::NoiseSummary`]).
 fn noisy_accelerations(ir: &ModelIr, noise: &super::noise::NoiseSummary) -> bool {
-    let mut accelerations = ir
-        .signals
-        .iter()
-        .filter(|s| s.measured && matches!(s.kind, SignalKind::Acceleration(_)))
-        .peekable();
+    let mut accelerations = measured_accelerations(ir).peekable();
     accelerations.peek().is_some()
         && accelerations.all(|s| {
             noise

@@ -95,13 +95,6 @@ fn rows_open(opts: &IdentifyOptions) -> bool {
             || opts.input_delay)
 }
 
-/// Whether `ir` measures an acceleration.
-fn measures_accelerations(ir: &ModelIr) -> bool {
-    ir.signals
-        .iter()
-        .any(|s| s.measured && matches!(s.kind, dynid_ir::ir::SignalKind::Acceleration(_)))
-}
-
 /// The options of the instrument rows each weighted by its own estimated error (the
 /// efficient solve, [`IdentifyOptions::efficient`], with
 /// [`IdentifyOptions::diagonal_weights`], the weighting re-estimated until the estimate
@@ -128,12 +121,14 @@ fn measures_accelerations(ir: &ModelIr) -> bool {
 /// noisy log sweep's jointed structure 10–29 % low (docs/method.md §5, "Iterated
 /// weighting"). `None` otherwise.
 pub fn accel_rows(ir: &ModelIr, opts: &IdentifyOptions) -> Option<IdentifyOptions> {
-    (rows_open(opts) && measures_accelerations(ir)).then(|| IdentifyOptions {
-        efficient: true,
-        diagonal_weights: true,
-        iterate_weights: true,
-        auto_rows: false,
-        ..opts.clone()
+    (rows_open(opts) && guard::measured_accelerations(ir).next().is_some()).then(|| {
+        IdentifyOptions {
+            efficient: true,
+            diagonal_weights: true,
+            iterate_weights: true,
+            auto_rows: false,
+            ..opts.clone()
+        }
     })
 }
 

@@ -281,6 +281,10 @@ impl<'m> Measurement<'m> {
             let Some(next) = weigh(&last.sol.x) else {
                 break;
             };
+            if lost(&next.sol.x) {
+                collapse = true;
+                break;
+            }
             let change = next
                 .sol
                 .x
@@ -289,10 +293,6 @@ impl<'m> Measurement<'m> {
                 .zip(&scale)
                 .map(|((n, c), s)| (n - c).abs() / s)
                 .fold(0.0, f64::max);
-            if lost(&next.sol.x) {
-                collapse = true;
-                break;
-            }
             prev = cur.replace(next);
             steps += 1;
             if change <= WEIGHTS_SETTLED {
