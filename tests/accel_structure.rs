@@ -833,8 +833,8 @@ fn joint_from_a_noisy_sweep() {
 /// displacement integrated over whole periods) both recover the contact stiffness. Seed 1:
 /// positions kb −0.02 %, accelerations kb +0.23 % with the defaults (each row weighted by
 /// its own estimated error; −0.09 % with the unit-norm rows, measured before the defaults
-/// weighted noiseless records). The defaults' masses and stiffnesses are +0.2 … +0.6 % off
-/// at standard errors of 0.004–0.03 %: on a record without noise the weighted rows carry a
+/// weighted noiseless records). The defaults' masses and stiffnesses are +0.23 … +0.56 %
+/// off, the mount's k1 −0.53 %, at standard errors of 0.004–0.03 %: on a record without noise the weighted rows carry a
 /// small systematic error that their standard errors, which stand for noise, do not cover
 /// (docs/method.md §2, "Rows for accelerations"). The accelerations needed the lines far
 /// below the excited band left out of the integration: the contact's kinks fold down from
