@@ -463,14 +463,67 @@ fn weighting_does_not_collapse_a_model_without_the_friction() {
     );
 }
 
+/// Detection from accelerometers on seed 2 of those records (5 % noise, three levels of
+/// 300 s), where each level's linear fit holds m2 at 1.11 (truth 2) and makes the ground
+/// element drift: the coupling's friction, run through the estimator from the model
+/// identified with it, predicts that drift, so the coupling is named Coulomb friction and
+/// the ground element reported linear as the friction's leak. Before the runs started from
+/// the identified model, the coupling drifted unexplained here and the ground element was
+/// flagged. r = 0.309 ± 0.003 (truth 0.3); over seeds 1–6 r = 0.283–0.309 (measured once
+/// with the CLI), so the bound is ±10 %.
+#[test]
+fn the_ground_element_drift_is_the_friction_leak() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = friction_levels(
+        &common::model_path("two_mass_friction_accel.dyn"),
+        &dir.path().join("data"),
+        common::seed(2),
+    );
+    let json = dir.path().join("detect.json");
+    let out = common::dynid()
+        .arg("detect")
+        .arg(common::model_path("two_mass_linear_accel.dyn"))
+        .args(&levels)
+        .arg("--json")
+        .arg(&json)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let element = |name: &str| {
+        v["detection"]["elements"]
+            .as_array()
+            .and_then(|a| a.iter().find(|e| e["element"] == name))
+            .unwrap_or_else(|| panic!("no element {name} in {v}"))
+            .clone()
+    };
+    let (coupling, ground) = (element("k2/d2 (m1, m2)"), element("k1/d1 (ground, m1)"));
+    assert_eq!(
+        coupling["verdict"]["Nonlinear"]["best"], "Coulomb friction",
+        "{coupling}"
+    );
+    let (r, _) = common::verdict_coefficient(&coupling, "Coulomb friction");
+    assert!((r / 0.3 - 1.0).abs() < 0.1, "r = {r}");
+    assert_eq!(ground["verdict"], "Linear", "{ground}");
+    let why = ground["explained_by"].as_str().unwrap_or_default();
+    assert!(
+        why.contains("the leak that Coulomb friction at k2/d2 (m1, m2) predicts"),
+        "{ground}"
+    );
+}
+
 /// Detection of the friction between two accelerometers over seeds 1–6 (with the long form,
 /// any `DYNID_SEEDS` of 2 or more; 20 s in release), beside positions of the same kind of record
 /// (the same model measured by `m1.x`, `m2.x`): 5 % noise, three levels of 300 s. From
-/// accelerations the coupling is flagged on every seed and named Coulomb friction on four,
-/// but the ground element is flagged too on four; from positions the coupling is named on
-/// all six and the ground element left linear (docs/detection.md, "Noisy accelerations",
-/// which quotes these counts; seed 3 is the README's and
-/// `detect_and_diagnose_name_the_friction_between_two_accelerometers`'s).
+/// either kind of record the coupling is named Coulomb friction on all six and the ground
+/// element left linear (docs/detection.md, "Noisy accelerations", which quotes these counts;
+/// seed 3 is the README's and
+/// `detect_and_diagnose_name_the_friction_between_two_accelerometers`'s). From
+/// accelerations that takes the estimator's runs from the model identified with each
+/// candidate (before: named on four, the ground element flagged on four); at most one seed
+/// of six may miss, or flag the ground, on other seeds (`DYNID_SEED_OFFSET`).
 #[test]
 fn friction_detection_over_seeds_from_accelerations_and_positions() {
     if common::seed_count(1) < 2 {
@@ -539,9 +592,9 @@ fn friction_detection_over_seeds_from_accelerations_and_positions() {
         }
     }
     assert_eq!(counts[1], [6, 6, 0], "positions");
-    assert_eq!(
-        (counts[0][0], counts[0][1] >= 3),
-        (6, true),
-        "accelerations"
+    assert!(
+        counts[0][0] == 6 && counts[0][1] >= 5 && counts[0][2] <= 1,
+        "accelerations: {:?}",
+        counts[0]
     );
 }

@@ -84,9 +84,8 @@ pub enum DetectRows {
     /// ([`crate::ident::accel_rows`]): the per-level fits are of a model that lacks the
     /// nonlinearity, and weights estimated from its misfit can pull them far off. On the
     /// two-mass structure with friction at its coupling (README, "Accelerometers"; 5 %
-    /// noise, three levels of 300 s, seed 3) the weighted fits held the mass m2 at 1.20
-    /// (truth 2) and flagged the ground element as friction too, where the unit-norm rows
-    /// hold it at 1.84 and leave that element linear (measured once with the CLI).
+    /// noise, three levels of 300 s, seed 3) the weighted fits hold the mass m2 at 1.20
+    /// (truth 2), where the unit-norm rows hold it at 1.84 (measured once with the CLI).
     Weighted,
 }
 

@@ -1,5 +1,6 @@
 //! The estimator run on simulated data: the head of every measured level (its inputs),
-//! the model with a candidate effect added at p = factor × the linearisation's estimate,
+//! the model with a candidate effect added, identified from the measured levels
+//! ([`identified`]), at p = factor × its identified p,
 //! driven by those inputs and fitted per level exactly as the data were. Each run gives
 //! the curves that [`super::score`] compares with the measured ones.
 
@@ -25,7 +26,9 @@ const SUBSTEPS: usize = 4;
 type BasisFn = Box<dyn Fn(&mut ExprArena, ExprId, ExprId) -> ExprId>;
 
 /// A single-effect template of the element: effect, coefficient name, its estimate, the
-/// shape θ and the element's linear parts, as the statistical linearisation fitted them.
+/// shape θ and the values set on the base before a run — the element's linear parts as
+/// the statistical linearisation fitted them ([`singles_of`]), or every unknown of the
+/// model as the pooled identification with the effect gave them ([`identified`]).
 pub(super) struct Single {
     pub(super) effect: String,
     pub(super) coef: String,
@@ -243,9 +246,84 @@ pub(super) fn singles_of(finding: &ElementFinding, builtins: &[Candidate]) -> Ve
         .collect()
 }
 
+/// `model` with a force of `terms` `(effect, shape θ, coefficient)` added between the
+/// nodes `site`, one new unknown coefficient per term (`p_candidate`, `p_candidate_2`, …,
+/// at the term's coefficient), and the coefficients' names; `None` where an effect cannot
+/// be written.
+fn with_force(
+    model: &ModelIr,
+    site: (&str, &str),
+    terms: &[(&str, f64, f64)],
+) -> Option<(ModelIr, Vec<String>)> {
+    let mut model = model.clone();
+    let bases: Vec<BasisFn> = terms
+        .iter()
+        .map(|(effect, theta, _)| basis_of(effect, *theta))
+        .collect::<Option<_>>()?;
+    let names: Vec<String> = (0..terms.len())
+        .map(|i| match i {
+            0 => model.fresh_name("p_candidate"),
+            _ => model.fresh_name(&format!("p_candidate_{}", i + 1)),
+        })
+        .collect();
+    let new_terms: Vec<NewTerm> = terms
+        .iter()
+        .zip(&bases)
+        .zip(&names)
+        .map(|(((_, _, p), basis), param)| NewTerm {
+            param,
+            nominal: Some(*p),
+            basis: &**basis,
+        })
+        .collect();
+    let fname = model.fresh_name("candidate");
+    model.add_force(&fname, site, &new_terms).ok()?;
+    Some((model, names))
+}
+
+/// `single` with its coefficient and every unknown of the model taken from one pooled
+/// identification of the model with the effect added (`ir` plus `p·φ` at `site`, the
+/// shape held at the linearisation's), from the measured `levels` with the options of
+/// the per-level fits. The runs then simulate the model the data support under this
+/// hypothesis, not the per-level fits' mean, which a fit that lacks the effect biases
+/// (module doc). The linearisation's values are kept where the identification fails, or
+/// gives a coefficient of the other sign, a value that is not finite or one unphysical for
+/// its kind (a negative mass, damping or stiffness: no model to simulate).
+pub(super) fn identified(
+    ir: &ModelIr,
+    site: (&str, &str),
+    levels: &[&dyn LevelSource],
+    ident: &IdentifyOptions,
+    single: Single,
+) -> Single {
+    let fitted = || -> Option<Single> {
+        let (model, names) = with_force(ir, site, &[(&single.effect, single.theta, single.p)])?;
+        let id = crate::ident::identify(&model, levels, ident).ok()?;
+        let p = id.params.iter().find(|e| e.name == names[0])?.value;
+        let finite = id.params.iter().all(|e| e.value.is_finite());
+        if !(p.is_finite() && p * single.p > 0.0 && finite && id.warnings.is_empty()) {
+            return None;
+        }
+        Some(Single {
+            effect: single.effect.clone(),
+            coef: single.coef.clone(),
+            p,
+            theta: single.theta,
+            linear_parts: id
+                .params
+                .iter()
+                .filter(|e| e.name != names[0])
+                .map(|e| (e.name.clone(), e.value))
+                .collect(),
+        })
+    };
+    fitted().unwrap_or(single)
+}
+
 /// What every estimator run at one element shares: the linear model fitted, the model
-/// simulated (`base`, the linear part at the levels' values), the element's nodes, the level
-/// inputs, the fit's settings and the counters of the simulations for `progress`.
+/// simulated (`base`, the linear part at the levels' values; each run sets its single's
+/// values on it), the element's nodes, the level inputs, the fit's settings and the
+/// counters of the simulations for `progress`.
 pub(super) struct Runner<'a> {
     pub(super) ir: &'a ModelIr,
     pub(super) base: &'a ModelIr,
@@ -263,7 +341,7 @@ pub(super) struct Runner<'a> {
 type Job<'j> = (&'j [(String, f64)], Vec<(&'j str, f64, f64)>);
 
 impl Runner<'_> {
-    /// `base` with the element's linear parts set and a force of the terms added at the
+    /// `base` with the job's values set and a force of the terms added at the
     /// element, driven by the inputs and fitted per level ([`estimator_curves`]); `None`
     /// where an effect cannot be written or a run fails.
     fn driven_fit(&self, (linear_parts, terms): &Job) -> Option<Curves> {
@@ -271,29 +349,7 @@ impl Runner<'_> {
         for (param, v) in linear_parts.iter() {
             let _ = model.set_nominal(param, *v);
         }
-        let bases: Vec<BasisFn> = terms
-            .iter()
-            .map(|(effect, theta, _)| basis_of(effect, *theta))
-            .collect::<Option<_>>()?;
-        // One coefficient per term: `p_candidate`, `p_candidate_2`, … (where free).
-        let names: Vec<String> = (0..terms.len())
-            .map(|i| match i {
-                0 => model.fresh_name("p_candidate"),
-                _ => model.fresh_name(&format!("p_candidate_{}", i + 1)),
-            })
-            .collect();
-        let new_terms: Vec<NewTerm> = terms
-            .iter()
-            .zip(&bases)
-            .zip(&names)
-            .map(|(((_, _, p), basis), param)| NewTerm {
-                param,
-                nominal: Some(*p),
-                basis: &**basis,
-            })
-            .collect();
-        let fname = model.fresh_name("candidate");
-        model.add_force(&fname, self.site, &new_terms).ok()?;
+        let (model, _) = with_force(&model, self.site, terms)?;
         estimator_curves(
             self.ir,
             &model,
