@@ -1679,7 +1679,7 @@ def segments(model, data, sample: _t.Optional[float] = None, map=None, segments:
     return Segments(_json.loads(js), table, [_frame(*r) for r in recs], labels)
 
 
-def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float = 1e-3, map=None, frf_periods: _t.Optional[int] = None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False, weighted_rows: bool = False) -> Detection:
+def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float = 1e-3, map=None, frf_periods: _t.Optional[int] = None, segments: _t.Optional[int] = None, split_by: _t.Optional[str] = None, cut: str = "auto", allow_large: bool = False, weighted_rows: bool = False, instrument_rows: bool = False) -> Detection:
     """Which elements of a linear model hide a nonlinearity, and which kind, as
     ``dynid detect``: the linear model is identified at every level, and a parameter that
     drifts with the level names the effect.
@@ -1703,10 +1703,13 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
     SPLIT_PARAMETERS
     weighted_rows : bool, default False
         Fit each level with each row weighted by its own estimated error
-        (``--weighted-rows``): per-level values free of the shrinkage that noise on
-        accelerations gives the default rows; not the default, since weights estimated from
-        the misfit of a model that lacks the nonlinearity can pull the fits far off
+        (``--weighted-rows``). Chosen without it where the record measures accelerations
+        (the detection's ``rows`` says ``weighted_for_accelerations``): per-level values
+        free of the shrinkage that noise on accelerations gives unit-norm rows
         (docs/detection.md, "Noisy accelerations").
+    instrument_rows : bool, default False
+        Keep each row at unit norm where detection would weight them
+        (``--instrument-rows``).
 
     Returns
     -------
@@ -1717,7 +1720,8 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
     Raises
     ------
     OptionError
-        ``alpha`` not between 0 and 1, a split setting with several levels.
+        ``alpha`` not between 0 and 1, a split setting with several levels,
+        ``weighted_rows`` with ``instrument_rows``.
 
     Examples
     --------
@@ -1730,7 +1734,7 @@ def detect(linear_model, data, sample: _t.Optional[float] = None, alpha: float =
     seg, by, cut = _split_kw(segments, split_by, cut)
     data, single = _as_list(data)
     levels = _levels(m._m, data, sample, map, every_column=len(data) == 1)
-    js, table, warnings, verdicts = _dynid.detect(m._m, levels, float(alpha), frf_periods, seg, by, cut, bool(allow_large), bool(weighted_rows))
+    js, table, warnings, verdicts = _dynid.detect(m._m, levels, float(alpha), frf_periods, seg, by, cut, bool(allow_large), bool(weighted_rows), bool(instrument_rows))
     return Detection(_json.loads(js), table, warnings, verdicts)
 
 

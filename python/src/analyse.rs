@@ -33,7 +33,7 @@ pub(crate) type DetectOut = (String, String, Vec<String>, Vec<(String, String)>)
 /// level is cut into levels as the command line cuts one file (`segments`, `split_by`,
 /// `cut`); the segment table is the first warning's companion in the JSON (`segments`).
 #[pyfunction]
-#[pyo3(signature = (model, levels, alpha=1e-3, frf_periods=None, segments=None, split_by=None, cut="auto", allow_large=false, weighted_rows=false))]
+#[pyo3(signature = (model, levels, alpha=1e-3, frf_periods=None, segments=None, split_by=None, cut="auto", allow_large=false, weighted_rows=false, instrument_rows=false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn detect(
     py: Python<'_>,
@@ -46,6 +46,7 @@ pub(crate) fn detect(
     cut: &str,
     allow_large: bool,
     weighted_rows: bool,
+    instrument_rows: bool,
 ) -> PyResult<DetectOut> {
     guarded(py, || {
         if !(alpha > 0.0 && alpha < 1.0) {
@@ -67,9 +68,18 @@ pub(crate) fn detect(
             alpha,
             ..Default::default()
         };
+        if weighted_rows && instrument_rows {
+            return Err(option_error(
+                py,
+                "weighted_rows and instrument_rows ask for opposite rows".to_string(),
+                "one of them",
+                "dynid::detect::option",
+            ));
+        }
         let iopts = IdentifyOptions {
             allow_large,
             efficient: weighted_rows,
+            auto_rows: !instrument_rows,
             ..Default::default()
         };
         let (det, fits, frfs) = py

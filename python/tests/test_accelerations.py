@@ -46,3 +46,23 @@ def test_nonlinear_term_of_an_acceleration_only_body_reads_the_integrated_displa
     result = model.identify(model.simulate(duration=300, seed=SEED, noise=0.05))
     assert abs(result["k3"] / 1.0 - 1) < 0.25, result["k3"]
     assert abs(result["k"] / 4.0 - 1) < 0.3, result["k"]
+
+
+def test_detection_weights_the_rows_of_accelerations(models):
+    # `dynid.detect` on records of accelerations weights each row by its own estimated
+    # error and says so in `rows`; `instrument_rows=True` keeps unit norm; asking for both
+    # is an option error. On this linear oscillator nothing drifts either way.
+    model = dynid.Model.from_file(models / "sdof_linear_accel.dyn")
+    data = model.simulate(duration=300, seed=SEED, noise=0.05)
+    chosen = dynid.detect(model, data)
+    assert chosen.to_dict()["detection"]["rows"] == "weighted_for_accelerations"
+    unit = dynid.detect(model, data, instrument_rows=True)
+    assert unit.to_dict()["detection"]["rows"] == "unit_norm"
+    for det in (chosen, unit):
+        assert all(v == "linear" for v in det.elements.values()), det.elements
+    try:
+        dynid.detect(model, data, weighted_rows=True, instrument_rows=True)
+    except dynid.OptionError:
+        pass
+    else:
+        raise AssertionError("weighted_rows with instrument_rows was accepted")

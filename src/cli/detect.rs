@@ -83,15 +83,18 @@ pub struct Args {
     pub allow_large: bool,
     /// Fit each level with each row weighted by its own estimated error (the rows'
     /// estimated covariance shrunk to its diagonal, in a two-step solve) instead of each row
-    /// at unit norm. On noisy accelerations of a many-body structure the unit-norm rows
-    /// shrink each level's fit by a different share, which draws spurious drift and misnames
-    /// a joint's effect; weighted, the joint's clearance and friction are named on 9 of 12
-    /// seeds (against none) and another element flagged on 3 (against 5). Not the default:
-    /// weights estimated from the misfit of a model that lacks the nonlinearity can pull the
-    /// fits far off, as on a two-body record with friction (docs/detection.md, "Noisy
-    /// accelerations")
-    #[arg(long = "weighted-rows")]
+    /// at unit norm. Chosen without this flag where the record measures accelerations (the
+    /// report says so): there the unit-norm rows shrink each level's fit of a many-body
+    /// structure by a different share, which draws spurious drift and misnames a joint's
+    /// effect; weighted, the joint's clearance and friction are named on 9 of 12 seeds
+    /// (against none) and another element flagged on 3 (against 5) (docs/detection.md,
+    /// "Noisy accelerations")
+    #[arg(long = "weighted-rows", conflicts_with = "instrument_rows")]
     pub weighted_rows: bool,
+    /// Keep each row at unit norm where detection would weight them (a record of measured
+    /// accelerations)
+    #[arg(long = "instrument-rows")]
+    pub instrument_rows: bool,
     /// Hide the progress bar of the template simulations (shown on a terminal only).
     #[arg(long)]
     pub quiet: bool,
@@ -170,6 +173,7 @@ pub fn run(args: Args) -> miette::Result<()> {
     let iopts = IdentifyOptions {
         allow_large: args.allow_large,
         efficient: args.weighted_rows,
+        auto_rows: !args.instrument_rows,
         ..Default::default()
     };
     let bar = template_bar(args.quiet);

@@ -117,12 +117,14 @@ pub(crate) fn refine(
         .map(|(r, n)| (r.len() as f64 / (*n).max(1) as f64).min(1.0))
         .collect();
     let inputs: Vec<Record> = heads.into_iter().map(|(r, _)| r).collect();
-    // The same filter bank as the measured fits.
+    // The same filter bank and rows as the measured fits (the corners given, the rows
+    // would no longer be chosen: they are asked for).
     let mut sim_ident = ident.clone();
     if let Some(f) = fits.fits.first() {
         sim_ident.corners = Some(f.filter.corners.clone());
         sim_ident.order = Some(f.filter.order);
     }
+    sim_ident.efficient = fits.rows.weighted();
     let sites = groups(ir);
     // The linear part at the levels' values: held masses at their held values, every other
     // unknown at the weighted mean of its curve.
