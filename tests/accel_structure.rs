@@ -13,9 +13,10 @@
 //!   the same records within 1 %
 //!   (`linear_structure_from_accelerations_as_from_positions`);
 //! - detection from the accelerations and the force, 5 % noise on every channel, names the
-//!   joint's element (backlash) and flags the mount too on seed 1 (`detection_flags_the_joint`);
+//!   joint's element (backlash) and leaves every other element linear on seed 1
+//!   (`detection_flags_the_joint`);
 //!   over seeds 1–12 the joint on every seed, its pair of effects named on 9 and another
-//!   element flagged on 3; with the unit-norm rows (`--instrument-rows`) the pair on none
+//!   element flagged on 1; with the unit-norm rows (`--instrument-rows`) the pair on none
 //!   and another element on 5 (`detection_over_seeds`, opt-in);
 //! - a lumped model of four bodies still names the joint, from accelerations (the coupling
 //!   next to it drifting too) as from positions; of three bodies it does not
@@ -444,24 +445,20 @@ fn verdict<'v>(v: &'v [(String, String)], element: &str) -> &'v str {
 /// Detection from the accelerations and the force, against the linear model, on four
 /// levels of 200 s with 5 % noise on every channel (seed 1), with the defaults (each row
 /// weighted by its own estimated error, chosen for records of accelerations) and with the
-/// unit-norm rows (`--instrument-rows`). Weighted, the joint's element is named
-/// (`nonlinear: backlash`, Coulomb friction suspected) and the mount flagged too — a
-/// prestress of 0.05 N, its stiffness drifting by 4 % (p = 8.7e-4 against α = 1e-3): this
-/// seed is one of the three in twelve where another element is flagged
-/// (`detection_over_seeds`), pinned here as measured. At unit norm the joint "drifts,
-/// unexplained (best template explains 95 %)" — the pair backlash + Coulomb friction
-/// explains 95 % but ranks fourth, its five parameters on eight curve points — and every
-/// other element is linear.
+/// unit-norm rows (`--instrument-rows`); every element but the joint's is linear either
+/// way. Weighted, the joint's element is named (`nonlinear: backlash`, Coulomb friction
+/// suspected), and the mount's stiffness, which drifts by 4 %, is reported linear as the
+/// leak of the joint's pair (identified with the linear model and run through the
+/// estimator). At unit norm the joint "drifts, unexplained (best template explains 95 %)":
+/// the pair backlash + Coulomb friction explains 95 % but ranks fourth, its five
+/// parameters on eight curve points.
 #[test]
 fn detection_flags_the_joint() {
     let dir = tempfile::tempdir().unwrap();
     let levels = joint_levels(dir.path(), false);
     let model = common::model_path("structure5_linear_accel.dyn");
     let joint = "k3/d3 (m2, m3)";
-    for (rows, mount) in [
-        (None, "nonlinear: prestress"),
-        (Some("--instrument-rows"), "linear"),
-    ] {
+    for rows in [None, Some("--instrument-rows")] {
         let v = verdicts_with(&model, &levels, rows.as_slice());
         for (e, verdict) in &v {
             println!("structure5, accelerations, {rows:?}: {e}: {verdict}");
@@ -473,8 +470,8 @@ fn detection_flags_the_joint() {
             "drifts"
         };
         assert!(on_joint.starts_with(expected), "{rows:?}: {on_joint}");
-        assert_eq!(verdict(&v, "k1/d1 (ground, m1)"), mount, "{rows:?}");
         for e in [
+            "k1/d1 (ground, m1)",
             "k2/d2 (m1, m2)",
             "k4/d4 (m3, m4)",
             "k5/d5 (m4, m5)",
@@ -495,7 +492,7 @@ fn detection_flags_the_joint() {
 /// error, chosen for records of accelerations). What it measured is in docs/detection.md
 /// ("Noisy accelerations"), every figure checked here: with either rows the joint is
 /// flagged on every seed; at unit norm another element too on 5 seeds and the joint's
-/// pair of effects named on none, weighted another element on 3 and the pair on 9, and the
+/// pair of effects named on none, weighted another element on 1 and the pair on 9, and the
 /// curves of the elements away from the joint scatter about their means as their standard
 /// errors allow (χ²/dof about 1). Bounds: the rates measured, less one seed in twelve.
 #[test]
@@ -588,7 +585,7 @@ fn detection_over_seeds() {
         "joint flagged: {d:?} {w:?}"
     );
     assert!(at_least(d[1], 7.0), "unit-norm rows, nothing else: {d:?}");
-    assert!(at_least(w[1], 9.0), "defaults, nothing else: {w:?}");
+    assert!(at_least(w[1], 11.0), "defaults, nothing else: {w:?}");
     assert!(at_least(w[2], 9.0), "defaults, the pair named: {w:?}");
     assert!(
         chi_w < 1.5,
@@ -603,7 +600,7 @@ fn detection_over_seeds() {
 ///
 /// | model | accelerations (the defaults: rows weighted) | positions |
 /// |---|---|---|
-/// | 5 bodies | joint: backlash; mount: prestress (false) | joint: backlash; all else linear |
+/// | 5 bodies | joint: backlash; all else linear (the mount's drift the joint's leak) | joint: backlash; all else linear |
 /// | 4 bodies | joint: cubic stiffness + Coulomb friction; the coupling next to it (k2/d2) drifts, unexplained | joint: backlash; all else linear |
 /// | 3 bodies | all linear | all linear |
 ///
@@ -641,9 +638,10 @@ fn detection_by_model_size() {
             // its verdicts again.
             let expected = bodies > 3;
             assert_eq!(named, expected, "{bodies} bodies, {signals}: {v:?}");
-            // From accelerations one false flag beside the joint (the table above).
+            // The four-body model from accelerations: one false flag beside the joint (the
+            // table above).
             if bodies > 3 {
-                let flags = if positions { 1 } else { 2 };
+                let flags = if positions || bodies == 5 { 1 } else { 2 };
                 assert_eq!(
                     flagged.len(),
                     flags,

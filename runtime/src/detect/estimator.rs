@@ -34,7 +34,9 @@
 //! kept only when no single effect explains the element. Any other element whose curves no
 //! longer drift once the candidate's predicted leak is removed is reported linear, with
 //! the reason. Where no single effect explains the element and its verdict is a pair of
-//! effects, the pair is run once at the linearisation's coefficients for that check alone.
+//! effects (or a single one with the pair's second effect suspected), the pair is run once
+//! for that check alone, from the model identified with both effects (else at the
+//! linearisation's coefficients).
 //!
 //! This module picks the elements and applies the verdicts; `runs` simulates the estimator
 //! on each candidate, `score` fits p to the measured curves and tests what is left.
@@ -52,7 +54,7 @@ use crate::data::LevelSource;
 use crate::ident::IdentifyOptions;
 use crate::record::Record;
 use rayon::prelude::*;
-use runs::{head_record, identified, pair_of, singles_of, Runner, Trial};
+use runs::{head_record, identified, identified_pair, pair_of, singles_of, Runner, Trial};
 use score::{fit_p, still_drifting, Scoped};
 use std::sync::atomic::AtomicUsize;
 
@@ -209,18 +211,26 @@ pub(crate) fn refine(
         let winner = fitted.first().filter(|f| f.explains).cloned();
         let Some(w) = winner else {
             det.elements[ti].estimator = fitted;
-            // No single effect explains the element. Where its verdict is a pair, the
-            // pair at the linearisation's coefficients, run through the estimator, says
-            // which drifts of other elements are its leak.
-            let verdict_pair = match &det.elements[ti].verdict {
-                Verdict::Nonlinear { best, .. } => {
-                    pair_of(&det.elements[ti], &builtins).filter(|p| p.effect == *best)
-                }
+            // No single effect explains the element. Where its verdict is a pair, or a
+            // single effect with the pair's second one suspected, the pair run through
+            // the estimator — at the model identified with both, else at the
+            // linearisation's coefficients — says which drifts of other elements are its
+            // leak.
+            let finding = &det.elements[ti];
+            let verdict_pair = match &finding.verdict {
+                Verdict::Nonlinear { best, .. } => pair_of(finding, &builtins).filter(|p| {
+                    p.effect == *best
+                        || finding
+                            .suspected
+                            .as_ref()
+                            .is_some_and(|s| s.pair == p.effect)
+                }),
                 _ => None,
             };
             let Some(pair) = verdict_pair else {
                 continue;
             };
+            let (pair, from_data) = identified_pair(ir, (&a, &b), levels, &sim_ident, pair);
             let Some(t) = runner.pair(&pair) else {
                 continue;
             };
@@ -230,9 +240,14 @@ pub(crate) fn refine(
                 .map(|(_, name, p, _)| format!("{name} = {}", fmt_g(*p)))
                 .collect();
             let cause = format!(
-                "{} at {name} predicts in this fit ({}, as linearised)",
+                "{} at {name} predicts in this fit ({}, {})",
                 pair.effect,
-                coefs.join(", ")
+                coefs.join(", "),
+                if from_data {
+                    "as identified"
+                } else {
+                    "as linearised"
+                }
             );
             quiet_leaks(det, &mut explained, ti, &cause, |j| corrected(&t, j, 1.0));
             continue;

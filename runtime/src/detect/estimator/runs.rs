@@ -281,14 +281,46 @@ fn with_force(
     Some((model, names))
 }
 
+/// The model `ir` with a force of `terms` `(effect, shape θ, coefficient)` added at `site`,
+/// identified once, all levels pooled, from the measured `levels` with `ident`: each
+/// term's coefficient and every other unknown's value. `None` where the identification
+/// fails, or gives a coefficient of the other sign than the term's, a value that is not
+/// finite or one unphysical for its kind (a negative mass, damping or stiffness: no model
+/// to simulate).
+fn identify_terms(
+    ir: &ModelIr,
+    site: (&str, &str),
+    levels: &[&dyn LevelSource],
+    ident: &IdentifyOptions,
+    terms: &[(&str, f64, f64)],
+) -> Option<(Vec<f64>, Vec<(String, f64)>)> {
+    let (model, names) = with_force(ir, site, terms)?;
+    let id = crate::ident::identify(&model, levels, ident).ok()?;
+    let ps: Vec<f64> = names
+        .iter()
+        .map(|n| id.params.iter().find(|e| &e.name == n).map(|e| e.value))
+        .collect::<Option<_>>()?;
+    let same_sign = ps.iter().zip(terms).all(|(p, (_, _, q))| p * q > 0.0);
+    let finite = id.params.iter().all(|e| e.value.is_finite());
+    if !(same_sign && finite && id.warnings.is_empty()) {
+        return None;
+    }
+    let values = id
+        .params
+        .iter()
+        .filter(|e| !names.contains(&e.name))
+        .map(|e| (e.name.clone(), e.value))
+        .collect();
+    Some((ps, values))
+}
+
 /// `single` with its coefficient and every unknown of the model taken from one pooled
 /// identification of the model with the effect added (`ir` plus `p·φ` at `site`, the
-/// shape held at the linearisation's), from the measured `levels` with the options of
-/// the per-level fits. The runs then simulate the model the data support under this
-/// hypothesis, not the per-level fits' mean, which a fit that lacks the effect biases
-/// (module doc). The linearisation's values are kept where the identification fails, or
-/// gives a coefficient of the other sign, a value that is not finite or one unphysical for
-/// its kind (a negative mass, damping or stiffness: no model to simulate).
+/// shape held at the linearisation's; [`identify_terms`]), from the measured `levels` with
+/// the options of the per-level fits. The runs then simulate the model the data support
+/// under this hypothesis, not the per-level fits' mean, which a fit that lacks the effect
+/// biases (module doc). The linearisation's values are kept where that identification
+/// gives none.
 pub(super) fn identified(
     ir: &ModelIr,
     site: (&str, &str),
@@ -296,28 +328,48 @@ pub(super) fn identified(
     ident: &IdentifyOptions,
     single: Single,
 ) -> Single {
-    let fitted = || -> Option<Single> {
-        let (model, names) = with_force(ir, site, &[(&single.effect, single.theta, single.p)])?;
-        let id = crate::ident::identify(&model, levels, ident).ok()?;
-        let p = id.params.iter().find(|e| e.name == names[0])?.value;
-        let finite = id.params.iter().all(|e| e.value.is_finite());
-        if !(p.is_finite() && p * single.p > 0.0 && finite && id.warnings.is_empty()) {
-            return None;
-        }
-        Some(Single {
-            effect: single.effect.clone(),
-            coef: single.coef.clone(),
-            p,
-            theta: single.theta,
-            linear_parts: id
-                .params
-                .iter()
-                .filter(|e| e.name != names[0])
-                .map(|e| (e.name.clone(), e.value))
-                .collect(),
-        })
-    };
-    fitted().unwrap_or(single)
+    let terms = [(single.effect.as_str(), single.theta, single.p)];
+    match identify_terms(ir, site, levels, ident, &terms) {
+        Some((ps, values)) => Single {
+            p: ps[0],
+            linear_parts: values,
+            ..single
+        },
+        None => single,
+    }
+}
+
+/// [`identified`] for a pair: both coefficients and every other unknown from one pooled
+/// identification of the model with both effects added, and whether they came from it
+/// (else the linearisation's are kept).
+pub(super) fn identified_pair(
+    ir: &ModelIr,
+    site: (&str, &str),
+    levels: &[&dyn LevelSource],
+    ident: &IdentifyOptions,
+    pair: Pair,
+) -> (Pair, bool) {
+    let terms: Vec<(&str, f64, f64)> = pair
+        .terms
+        .iter()
+        .map(|(effect, _, p, theta)| (effect.as_str(), *theta, *p))
+        .collect();
+    match identify_terms(ir, site, levels, ident, &terms) {
+        Some((ps, values)) => (
+            Pair {
+                terms: pair
+                    .terms
+                    .iter()
+                    .zip(ps)
+                    .map(|((effect, coef, _, theta), p)| (effect.clone(), coef.clone(), p, *theta))
+                    .collect(),
+                linear_parts: values,
+                ..pair
+            },
+            true,
+        ),
+        None => (pair, false),
+    }
 }
 
 /// What every estimator run at one element shares: the linear model fitted, the model
