@@ -281,6 +281,10 @@ fn with_force(
     Some((model, names))
 }
 
+/// What [`identify_terms`] gives: each term's coefficient, and every other unknown's name
+/// and value.
+type Identified = (Vec<f64>, Vec<(String, f64)>);
+
 /// The model `ir` with a force of `terms` `(effect, shape θ, coefficient)` added at `site`,
 /// identified once, all levels pooled, from the measured `levels` with `ident`: each
 /// term's coefficient and every other unknown's value. `None` where the identification
@@ -293,7 +297,7 @@ fn identify_terms(
     levels: &[&dyn LevelSource],
     ident: &IdentifyOptions,
     terms: &[(&str, f64, f64)],
-) -> Option<(Vec<f64>, Vec<(String, f64)>)> {
+) -> Option<Identified> {
     let (model, names) = with_force(ir, site, terms)?;
     let id = crate::ident::identify(&model, levels, ident).ok()?;
     let ps: Vec<f64> = names
