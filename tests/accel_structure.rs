@@ -16,7 +16,7 @@
 //!   joint's element (backlash) and leaves every other element linear on seed 1
 //!   (`detection_flags_the_joint`);
 //!   over seeds 1–12 the joint on every seed, its pair of effects named on 9 and another
-//!   element flagged on 1; with the unit-norm rows (`--instrument-rows`) the pair on none
+//!   element flagged on none; with the unit-norm rows (`--instrument-rows`) the pair on none
 //!   and another element on 5 (`detection_over_seeds`, opt-in);
 //! - a lumped model of four bodies still names the joint, from accelerations (the coupling
 //!   next to it drifting too) as from positions; of three bodies it does not
@@ -492,7 +492,7 @@ fn detection_flags_the_joint() {
 /// error, chosen for records of accelerations). What it measured is in docs/detection.md
 /// ("Noisy accelerations"), every figure checked here: with either rows the joint is
 /// flagged on every seed; at unit norm another element too on 5 seeds and the joint's
-/// pair of effects named on none, weighted another element on 1 and the pair on 9, and the
+/// pair of effects named on none, weighted another element on none and the pair on 9, and the
 /// curves of the elements away from the joint scatter about their means as their standard
 /// errors allow (χ²/dof about 1). Bounds: the rates measured, less one seed in twelve.
 #[test]
@@ -585,7 +585,7 @@ fn detection_over_seeds() {
         "joint flagged: {d:?} {w:?}"
     );
     assert!(at_least(d[1], 7.0), "unit-norm rows, nothing else: {d:?}");
-    assert!(at_least(w[1], 11.0), "defaults, nothing else: {w:?}");
+    assert!(at_least(w[1], 12.0), "defaults, nothing else: {w:?}");
     assert!(at_least(w[2], 9.0), "defaults, the pair named: {w:?}");
     assert!(
         chi_w < 1.5,

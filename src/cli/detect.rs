@@ -87,7 +87,7 @@ pub struct Args {
     /// report says so): there the unit-norm rows shrink each level's fit of a many-body
     /// structure by a different share, which draws spurious drift and misnames a joint's
     /// effect; weighted, the joint's clearance and friction are named on 9 of 12 seeds
-    /// (against none) and another element flagged on 1 (against 5) (docs/detection.md,
+    /// (against none) and no other element flagged (against 5) (docs/detection.md,
     /// "Noisy accelerations")
     #[arg(long = "weighted-rows", conflicts_with = "instrument_rows")]
     pub weighted_rows: bool,

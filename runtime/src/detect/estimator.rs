@@ -217,17 +217,7 @@ pub(crate) fn refine(
             // the estimator — at the model identified with both, else at the
             // linearisation's coefficients — says which drifts of other elements are its
             // leak.
-            let finding = &det.elements[ti];
-            let verdict_pair = match &finding.verdict {
-                Verdict::Nonlinear { best, .. } => pair_of(finding, &builtins).filter(|p| {
-                    p.effect == *best
-                        || finding
-                            .suspected
-                            .as_ref()
-                            .is_some_and(|s| s.pair == p.effect)
-                }),
-                _ => None,
-            };
+            let verdict_pair = pair_of(&det.elements[ti], &builtins);
             let Some(pair) = verdict_pair else {
                 continue;
             };

@@ -88,7 +88,7 @@ pub enum DetectRows {
     /// says so; `identify` chooses its weighted rows there too): on the five-body structure
     /// of `tests/accel_structure.rs` (5 % noise, seeds 1–12) the unit-norm rows shrink each
     /// level's fit by a different share, which draws spurious drift (another element than
-    /// the joint flagged on 5 seeds, against 1 weighted) and misnames the joint (its pair
+    /// the joint flagged on 5 seeds, against none weighted) and misnames the joint (its pair
     /// of clearance and friction named on none, against 9). On the two-mass structure with
     /// friction at its coupling the weighted fits hold m2 further from the truth (1.20
     /// against 1.84 unit-norm, truth 2; seed 3, measured once) and flag the ground element,

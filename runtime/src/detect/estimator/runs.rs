@@ -13,7 +13,7 @@ use super::P_FACTORS;
 use crate::data::{LevelSource, RecordSource};
 use crate::detect::candidate::Candidate;
 use crate::detect::from_data::level_fits;
-use crate::detect::types::{ElementFinding, TemplateFit};
+use crate::detect::types::{ElementFinding, TemplateFit, Verdict};
 use crate::ident::IdentifyOptions;
 use crate::record::Record;
 use crate::sim::{simulate_driven_from, Start};
@@ -178,10 +178,20 @@ pub(super) struct Pair {
     pub(super) linear_parts: Vec<(String, f64)>,
 }
 
-/// The pair of `finding`'s verdict (its first-ranked template, where that has two built-in
-/// effects with finite, non-zero coefficients), or `None`.
+/// The pair of `finding`'s verdict — the verdict itself where it is a pair, the pair of
+/// the suspected second effect where the verdict is a single effect with one suspected —
+/// as its template in the ranking fitted it (two built-in effects with finite, non-zero
+/// coefficients), or `None`.
 pub(super) fn pair_of(finding: &ElementFinding, builtins: &[Candidate]) -> Option<Pair> {
-    let f = finding.ranking.first().filter(|f| f.effects.len() == 2)?;
+    let Verdict::Nonlinear { best, .. } = &finding.verdict else {
+        return None;
+    };
+    let name = finding.suspected.as_ref().map_or(best, |s| &s.pair);
+    let f = finding
+        .ranking
+        .iter()
+        .find(|f| &f.name == name)
+        .filter(|f| f.effects.len() == 2)?;
     let terms = f
         .effects
         .iter()
@@ -486,7 +496,7 @@ impl Runner<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::detect::types::{Estimate, Verdict};
+    use crate::detect::types::Estimate;
 
     fn estimate(name: &str, value: f64) -> Estimate {
         Estimate {
@@ -575,8 +585,25 @@ mod tests {
             p.linear_parts,
             vec![("k3".to_string(), 290.0), ("d3".to_string(), 0.35)]
         );
-        // A single effect first is no pair; nor is a pair missing a coefficient.
-        assert!(pair_of(&finding(vec![single, pair.clone()]), &builtins).is_none());
+        // A single effect first is no pair, unless the verdict suspects the pair's second
+        // effect: then that pair, wherever it ranks; nor is a pair missing a coefficient.
+        let mut single_first = finding(vec![single, pair.clone()]);
+        assert!(pair_of(&single_first, &builtins).is_none());
+        single_first.suspected = Some(crate::detect::types::Suspected {
+            effect: "Coulomb friction".into(),
+            curve: "d3".into(),
+            curve_p_value: 1e-20,
+            pair: "backlash + Coulomb friction".into(),
+            pair_rank: 2,
+            pair_delta_aicc: 6.7,
+            pair_summary: String::new(),
+        });
+        let suspected = pair_of(&single_first, &builtins).unwrap();
+        assert_eq!(suspected.effect, "backlash + Coulomb friction");
+        assert_eq!(
+            suspected.terms[1],
+            ("Coulomb friction".into(), "r".into(), 0.18, 0.0)
+        );
         let mut no_r = pair;
         no_r.estimates[3].value = 0.0;
         assert!(pair_of(&finding(vec![no_r]), &builtins).is_none());
