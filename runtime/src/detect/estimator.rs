@@ -22,12 +22,12 @@
 //!
 //! Not the per-level fits' mean parameters as the base: those fits lack the effect and are
 //! biased by it, most from accelerations (the two-mass structure with friction at its
-//! coupling, noiseless: k1 = 4.80, m2 held at 1.71, truth 4 and 2; the identified model
-//! 4.02, 1.99), and the drift predicted from them is that of another system. Where the
-//! identification fails or gives p of the other sign or an unphysical value, the
-//! statistical linearisation's
-//! values are the base (the levels' means, the element's linear part and p from the
-//! template). docs/detection.md gives the counts either way.
+//! coupling, noiseless, seed 41, unit-norm rows: k1 = 4.80, m2 held at 1.71, truth 4 and
+//! 2; the identified model 4.02, 1.99), and the drift predicted from them is that of
+//! another system. Where
+//! the identification fails or gives p of the other sign or an unphysical value, the
+//! statistical linearisation's values are the base (the levels' means, the element's
+//! linear part and p from the template). docs/detection.md gives the counts either way.
 //!
 //! A candidate *explains* the element when, after its predicted drift is removed, no curve
 //! of the element drifts by the constancy test. The best explaining single effect
