@@ -24,10 +24,10 @@
 //! biased by it, most from accelerations (the two-mass structure with friction at its
 //! coupling, noiseless, seed 41, unit-norm rows: k1 = 4.80, m2 held at 1.71, truth 4 and
 //! 2; the identified model 4.02, 1.99), and the drift predicted from them is that of
-//! another system. Where
-//! the identification fails or gives p of the other sign or an unphysical value, the
-//! statistical linearisation's values are the base (the levels' means, the element's
-//! linear part and p from the template). docs/detection.md gives the counts either way.
+//! another system. Where the identification fails or gives p of the other sign, an
+//! unphysical value or masses shrunk below `runs::MASS_SHRINK_LIMIT` of those held (the
+//! sign of a hypothesis that does not fit), the statistical linearisation's values are
+//! the base (the levels' means, the element's linear part and p from the template).
 //!
 //! A candidate *explains* the element when, after its predicted drift is removed, no curve
 //! of the element drifts by the constancy test. The best explaining single effect
@@ -55,7 +55,10 @@ use crate::data::LevelSource;
 use crate::ident::IdentifyOptions;
 use crate::record::Record;
 use rayon::prelude::*;
-use runs::{head_record, identified, identified_pair, pair_of, singles_of, Runner, Trial};
+use runs::{
+    head_record, held_masses, identified, identified_pair, pair_of, singles_of, Pooled, Runner,
+    Trial,
+};
 use score::{fit_p, still_drifting, Scoped};
 use std::sync::atomic::AtomicUsize;
 
@@ -129,6 +132,13 @@ pub(crate) fn refine(
     }
     sim_ident.efficient = fits.rows.weighted();
     let sites = groups(ir);
+    let held = held_masses(ir, &fits.input.held);
+    let pooled = Pooled {
+        ir,
+        levels,
+        ident: &sim_ident,
+        held_masses: &held,
+    };
     // The linear part at the levels' values: held masses at their held values, every other
     // unknown at the weighted mean of its curve.
     let mut base = ir.clone();
@@ -172,7 +182,7 @@ pub(crate) fn refine(
         );
         let singles: Vec<_> = singles
             .into_par_iter()
-            .map(|s| identified(ir, (&a, &b), levels, &sim_ident, s))
+            .map(|s| identified(&pooled, (&a, &b), s))
             .collect();
         let runner = Runner {
             ir,
@@ -221,7 +231,7 @@ pub(crate) fn refine(
             let Some(pair) = verdict_pair else {
                 continue;
             };
-            let (pair, from_data) = identified_pair(ir, (&a, &b), levels, &sim_ident, pair);
+            let (pair, from_data) = identified_pair(&pooled, (&a, &b), pair);
             let Some(t) = runner.pair(&pair) else {
                 continue;
             };
