@@ -24,10 +24,13 @@
 //! - `identify` weights each row by its own estimated error on every record of
 //!   accelerations: twice as precise as the unit-norm rows from 0.5 % of noise on, a
 //!   little less precise below (`accel_rows_from_the_noise_up`);
-//! - diagnosis against the linear model names Coulomb friction at the joint; the joint's
-//!   parameters from accelerations, with the right model, come out tens of per cent low
-//!   with unit-norm rows and within 7 % with the defaults (`joint_from_accelerations`,
-//!   opt-in);
+//! - diagnosis against the linear model names the joint's clearance and friction together
+//!   on seed 1 (`joint_from_accelerations`, opt-in); over seeds 1–5 it names that pair on
+//!   three, removing 95–108 % of the gap the right model itself reaches, and nothing on
+//!   the two where the right model, identified the same way, misses by nearly the linear
+//!   model's gap (`diagnosis_over_seeds`, opt-in); the joint's parameters from
+//!   accelerations, with the right model, come out tens of per cent low with unit-norm
+//!   rows and within 7 % with the defaults (`joint_from_accelerations`, opt-in);
 //! - a log sine sweep instead of the multisine: noiseless, every mass and spring within
 //!   0.6 %, kb +0.8 %, r +7.5 % (the multisine's within 0.5 %; the unit-norm rows 21–29 %
 //!   and 5–11 % low, `joint_from_a_sweep`);
@@ -732,6 +735,96 @@ fn joint_from_accelerations() {
         .unwrap_or_else(|| panic!("no verdict:\n{stdout}"));
     println!("{named}");
     assert!(named.contains("(m2, m3)"), "{named}");
+}
+
+/// `dynid diagnose model levels --json`: the JSON.
+fn diagnosis(model: &std::path::Path, levels: &[std::path::PathBuf]) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("diagnose.json");
+    let out = common::dynid()
+        .arg("diagnose")
+        .arg(model)
+        .args(levels)
+        .arg("--json")
+        .arg(&json)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+}
+
+/// Diagnosis of the jointed structure from its accelerations against the linear model over
+/// seeds 1–5 (opt-in, `DYNID_STRUCTURE_LONG=1`; `DYNID_SEEDS=N` for N seeds; about 2 min in
+/// release). What the corrected model can reach is the right model's own gap identified
+/// the same way (`structure5_joint_accel.dyn` diagnosed on the same records: its
+/// re-identified withheld gap), so the share of that reach it removes is
+/// `(nominal − corrected) / (nominal − right)`. Measured: the pair of clearance and
+/// friction at (m2, m3) on seeds 1, 4 and 5 (kb 307–316, gap 0.035–0.037, r 0.190–0.214;
+/// truth 300, 0.03, 0.2), removing 99, 108 and 95 % of that reach (nominal 30–32 %,
+/// corrected 15–21 %); nothing on seeds 2 and 3, where the right model itself misses by
+/// 28.3 and 26.6 % against the linear model's nominal 32.1 and 30.5 % — less than the
+/// acceptance margin (20 % of the gap) could ever accept. Against the right model at its
+/// exact values (5.7–5.9 %, the noise) the found pairs remove 43–61 % of the gap: the
+/// parameters identified from the accelerations miss the lightly damped modes' peaks.
+/// Asserted: no effect anywhere but the joint; where the right model's reach is one the
+/// search can accept, the joint named and 80 % of that reach removed.
+#[test]
+fn diagnosis_over_seeds() {
+    if std::env::var("DYNID_STRUCTURE_LONG").is_err() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let linear = common::model_path("structure5_linear_accel.dyn");
+    let right = common::model_path("structure5_joint_accel.dyn");
+    let (mut reachable, mut named) = (0, 0);
+    for seed in 1..=common::seed_count(5) as u64 {
+        let levels = simulated_joint(
+            dir.path(),
+            false,
+            "multisine",
+            0.05,
+            seed,
+            &format!("diagnosis{seed}"),
+        );
+        let d = diagnosis(&linear, &levels);
+        let floor = diagnosis(&right, &levels)["gap_reidentified"]
+            .as_f64()
+            .unwrap_or(f64::INFINITY);
+        let nominal = d["gap_before"].as_f64().unwrap();
+        let found: Vec<(String, String)> = d["found"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| {
+                let node = |k: &str| f["location"][k].as_str().unwrap_or("").to_string();
+                let at = format!("({}, {})", node("a"), node("b"));
+                (f["effect"]["kind"].as_str().unwrap_or("").to_string(), at)
+            })
+            .collect();
+        let corrected = d["gap_after"].as_f64().unwrap_or(f64::INFINITY);
+        let share = (nominal - corrected) / (nominal - floor);
+        let outcome = if found.is_empty() {
+            "nothing found".to_string()
+        } else {
+            format!("corrected {corrected:.1} % (share of the reach {share:.2}); found {found:?}")
+        };
+        println!(
+            "seed {seed}: nominal {nominal:.1} %, right model re-identified {floor:.1} %, {outcome}"
+        );
+        assert!(
+            found.iter().all(|(_, at)| at == "(m2, m3)"),
+            "seed {seed}: {found:?}"
+        );
+        // The acceptance margins: 20 % of the gap and 1 percentage point.
+        if nominal - floor > (0.2 * nominal).max(1.0) {
+            reachable += 1;
+            assert!(!found.is_empty(), "seed {seed}: nothing found");
+            assert!(share >= 0.8, "seed {seed}: share {share:.2}");
+        }
+        named += usize::from(!found.is_empty());
+    }
+    println!("joint named on {named}, reachable on {reachable}");
 }
 
 /// The joint's structure driven by a log sine sweep (0.2–10 Hz, four sweeps per 200 s

@@ -436,7 +436,7 @@ fn accel_only(ir: &ModelIr, s: dynid_ir::ir::SignalId) -> bool {
 /// The levels with the positions and velocities of acceleration-only bodies integrated
 /// from their accelerations ([`crate::ident::integrate`]); none where the model has no
 /// such body.
-fn integrated_levels<'a>(
+pub(crate) fn integrated_levels<'a>(
     ir: &ModelIr,
     levels: &[&'a dyn LevelSource],
     chunk: usize,

@@ -1,14 +1,17 @@
 //! The candidates of a search step: every effect of the library at every site of the
-//! current model, less what the data cannot support (velocity terms without velocities,
-//! nonlinear terms at bodies measured by accelerations alone) and the kinds already found
-//! at a site; the backlash at a grid of gaps, refined once around the best; and, when no
-//! single effect is accepted, pairs of the first step's best.
+//! current model, less what the data cannot support (velocity terms where a body's
+//! velocity is neither measured nor estimable from its position or acceleration) and the
+//! kinds already found at a site; the backlash at a grid of gaps (multiples of the spread
+//! of the relative displacement, measured or integrated from accelerations), refined once
+//! around the best; and, when no single effect is accepted, pairs of the first step's
+//! best.
 
 use super::effects::{constant_force_sites, locations, Effect, Location};
 use super::levels::Data;
 use super::metrics;
 use super::types::{CandidateScore, FoundEffect};
-use dynid_ir::ir::{ModelIr, SignalKind};
+use crate::data::{LevelSource, RecordSource};
+use dynid_ir::ir::{BodyId, ModelIr, SignalKind};
 use dynid_ir::num;
 
 /// Every effect at every location on top of `ir`, except the kinds already `found` at a
@@ -37,7 +40,7 @@ pub(super) fn candidates(
             .iter()
             .any(|f| f.effect.kind() == kind && f.location.a == loc.a && f.location.b == loc.b)
     };
-    let big = largest_level(data);
+    let disp = displacements(ir, data, largest_level(data));
     for loc in &locs {
         for eff in [
             Effect::Cubic,
@@ -55,7 +58,7 @@ pub(super) fn candidates(
             }
             cands.push((eff, loc.clone()));
         }
-        let sg = sigma_s(data, big, loc);
+        let sg = sigma_s(ir, &disp, loc);
         if sg > 0.0 && !already("backlash", loc) {
             for f in [0.1, 0.25, 0.5, 1.0] {
                 cands.push((
@@ -111,11 +114,59 @@ fn largest_level(data: &Data) -> usize {
         .unwrap_or(0)
 }
 
-/// The standard deviation of the relative displacement `s` at `loc` on level `big` (the
-/// backlash grid's gaps are multiples of it); 0 where a node's position is not recorded.
-fn sigma_s(data: &Data, big: usize, loc: &Location) -> f64 {
+/// The displacement of every body of `ir` on level `big`: its recorded position, or for a
+/// body measured by its acceleration alone its position integrated from the acceleration
+/// as identification integrates it (`ident::integrate`: band-limited, or exactly over
+/// whole periods); `None` for a body with neither, or where the integration fails.
+fn displacements(ir: &ModelIr, data: &Data, big: usize) -> Vec<Option<Vec<f64>>> {
     let rec = &data.records[big];
-    let col = |node: &str| rec.column(&format!("{node}.x"));
+    let mut out: Vec<Option<Vec<f64>>> = ir
+        .bodies
+        .iter()
+        .map(|b| rec.column(&format!("{}.x", b.name)).map(<[f64]>::to_vec))
+        .collect();
+    if out.iter().all(Option::is_some) {
+        return out;
+    }
+    let Ok(src) = RecordSource::new(rec, ir, data.origins[big].clone()) else {
+        return out;
+    };
+    let chunk = crate::ident::IdentifyOptions::default().chunk_len;
+    let Ok(integrated) = crate::detect::from_data::integrated_levels(ir, &[&src], chunk, true)
+    else {
+        return out;
+    };
+    let Some(motion) = integrated.first() else {
+        return out;
+    };
+    let slots: Vec<(usize, usize)> = (0..ir.bodies.len())
+        .filter(|&b| out[b].is_none() && ir.acceleration_only(BodyId(b as u32)))
+        .map(|b| (b, ir.position(BodyId(b as u32)).index()))
+        .collect();
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); slots.len()];
+    let streamed = motion.stream(chunk, &mut |chunk_cols, len| {
+        for (c, &(_, slot)) in cols.iter_mut().zip(&slots) {
+            if let Some(x) = chunk_cols.get(slot) {
+                c.extend_from_slice(&x[..len.min(x.len())]);
+            }
+        }
+    });
+    if streamed.is_ok() {
+        for (c, (b, _)) in cols.into_iter().zip(slots) {
+            out[b] = (c.len() == rec.len()).then_some(c);
+        }
+    }
+    out
+}
+
+/// The standard deviation of the relative displacement `s` at `loc` among `disp` (the
+/// bodies' displacements on one level; the backlash grid's gaps are multiples of it); 0
+/// where a node's displacement is neither recorded nor integrated.
+fn sigma_s(ir: &ModelIr, disp: &[Option<Vec<f64>>], loc: &Location) -> f64 {
+    let col = |node: &str| {
+        let b = ir.bodies.iter().position(|b| b.name == node)?;
+        disp[b].as_deref()
+    };
     let s: Vec<f64> = match (loc.a.as_str(), col(&loc.a), col(&loc.b)) {
         ("ground", _, Some(xb)) => xb.to_vec(),
         (_, Some(xa), Some(xb)) => xb.iter().zip(xa).map(|(b, a)| b - a).collect(),

@@ -72,6 +72,15 @@ pub fn diagnose(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Diagnosis, DiagnoseError> {
     let ir = model;
+    // On records of accelerations, the rows `identify` chooses for them (each weighted by
+    // its own estimated error, iterated): with the rows at unit norm the bodies without a
+    // force shrink together, and the five-body structure's re-identified model, so shrunk,
+    // diverged in its free runs (docs/diagnosis.md, "Accelerations").
+    let chosen = crate::ident::accel_rows(ir, &opts.ident).map(|ident| DiagnoseOptions {
+        ident,
+        ..opts.clone()
+    });
+    let opts = chosen.as_ref().unwrap_or(opts);
     let (response, origins) = levels::prepare(ir, levels, origins)?;
     let data = Data {
         records: levels,
@@ -79,6 +88,13 @@ pub fn diagnose(
         response,
     };
     let mut notes: Vec<String> = Vec::new();
+    if chosen.is_some() {
+        notes.push(
+            "rows: every fit weights each row by its own estimated error (iterated), chosen \
+             for this record of measured accelerations, as `dynid identify` does"
+                .into(),
+        );
+    }
     // Before: the model as given.
     let base = baseline::examine(ir, &data, opts, &mut notes)?;
     // Which effect: the greedy search from the re-identified model.
