@@ -2,7 +2,9 @@
 
 use super::effects::Effect;
 use super::format::{fmt_gap, fmt_num, fmt_opt_gap, fmt_si, shrink};
-use super::types::{Diagnosis, FoundEffect, ModelGap, MovedParam, SignalGap, Verdict};
+use super::types::{
+    CandidateScore, Diagnosis, FoundEffect, ModelGap, MovedParam, SignalGap, Verdict,
+};
 
 /// A shrink as "N % `word`" (e.g. "N % smaller"), "N % larger" when the gap grew, "N×
 /// larger" when it more than doubled (a percentage of a gap near zero says nothing), or
@@ -172,10 +174,29 @@ impl Diagnosis {
             Verdict::Unexplained => {
                 let _ = writeln!(
                     s,
-                    "No significant unmodelled effect from the library explains the remaining gap of {} (re-identified; pathwise {}).",
+                    "No significant unmodelled effect from the library explains the remaining gap (nominal {}, re-identified {}; pathwise {} and {}).",
+                    fmt_gap(self.nominal.gap),
                     fmt_gap(self.reidentified.gap),
+                    fmt_gap(self.nominal.pathwise),
                     fmt_gap(self.reidentified.pathwise)
                 );
+                // What came nearest: a location the covariance rows point at, whose free
+                // runs did not shrink the gap enough, is worth knowing.
+                let nearest: Vec<_> = self
+                    .ranking
+                    .iter()
+                    .filter(|c| c.value.is_finite())
+                    .take(3)
+                    .collect();
+                if !nearest.is_empty() {
+                    let _ = writeln!(
+                        s,
+                        "Nearest candidates (by the cross-validated covariance residual):"
+                    );
+                    for c in nearest {
+                        let _ = writeln!(s, "  {}", candidate_line(c));
+                    }
+                }
             }
         }
         for n in &self.notes {
@@ -382,25 +403,7 @@ impl Diagnosis {
         if !self.residual_ranking.is_empty() {
             let _ = writeln!(s, "On top of that, below the acceptance threshold:");
             for c in self.residual_ranking.iter().take(4) {
-                let gap = c
-                    .gap
-                    .map_or(String::new(), |g| format!(", withheld gap {}", fmt_gap(g)));
-                let val = if c.value.is_finite() {
-                    format!("{} ± {}", fmt_num(c.value), fmt_num(c.stderr))
-                } else {
-                    "–".into()
-                };
-                let _ = writeln!(
-                    s,
-                    "  {} at {}: {val}{gap} ({})",
-                    c.effect.name(),
-                    c.location.label(),
-                    if c.note.is_empty() {
-                        "not scored"
-                    } else {
-                        &c.note
-                    }
-                );
+                let _ = writeln!(s, "  {}", candidate_line(c));
             }
         }
     }
@@ -440,6 +443,29 @@ pub(super) fn confidence(t: f64, shrink: f64) -> &'static str {
     } else {
         "low"
     }
+}
+
+/// One candidate as the search left it: effect, location, estimate, withheld gap where it
+/// was scored, and why it was not accepted.
+fn candidate_line(c: &CandidateScore) -> String {
+    let gap = c
+        .gap
+        .map_or(String::new(), |g| format!(", withheld gap {}", fmt_gap(g)));
+    let val = if c.value.is_finite() {
+        format!("{} ± {}", fmt_num(c.value), fmt_num(c.stderr))
+    } else {
+        "–".into()
+    };
+    let why = match (c.note.is_empty(), c.gap.is_some()) {
+        (false, _) => c.note.as_str(),
+        (true, true) => "not accepted",
+        (true, false) => "not scored",
+    };
+    format!(
+        "{} at {}: {val}{gap} ({why})",
+        c.effect.name(),
+        c.location.label()
+    )
 }
 
 #[cfg(test)]
