@@ -480,19 +480,11 @@ fn the_ground_element_drift_is_the_friction_leak() {
         &dir.path().join("data"),
         common::seed(2),
     );
-    let json = dir.path().join("detect.json");
-    let out = common::dynid()
-        .arg("detect")
-        .arg(common::model_path("two_mass_linear_accel.dyn"))
-        .args(&levels)
-        .arg("--json")
-        .arg(&json)
-        .arg("--quiet")
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let (v, _) = common::run_json(
+        "detect",
+        &common::model_path("two_mass_linear_accel.dyn"),
+        &levels,
+    );
     let element = |name: &str| {
         v["detection"]["elements"]
             .as_array()
@@ -544,20 +536,11 @@ fn diagnose_names_a_clearance_between_two_accelerometers() {
         &dir.path().join("data"),
         3,
     );
-    let json = dir.path().join("diagnose.json");
-    let out = common::dynid()
-        .arg("diagnose")
-        .arg(common::model_path("two_mass_linear_accel.dyn"))
-        .args(&levels)
-        .arg("--json")
-        .arg(&json)
-        .arg("--quiet")
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let (v, stdout) = common::run_json(
+        "diagnose",
+        &common::model_path("two_mass_linear_accel.dyn"),
+        &levels,
+    );
     let found = v["found"].as_array().unwrap_or_else(|| panic!("{v}"));
     let backlash = found
         .iter()

@@ -737,23 +737,6 @@ fn joint_from_accelerations() {
     assert!(named.contains("(m2, m3)"), "{named}");
 }
 
-/// `dynid diagnose model levels --json`: the JSON.
-fn diagnosis(model: &std::path::Path, levels: &[std::path::PathBuf]) -> serde_json::Value {
-    let dir = tempfile::tempdir().unwrap();
-    let json = dir.path().join("diagnose.json");
-    let out = common::dynid()
-        .arg("diagnose")
-        .arg(model)
-        .args(levels)
-        .arg("--json")
-        .arg(&json)
-        .arg("--quiet")
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", common::stderr(&out));
-    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
-}
-
 /// Diagnosis of the jointed structure from its accelerations against the linear model over
 /// seeds 1–5 (opt-in, `DYNID_STRUCTURE_LONG=1`; `DYNID_SEEDS=N` for N seeds; about 2 min in
 /// release). What the corrected model can reach is the right model's own gap identified
@@ -787,8 +770,8 @@ fn diagnosis_over_seeds() {
             seed,
             &format!("diagnosis{seed}"),
         );
-        let d = diagnosis(&linear, &levels);
-        let floor = diagnosis(&right, &levels)["gap_reidentified"]
+        let (d, _) = common::run_json("diagnose", &linear, &levels);
+        let floor = common::run_json("diagnose", &right, &levels).0["gap_reidentified"]
             .as_f64()
             .unwrap_or(f64::INFINITY);
         let nominal = d["gap_before"].as_f64().unwrap();

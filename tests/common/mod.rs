@@ -239,6 +239,29 @@ pub fn seed(seed: u64) -> u64 {
     }
 }
 
+/// `dynid COMMAND MODEL LEVELS… --json FILE --quiet`, which must succeed: the JSON it
+/// wrote and its standard output.
+pub fn run_json(
+    command: &str,
+    model: &std::path::Path,
+    levels: &[std::path::PathBuf],
+) -> (serde_json::Value, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join(format!("{command}.json"));
+    let out = dynid()
+        .arg(command)
+        .arg(model)
+        .args(levels)
+        .arg("--json")
+        .arg(&json)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    (v, String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
 /// The coefficient and standard error of an element's verdict from `detect --json` (an
 /// element of `detection.elements`): the estimator's template fit of `effect`.
 pub fn verdict_coefficient(element: &serde_json::Value, effect: &str) -> (f64, f64) {
