@@ -4,18 +4,53 @@
 
 use super::baseline::Baseline;
 use super::force::{self, Channel};
-use super::format::shrink;
+use super::format::{fmt_num, shrink};
 use super::levels::{unit_of, with_values, Data};
 use super::score::level_gap;
 use super::search::{Outcome, Reached};
 use super::types::{
-    CorrectedParam, DiagnoseOptions, Diagnosis, ForceGap, ForceGapValue, ModelGap, Spectrum, Trace,
-    Verdict,
+    CorrectedParam, DiagnoseOptions, Diagnosis, ForceGap, ForceGapValue, FoundEffect, ModelGap,
+    Spectrum, Trace, Verdict,
 };
 use crate::ident::Identification;
 use dynid_ir::ir::ModelIr;
 use dynid_ir::num;
 use rayon::prelude::*;
+
+/// A note for each found effect that the corrected model leaves within `t_min` standard
+/// errors of zero: the greedy search keeps an effect it found first even where the one
+/// found after it takes its part (a cubic stiffness found before the backlash of a
+/// clearance between two accelerometers, −0.045 ± 0.023 once the backlash joined it;
+/// docs/diagnosis.md, "Limits").
+fn left_insignificant(found: &[FoundEffect], t_min: f64) -> Vec<String> {
+    if found.len() < 2 {
+        return Vec::new();
+    }
+    found
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.stderr > 0.0 && f.value.abs() <= t_min * f.stderr)
+        .map(|(k, f)| {
+            let others: Vec<String> = found
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != k)
+                .map(|(_, o)| format!("{} at {}", o.effect.name(), o.location.label()))
+                .collect();
+            format!(
+                "{} at {} is not significant in the corrected model ({} ± {}, |p|/σ = {:.1}) \
+                 once {} is in it: the search found it first, and {} alone may explain its part",
+                f.effect.name(),
+                f.location.label(),
+                fmt_num(f.value),
+                fmt_num(f.stderr),
+                f.value.abs() / f.stderr,
+                others.join(" and "),
+                if others.len() > 1 { "those" } else { "that" }
+            )
+        })
+        .collect()
+}
 
 /// The diagnosis of `ir` on the levels from its `base`line, the search's `outcome` and the
 /// `verdict`.
@@ -26,7 +61,7 @@ pub(super) fn assemble(
     base: Baseline,
     mut outcome: Outcome,
     verdict: Verdict,
-    notes: Vec<String>,
+    mut notes: Vec<String>,
 ) -> Diagnosis {
     let reached = &outcome.reached;
     // Each found effect's value as the corrected model has it (identified on all levels
@@ -37,6 +72,7 @@ pub(super) fn assemble(
             (f.value, f.stderr) = (e.value, e.stderr);
         }
     }
+    notes.extend(left_insignificant(&outcome.found, opts.t_min));
     let found_any = !outcome.found.is_empty();
     let (parameters, fixed_source) = corrected_model(ir, reached);
     let corrected = ModelGap {
