@@ -808,6 +808,18 @@ fn diagnosis_over_seeds() {
         named += usize::from(!found.is_empty());
     }
     println!("joint named on {named}, reachable on {reachable}");
+    if common::seeds_as_documented() && common::seed_count(5) == 5 {
+        figures::check(
+            "docs/diagnosis.md",
+            "diagnose.structure5.named",
+            named as f64,
+        );
+        figures::check(
+            "docs/diagnosis.md",
+            "diagnose.structure5.reachable",
+            reachable as f64,
+        );
+    }
 }
 
 /// The joint's structure driven by a log sine sweep (0.2–10 Hz, four sweeps per 200 s

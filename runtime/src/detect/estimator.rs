@@ -227,8 +227,7 @@ pub(crate) fn refine(
             // the estimator — at the model identified with both, else at the
             // linearisation's coefficients — says which drifts of other elements are its
             // leak.
-            let verdict_pair = pair_of(&det.elements[ti], &builtins);
-            let Some(pair) = verdict_pair else {
+            let Some(pair) = pair_of(&det.elements[ti], &builtins) else {
                 continue;
             };
             let (pair, from_data) = identified_pair(&pooled, (&a, &b), pair);

@@ -506,8 +506,8 @@ pub fn level_fits(
     };
     let tape = Tape::compile(ir, &ir.eval_roots());
     let rows = DetectRows::choose(ir, opts);
-    let (rows, opts) = if rows.weighted() {
-        let diagonal = IdentifyOptions {
+    let opts = if rows.weighted() {
+        IdentifyOptions {
             efficient: true,
             diagonal_weights: true,
             // The two-step estimate, whatever `identify` would do: iterated, the per-level
@@ -516,10 +516,9 @@ pub fn level_fits(
             // docs/detection.md, "Noisy accelerations").
             iterate_weights: false,
             ..opts.clone()
-        };
-        (rows, diagonal)
+        }
     } else {
-        (rows, opts.clone())
+        opts.clone()
     };
     let opts = &opts;
     let moments = measure(ir, &tape, levels, opts)?;

@@ -11,6 +11,7 @@ use super::levels::Data;
 use super::metrics;
 use super::types::{CandidateScore, FoundEffect};
 use crate::data::{LevelSource, RecordSource};
+use crate::record::Record;
 use dynid_ir::ir::{BodyId, ModelIr, SignalKind};
 use dynid_ir::num;
 
@@ -40,7 +41,6 @@ pub(super) fn candidates(
             .iter()
             .any(|f| f.effect.kind() == kind && f.location.a == loc.a && f.location.b == loc.b)
     };
-    let disp = displacements(ir, data, largest_level(data));
     for loc in &locs {
         for eff in [
             Effect::Cubic,
@@ -58,7 +58,7 @@ pub(super) fn candidates(
             }
             cands.push((eff, loc.clone()));
         }
-        let sg = sigma_s(ir, &disp, loc);
+        let sg = sigma_s(ir, &data.displacements, loc);
         if sg > 0.0 && !already("backlash", loc) {
             for f in [0.1, 0.25, 0.5, 1.0] {
                 cands.push((
@@ -95,31 +95,26 @@ fn note_skipped(skipped_velocity: bool, notes: &mut Vec<String>) {
 }
 
 /// The level whose recorded columns have the largest summed standard deviation.
-fn largest_level(data: &Data) -> usize {
-    let n = data.records.len();
-    (0..n)
-        .max_by(|&a, &b| {
-            let sa = data.records[a]
-                .columns
-                .iter()
-                .map(|c| metrics::std_dev(c))
-                .sum::<f64>();
-            let sb = data.records[b]
-                .columns
-                .iter()
-                .map(|c| metrics::std_dev(c))
-                .sum::<f64>();
-            sa.total_cmp(&sb)
-        })
+fn largest_level(records: &[Record]) -> usize {
+    let spread = |r: &Record| r.columns.iter().map(|c| metrics::std_dev(c)).sum::<f64>();
+    (0..records.len())
+        .max_by(|&a, &b| spread(&records[a]).total_cmp(&spread(&records[b])))
         .unwrap_or(0)
 }
 
-/// The displacement of every body of `ir` on level `big`: its recorded position, or for a
-/// body measured by its acceleration alone its position integrated from the acceleration
-/// as identification integrates it (`ident::integrate`: band-limited, or exactly over
-/// whole periods); `None` for a body with neither, or where the integration fails.
-fn displacements(ir: &ModelIr, data: &Data, big: usize) -> Vec<Option<Vec<f64>>> {
-    let rec = &data.records[big];
+/// The displacement of every body of `ir` on the loudest of the levels `records` (named
+/// `origins`): its recorded position, or for a body measured by its acceleration alone its
+/// position integrated from the acceleration as identification integrates it
+/// (`ident::integrate`: band-limited, or exactly over whole periods); `None` for a body
+/// with neither, or where the integration fails. Once per diagnosis ([`Data`]): a search
+/// step adds force elements, never bodies.
+pub(super) fn displacements(
+    ir: &ModelIr,
+    records: &[Record],
+    origins: &[String],
+) -> Vec<Option<Vec<f64>>> {
+    let big = largest_level(records);
+    let rec = &records[big];
     let mut out: Vec<Option<Vec<f64>>> = ir
         .bodies
         .iter()
@@ -128,7 +123,7 @@ fn displacements(ir: &ModelIr, data: &Data, big: usize) -> Vec<Option<Vec<f64>>>
     if out.iter().all(Option::is_some) {
         return out;
     }
-    let Ok(src) = RecordSource::new(rec, ir, data.origins[big].clone()) else {
+    let Ok(src) = RecordSource::new(rec, ir, origins[big].clone()) else {
         return out;
     };
     let chunk = crate::ident::IdentifyOptions::default().chunk_len;

@@ -12,6 +12,9 @@ pub(super) struct Data<'a> {
     pub(super) records: &'a [Record],
     pub(super) origins: &'a [String],
     pub(super) response: Vec<String>,
+    /// The loudest level's displacement of every body, recorded or integrated from its
+    /// acceleration (`candidates::displacements`): the backlash grid's spread.
+    pub(super) displacements: Vec<Option<Vec<f64>>>,
 }
 
 /// Check what a diagnosis needs of the model and the levels (at least 2 levels, a nominal

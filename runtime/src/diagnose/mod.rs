@@ -86,6 +86,7 @@ pub fn diagnose(
         records: levels,
         origins: &origins,
         response,
+        displacements: candidates::displacements(ir, levels, &origins),
     };
     let mut notes: Vec<String> = Vec::new();
     if chosen.is_some() {
